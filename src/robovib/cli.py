@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 from typing import Annotated
 
 import numpy as np
@@ -235,6 +236,216 @@ def gpr_predict(
         )
     if note:
         con.print(f"[yellow]note:[/] {note}")
+
+
+frf_app = typer.Typer(help="FRFs from impact-hammer recordings (thesis §3.2.1).")
+modal_app = typer.Typer(help="Modal parameters from FRFs.")
+app.add_typer(frf_app, name="frf")
+app.add_typer(modal_app, name="modal")
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code=2)
+
+
+@frf_app.command("compute")
+def frf_compute(
+    recording: Annotated[
+        Path, typer.Argument(help="Hammer recording: .csv or .uff/.unv (dataset 58 time records).")
+    ],
+    output: Annotated[Path, typer.Option("-o", "--output", help="FRF file to write: .h5 or .uff.")],
+    direction: Annotated[
+        str | None, typer.Option(help="Excitation/response direction x, y or z (robot base frame).")
+    ] = None,
+    estimator: Annotated[
+        str, typer.Option(help="H1 (noise on the response) or H2 (noise on the force).")
+    ] = "H1",
+    pretrigger_ms: Annotated[
+        float, typer.Option(help="Pre-trigger kept before each hit [ms].")
+    ] = 10.0,
+    force_window_ms: Annotated[
+        float, typer.Option(help="Force window after the trigger [ms]; 0 = none.")
+    ] = 10.0,
+    exp_window_tau_ms: Annotated[
+        float,
+        typer.Option(help="Exponential window time constant [ms] on both channels; 0 = none."),
+    ] = 0.0,
+    f_max_hz: Annotated[
+        float, typer.Option("--fmax", help="Highest frequency kept [Hz] (<= Nyquist).")
+    ] = 200.0,
+    f_min_hz: Annotated[
+        float,
+        typer.Option(
+            "--fmin",
+            help="Lowest frequency kept [Hz] (compliance = accelerance / -w^2 blows up at 0).",
+        ),
+    ] = 2.0,
+    keep_flagged: Annotated[
+        bool, typer.Option(help="Keep hits flagged for double hits or overload (default: reject).")
+    ] = False,
+    json_out: JsonFlag = False,
+) -> None:
+    """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
+    from .frf import impact_frf
+    from .io import read_recording, write_frfs
+
+    if direction is not None and direction not in ("x", "y", "z"):
+        _fail(f"unknown direction {direction!r}; use x, y or z")
+    try:
+        rec = read_recording(recording, direction)
+        result = impact_frf(
+            rec.forces, rec.responses, rec.sample_rate_hz,
+            response_quantity=rec.response_quantity, estimator=estimator,
+            pretrigger_s=pretrigger_ms / 1e3,
+            force_window_s=force_window_ms / 1e3 if force_window_ms > 0 else None,
+            exp_window_tau_s=exp_window_tau_ms / 1e3 if exp_window_tau_ms > 0 else None,
+            reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
+        )  # fmt: skip
+        frf = result.frf.to_compliance(f_min_hz)
+        write_frfs(output, [frf])
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    hits = [
+        {
+            "hit": h.index,
+            "accepted": h.accepted,
+            "peak_force_n": h.peak_force_n,
+            "pulse_width_ms": 1e3 * h.pulse_width_s,
+            "reasons": list(h.reasons),
+        }
+        for h in result.hits
+    ]
+    summary = {
+        "recording": str(recording),
+        "output": str(output),
+        "sample_rate_hz": rec.sample_rate_hz,
+        "response_quantity": rec.response_quantity,
+        "direction": frf.direction,
+        "n_hits": rec.n_hits,
+        "n_averaged": frf.n_averages,
+        "frequency_range_hz": [float(frf.frequency_hz[0]), float(frf.frequency_hz[-1])],
+        "df_hz": frf.df_hz,
+        "mean_coherence": float(np.mean(frf.coherence)),
+        "hits": hits,
+    }
+    if json_out:
+        _emit_json(summary)
+        return
+    con = _console()
+    t = Table(
+        title=f"Hits of {recording.name} ({rec.sample_rate_hz:g} Hz, {rec.response_quantity})"
+    )
+    for col in ("hit", "accepted", "peak force [N]", "pulse [ms]", "flags"):
+        t.add_column(col, justify="right")
+    for h in hits:
+        t.add_row(
+            str(h["hit"]),
+            "yes" if h["accepted"] else "[red]no[/]",
+            f"{h['peak_force_n']:.1f}",
+            f"{h['pulse_width_ms']:.2f}",
+            escape("; ".join(h["reasons"])),
+        )
+    con.print(t)
+    con.print(
+        f"wrote {output}: compliance FRF, {frf.frequency_hz[0]:g}-{frf.frequency_hz[-1]:g} Hz, "
+        f"df = {frf.df_hz:.3g} Hz, {frf.n_averages} hits averaged, mean coherence {summary['mean_coherence']:.3f}"
+    )
+
+
+@modal_app.command("fit")
+def modal_fit(
+    frf_file: Annotated[Path, typer.Argument(help="FRF file (.h5 or .uff).")],
+    band: Annotated[
+        tuple[float, float] | None,
+        typer.Option(help="Fit band LO HI [Hz]; default: around the dominant peak."),
+    ] = None,
+    modes: Annotated[
+        bool, typer.Option("--modes", help="Also identify all modes in the band (LSCF + LSFD).")
+    ] = False,
+    max_order: Annotated[int, typer.Option(help="Highest LSCF model order for --modes.")] = 30,
+    plot: Annotated[
+        Path | None,
+        typer.Option(help="PNG of magnitude, phase and coherence with the fitted curve."),
+    ] = None,
+    json_out: JsonFlag = False,
+) -> None:
+    """Dominant-mode fit (fn, k, c, zeta with standard errors) of every FRF in a file."""
+    from .io import read_frfs
+    from .modal import fit_dominant_mode, fit_modes
+
+    try:
+        frfs = read_frfs(frf_file)
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    results = []
+    for i, frf in enumerate(frfs):
+        try:
+            dom = fit_dominant_mode(frf, band)
+            multi = fit_modes(frf, band, max_order=max_order) if modes else None
+        except (ValueError, RuntimeError) as exc:
+            _fail(f"FRF {i}: {exc}")
+        results.append((frf, dom, multi))
+    if plot is not None:
+        from .modal.plot import plot_frf_fit
+
+        frf, dom, multi = results[0]
+        shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
+        fitted = multi.modes if multi is not None else (dom.parameters,)
+        plot_frf_fit(
+            shown,
+            fitted,
+            plot,
+            residual=0j if multi else dom.residual_compliance,
+            title=f"{frf_file.name}, FRF 0",
+        )
+    docs = []
+    for i, (frf, dom, multi) in enumerate(results):
+        doc = {
+            "index": i,
+            "direction": frf.direction,
+            "pose": frf.pose,
+            "dominant_mode": dom.to_dict(),
+        }
+        if multi is not None:
+            doc["modes"] = [m.to_dict() for m in multi.modes]
+        docs.append(doc)
+    if json_out:
+        _emit_json({"file": str(frf_file), "frfs": docs})
+        return
+    con = _console()
+    t = Table(title=f"Dominant mode of each FRF in {frf_file.name}")
+    for col in ("FRF", "dir", "fn [Hz]", "k [MN/m]", "c [kN·s/m]", "zeta [%]", "band [Hz]"):
+        t.add_column(escape(col), justify="right")
+    for i, (frf, dom, _) in enumerate(results):
+        p, sd = dom.parameters, dom.std
+        t.add_row(
+            str(i), frf.direction or "-",
+            f"{p.natural_frequency_hz:.3f} ± {sd['natural_frequency_hz']:.3f}",
+            f"{p.stiffness_n_per_m / 1e6:.4f} ± {sd['stiffness_n_per_m'] / 1e6:.4f}",
+            f"{p.damping_ns_per_m / 1e3:.3f} ± {sd['damping_ns_per_m'] / 1e3:.3f}",
+            f"{100 * p.damping_ratio:.2f} ± {100 * sd['damping_ratio']:.2f}",
+            f"{dom.band_hz[0]:.1f}-{dom.band_hz[1]:.1f}",
+        )  # fmt: skip
+    con.print(t)
+    for i, (_, _, multi) in enumerate(results):
+        if multi is None:
+            continue
+        t = Table(
+            title=f"FRF {i}: modes in {multi.band_hz[0]:.1f}-{multi.band_hz[1]:.1f} Hz (LSCF + LSFD)"
+        )
+        for col in ("mode", "fn [Hz]", "k [MN/m]", "zeta [%]"):
+            t.add_column(escape(col), justify="right")
+        for j, m in enumerate(multi.modes):
+            t.add_row(
+                str(j + 1),
+                f"{m.natural_frequency_hz:.3f}",
+                f"{m.stiffness_n_per_m / 1e6:.4f}",
+                f"{100 * m.damping_ratio:.2f}",
+            )
+        con.print(t)
+    if plot is not None:
+        con.print(f"wrote {plot}")
 
 
 def main() -> None:

@@ -1,0 +1,151 @@
+"""The labelled frequency response function and conversions between FRF forms (thesis Eq. 3-5)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+
+__all__ = ["FRF", "RESPONSE_TO_QUANTITY", "FRFQuantity", "to_compliance"]
+
+FRFQuantity = Literal["compliance", "mobility", "accelerance"]
+#: FRF form obtained from each kind of response signal over force.
+RESPONSE_TO_QUANTITY: dict[str, FRFQuantity] = {
+    "displacement": "compliance",
+    "velocity": "mobility",
+    "acceleration": "accelerance",
+}
+_DIRECTIONS = ("x", "y", "z")
+_SOURCES = ("EMA", "OMA", "model")
+
+
+def to_compliance(
+    frequency_hz: np.ndarray,
+    values: np.ndarray,
+    quantity: FRFQuantity,
+    min_frequency_hz: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Convert an FRF to compliance (receptance, m/N) and drop bins below ``min_frequency_hz``.
+
+    Accelerance is divided by ``-(2 pi f)^2`` and mobility by ``i 2 pi f``. Both blow up noise
+    toward 0 Hz, hence the explicit low-frequency limit (the returned frequency axis starts at
+    the first bin >= ``min_frequency_hz``; nothing is clipped silently).
+    """
+    if quantity not in ("compliance", "mobility", "accelerance"):
+        raise ValueError(
+            f"unknown FRF quantity {quantity!r}; expected compliance, mobility or accelerance"
+        )
+    f = np.asarray(frequency_hz, float)
+    keep = f >= float(min_frequency_hz)
+    if quantity != "compliance" and not np.all(f[keep] > 0):
+        raise ValueError(
+            "min_frequency_hz must be > 0 to convert mobility or accelerance to compliance"
+        )
+    w = 2 * np.pi * f[keep]
+    v = np.asarray(values)[..., keep]
+    if quantity == "accelerance":
+        v = v / -(w**2)
+    elif quantity == "mobility":
+        v = v / (1j * w)
+    return f[keep], v
+
+
+@dataclass(frozen=True)
+class FRF:
+    """One measured or predicted FRF with its context.
+
+    Attributes
+    ----------
+    frequency_hz
+        (n_f,) frequency axis [Hz].
+    values
+        (n_f,) complex FRF in the unit of ``quantity`` (SI: m/N, m/s/N or m/s²/N).
+    coherence
+        (n_f,) ordinary coherence, or None (e.g. for model FRFs).
+    quantity
+        ``"compliance"`` (receptance), ``"mobility"`` or ``"accelerance"``.
+    direction
+        ``"x"``, ``"y"`` or ``"z"`` (robot base frame) or None.
+    pose
+        Tool-tip pose (X, Y, Z [m], Rx, Ry, Rz [deg]) or None.
+    source
+        ``"EMA"`` (hammer), ``"OMA"`` (operational) or ``"model"``.
+    n_averages
+        Hits or Welch segments averaged.
+    exp_window_tau_s
+        Time constant of the exponential window applied to both channels, if any: fitted
+        damping must be corrected for it (see :func:`robovib.modal.remove_exponential_window_damping`).
+    estimator
+        ``"H1"``, ``"H2"`` or ``"model"``.
+    meta
+        Free-form extra metadata (str -> str/float).
+    """
+
+    frequency_hz: np.ndarray
+    values: np.ndarray
+    coherence: np.ndarray | None = None
+    quantity: FRFQuantity = "compliance"
+    direction: str | None = None
+    pose: tuple[float, ...] | None = None
+    source: str = "EMA"
+    n_averages: int = 1
+    exp_window_tau_s: float | None = None
+    estimator: str = "H1"
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        f = np.asarray(self.frequency_hz, float)
+        v = np.asarray(self.values, complex)
+        if f.ndim != 1 or v.shape != f.shape:
+            raise ValueError(
+                f"frequency_hz {f.shape} and values {v.shape} must be 1-D of equal length"
+            )
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(v))):
+            raise ValueError("FRF frequency axis or values contain NaN or inf")
+        if f.size > 1 and np.any(np.diff(f) <= 0):
+            raise ValueError("frequency_hz must be strictly increasing")
+        if self.coherence is not None and np.shape(self.coherence) != f.shape:
+            raise ValueError("coherence must have the same shape as frequency_hz")
+        if self.quantity not in ("compliance", "mobility", "accelerance"):
+            raise ValueError(f"unknown FRF quantity {self.quantity!r}")
+        if self.direction is not None and self.direction not in _DIRECTIONS:
+            raise ValueError(f"unknown direction {self.direction!r}; expected one of {_DIRECTIONS}")
+        if self.source not in _SOURCES:
+            raise ValueError(f"unknown source {self.source!r}; expected one of {_SOURCES}")
+        if self.pose is not None and len(self.pose) != 6:
+            raise ValueError("pose must be (X, Y, Z [m], Rx, Ry, Rz [deg])")
+        object.__setattr__(self, "frequency_hz", f)
+        object.__setattr__(self, "values", v)
+        if self.coherence is not None:
+            object.__setattr__(self, "coherence", np.asarray(self.coherence, float))
+
+    @property
+    def df_hz(self) -> float:
+        return (
+            float(self.frequency_hz[1] - self.frequency_hz[0])
+            if self.frequency_hz.size > 1
+            else np.nan
+        )
+
+    def to_compliance(self, min_frequency_hz: float = 1.0) -> FRF:
+        """This FRF as compliance [m/N], bins below ``min_frequency_hz`` dropped."""
+        f, v = to_compliance(self.frequency_hz, self.values, self.quantity, min_frequency_hz)
+        keep = self.frequency_hz >= min_frequency_hz
+        coh = None if self.coherence is None else self.coherence[keep]
+        return replace(self, frequency_hz=f, values=v, coherence=coh, quantity="compliance")
+
+    def band(self, f_min_hz: float, f_max_hz: float) -> FRF:
+        """The bins with ``f_min_hz <= f <= f_max_hz``."""
+        if f_min_hz >= f_max_hz:
+            raise ValueError(f"empty band: f_min_hz={f_min_hz} >= f_max_hz={f_max_hz}")
+        keep = (self.frequency_hz >= f_min_hz) & (self.frequency_hz <= f_max_hz)
+        if keep.sum() < 2:
+            raise ValueError(
+                f"band {f_min_hz}-{f_max_hz} Hz holds fewer than 2 bins of this FRF "
+                f"({self.frequency_hz[0]:.3g}-{self.frequency_hz[-1]:.3g} Hz)"
+            )
+        coh = None if self.coherence is None else self.coherence[keep]
+        return replace(
+            self, frequency_hz=self.frequency_hz[keep], values=self.values[keep], coherence=coh
+        )

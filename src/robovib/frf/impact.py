@@ -1,0 +1,228 @@
+"""Impact-hammer testing: hit quality control, windows and the averaged FRF (thesis §3.2.1, §5.2.1).
+
+For each hit (one force and one response record, equally sampled):
+
+1. **Trigger**: the first sample where |force| reaches ``trigger_level`` x its peak; the record
+   is aligned so that ``pretrigger_s`` of signal precede it (the record must hold that much).
+2. **Quality control**, per hit, reported in a :class:`HitReport`:
+   *double hit* — after the main pulse has decayed below the trigger level, the force rises
+   again above ``double_hit_level`` x peak; *overload* — a run of ``clip_run`` or more samples
+   at the channel's extreme value (a clipped ADC), or beyond a given full-scale range;
+   flagged hits are rejected (default) or only reported (``reject=False``).
+3. **Windows**: a *force window* keeps the pulse (``force_window_s`` after the trigger, with a
+   short cosine taper) and zeroes the hammer channel's noise elsewhere; an optional
+   *exponential window* ``exp(-(t - t_trigger) / tau)`` is applied to **both** channels, which
+   leaves the FRF exact but adds ``1/tau`` to every mode's decay rate: the FRF carries
+   ``exp_window_tau_s`` so that fitted damping can be corrected
+   (:func:`robovib.modal.remove_exponential_window_damping`).
+4. **Averaging**: Gxx, Gyy, Gxy of the accepted hits (one rectangular segment per hit, SciPy
+   Welch/CSD) are averaged; H1 or H2 and the coherence follow (Eq. 5).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .core import FRF, RESPONSE_TO_QUANTITY
+from .estimate import SpectralDensities, _frf_from_densities, spectral_densities
+
+__all__ = ["HitReport", "ImpactResult", "check_hit", "impact_frf"]
+
+
+@dataclass(frozen=True)
+class HitReport:
+    """Quality of one hit."""
+
+    index: int
+    trigger_index: int
+    peak_force_n: float
+    pulse_width_s: float
+    accepted: bool
+    reasons: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ImpactResult:
+    frf: FRF
+    hits: tuple[HitReport, ...] = field(default_factory=tuple)
+
+    @property
+    def n_rejected(self) -> int:
+        return sum(not h.accepted for h in self.hits)
+
+
+def _clipped(x: np.ndarray, run: int, full_scale: float | None) -> bool:
+    if full_scale is not None and np.max(np.abs(x)) >= 0.999 * full_scale:
+        return True
+    for extreme in (x.max(), x.min()):
+        if extreme == 0:
+            continue
+        at = np.isclose(x, extreme, rtol=1e-9, atol=0.0)
+        if at.sum() < run:
+            continue
+        # Longest run of consecutive samples at the extreme value.
+        edges = np.diff(np.concatenate([[0], at.astype(np.int8), [0]]))
+        longest = np.max(np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1))
+        if longest >= run:
+            return True
+    return False
+
+
+def check_hit(
+    force,
+    response,
+    sample_rate_hz: float,
+    *,
+    index: int = 0,
+    trigger_level: float = 0.05,
+    double_hit_level: float = 0.1,
+    pretrigger_s: float = 0.0,
+    clip_run: int = 3,
+    force_full_scale: float | None = None,
+    response_full_scale: float | None = None,
+) -> HitReport:
+    """Trigger, pulse width, double-hit and overload checks of one hit (see module docs)."""
+    force = np.asarray(force, float)
+    response = np.asarray(response, float)
+    if force.ndim != 1 or force.shape != response.shape:
+        raise ValueError(
+            f"hit {index}: force and response must be 1-D of equal length, got {force.shape} and {response.shape}"
+        )
+    if not (np.all(np.isfinite(force)) and np.all(np.isfinite(response))):
+        raise ValueError(f"hit {index}: force or response contains NaN or inf")
+    peak = float(np.max(np.abs(force)))
+    if peak == 0:
+        raise ValueError(f"hit {index}: the force signal is identically zero (no impact recorded)")
+    above = np.abs(force) >= trigger_level * peak
+    trigger = int(np.argmax(above))
+    reasons = []
+    if trigger < round(pretrigger_s * sample_rate_hz):
+        reasons.append(
+            f"trigger at {trigger / sample_rate_hz:.4g} s leaves less than the {pretrigger_s:g} s pre-trigger"
+        )
+    # End of the main pulse: first sample after the peak that falls below the trigger level.
+    i_peak = int(np.argmax(np.abs(force)))
+    below = np.flatnonzero(~above[i_peak:])
+    end = i_peak + (int(below[0]) if below.size else force.size - i_peak)
+    width = (end - trigger) / sample_rate_hz
+    if end < force.size and np.max(np.abs(force[end:])) >= double_hit_level * peak:
+        t2 = (end + int(np.argmax(np.abs(force[end:]) >= double_hit_level * peak))) / sample_rate_hz
+        reasons.append(f"double hit: second force pulse at {t2:.4g} s")
+    if _clipped(force, clip_run, force_full_scale):
+        reasons.append("force channel overload (clipped samples)")
+    if _clipped(response, clip_run, response_full_scale):
+        reasons.append("response channel overload (clipped samples)")
+    return HitReport(index, trigger, peak, width, not reasons, tuple(reasons))
+
+
+def _force_window(n: int, start: int, stop: int, taper: int) -> np.ndarray:
+    w = np.zeros(n)
+    w[max(start, 0) : min(stop, n)] = 1.0
+    if taper > 0:
+        ramp = 0.5 * (1 + np.cos(np.linspace(0, np.pi, taper)))
+        seg = w[stop : stop + taper]
+        w[stop : stop + taper] = ramp[: seg.size]
+    return w
+
+
+def impact_frf(
+    forces,
+    responses,
+    sample_rate_hz: float,
+    *,
+    response_quantity: str = "acceleration",
+    estimator: str = "H1",
+    pretrigger_s: float = 0.01,
+    force_window_s: float | None = 0.01,
+    exp_window_tau_s: float | None = None,
+    trigger_level: float = 0.05,
+    double_hit_level: float = 0.1,
+    clip_run: int = 3,
+    force_full_scale: float | None = None,
+    response_full_scale: float | None = None,
+    reject: bool = True,
+    f_max_hz: float | None = None,
+    direction: str | None = None,
+    pose: tuple[float, ...] | None = None,
+) -> ImpactResult:
+    """Averaged FRF of several hammer hits with per-hit quality control.
+
+    Parameters
+    ----------
+    forces, responses
+        (n_hits, n_samples) arrays (or a single 1-D hit), force [N] and response in SI units.
+    sample_rate_hz
+        Common sample rate of both channels.
+    response_quantity
+        ``"acceleration"`` (accelerometer), ``"velocity"`` or ``"displacement"``.
+    pretrigger_s
+        Signal kept before the trigger; each hit is aligned to trigger at this time.
+    force_window_s
+        Length of the force window after the trigger (None: no force window).
+    exp_window_tau_s
+        Time constant of the exponential window on both channels (None: no window). The
+        added damping is recorded on the FRF, to be removed from fitted modes.
+    reject
+        Drop flagged hits (default) or keep them and only report.
+    f_max_hz
+        Highest frequency kept (must not exceed Nyquist).
+    """
+    forces = np.atleast_2d(np.asarray(forces, float))
+    responses = np.atleast_2d(np.asarray(responses, float))
+    if forces.shape != responses.shape or forces.ndim != 2:
+        raise ValueError(
+            f"forces and responses must be (n_hits, n_samples) of equal shape, got {forces.shape} and {responses.shape}"
+        )
+    if response_quantity not in RESPONSE_TO_QUANTITY:
+        raise ValueError(
+            f"unknown response quantity {response_quantity!r}; expected one of {list(RESPONSE_TO_QUANTITY)}"
+        )
+    fs = float(sample_rate_hz)
+    if not np.isfinite(fs) or fs <= 0:
+        raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz!r}")
+    n_hits, n = forces.shape
+    pre = round(pretrigger_s * fs)
+    reports, aligned = [], []
+    for i in range(n_hits):
+        rep = check_hit(
+            forces[i], responses[i], fs, index=i, trigger_level=trigger_level,
+            double_hit_level=double_hit_level, pretrigger_s=pretrigger_s, clip_run=clip_run,
+            force_full_scale=force_full_scale, response_full_scale=response_full_scale,
+        )  # fmt: skip
+        reports.append(rep)
+        if rep.accepted or not reject:
+            shift = rep.trigger_index - pre
+            f_al = np.zeros(n)
+            r_al = np.zeros(n)
+            src = slice(max(shift, 0), n)
+            dst = slice(max(-shift, 0), max(-shift, 0) + (n - max(shift, 0)))
+            f_al[dst], r_al[dst] = forces[i][src], responses[i][src]
+            aligned.append((f_al, r_al))
+    if not aligned:
+        detail = "; ".join(f"hit {r.index}: {', '.join(r.reasons)}" for r in reports)
+        raise ValueError(f"all {n_hits} hits were rejected ({detail})")
+    t = np.arange(n) / fs - pretrigger_s
+    w_force = np.ones(n)
+    if force_window_s is not None:
+        taper = max(1, round(0.1 * force_window_s * fs))
+        w_force = _force_window(n, 0, pre + round(force_window_s * fs), taper)
+    # A pure exponential over the whole record (also before the trigger) keeps
+    # w(t) y(t) = ((w h) * (w f))(t) exact, so only the decay rates change.
+    w_exp = np.ones(n) if exp_window_tau_s is None else np.exp(-t / exp_window_tau_s)
+    gxx = gyy = gxy = 0.0
+    freq = None
+    for f_al, r_al in aligned:
+        sd = spectral_densities(
+            f_al * w_force * w_exp, r_al * w_exp, fs, nperseg=n, window="boxcar"
+        )
+        freq = sd.frequency_hz
+        gxx, gyy, gxy = gxx + sd.gxx, gyy + sd.gyy, gxy + sd.gxy
+    k = len(aligned)
+    averaged = SpectralDensities(freq, gxx / k, gyy / k, gxy / k, k)
+    frf = _frf_from_densities(
+        averaged, fs, response_quantity, estimator, f_max_hz, direction, pose, "EMA",
+        exp_window_tau_s=exp_window_tau_s,
+    )  # fmt: skip
+    return ImpactResult(frf, tuple(reports))

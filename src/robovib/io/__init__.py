@@ -1,0 +1,37 @@
+"""File formats: hammer recordings (CSV, UFF 58) and FRF collections (HDF5, UFF 58).
+
+Units and sensor sensitivities are converted to SI here, at the edge.
+"""
+
+from .frf_files import (
+    read_frfs,
+    read_frfs_hdf5,
+    read_frfs_uff,
+    write_frfs,
+    write_frfs_hdf5,
+    write_frfs_uff,
+)
+from .recording import (
+    HammerRecording,
+    read_recording,
+    read_recording_csv,
+    read_recording_uff,
+    write_recording_uff,
+)
+from .units import apply_sensitivity, si_factor
+
+__all__ = [
+    "HammerRecording",
+    "apply_sensitivity",
+    "read_frfs",
+    "read_frfs_hdf5",
+    "read_frfs_uff",
+    "read_recording",
+    "read_recording_csv",
+    "read_recording_uff",
+    "si_factor",
+    "write_frfs",
+    "write_frfs_hdf5",
+    "write_frfs_uff",
+    "write_recording_uff",
+]

@@ -1,0 +1,215 @@
+"""FRF collections on disk: HDF5 (many poses x directions) and UFF dataset 58 (function type 4).
+
+HDF5 layout (h5py), format tag ``robovib-frf`` version 1::
+
+    /                      attrs: format="robovib-frf", version=1
+    /frf/000000/           attrs: quantity, direction, source, estimator, n_averages,
+                                  exp_window_tau_s (NaN if none), pose (6 floats; NaN if none)
+        frequency_hz       (n_f,) float64
+        values             (n_f,) complex128, SI (m/N for compliance)
+        coherence          (n_f,) float64, optional
+
+UFF: one dataset 58 per FRF, function type 4, ordinate = response (8/11/12), denominator =
+force (13), units in the labels (m/N, m/s/N, m/s^2/N); pose is not part of dataset 58 and is
+written into the ID lines as ``pose=x,y,z,rx,ry,rz``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..frf.core import FRF
+
+__all__ = [
+    "read_frfs",
+    "read_frfs_hdf5",
+    "read_frfs_uff",
+    "write_frfs",
+    "write_frfs_hdf5",
+    "write_frfs_uff",
+]
+
+_FORMAT = "robovib-frf"
+_QUANTITY_SPEC = {"compliance": 8, "mobility": 11, "accelerance": 12}
+_SPEC_QUANTITY = {v: k for k, v in _QUANTITY_SPEC.items()}
+_QUANTITY_LABEL = {"compliance": "m/N", "mobility": "m/s/N", "accelerance": "m/s^2/N"}
+_DIR_CODE = {"x": 1, "y": 2, "z": 3}
+
+
+def write_frfs_hdf5(path: str | Path, frfs: Sequence[FRF]) -> None:
+    import h5py
+
+    with h5py.File(path, "w") as h5:
+        h5.attrs["format"] = _FORMAT
+        h5.attrs["version"] = 1
+        grp = h5.create_group("frf")
+        for i, frf in enumerate(frfs):
+            g = grp.create_group(f"{i:06d}")
+            g.create_dataset("frequency_hz", data=frf.frequency_hz)
+            g.create_dataset("values", data=frf.values)
+            if frf.coherence is not None:
+                g.create_dataset("coherence", data=frf.coherence)
+            g.attrs["quantity"] = frf.quantity
+            g.attrs["direction"] = frf.direction or ""
+            g.attrs["source"] = frf.source
+            g.attrs["estimator"] = frf.estimator
+            g.attrs["n_averages"] = int(frf.n_averages)
+            g.attrs["exp_window_tau_s"] = (
+                np.nan if frf.exp_window_tau_s is None else frf.exp_window_tau_s
+            )
+            g.attrs["pose"] = (
+                np.full(6, np.nan) if frf.pose is None else np.asarray(frf.pose, float)
+            )
+
+
+def read_frfs_hdf5(path: str | Path) -> list[FRF]:
+    import h5py
+
+    path = Path(path)
+    try:
+        h5 = h5py.File(path, "r")
+    except OSError as exc:
+        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+    with h5:
+        if h5.attrs.get("format") != _FORMAT:
+            raise ValueError(f"{path}: not a robovib FRF file (missing format tag {_FORMAT!r})")
+        if int(h5.attrs.get("version", -1)) != 1:
+            raise ValueError(
+                f"{path}: unsupported robovib FRF file version {h5.attrs.get('version')}"
+            )
+        out = []
+        for name in sorted(h5["frf"]):
+            g = h5["frf"][name]
+            try:
+                pose = np.asarray(g.attrs["pose"], float)
+                tau = float(g.attrs["exp_window_tau_s"])
+                out.append(
+                    FRF(
+                        frequency_hz=g["frequency_hz"][()],
+                        values=g["values"][()],
+                        coherence=g["coherence"][()] if "coherence" in g else None,
+                        quantity=str(g.attrs["quantity"]),
+                        direction=str(g.attrs["direction"]) or None,
+                        pose=None if np.all(np.isnan(pose)) else tuple(pose.tolist()),
+                        source=str(g.attrs["source"]),
+                        n_averages=int(g.attrs["n_averages"]),
+                        exp_window_tau_s=None if np.isnan(tau) else tau,
+                        estimator=str(g.attrs["estimator"]),
+                    )
+                )
+            except KeyError as exc:
+                raise ValueError(f"{path}: FRF {name} lacks {exc}") from None
+        return out
+
+
+def write_frfs_uff(path: str | Path, frfs: Sequence[FRF]) -> None:
+    import pyuff
+
+    path = Path(path)
+    if path.exists():
+        path.unlink()
+    sets = []
+    for i, frf in enumerate(frfs):
+        df = np.diff(frf.frequency_hz)
+        if frf.frequency_hz.size > 2 and np.ptp(df) > 1e-9 * np.mean(df):
+            raise ValueError(f"FRF {i}: UFF dataset 58 needs an evenly spaced frequency axis")
+        dcode = _DIR_CODE.get(frf.direction or "", 0)
+        pose = "" if frf.pose is None else "pose=" + ",".join(f"{p:.9g}" for p in frf.pose)
+        sets.append(
+            pyuff.prepare_58(
+                binary=0,
+                id1=f"robovib FRF {frf.source} {frf.estimator}",
+                id2=pose or "NONE",
+                id3=f"direction={frf.direction or ''}",
+                id4=f"n_averages={frf.n_averages}",
+                func_type=4,
+                load_case_id=i,
+                rsp_node=1,
+                rsp_dir=dcode,
+                ref_node=1,
+                ref_dir=dcode,
+                abscissa_spec_data_type=18,
+                abscissa_spacing=1,
+                abscissa_axis_units_lab="Hz",
+                ordinate_spec_data_type=_QUANTITY_SPEC[frf.quantity],
+                ordinate_axis_units_lab=_QUANTITY_LABEL[frf.quantity],
+                orddenom_spec_data_type=13,
+                orddenom_axis_units_lab="N",
+                data=frf.values,
+                x=frf.frequency_hz,
+            )
+        )
+    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+
+
+def read_frfs_uff(path: str | Path) -> list[FRF]:
+    """Read every dataset 58 FRF (function type 4) of a UFF file, converting units to SI."""
+    import pyuff
+
+    from .units import si_factor
+
+    path = Path(path)
+    try:
+        sets = pyuff.UFF(str(path)).read_sets()
+    except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
+        raise ValueError(f"{path}: not a readable UFF file ({exc})") from None
+    sets = [sets] if isinstance(sets, dict) else list(sets)
+    out = []
+    for s in sets:
+        if s.get("type") != 58 or s.get("func_type") != 4:
+            continue
+        spec = int(s.get("ordinate_spec_data_type", 0))
+        if spec not in _SPEC_QUANTITY:
+            raise ValueError(f"{path}: FRF with unsupported ordinate specific data type {spec}")
+        quantity = _SPEC_QUANTITY[spec]
+        num_label = str(s.get("ordinate_axis_units_lab", "")).strip()
+        den_label = str(s.get("orddenom_axis_units_lab", "")).strip() or "N"
+        if num_label.endswith("/N"):  # our writer puts the whole FRF unit in the numerator label
+            num_label = num_label[: -len("/N")]
+        _, num = si_factor(
+            num_label,
+            {"compliance": "displacement", "mobility": "velocity", "accelerance": "acceleration"}[
+                quantity
+            ],
+        )
+        _, den = si_factor(den_label, "force")
+        pose = None
+        id2 = str(s.get("id2", ""))
+        if id2.startswith("pose="):
+            pose = tuple(float(p) for p in id2[5:].split(","))
+        code = abs(int(s.get("rsp_dir", 0)))
+        out.append(
+            FRF(
+                frequency_hz=np.asarray(s["x"], float),
+                values=np.asarray(s["data"], complex) * num / den,
+                quantity=quantity,
+                direction={1: "x", 2: "y", 3: "z"}.get(code),
+                pose=pose,
+            )
+        )
+    if not out:
+        raise ValueError(f"{path}: no dataset 58 FRF records (function type 4)")
+    return out
+
+
+def write_frfs(path: str | Path, frfs: Sequence[FRF]) -> None:
+    """Write FRFs by file extension: .h5/.hdf5 or .uff/.unv."""
+    suffix = Path(path).suffix.lower()
+    if suffix in (".h5", ".hdf5"):
+        return write_frfs_hdf5(path, frfs)
+    if suffix in (".uff", ".unv"):
+        return write_frfs_uff(path, frfs)
+    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff or .unv")
+
+
+def read_frfs(path: str | Path) -> list[FRF]:
+    """Read FRFs by file extension: .h5/.hdf5 or .uff/.unv."""
+    suffix = Path(path).suffix.lower()
+    if suffix in (".h5", ".hdf5"):
+        return read_frfs_hdf5(path)
+    if suffix in (".uff", ".unv"):
+        return read_frfs_uff(path)
+    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff or .unv")

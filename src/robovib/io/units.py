@@ -1,0 +1,58 @@
+"""Unit labels of measurement files -> SI factors (conversions happen here, at the edge)."""
+
+from __future__ import annotations
+
+__all__ = ["QUANTITY_OF_UNIT", "si_factor"]
+
+_G = 9.80665
+
+# label -> (quantity, factor to SI)
+_UNITS: dict[str, tuple[str, float]] = {
+    "n": ("force", 1.0),
+    "kn": ("force", 1e3),
+    "lbf": ("force", 4.4482216152605),
+    "m": ("displacement", 1.0),
+    "mm": ("displacement", 1e-3),
+    "um": ("displacement", 1e-6),
+    "µm": ("displacement", 1e-6),
+    "m/s": ("velocity", 1.0),
+    "mm/s": ("velocity", 1e-3),
+    "m/s^2": ("acceleration", 1.0),
+    "m/s2": ("acceleration", 1.0),
+    "m/s²": ("acceleration", 1.0),
+    "mm/s^2": ("acceleration", 1e-3),
+    "g": ("acceleration", _G),
+    "s": ("time", 1.0),
+    "ms": ("time", 1e-3),
+}
+QUANTITY_OF_UNIT = {k: v[0] for k, v in _UNITS.items()}
+
+
+def si_factor(label: str, expected: str | None = None) -> tuple[str, float]:
+    """(quantity, factor) for a unit label such as ``"g"`` or ``"mm/s^2"``.
+
+    Raises ``ValueError`` for unknown labels, or when the quantity differs from ``expected``.
+    Voltage labels (V, mV) need a sensor sensitivity: convert with :func:`apply_sensitivity`.
+    """
+    key = label.strip().lower().replace(" ", "")
+    if key not in _UNITS:
+        raise ValueError(
+            f"unknown unit {label!r}; known: {', '.join(sorted(_UNITS))} "
+            "(voltage channels need a sensitivity, e.g. --force-sensitivity 2.25 mV/N)"
+        )
+    quantity, factor = _UNITS[key]
+    if expected is not None and quantity != expected:
+        raise ValueError(f"unit {label!r} is a {quantity} unit, expected a {expected} unit")
+    return quantity, factor
+
+
+def apply_sensitivity(values, voltage_label: str, sensitivity: float, per_unit: str):
+    """Convert a voltage channel to SI: ``values [V or mV] / sensitivity [mV per per_unit]``."""
+    key = voltage_label.strip().lower()
+    if key not in ("v", "mv"):
+        raise ValueError(f"{voltage_label!r} is not a voltage unit (V or mV)")
+    if not sensitivity or sensitivity <= 0:
+        raise ValueError(f"sensitivity must be positive, got {sensitivity!r}")
+    mv = values * (1e3 if key == "v" else 1.0)
+    quantity, factor = si_factor(per_unit)
+    return quantity, mv / sensitivity * factor

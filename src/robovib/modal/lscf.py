@@ -1,0 +1,284 @@
+"""Multi-mode identification: LSCF poles, stabilization diagram, automatic mode choice, LSFD.
+
+* **LSCF** (least-squares complex frequency domain, Guillaume/Verboven): a common-denominator
+  rational model in the z-domain, ``z = exp(i 2 pi f dt)`` with ``dt = 1 / (2 f_max)``, whose
+  denominator follows from the reduced normal equations ``sum_o (T_o - S_o^T R^-1 S_o) a = 0``
+  (real coefficients, last coefficient fixed to 1). Poles: ``s = ln(z) / dt``.
+* **Stabilization**: LSCF at increasing model orders; a pole is *stable* when the previous
+  order has one within ``df_rel`` in frequency and ``dzeta_rel`` in damping.
+* **Automatic choice**: stable poles are clustered by frequency across orders; a cluster seen at
+  no fewer than ``min_fraction`` of the orders is a physical mode (its median pole is kept).
+  This replaces the interactive picking of GUI tools, so it runs in scripts and CI.
+* **LSFD**: residues of the chosen poles (plus lower and upper residuals) by linear least
+  squares; modal mass ``m = -1 / (2 wd Im(A))`` (real modes), modal stiffness ``k = m wn^2``.
+
+Tested against sdypy-EMA (``tests/test_modal.py``), which implements the same LSCF.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..frf.core import FRF
+from .parameters import ModalParameters, remove_exponential_window_damping
+
+__all__ = [
+    "ModalFitWarning",
+    "MultiModeFit",
+    "StabilizationDiagram",
+    "fit_modes",
+    "lscf_poles",
+    "lsfd_residues",
+    "select_stable_modes",
+    "stabilization_diagram",
+]
+
+
+class ModalFitWarning(UserWarning):
+    """A multi-mode fit produced a questionable mode (e.g. a negative modal mass)."""
+
+
+def _as_frf_matrix(values) -> np.ndarray:
+    h = np.asarray(values, complex)
+    return h[None] if h.ndim == 1 else h
+
+
+def lscf_poles(frequency_hz, values, order: int, f_max_hz: float | None = None) -> np.ndarray:
+    """Continuous-time poles (rad/s) of an LSCF model of ``order`` (all roots, unfiltered).
+
+    ``values`` is (n_f,) or (n_outputs, n_f): one or several FRFs sharing the denominator.
+    """
+    f = np.asarray(frequency_hz, float)
+    h = _as_frf_matrix(values)
+    h = h / np.max(np.abs(h))  # conditioning only; poles are scale-free
+    f_max = float(f[-1] if f_max_hz is None else f_max_hz)
+    dt = 1.0 / (2.0 * f_max)
+    z = np.exp(1j * 2 * np.pi * f * dt)
+    basis = z[:, None] ** np.arange(order + 1)[None, :]  # (n_f, n+1)
+    r = np.real(basis.conj().T @ basis)
+    m = np.zeros((order + 1, order + 1))
+    r_inv = np.linalg.pinv(r)
+    for h_o in h:
+        y = -h_o[:, None] * basis
+        s = np.real(basis.conj().T @ y)
+        t = np.real(y.conj().T @ y)
+        m += t - s.T @ r_inv @ s
+    a = np.linalg.lstsq(m[:order, :order], -m[:order, order], rcond=None)[0]
+    coeffs = np.concatenate([a, [1.0]])
+    roots = np.roots(coeffs[::-1])
+    roots = roots[np.abs(roots) > 0]
+    return np.log(roots) / dt
+
+
+def _physical(poles: np.ndarray, f_lo: float, f_hi: float, max_zeta: float):
+    poles = poles[np.imag(poles) > 0]
+    wn = np.abs(poles)
+    fn = wn / (2 * np.pi)
+    zeta = -np.real(poles) / wn
+    keep = (fn >= f_lo) & (fn <= f_hi) & (zeta > 0) & (zeta < max_zeta)
+    order = np.argsort(fn[keep])
+    return fn[keep][order], zeta[keep][order]
+
+
+@dataclass(frozen=True)
+class StabilizationDiagram:
+    """Poles per model order: ``fn[i]``, ``zeta[i]``, ``stable[i]`` for ``orders[i]``."""
+
+    orders: tuple[int, ...]
+    fn: tuple[np.ndarray, ...]
+    zeta: tuple[np.ndarray, ...]
+    stable: tuple[np.ndarray, ...]
+
+    def plot(self, ax=None, frf: FRF | None = None):
+        """Stabilization diagram (orders vs frequency), optionally over |FRF| (matplotlib)."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(8, 4))
+        for n, fn, st in zip(self.orders, self.fn, self.stable, strict=True):
+            ax.plot(fn[~st], np.full((~st).sum(), n), "x", color="0.6", ms=4)
+            ax.plot(fn[st], np.full(st.sum(), n), "o", color="C0", ms=4, mfc="none")
+        ax.set_xlabel("frequency [Hz]")
+        ax.set_ylabel("model order")
+        if frf is not None:
+            ax2 = ax.twinx()
+            ax2.semilogy(frf.frequency_hz, np.abs(frf.values), color="C3", lw=1)
+            ax2.set_ylabel("|H|")
+        return ax
+
+
+def stabilization_diagram(
+    frequency_hz,
+    values,
+    max_order: int = 40,
+    *,
+    min_order: int = 2,
+    df_rel: float = 0.01,
+    dzeta_rel: float = 0.05,
+    max_zeta: float = 0.5,
+) -> StabilizationDiagram:
+    """LSCF poles for orders ``min_order..max_order`` with stability flags."""
+    f = np.asarray(frequency_hz, float)
+    orders, fns, zetas, stables = [], [], [], []
+    prev_fn = prev_zeta = None
+    for n in range(int(min_order), int(max_order) + 1):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            fn, zeta = _physical(lscf_poles(f, values, n), f[0], f[-1], max_zeta)
+        stable = np.zeros(fn.size, bool)
+        if prev_fn is not None and prev_fn.size:
+            for i in range(fn.size):
+                j = np.argmin(np.abs(prev_fn - fn[i]))
+                stable[i] = (
+                    abs(prev_fn[j] - fn[i]) <= df_rel * fn[i]
+                    and abs(prev_zeta[j] - zeta[i]) <= dzeta_rel * zeta[i]
+                )
+        orders.append(n)
+        fns.append(fn)
+        zetas.append(zeta)
+        stables.append(stable)
+        prev_fn, prev_zeta = fn, zeta
+    return StabilizationDiagram(tuple(orders), tuple(fns), tuple(zetas), tuple(stables))
+
+
+def select_stable_modes(
+    diagram: StabilizationDiagram, min_fraction: float = 0.3, df_rel: float = 0.01
+):
+    """Automatic choice of physical modes: (fn, zeta) arrays of frequency clusters of stable poles."""
+    pts = [
+        (fn[i], z[i], n)
+        for n, fn, z, st in zip(
+            diagram.orders, diagram.fn, diagram.zeta, diagram.stable, strict=True
+        )
+        for i in np.flatnonzero(st)
+    ]
+    if not pts:
+        return np.array([]), np.array([])
+    pts.sort()
+    clusters, current = [], [pts[0]]
+    for p in pts[1:]:
+        if p[0] - current[-1][0] <= df_rel * p[0]:
+            current.append(p)
+        else:
+            clusters.append(current)
+            current = [p]
+    clusters.append(current)
+    n_orders = len(diagram.orders)
+    fns, zetas = [], []
+    for c in clusters:
+        orders_seen = {p[2] for p in c}
+        if len(orders_seen) >= min_fraction * n_orders:
+            top = sorted(c, key=lambda p: p[2])[len(c) // 2 :]
+            fns.append(float(np.median([p[0] for p in top])))
+            zetas.append(float(np.median([p[1] for p in top])))
+    return np.array(fns), np.array(zetas)
+
+
+def lsfd_residues(
+    frequency_hz, values, poles, *, lower_residual: bool = True, upper_residual: bool = True
+):
+    """Residues A (n_outputs, n_modes) of ``H = sum A/(iw - p) + conj(A)/(iw - conj p) + UR + LR/(iw)^2``.
+
+    Returns ``(A, UR, LR)``; UR, LR are (n_outputs,) complex (zero where not fitted).
+    """
+    f = np.asarray(frequency_hz, float)
+    h = _as_frf_matrix(values)
+    s = 1j * 2 * np.pi * f
+    poles = np.asarray(poles, complex)
+    cols = []
+    for p in poles:
+        cols.append(1 / (s - p) + 1 / (s - np.conj(p)))  # coefficient of Re A
+        cols.append(1j / (s - p) - 1j / (s - np.conj(p)))  # coefficient of Im A
+    if upper_residual:
+        cols += [np.ones_like(s), 1j * np.ones_like(s)]
+    if lower_residual:
+        cols += [1 / s**2, 1j / s**2]
+    basis = np.column_stack(cols)
+    a_real = np.vstack([basis.real, basis.imag])
+    residues = np.zeros((h.shape[0], poles.size), complex)
+    ur = np.zeros(h.shape[0], complex)
+    lr = np.zeros(h.shape[0], complex)
+    for o, h_o in enumerate(h):
+        scale = np.max(np.abs(h_o))
+        b = np.concatenate([h_o.real, h_o.imag]) / scale
+        x = np.linalg.lstsq(a_real, b, rcond=None)[0] * scale
+        residues[o] = x[0 : 2 * poles.size : 2] + 1j * x[1 : 2 * poles.size : 2]
+        k = 2 * poles.size
+        if upper_residual:
+            ur[o] = x[k] + 1j * x[k + 1]
+            k += 2
+        if lower_residual:
+            lr[o] = x[k] + 1j * x[k + 1]
+    return residues, ur, lr
+
+
+@dataclass(frozen=True)
+class MultiModeFit:
+    modes: tuple[ModalParameters, ...]
+    residues: np.ndarray  #: (n_modes,) complex LSFD residues
+    diagram: StabilizationDiagram
+    band_hz: tuple[float, float]
+    relative_rms_error: float
+
+    def reconstruct(self, frequency_hz) -> np.ndarray:
+        """Compliance of the fitted modes alone (no residual terms)."""
+        return sum(m.compliance(frequency_hz) for m in self.modes)
+
+
+def fit_modes(
+    frf: FRF,
+    band_hz: tuple[float, float] | None = None,
+    *,
+    max_order: int = 30,
+    min_fraction: float = 0.3,
+    min_frequency_hz: float = 1.0,
+    correct_exp_window: bool = True,
+) -> MultiModeFit:
+    """Identify all physical modes of a driving-point FRF in a band (LSCF + LSFD).
+
+    Returns the modes as :class:`ModalParameters` (fn, modal stiffness, zeta), sorted by
+    frequency. A mode with a negative modal mass (not a driving-point mode) is reported with a
+    :class:`ModalFitWarning` and left out.
+    """
+    h = frf.to_compliance(min_frequency_hz)
+    if band_hz is not None:
+        h = h.band(*band_hz)
+    f, v = h.frequency_hz, h.values
+    diagram = stabilization_diagram(f, v, max_order)
+    fns, zetas = select_stable_modes(diagram, min_fraction)
+    if fns.size == 0:
+        raise ValueError("no stable mode found in the band; widen it or raise max_order")
+    wn = 2 * np.pi * fns
+    poles = -zetas * wn + 1j * wn * np.sqrt(1 - zetas**2)
+    residues, ur, lr = lsfd_residues(f, v, poles)
+    modes, kept = [], []
+    for r, (fn, zeta, p) in enumerate(zip(fns, zetas, poles, strict=True)):
+        wd = p.imag
+        a = residues[0, r]
+        if a.imag >= 0:
+            warnings.warn(
+                f"mode at {fn:.3g} Hz has a non-positive modal mass; left out",
+                ModalFitWarning,
+                stacklevel=2,
+            )
+            continue
+        mass = -1.0 / (2 * wd * a.imag)
+        mode = ModalParameters(float(fn), float(mass * wn[r] ** 2), float(zeta))
+        if correct_exp_window and frf.exp_window_tau_s is not None:
+            mode = remove_exponential_window_damping(mode, frf.exp_window_tau_s)
+        modes.append(mode)
+        kept.append(a)
+    s = 1j * 2 * np.pi * f
+    synth = (
+        sum(
+            a / (s - p) + np.conj(a) / (s - np.conj(p))
+            for a, p in zip(residues[0], poles, strict=True)
+        )
+        + ur[0]
+        + lr[0] / s**2
+    )
+    rel = float(np.sqrt(np.mean(np.abs(synth - v) ** 2)) / np.max(np.abs(v)))
+    return MultiModeFit(tuple(modes), np.array(kept), diagram, (float(f[0]), float(f[-1])), rel)

@@ -1,0 +1,58 @@
+"""Figures of FRFs and fitted modes (matplotlib imported on use)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..frf.core import FRF
+from .parameters import ModalParameters
+
+__all__ = ["plot_frf_fit"]
+
+
+def plot_frf_fit(
+    frf: FRF,
+    fitted: Sequence[ModalParameters] = (),
+    path: str | Path | None = None,
+    residual: complex = 0j,
+    title: str | None = None,
+):
+    """Magnitude, phase and coherence of a compliance FRF with the fitted modes' curve."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise ImportError("plots need matplotlib: pip install 'robovib[plot]'") from None
+
+    if path is not None:
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n_rows = 3 if frf.coherence is not None else 2
+    fig, axes = plt.subplots(n_rows, 1, sharex=True, figsize=(7, 2.2 * n_rows + 0.6))
+    f = frf.frequency_hz
+    axes[0].semilogy(
+        f, np.abs(frf.values), color="C0", label=f"measured ({frf.source} {frf.estimator})"
+    )
+    axes[1].plot(f, np.degrees(np.angle(frf.values)), color="C0")
+    if fitted:
+        model = sum(m.compliance(f) for m in fitted) + residual
+        axes[0].semilogy(f, np.abs(model), "--", color="C3", label="fit")
+        axes[1].plot(f, np.degrees(np.angle(model)), "--", color="C3")
+    axes[0].set_ylabel("|H| [m/N]")
+    axes[1].set_ylabel("phase [deg]")
+    axes[0].legend(loc="best", fontsize=8)
+    if frf.coherence is not None:
+        axes[2].plot(f, frf.coherence, color="C2")
+        axes[2].set_ylim(0, 1.05)
+        axes[2].set_ylabel("coherence")
+    axes[-1].set_xlabel("frequency [Hz]")
+    if title:
+        axes[0].set_title(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+    return fig

@@ -1,0 +1,164 @@
+"""File formats: UFF 58 (pyuff), CSV and HDF5, round trips and independently written files."""
+
+import json
+
+import numpy as np
+import pytest
+from synthetic import hammer_hits
+from typer.testing import CliRunner
+
+from robovib.cli import app
+from robovib.frf import FRF
+from robovib.io import (
+    HammerRecording,
+    read_frfs,
+    read_recording,
+    read_recording_csv,
+    si_factor,
+    write_frfs,
+    write_recording_uff,
+)
+
+MODE = (18.0, 1.5e6, 0.04)
+pyuff = pytest.importorskip("pyuff")
+
+
+@pytest.fixture
+def recording():
+    forces, responses = hammer_hits([MODE], n_hits=3, duration_s=4.0)
+    return HammerRecording(forces, responses, 2048.0, "acceleration", "y")
+
+
+def test_recording_uff_round_trip(tmp_path, recording):
+    path = tmp_path / "hits.uff"
+    write_recording_uff(path, recording)
+    back = read_recording(path)
+    assert back.n_hits == 3 and back.direction == "y"
+    assert back.sample_rate_hz == pytest.approx(2048.0, rel=1e-5)  # UFF ASCII: 6-digit increment
+    np.testing.assert_allclose(back.forces, recording.forces, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(back.responses, recording.responses, rtol=1e-6, atol=1e-12)
+
+
+def test_reads_uff_written_by_pyuff_with_other_units(tmp_path):
+    """A file prepared with pyuff directly (accelerations in g, force in kN) is converted to SI."""
+    fs, n = 1000.0, 512
+    x = np.arange(n) / fs
+    force_kn = np.exp(-(((x - 0.05) / 0.001) ** 2))
+    acc_g = np.sin(2 * np.pi * 20 * x) * np.exp(-x)
+    sets = [
+        pyuff.prepare_58(binary=0, func_type=1, load_case_id=7, rsp_node=3, rsp_dir=3, ref_node=3, ref_dir=3,
+                         ordinate_spec_data_type=13, ordinate_axis_units_lab="kN", orddenom_spec_data_type=0, data=force_kn, x=x),
+        pyuff.prepare_58(binary=0, func_type=1, load_case_id=7, rsp_node=3, rsp_dir=3, ref_node=3, ref_dir=3,
+                         ordinate_spec_data_type=12, ordinate_axis_units_lab="g", orddenom_spec_data_type=0, data=acc_g, x=x),
+    ]  # fmt: skip
+    path = tmp_path / "ext.uff"
+    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+    rec = read_recording(path)
+    assert rec.direction == "z" and rec.response_quantity == "acceleration"
+    np.testing.assert_allclose(rec.forces[0], force_kn * 1e3, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(rec.responses[0], acc_g * 9.80665, rtol=1e-6, atol=1e-9)
+
+
+def test_uff_mismatched_sampling_rates_rejected(tmp_path):
+    x1, x2 = np.arange(100) / 1000.0, np.arange(100) / 2000.0
+    sets = [
+        pyuff.prepare_58(binary=0, func_type=1, load_case_id=0, rsp_node=1, rsp_dir=1, ref_node=1, ref_dir=1,
+                         ordinate_spec_data_type=13, ordinate_axis_units_lab="N", orddenom_spec_data_type=0, data=np.ones(100), x=x1),
+        pyuff.prepare_58(binary=0, func_type=1, load_case_id=0, rsp_node=1, rsp_dir=1, ref_node=1, ref_dir=1,
+                         ordinate_spec_data_type=12, ordinate_axis_units_lab="m/s^2", orddenom_spec_data_type=0, data=np.ones(100), x=x2),
+    ]  # fmt: skip
+    path = tmp_path / "bad.uff"
+    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+    with pytest.raises(ValueError, match="mismatched sampling rates"):
+        read_recording(path)
+
+
+def test_corrupt_files_rejected(tmp_path):
+    bad = tmp_path / "junk.uff"
+    bad.write_text("    -1\n    58\nthis is not a dataset\n")
+    with pytest.raises(ValueError, match=r"UFF|dataset 58"):
+        read_recording(bad)
+    h5 = tmp_path / "junk.h5"
+    h5.write_bytes(b"not hdf5 at all")
+    with pytest.raises(ValueError, match="HDF5"):
+        read_frfs(h5)
+    with pytest.raises(ValueError, match="unknown FRF file format"):
+        read_frfs(tmp_path / "a.mat")
+
+
+def test_csv_recording(tmp_path):
+    fs = 1000.0
+    t = np.arange(200) / fs
+    lines = ["hit,time_ms,force_n,acceleration_g"]
+    for hit in (0, 1):
+        lines += [f"{hit},{ti * 1e3},{np.sin(ti)},{np.cos(ti)}" for ti in t]
+    path = tmp_path / "rec.csv"
+    path.write_text("\n".join(lines))
+    rec = read_recording_csv(path, "x")
+    assert rec.n_hits == 2 and rec.sample_rate_hz == pytest.approx(fs)
+    np.testing.assert_allclose(rec.responses[1], np.cos(t) * 9.80665, rtol=1e-9)
+    path.write_text("time_s,force_n,acceleration_furlongs\n0,1,1\n0.001,1,1\n")
+    with pytest.raises(ValueError, match="unknown unit"):
+        read_recording_csv(path)
+    path.write_text("time_s,force_n,acceleration_g\n0,1,1\n0.001,1,1\n0.0035,1,1\n")
+    with pytest.raises(ValueError, match="not uniformly sampled"):
+        read_recording_csv(path)
+    path.write_text("time_s,force_n,acceleration_g\n0,1,nan\n0.001,1,1\n")
+    with pytest.raises(ValueError, match="NaN"):
+        read_recording_csv(path)
+
+
+def test_units():
+    assert si_factor("mm/s^2") == ("acceleration", 1e-3)
+    with pytest.raises(ValueError, match="is a force unit"):
+        si_factor("N", "acceleration")
+    with pytest.raises(ValueError, match="unknown unit"):
+        si_factor("mV")
+
+
+def test_frf_collection_round_trip(tmp_path):
+    f = np.arange(1.0, 60.0, 0.25)
+    frfs = [
+        FRF(
+            f,
+            1e-6 / (1 + 1j * f),
+            coherence=np.full(f.size, 0.95),
+            direction="x",
+            pose=(2.4, 0.0, 0.325, 0, 0, 45),
+        ),
+        FRF(
+            f, 2e-6 / (1 + 1j * f), direction="z", source="OMA", n_averages=12, exp_window_tau_s=0.3
+        ),
+    ]
+    for ext in ("h5", "uff"):
+        path = tmp_path / f"c.{ext}"
+        write_frfs(path, frfs)
+        back = read_frfs(path)
+        assert [b.direction for b in back] == ["x", "z"]
+        assert back[0].pose == pytest.approx(frfs[0].pose)
+        for a, b in zip(frfs, back, strict=True):
+            np.testing.assert_allclose(b.values, a.values, rtol=1e-9)
+    back = read_frfs(tmp_path / "c.h5")
+    assert back[1].source == "OMA" and back[1].n_averages == 12 and back[1].exp_window_tau_s == 0.3
+
+
+def test_cli_frf_compute_and_modal_fit(tmp_path, recording):
+    runner = CliRunner()
+    rec_path = tmp_path / "hits.uff"
+    write_recording_uff(rec_path, recording)
+    out = tmp_path / "frf.h5"
+    res = runner.invoke(
+        app, ["frf", "compute", str(rec_path), "--direction", "y", "-o", str(out), "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["n_averaged"] == 3 and doc["direction"] == "y"
+    png = tmp_path / "fit.png"
+    res = runner.invoke(app, ["modal", "fit", str(out), "--json", "--plot", str(png)])
+    assert res.exit_code == 0, res.output
+    mode = json.loads(res.output)["frfs"][0]["dominant_mode"]
+    assert mode["natural_frequency_hz"] == pytest.approx(MODE[0], rel=0.005)
+    assert mode["stiffness_n_per_m"] == pytest.approx(MODE[1], rel=0.03)
+    assert png.stat().st_size > 1000
+    res = runner.invoke(app, ["modal", "fit", str(tmp_path / "missing.h5")])
+    assert res.exit_code == 2 and "error" in res.output
