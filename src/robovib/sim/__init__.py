@@ -1,0 +1,49 @@
+"""The virtual robot: a synthetic, pose-dependent KR500-3 lab (hammer tests, milling, offset mass).
+
+See :mod:`robovib.sim.truth` for exactly how the ground truth is built (a plausible synthetic
+robot fitted to the thesis' data, not a claim about the real one).
+"""
+
+from .dynamics import affine_scan, modal_response, zoh_transition
+from .experiments import (
+    LinearMove,
+    MotionRecord,
+    default_path_move,
+    offset_mass_force,
+    simulate_hammer_test,
+    simulate_milling,
+    simulate_offset_mass,
+)
+from .plant import run_closed_loop
+from .truth import (
+    PATH_LENGTH_M,
+    POSITION_1_S_M,
+    POSITION_2_S_M,
+    WORKSPACE_BOUNDS,
+    ModeSet,
+    PathTruth,
+    VirtualRobot,
+    WorkspaceTruth,
+)
+
+__all__ = [
+    "PATH_LENGTH_M",
+    "POSITION_1_S_M",
+    "POSITION_2_S_M",
+    "WORKSPACE_BOUNDS",
+    "LinearMove",
+    "ModeSet",
+    "MotionRecord",
+    "PathTruth",
+    "VirtualRobot",
+    "WorkspaceTruth",
+    "affine_scan",
+    "default_path_move",
+    "modal_response",
+    "offset_mass_force",
+    "run_closed_loop",
+    "simulate_hammer_test",
+    "simulate_milling",
+    "simulate_offset_mass",
+    "zoh_transition",
+]
