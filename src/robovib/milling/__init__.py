@@ -1,4 +1,6 @@
-"""Milling: mechanistic cutting forces (shared with the virtual robot) and vibration prediction."""
+"""Milling: mechanistic cutting forces (shared with the virtual robot), vibration prediction at a
+pose (:mod:`~robovib.milling.prediction`, :mod:`~robovib.milling.workflow`) and chatter
+stability (:mod:`~robovib.milling.stability`)."""
 
 from .forces import (
     ACETAL,

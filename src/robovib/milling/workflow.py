@@ -1,0 +1,186 @@
+"""Milling at a pose: forces -> pose-model dynamics -> vibration with a band; lobes; workspace map.
+
+The pose model is any fitted model with ``predict(X, return_std=True)`` over chapter-3 poses
+``(X [mm], Y [mm], Rz [deg])`` returning the 9 outputs in thesis units and Table-2 order
+(fn [Hz], k [MN/m], c [kN·s/m] for X, Y, Z) — e.g. :func:`robovib.gp.study.fit_chapter3_model`.
+
+Uncertainty: Monte-Carlo sampling of the GP's predictive normals (each output independently,
+which ignores correlations between outputs), draws with non-physical values (k, fn, c <= 0 or
+zeta >= 1) redrawn; the band is the 2.5-97.5 % range of the resulting peak-to-valley and mean
+deflection.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..modal.parameters import ModalParameters
+from .forces import CuttingCoefficients, CuttingConditions, MillingTool, milling_forces
+from .prediction import convolve_force, summarise_vibration
+from .stability import StabilityLobes, stability_lobes
+
+__all__ = [
+    "DirectionPrediction",
+    "base_frame_forces",
+    "pose_modes",
+    "predict_at_pose",
+    "workspace_lobe_map",
+]
+
+DIRECTIONS = ("x", "y", "z")
+
+
+def base_frame_forces(local: np.ndarray, feed_direction: str) -> np.ndarray:
+    """Tool-frame (feed, normal, axial) forces -> base X, Y, Z for feed along +X or +Y."""
+    if feed_direction == "x":
+        return np.column_stack([local[:, 0], local[:, 1], local[:, 2]])
+    if feed_direction == "y":
+        return np.column_stack([-local[:, 1], local[:, 0], local[:, 2]])
+    raise ValueError(f"feed_direction must be 'x' or 'y', got {feed_direction!r}")
+
+
+def _to_modes(row: np.ndarray) -> dict[str, ModalParameters]:
+    return {
+        d: ModalParameters.from_fn_k_c(row[3 * i], row[3 * i + 1] * 1e6, row[3 * i + 2] * 1e3)
+        for i, d in enumerate(DIRECTIONS)
+    }
+
+
+def pose_modes(model, x_mm: float, y_mm: float, rz_deg: float):
+    """Dominant modes per direction at a pose, with the predictive mean and std (thesis units)."""
+    mean, std = model.predict(np.array([[x_mm, y_mm, rz_deg]]), return_std=True)
+    return _to_modes(mean[0]), mean[0], std[0]
+
+
+@dataclass(frozen=True)
+class DirectionPrediction:
+    direction: str
+    mean_deflection_m: float
+    peak_to_valley_m: float
+    mean_deflection_band_m: tuple[float, float]
+    peak_to_valley_band_m: tuple[float, float]
+    mode: ModalParameters
+
+
+def predict_at_pose(
+    model,
+    x_mm: float,
+    y_mm: float,
+    rz_deg: float,
+    conditions: CuttingConditions,
+    *,
+    tool: MillingTool | None = None,
+    coefficients: CuttingCoefficients | None = None,
+    forces_n: np.ndarray | None = None,
+    sample_rate_hz: float = 1000.0,
+    duration_s: float = 3.0,
+    feed_direction: str = "x",
+    n_samples: int = 50,
+    skip_s: float = 0.5,
+    rng=0,
+) -> list[DirectionPrediction]:
+    """Predicted mean deflection and peak-to-valley per revolution in X, Y, Z at a pose.
+
+    ``forces_n`` (n, 3) in the base frame at ``sample_rate_hz`` (measured, e.g. read and
+    resampled with :func:`robovib.milling.prediction.resample_force`); otherwise the
+    mechanistic model simulates ``duration_s`` of cutting with ``tool`` and ``coefficients``.
+    The first ``skip_s`` (start-up transient from rest) is left out of the summaries.
+    """
+    tool = tool or MillingTool()
+    if forces_n is None:
+        if coefficients is None:
+            raise ValueError("give measured forces_n or cutting coefficients to simulate them")
+        t = np.arange(round(duration_s * sample_rate_hz)) / sample_rate_hz
+        forces_n = base_frame_forces(
+            milling_forces(t, tool, conditions, coefficients), feed_direction
+        )
+    forces_n = np.asarray(forces_n, float)
+    if forces_n.ndim != 2 or forces_n.shape[1] != 3:
+        raise ValueError(f"forces_n must be (n, 3) base-frame forces, got {forces_n.shape}")
+    modes, mean, std = pose_modes(model, x_mm, y_mm, rz_deg)
+    gen = np.random.default_rng(rng)
+    out = []
+    for i, d in enumerate(DIRECTIONS):
+        f = forces_n[:, i]
+        central = summarise_vibration(
+            convolve_force(f, sample_rate_hz, [modes[d]]),
+            sample_rate_hz,
+            conditions.spindle_rpm,
+            skip_s,
+        )
+        mu, sd = mean[3 * i : 3 * i + 3], std[3 * i : 3 * i + 3]
+        pv, md = [], []
+        draws = 0
+        while len(pv) < n_samples and draws < 20 * n_samples:
+            draws += 1
+            s = gen.normal(mu, sd)
+            if np.any(s <= 0):
+                continue
+            try:
+                m = ModalParameters.from_fn_k_c(s[0], s[1] * 1e6, s[2] * 1e3)
+            except ValueError:
+                continue
+            if m.damping_ratio >= 1:
+                continue
+            summ = summarise_vibration(
+                convolve_force(f, sample_rate_hz, [m]),
+                sample_rate_hz,
+                conditions.spindle_rpm,
+                skip_s,
+            )
+            pv.append(summ.peak_to_valley_m)
+            md.append(summ.mean_deflection_m)
+
+        def band(v):
+            return (
+                (float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5)))
+                if v
+                else (np.nan, np.nan)
+            )
+
+        out.append(
+            DirectionPrediction(
+                d, central.mean_deflection_m, central.peak_to_valley_m, band(md), band(pv), modes[d]
+            )
+        )
+    return out
+
+
+def workspace_lobe_map(
+    model,
+    rz_deg: float,
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    *,
+    x_mm=None,
+    y_mm=None,
+    feed_direction: str = "x",
+    at_speed: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> np.ndarray:
+    """Critical axial depth [m] over an X-Y grid at ``rz_deg`` (shape (len(y), len(x))).
+
+    ``at_speed=True``: at the conditions' spindle speed; ``False``: the minimum over all
+    speeds (the unconditionally stable depth). ``progress(done, total)`` is called per pose.
+    """
+    xs = np.linspace(2100, 2700, 13) if x_mm is None else np.asarray(x_mm, float)
+    ys = np.linspace(-300, 600, 10) if y_mm is None else np.asarray(y_mm, float)
+    grid = np.array([[x, y, rz_deg] for y in ys for x in xs])
+    mean = model.predict(grid)
+    out = np.empty(len(grid))
+    for j, row in enumerate(mean):
+        modes = _to_modes(row)
+        feed, normal = ("x", "y") if feed_direction == "x" else ("y", "x")
+        lobes: StabilityLobes = stability_lobes(
+            [modes[feed]], [modes[normal]], tool, conditions, coefficients
+        )
+        out[j] = (
+            lobes.critical_depth(conditions.spindle_rpm)[0] if at_speed else lobes.minimum_depth_m
+        )
+        if progress is not None:
+            progress(j + 1, len(grid))
+    return out.reshape(len(ys), len(xs))
