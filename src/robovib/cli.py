@@ -1044,6 +1044,122 @@ def mill_map(
             typer.echo(f"wrote {plot}")
 
 
+control_app = typer.Typer(help="Pose-dependent LQR vibration control (thesis ch. 4).")
+app.add_typer(control_app, name="control")
+
+
+@control_app.command("gains")
+def control_gains(
+    x: Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")],
+    y: Annotated[float, typer.Option("--y", help="Tool-tip Y [mm].")],
+    rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")],
+    direction: Annotated[str, typer.Option(help="x, y or z.")] = "x",
+    period_ms: Annotated[float, typer.Option(help="Command period [ms] (RSI: 4 ms).")] = 4.0,
+    delay_ms: Annotated[float, typer.Option(help="Actuator delay [ms] (KRC4: 32 ms).")] = 32.0,
+    r: Annotated[float, typer.Option("--r", help="Input weight R (Q = diag(1, 0.001)).")] = 0.001,
+    json_out: JsonFlag = False,
+) -> None:
+    """LQR gains W = [w1, w2] at a pose from the GP's predicted mode, with the delay analysis."""
+    from .control import delay_analysis, design_delay_aware_lqr, design_lqr, tune_r_for_delay
+    from .gp.study import fit_chapter3_model
+    from .milling.workflow import pose_modes
+
+    if direction not in ("x", "y", "z"):
+        _fail(f"unknown direction {direction!r}")
+    try:
+        modes, _, _ = pose_modes(fit_chapter3_model(), x, y, rz)
+        mode = modes[direction]
+        d = design_lqr(mode, period_ms / 1e3, r=[[r]])
+        da = delay_analysis(d, delay_ms / 1e3)
+        tuned, r_tuned = tune_r_for_delay(mode, period_ms / 1e3, delay_ms / 1e3)
+        aware = design_delay_aware_lqr(mode, period_ms / 1e3, delay_ms / 1e3, r=[[1.0]])
+    except ValueError as exc:
+        _fail(str(exc))
+    doc = {
+        "mode": mode.to_dict(), "w1": d.gains[0], "w2": d.gains[1], "spectral_radius_no_delay": d.spectral_radius,
+        "stable_with_delay": da.stable, "spectral_radius_with_delay": da.spectral_radius,
+        "max_stable_delay_ms": 1e3 * da.max_stable_delay_s,
+        "delay_tuned": {"r": r_tuned, "w1": tuned.gains[0], "w2": tuned.gains[1]},
+        "delay_aware": {"gains": aware.gains, "spectral_radius": aware.spectral_radius},
+    }  # fmt: skip
+    if json_out:
+        _emit_json(doc)
+        return
+    typer.echo(
+        f"mode: fn {mode.natural_frequency_hz:.2f} Hz, k {mode.stiffness_n_per_m / 1e6:.3f} MN/m, zeta {mode.damping_ratio:.3f}"
+    )
+    typer.echo(f"W = [{d.gains[0]:.4g}, {d.gains[1]:.4g}] (R = {r:g}); with {delay_ms:g} ms delay: "
+               f"{'stable' if da.stable else 'UNSTABLE'} (spectral radius {da.spectral_radius:.3f}, largest stable delay {1e3 * da.max_stable_delay_s:g} ms)")  # fmt: skip
+    if not da.stable:
+        typer.echo(
+            f"best-damped R with the delay: {r_tuned:.3g} -> W = [{tuned.gains[0]:.4g}, {tuned.gains[1]:.4g}]"
+        )
+    typer.echo(f"delay-aware LQR (R = 1): spectral radius {aware.spectral_radius:.3f}")
+
+
+@control_app.command("table9")
+def control_table9(json_out: JsonFlag = False) -> None:
+    """Gains from the thesis' Table 8 inputs under each plant formulation, beside Table 9."""
+    from .control import table_9_comparison
+
+    rows = table_9_comparison()
+    if json_out:
+        _emit_json({"rows": rows})
+        return
+    con = _console()
+    t = Table(
+        title="LQR gains from Table 8 predictions (T = 4 ms, Q = diag(1, 0.001), R = 0.001) vs Table 9"
+    )
+    for col in ("formulation", "input", "pos", "dir", "w1", "thesis w1", "w2", "thesis w2"):
+        t.add_column(col, justify="right")
+    for r in rows:
+        t.add_row(
+            r["formulation"],
+            r["input"],
+            str(r["position"]),
+            r["direction"],
+            f"{r['w1']:.4g}",
+            f"{r['thesis_w1']:.3g}",
+            f"{r['w2']:.4g}",
+            f"{r['thesis_w2']:.3g}",
+        )
+    con.print(t)
+
+
+@control_app.command("simulate")
+def control_simulate(
+    experiment: Annotated[str, typer.Argument(help="offset-mass or milling.")],
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Closed-loop runs on the virtual robot: Table 7 (offset mass) or Table 10 (milling) analogue."""
+    from rich.progress import Progress
+
+    from .control.studies import milling_study, offset_mass_study, path_modal_model
+    from .sim import VirtualRobot
+
+    if experiment not in ("offset-mass", "milling"):
+        _fail(f"unknown experiment {experiment!r}; use offset-mass or milling")
+    robot = VirtualRobot()
+    with Progress(transient=True, disable=json_out) as bar:
+        task = bar.add_task("virtual EMA along the path + closed-loop runs", total=None)
+        model = path_modal_model(robot, rng=seed)
+        rows = (
+            offset_mass_study(robot, model, rng=seed)
+            if experiment == "offset-mass"
+            else milling_study(robot, model, rng=seed)
+        )
+        bar.update(task, completed=1)
+    if json_out:
+        _emit_json({"experiment": experiment, "rows": rows})
+        return
+    import pandas as pd
+
+    df = pd.DataFrame(rows)
+    con = _console()
+    con.print(escape(df.round(3).to_string(index=False)))
+
+
 def main() -> None:
     app()
 

@@ -8,7 +8,9 @@ transients decay.
 
 A controller is any callable ``controller(t, displacement_m, velocity_m_per_s, coords) -> u``
 called at the command rate with the *measured* tracker displacement (1 kHz samples with noise
-and 0.01 mm resolution) and the backward-difference velocity, returning a (3,) correction.
+and 0.01 mm resolution) and the backward-difference velocity over one command period (a 1 ms
+difference of 0.01 mm-quantised samples would carry ±10 mm/s of noise), returning a (3,)
+correction.
 The loop is stepped sample by sample (a Python loop over the sensor samples, vectorised over
 all modes), with per-sample exact transitions as in :mod:`robovib.sim.dynamics`.
 """
@@ -91,7 +93,7 @@ def run_closed_loop(
     tracked = np.zeros((n, 3))
     commands = np.zeros((n + delay_steps + 1, 3))
     held = np.zeros(3)
-    prev = np.zeros(3)
+    prev = np.zeros(3)  # tracker sample one command period ago
     coords = move.coords_at(t / duration)
     for i in range(n):
         tip = np.bincount(owner, weights=x, minlength=3)
@@ -101,14 +103,15 @@ def run_closed_loop(
             meas = np.round(meas / tracker_resolution_m) * tracker_resolution_m
         tracked[i] = meas
         if controller is not None and i % every == 0:
-            vel = (meas - prev) / dt if i > 0 else np.zeros(3)
+            # Backward difference over the command period (the controller runs at that rate).
+            vel = (meas - prev) / (every * dt) if i > 0 else np.zeros(3)
+            prev = meas
             held = np.asarray(controller(t[i], meas, vel, coords[i]), float).reshape(3)
             if not np.all(np.isfinite(held)) or np.max(np.abs(held)) > max_command_m:
                 raise ValueError(
                     f"closed loop unstable at t = {t[i]:.3f} s: commanded correction {np.max(np.abs(held)):.3g} m "
                     f"exceeds {max_command_m:g} m"
                 )
-        prev = meas
         commands[i + delay_steps] = held
         u = commands[i][owner]
         f_eff = force[i][owner] + k_static[:, i] * u

@@ -1,0 +1,58 @@
+"""Benchmark: the control-cycle path — modal prediction + gains at a new pose.
+
+Run from the repository root::
+
+    python benchmarks/bench_control.py
+
+Goal: modal prediction + gains < 100 µs (10 % of a 1 kHz cycle). Printed: the GP prediction of
+all 9 modal outputs at a new pose (``predict_one``), the gain lookup in a precomputed schedule
+(interpolation and polynomial), and — as the reference measured in the same run — solving the
+Riccati equation afresh at the pose (SciPy), with the ratio.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from robovib.control import design_lqr
+from robovib.control.schedule import schedule_gains
+from robovib.gp.study import fit_chapter3_model
+from robovib.modal import ModalParameters
+
+
+def per_call(fn, n=2000):
+    fn()
+    t0 = time.perf_counter()
+    for _ in range(n):
+        fn()
+    return (time.perf_counter() - t0) / n
+
+
+def main() -> None:
+    model = fit_chapter3_model(mode_switch=False)
+    pose = np.array([2450.0, 120.0, 60.0])
+    t_gp = per_call(lambda: model.predict_one(pose))
+    mean, _ = model.predict_one(pose)
+    mode = ModalParameters.from_fn_k_c(mean[0], mean[1] * 1e6, mean[2] * 1e3)
+    s = np.linspace(0, 0.9, 20)
+    sched = schedule_gains(
+        s, [ModalParameters(10 - 3 * x, (1.4 - 0.6 * x) * 1e6, 0.15) for x in s], r=100.0
+    )
+    t_interp = per_call(lambda: sched.gains_at(0.437))
+    t_poly = per_call(lambda: sched.gains_at(0.437, "poly"))
+    t_dare = per_call(lambda: design_lqr(mode), n=300)
+    print(f"GP predict_one, 9 modal outputs      : {t_gp * 1e6:7.1f} µs")
+    print(f"gain lookup (interpolation)          : {t_interp * 1e6:7.1f} µs")
+    print(f"gain lookup (polynomial, Eq. 28-29)  : {t_poly * 1e6:7.1f} µs")
+    print(
+        f"prediction + lookup                  : {(t_gp + t_interp) * 1e6:7.1f} µs  (goal < 100 µs)"
+    )
+    print(
+        f"reference: fresh Riccati solve       : {t_dare * 1e6:7.1f} µs  ({t_dare / t_interp:.0f} x the lookup)"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,109 @@
+"""Gain scheduling along a tool path (thesis §4.3.3, Eq. 28-29).
+
+Gains are designed at N points along the path from the pose model's predicted modes; in the
+control cycle they are looked up by path distance either from (a) the thesis' polynomial fits
+(degree 1 for w1, 4 for w2, Eq. 28-29) or (b) linear interpolation of the designed points
+(default). Both lookups cost a few microseconds (see ``benchmarks/bench_control.py``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from ..modal.parameters import ModalParameters
+from .lqr import THESIS_Q, LQRDesign, delay_analysis, design_lqr, tune_r_for_delay
+
+__all__ = ["GainSchedule", "schedule_gains"]
+
+
+@dataclass(frozen=True)
+class GainSchedule:
+    """Gains w1, w2 at path distances ``s_m`` with polynomial fits (coefficients high->low)."""
+
+    s_m: np.ndarray
+    w1: np.ndarray
+    w2: np.ndarray
+    r: np.ndarray  #: the R used at each point
+    stable_with_delay: np.ndarray  #: bool per point
+    w1_poly: np.ndarray
+    w2_poly: np.ndarray
+
+    def gains_at(
+        self, s_m: float, method: Literal["interp", "poly"] = "interp"
+    ) -> tuple[float, float]:
+        if method == "interp":
+            return float(np.interp(s_m, self.s_m, self.w1)), float(
+                np.interp(s_m, self.s_m, self.w2)
+            )
+        if method == "poly":
+            return float(np.polyval(self.w1_poly, s_m)), float(np.polyval(self.w2_poly, s_m))
+        raise ValueError(f"unknown method {method!r}; expected 'interp' or 'poly'")
+
+    def plot(self, path=None):
+        import matplotlib
+
+        if path is not None:
+            matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+        dense = np.linspace(self.s_m.min(), self.s_m.max(), 200)
+        for ax, w, poly, name in (
+            (axes[0], self.w1, self.w1_poly, "w1"),
+            (axes[1], self.w2, self.w2_poly, "w2"),
+        ):
+            ax.plot(self.s_m * 1e3, w, "o", label="designed")
+            ax.plot(
+                dense * 1e3, np.polyval(poly, dense), "-", label="polynomial fit (Eq. 28-29 form)"
+            )
+            ax.set_xlabel("distance along the path [mm]")
+            ax.set_ylabel(name)
+            ax.legend(fontsize=8)
+        fig.tight_layout()
+        if path is not None:
+            fig.savefig(path, dpi=120)
+            plt.close(fig)
+        return fig
+
+
+def schedule_gains(
+    s_m: Sequence[float],
+    modes: Sequence[ModalParameters],
+    *,
+    period_s: float = 0.004,
+    delay_s: float = 0.032,
+    q=THESIS_Q,
+    r: float | None = None,
+    warn: Callable[[str], None] | None = None,
+) -> GainSchedule:
+    """Gains along a path from the modes predicted at the path distances ``s_m``.
+
+    ``r=None``: R tuned per point for stability with the delay (:func:`tune_r_for_delay`);
+    a number: that R everywhere (points whose delayed loop is unstable are flagged, and
+    reported through ``warn``).
+    """
+    s = np.asarray(s_m, float)
+    if s.ndim != 1 or s.size != len(modes) or s.size < 5:
+        raise ValueError("need at least 5 path points with one mode each")
+    w1, w2, rs, ok = [], [], [], []
+    for si, mode in zip(s, modes, strict=True):
+        if r is None:
+            design, ri = tune_r_for_delay(mode, period_s, delay_s, q)
+        else:
+            design: LQRDesign = design_lqr(mode, period_s, q, [[r]])
+            ri = float(r)
+        stable = delay_analysis(design, delay_s, rounding="round", max_search_steps=0).stable
+        if not stable and warn is not None:
+            warn(f"gains at s = {si:.3f} m are unstable with the {delay_s * 1e3:g} ms delay")
+        w1.append(design.gains[0])
+        w2.append(design.gains[1])
+        rs.append(ri)
+        ok.append(stable)
+    w1, w2 = np.array(w1), np.array(w2)
+    return GainSchedule(
+        s, w1, w2, np.array(rs), np.array(ok), np.polyfit(s, w1, 1), np.polyfit(s, w2, 4)
+    )
