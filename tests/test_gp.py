@@ -252,3 +252,26 @@ def test_cholesky_jitter_escalation_and_failure():
             np.zeros((3, 3, 1)),
             allow_fail=False,
         )
+
+
+def test_noise_groups_estimate_each_source_noise_and_gradient():
+    rng = np.random.default_rng(0)
+    X = rng.uniform(0, 1, (80, 1))
+    groups = np.repeat([0, 1], 40)
+    Y = np.sin(6 * X[:, 0]) + np.where(groups == 0, 0.01, 0.2) * rng.normal(size=80)
+    gp = BatchedGPRegressor(n_noise_groups=2, rng=0).fit(X, Y, groups=groups)
+    noise = gp.hyperparameters_.noise_std[0]
+    assert noise[0] == pytest.approx(0.01, rel=0.5) and noise[1] == pytest.approx(0.2, rel=0.3)
+    xs, ys = gp._scale_x(X), gp._scale_y(Y[:, None], np.ones((80, 1), bool))
+    sq = (xs[:, None] - xs[None]) ** 2
+    theta = np.array([[0.1, -0.5, -2.0, -1.0]])
+    mask = np.ones((1, 80), bool)
+    _, grad, _ = gp._nll_and_grad(theta, ys.T, mask, sq)
+    for j in range(4):
+        e = np.zeros_like(theta)
+        e[0, j] = 1e-6
+        fp = gp._nll_and_grad(theta + e, ys.T, mask, sq, want_grad=False)[0]
+        fm = gp._nll_and_grad(theta - e, ys.T, mask, sq, want_grad=False)[0]
+        assert grad[0, j] == pytest.approx(((fp - fm) / 2e-6)[0], rel=1e-5)
+    with pytest.raises(ValueError, match="groups"):
+        BatchedGPRegressor(n_noise_groups=2).fit(X, Y)

@@ -131,6 +131,10 @@ class BatchedGPRegressor:
         Gradient tolerance of the optimiser (max-norm, scaled space).
     initial_hyperparameters
         Optional :class:`GPHyperparameters` (data units) to start from: a warm start.
+    n_noise_groups
+        Number of observation sources with their own noise level (e.g. 2: EMA and OMA FRFs,
+        thesis §5.2.4). ``fit(..., groups=...)`` assigns each sample to a group; the noise
+        hyperparameters are then (B, G) and ``noise_std`` has that shape.
     rng
         Seed or :class:`numpy.random.Generator` for the restarts.
 
@@ -158,6 +162,7 @@ class BatchedGPRegressor:
         max_iter: int = 200,
         gtol: float = 1e-5,
         initial_hyperparameters: GPHyperparameters | None = None,
+        n_noise_groups: int = 1,
         rng: int | np.random.Generator | None = None,
     ) -> None:
         self.kernel = kernel
@@ -168,6 +173,7 @@ class BatchedGPRegressor:
         self.max_iter = max_iter
         self.gtol = gtol
         self.initial_hyperparameters = initial_hyperparameters
+        self.n_noise_groups = n_noise_groups
         self.rng = rng
 
     # ------------------------------------------------------------------ validation
@@ -247,11 +253,12 @@ class BatchedGPRegressor:
 
     def _bounds(self, n_features: int):
         n_len = self._n_length(n_features)
+        g = self._n_groups
         lower = np.array(
-            [_LOG_SIGNAL_BOUNDS[0], *[_LOG_LENGTH_BOUNDS[0]] * n_len, _LOG_NOISE_BOUNDS[0]]
+            [_LOG_SIGNAL_BOUNDS[0], *[_LOG_LENGTH_BOUNDS[0]] * n_len, *[_LOG_NOISE_BOUNDS[0]] * g]
         )
         upper = np.array(
-            [_LOG_SIGNAL_BOUNDS[1], *[_LOG_LENGTH_BOUNDS[1]] * n_len, _LOG_NOISE_BOUNDS[1]]
+            [_LOG_SIGNAL_BOUNDS[1], *[_LOG_LENGTH_BOUNDS[1]] * n_len, *[_LOG_NOISE_BOUNDS[1]] * g]
         )
         return lower, upper
 
@@ -260,7 +267,10 @@ class BatchedGPRegressor:
     ) -> np.ndarray:
         n_out = self._y_scale.size
         sf = np.broadcast_to(np.asarray(hp.signal_std, float), (n_out,)) / self._y_scale
-        sn = np.broadcast_to(np.asarray(hp.noise_std, float), (n_out,)) / self._y_scale
+        noise = np.asarray(hp.noise_std, float)
+        if noise.ndim == 1:
+            noise = noise[:, None] if noise.size == n_out else noise[None, :]
+        sn = np.broadcast_to(noise, (n_out, self._n_groups)) / self._y_scale[:, None]
         ls = (
             np.broadcast_to(np.asarray(hp.length_scales, float), (n_out, n_features))
             / self._x_scale
@@ -274,10 +284,19 @@ class BatchedGPRegressor:
         lower, upper = self._bounds(n_features)
         return np.clip(theta, lower, upper)
 
+    @property
+    def _n_groups(self) -> int:
+        return int(self.n_noise_groups)
+
+    def _groups_for(self, n: int) -> np.ndarray:
+        groups = getattr(self, "_active_groups", None)
+        return np.zeros(n, dtype=int) if groups is None or groups.size != n else groups
+
     def _split(self, theta):
+        g = self._n_groups
         log_sf = theta[:, 0]
-        log_l = theta[:, 1:-1]
-        log_sn = theta[:, -1]
+        log_l = theta[:, 1:-g]
+        log_sn = theta[:, -g:]  # (k, G)
         return log_sf, log_l, log_sn
 
     # ------------------------------------------------------------------ likelihood core
@@ -296,7 +315,7 @@ class BatchedGPRegressor:
         k_f = np.exp(2.0 * log_sf)[:, None, None] * np.exp(-0.5 * dist)
         pair = mask[:, :, None] & mask[:, None, :]
         k_f = np.where(pair, k_f, 0.0)
-        diag = np.where(mask, np.exp(2.0 * log_sn)[:, None], 1.0)
+        diag = np.where(mask, np.exp(2.0 * log_sn)[:, self._groups_for(mask.shape[1])], 1.0)
         k_y = k_f.copy()
         idx = np.arange(k_y.shape[-1])
         k_y[:, idx, idx] += diag
@@ -376,11 +395,13 @@ class BatchedGPRegressor:
         if inv_l2.shape[1] == 1:
             grad[:, 1] = -0.5 * (wk @ flat_sq.sum(axis=1)) * inv_l2[:, 0]
         else:
-            grad[:, 1:-1] = -0.5 * (wk @ flat_sq) * inv_l2
-        noise_var = np.exp(2.0 * theta[:, -1])
-        grad[:, -1] = (
-            -np.sum(np.where(mask, np.diagonal(w, axis1=1, axis2=2), 0.0), axis=1) * noise_var
-        )
+            grad[:, 1 : 1 + inv_l2.shape[1]] = -0.5 * (wk @ flat_sq) * inv_l2
+        g = self._n_groups
+        w_diag = np.where(mask, np.diagonal(w, axis1=1, axis2=2), 0.0)
+        for j in range(g):
+            noise_var = np.exp(2.0 * theta[:, theta.shape[1] - g + j])
+            in_group = self._groups_for(mask.shape[1]) == j
+            grad[:, theta.shape[1] - g + j] = -np.sum(w_diag[:, in_group], axis=1) * noise_var
         grad = np.where(failed[:, None], 0.0, grad)
         return nll, grad, (chol_inv, k_inv, alpha, m, jitter)
 
@@ -396,7 +417,9 @@ class BatchedGPRegressor:
             )
             n_random = 0 if self.n_restarts is None else int(self.n_restarts)
         else:
-            base = np.tile(np.array([0.0, *[0.0] * n_len, np.log(0.1)]), (n_out, 1))
+            base = np.tile(
+                np.array([0.0, *[0.0] * n_len, *[np.log(0.1)] * self._n_groups]), (n_out, 1)
+            )
             n_random = 2 if self.n_restarts is None else int(self.n_restarts)
         starts = [base]
         for _ in range(n_random):
@@ -404,7 +427,7 @@ class BatchedGPRegressor:
                 [
                     rng.uniform(np.log(0.3), np.log(3.0), n_out),
                     rng.uniform(np.log(0.1), np.log(10.0), (n_out, n_len)),
-                    rng.uniform(np.log(1e-3), np.log(0.5), n_out),
+                    rng.uniform(np.log(1e-3), np.log(0.5), (n_out, self._n_groups)),
                 ]
             )
             starts.append(np.clip(draw, lower, upper))
@@ -471,7 +494,23 @@ class BatchedGPRegressor:
         self.converged_ = converged[pick]
         return theta_opt[pick]
 
-    def fit(self, X, Y, mask=None) -> BatchedGPRegressor:
+    def _set_groups(self, groups, n: int) -> np.ndarray:
+        if groups is None:
+            if self._n_groups != 1:
+                raise ValueError(
+                    f"n_noise_groups={self._n_groups}: pass groups= to assign samples to noise groups"
+                )
+            return np.zeros(n, dtype=int)
+        g = np.asarray(groups)
+        if g.shape != (n,) or not np.issubdtype(g.dtype, np.integer):
+            raise ValueError(f"groups must be an integer array of shape ({n},)")
+        if np.any(g < 0) or np.any(g >= self._n_groups):
+            raise ValueError(
+                f"groups must be in [0, {self._n_groups}) for n_noise_groups={self._n_groups}"
+            )
+        return g.astype(int)
+
+    def fit(self, X, Y, mask=None, groups=None) -> BatchedGPRegressor:
         """Fit one GP per column of ``Y`` (hyperparameters by maximising Eq. 33).
 
         Parameters
@@ -485,6 +524,9 @@ class BatchedGPRegressor:
         """
         self._check_params()
         X, Y, mask, squeeze = self._check_xy(X, Y, mask)
+        if int(self.n_noise_groups) < 1:
+            raise ValueError(f"n_noise_groups must be >= 1, got {self.n_noise_groups}")
+        self._active_groups = self._set_groups(groups, X.shape[0])
         self._fit_scalers(X, Y, mask)
         rng = np.random.default_rng(self.rng)
         starts = self._initial_thetas(Y.shape[1], X.shape[1], rng)
@@ -524,7 +566,9 @@ class BatchedGPRegressor:
             signal_std=np.sqrt(self._sf2) * self._y_scale,
             length_scales=np.exp(np.broadcast_to(log_l, (log_l.shape[0], n_features)))
             * self._x_scale,
-            noise_std=np.exp(log_sn) * self._y_scale,
+            noise_std=(np.exp(log_sn) * self._y_scale[:, None])[:, 0]
+            if self._n_groups == 1
+            else np.exp(log_sn) * self._y_scale[:, None],
             mean=m * self._y_scale + self._y_loc,
         )
         self.n_features_in_ = n_features
@@ -532,7 +576,7 @@ class BatchedGPRegressor:
 
     # ------------------------------------------------------------------ updating
     def add_observations(
-        self, X_new, Y_new, mask=None, *, reoptimize: bool = False
+        self, X_new, Y_new, mask=None, *, reoptimize: bool = False, groups=None
     ) -> BatchedGPRegressor:
         """Add observations to a fitted model (Bayesian update, thesis §5.2.4).
 
@@ -540,7 +584,8 @@ class BatchedGPRegressor:
         (Eq. 9-10 with the enlarged data set). With ``reoptimize=True`` the hyperparameters are
         re-optimised starting from the current ones (warm start); ``n_iter_`` then counts the
         iterations of that update. The internal input/target scaling is kept from the first fit
-        so that the warm start stays meaningful.
+        so that the warm start stays meaningful. ``groups`` assigns the new samples to noise
+        groups (needed when ``n_noise_groups > 1``).
         """
         self._require_fitted()
         X_new, Y_new, mask_new, _ = self._check_xy(X_new, Y_new, mask)
@@ -551,6 +596,9 @@ class BatchedGPRegressor:
             )
         X = np.vstack([self.X_train_, X_new])
         mask_all = np.vstack([self.mask_, mask_new])
+        self._active_groups = np.concatenate(
+            [self._active_groups, self._set_groups(groups, X_new.shape[0])]
+        )
         Y = np.vstack([np.where(self.mask_, self.Y_train_, 0.0), Y_new])
         if reoptimize:
             if self.optimizer is None:
@@ -605,7 +653,8 @@ class BatchedGPRegressor:
         v = np.matmul(self._chol_inv, k_star.transpose(0, 2, 1))  # (B, n, m)
         var_s = self._sf2[:, None] - np.sum(v * v, axis=1)
         if include_noise:
-            var_s = var_s + np.exp(2.0 * self._theta[:, -1])[:, None]
+            # The noise of group 0 (the first source, e.g. the reference measurements).
+            var_s = var_s + np.exp(2.0 * self._theta[:, -self._n_groups])[:, None]
         std = (np.sqrt(np.maximum(var_s, 0.0)) * self._y_scale[:, None]).T
         if self._squeeze:
             return mean[:, 0], std[:, 0]
