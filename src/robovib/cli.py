@@ -1160,6 +1160,98 @@ def control_simulate(
     con.print(escape(df.round(3).to_string(index=False)))
 
 
+hybrid_app = typer.Typer(
+    help="Hybrid EMA + OMA model of the whole FRF with Bayesian updating (thesis ch. 5)."
+)
+app.add_typer(hybrid_app, name="hybrid")
+
+
+@hybrid_app.command("study")
+def hybrid_study_cmd(
+    background: Annotated[
+        float,
+        typer.Option(
+            help="Broadband force content of the OMA cut (x spread of the periodic force)."
+        ),
+    ] = 1.0,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """EMA at 3 poses, OMA from a 600 mm cut, validation: the Table 12 / 13 analogue."""
+    from .hybrid.study import hybrid_study
+
+    res = hybrid_study(background_noise_rel=background, rng=seed)
+    if json_out:
+        _emit_json(res)
+        return
+    con = _console()
+    t = Table(
+        title="FRF RMSE at the validation pose [um/N] (peak error %) - thesis Table 12 analogue"
+    )
+    for col in (
+        "dir",
+        "bins",
+        "OMA segs",
+        "flagged",
+        "before (EMA)",
+        "posterior",
+        "warm update",
+        "full retrain",
+    ):
+        t.add_column(col, justify="right")
+    for d, row in res.items():
+
+        def cell(k, row=row):
+            return f"{row[k]['rmse_um_per_n']:.3f} ({row[k]['peak_error_pct']:.0f} %)"
+
+        t.add_row(d.upper(), str(row["n_bins"]), str(row["n_oma_segments"]), f"{100 * row['flagged_fraction']:.0f} %",
+                  cell("before"), cell("posterior"), cell("warm"), cell("retrain"))  # fmt: skip
+    con.print(t)
+    t = Table(title="Optimiser iterations per GP and wall time - thesis Table 13 analogue")
+    for col in ("dir", "warm update", "full retrain"):
+        t.add_column(col, justify="right")
+    for d, row in res.items():
+        t.add_row(d.upper(), f"{row['warm']['iterations_mean']:.1f} ({row['warm']['wall_time_s'] * 1e3:.0f} ms)",
+                  f"{row['retrain']['iterations_mean']:.1f} ({row['retrain']['wall_time_s'] * 1e3:.0f} ms)")  # fmt: skip
+    con.print(t)
+
+
+@hybrid_app.command("next-poses")
+def hybrid_next_poses(
+    k: Annotated[int, typer.Option("--k", help="Number of poses to propose.")] = 3,
+    ema: Annotated[
+        str, typer.Option(help="Comma-separated path coordinates [m] already tested.")
+    ] = "0,0.585,1.235",
+    direction: Annotated[str, typer.Option(help="x, y or z.")] = "x",
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Where to hammer next along the chapter-4 path: largest integrated predictive variance."""
+    from .hybrid import FRFPoseModel
+    from .hybrid.study import ema_frf_on_grid
+    from .sim import PATH_LENGTH_M, VirtualRobot
+
+    try:
+        tested = np.array([float(v) for v in ema.split(",")])
+    except ValueError:
+        _fail(f"--ema must be comma-separated numbers, got {ema!r}")
+    robot = VirtualRobot()
+    grid = np.arange(2.0, 40.0, 1.0)
+    rng = np.random.default_rng(seed)
+    try:
+        frfs = np.array([ema_frf_on_grid(robot, s, direction, grid, rng) for s in tested])
+        model = FRFPoseModel(grid, rng=seed).fit(tested, frfs)
+        picks = model.next_poses(np.linspace(0, PATH_LENGTH_M, 50), k=k)[:, 0]
+    except ValueError as exc:
+        _fail(str(exc))
+    if json_out:
+        _emit_json({"tested_s_m": tested, "next_s_m": picks})
+    else:
+        typer.echo(
+            "next hammer-test poses (path distance, m): " + ", ".join(f"{p:.3f}" for p in picks)
+        )
+
+
 def main() -> None:
     app()
 

@@ -190,7 +190,7 @@ class BatchedGPRegressor:
             raise ValueError(f"n_restarts must be >= 0, got {self.n_restarts}")
 
     @staticmethod
-    def _check_xy(X, Y, mask):
+    def _check_xy(X, Y, mask, min_observed: int = 2):
         X = _as_2d_float("X", X, "(n_samples, n_features)")
         Y = np.asarray(Y, dtype=float)
         squeeze = Y.ndim == 1
@@ -214,8 +214,8 @@ class BatchedGPRegressor:
                 "Y contains NaN or inf at observed entries; mark missing targets with mask=False"
             )
         n_obs = mask.sum(axis=0)
-        if np.any(n_obs < 2):
-            bad = np.flatnonzero(n_obs < 2).tolist()
+        if np.any(n_obs < min_observed):
+            bad = np.flatnonzero(n_obs < min_observed).tolist()
             raise ValueError(f"outputs {bad} have fewer than 2 observed samples")
         return X, np.where(mask, Y, 0.0), mask, squeeze
 
@@ -588,7 +588,7 @@ class BatchedGPRegressor:
         groups (needed when ``n_noise_groups > 1``).
         """
         self._require_fitted()
-        X_new, Y_new, mask_new, _ = self._check_xy(X_new, Y_new, mask)
+        X_new, Y_new, mask_new, _ = self._check_xy(X_new, Y_new, mask, min_observed=0)
         if X_new.shape[1] != self.n_features_in_ or Y_new.shape[1] != self.n_outputs_:
             raise ValueError(
                 f"new data has {X_new.shape[1]} features / {Y_new.shape[1]} outputs; the model was "
