@@ -135,24 +135,38 @@ def design_lqr(
     return LQRDesign(ad, bd, p, w, period_s)
 
 
-def closed_loop_with_delay(design: LQRDesign, delay_steps: int) -> np.ndarray:
-    """Closed-loop matrix with the command applied ``delay_steps`` periods late.
+def _delay_augmented(
+    ad: np.ndarray, bd: np.ndarray, delay_steps: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(A, B) of the plant with a ``d``-step input delay line.
 
-    State ``[x_k, v_k, u_{k-1}, ..., u_{k-d}]``; ``u_k = -W [x_k, v_k]``, the plant sees ``u_{k-d}``.
+    State ``[x_k, v_k, u_{k-1}, ..., u_{k-d}]``; input ``u_k``; the plant sees ``u_{k-d}``.
     """
     d = int(delay_steps)
     if d < 0:
         raise ValueError("delay_steps must be >= 0")
     if d == 0:
-        return design.closed_loop
+        return ad, bd
     n = 2 + d
-    m = np.zeros((n, n))
-    m[:2, :2] = design.ad
-    m[:2, n - 1 : n] = design.bd
-    m[2, :2] = -design.gains
+    big_a = np.zeros((n, n))
+    big_b = np.zeros((n, 1))
+    big_a[:2, :2] = ad
+    big_a[:2, n - 1 : n] = bd
+    big_b[2, 0] = 1.0
     for i in range(3, n):
-        m[i, i - 1] = 1.0
-    return m
+        big_a[i, i - 1] = 1.0
+    return big_a, big_b
+
+
+def closed_loop_with_delay(design: LQRDesign, delay_steps: int) -> np.ndarray:
+    """Closed-loop matrix with the command applied ``delay_steps`` periods late.
+
+    State ``[x_k, v_k, u_{k-1}, ..., u_{k-d}]``; ``u_k = -W [x_k, v_k]``, the plant sees ``u_{k-d}``.
+    """
+    big_a, big_b = _delay_augmented(design.ad, design.bd, delay_steps)
+    gains = np.zeros(big_a.shape[0])
+    gains[:2] = design.gains
+    return big_a - big_b @ gains[None, :]
 
 
 @dataclass(frozen=True)
@@ -294,18 +308,8 @@ def design_delay_aware_lqr(
         raise ValueError(f"delay {delay_s} s is not a multiple of the command period {period_s} s")
     d = round(steps_f)
     a, b = continuous_model(mode, input=input)
-    ad, bd = discretize(a, b, period_s)
-    n = 2 + d
-    big_a = np.zeros((n, n))
-    big_b = np.zeros((n, 1))
-    big_a[:2, :2] = ad
-    if d == 0:
-        big_b[:2] = bd
-    else:
-        big_a[:2, n - 1 : n] = bd
-        big_b[2, 0] = 1.0
-        for i in range(3, n):
-            big_a[i, i - 1] = 1.0
+    big_a, big_b = _delay_augmented(*discretize(a, b, period_s), d)
+    n = big_a.shape[0]
     big_q = np.zeros((n, n))
     big_q[:2, :2] = q
     p = linalg.solve_discrete_are(big_a, big_b, big_q + 1e-12 * np.eye(n), r)
