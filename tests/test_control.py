@@ -123,3 +123,26 @@ def test_offset_mass_study_short_path():
     by = {r["controller"]: r for r in rows}
     assert by["delay_aware"]["unstable"] is None
     assert by["delay_aware"]["start_mm"] < 0.8 * by["no_feedback"]["start_mm"]
+
+
+def test_schedule_cli_from_a_path_file(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    s = np.linspace(0.0, 0.9, 8)
+    lines = ["s_m,fn_hz,stiffness_n_per_m,damping_ratio"] + [
+        f"{si},{10 - 3 * si},{(1.4 - 0.6 * si) * 1e6},0.15" for si in s
+    ]
+    csv = tmp_path / "path.csv"
+    csv.write_text("\n".join(lines))
+    res = CliRunner().invoke(app, ["control", "schedule", "--path", str(csv), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert len(doc["w1"]) == 8 and all(doc["stable_with_delay"])
+    bad = tmp_path / "bad.csv"
+    bad.write_text("s_m,fn_hz\n0,10\n")
+    res = CliRunner().invoke(app, ["control", "schedule", "--path", str(bad)])
+    assert res.exit_code == 2 and "missing columns" in res.output

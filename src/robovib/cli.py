@@ -1097,6 +1097,67 @@ def control_gains(
     typer.echo(f"delay-aware LQR (R = 1): spectral radius {aware.spectral_radius:.3f}")
 
 
+@control_app.command("schedule")
+def control_schedule(
+    path: Annotated[
+        Path | None,
+        typer.Option(
+            help="CSV of modes along a path: s_m, fn_hz, stiffness_n_per_m, damping_ratio. Default: virtual-robot EMA along the chapter-4 path."
+        ),
+    ] = None,
+    direction: Annotated[
+        str, typer.Option(help="Direction of the virtual-robot path model (x, y, z).")
+    ] = "x",
+    plot: Annotated[
+        Path | None, typer.Option(help="PNG of w1, w2 vs path distance (thesis Fig. 23).")
+    ] = None,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Gains along a path (R tuned for the 32 ms delay), with the Eq. 28-29 polynomial fits."""
+    from .control.schedule import schedule_gains
+    from .modal import ModalParameters
+
+    warnings_seen: list[str] = []
+    try:
+        if path is not None:
+            import pandas as pd
+
+            df = pd.read_csv(path)
+            need = ["s_m", "fn_hz", "stiffness_n_per_m", "damping_ratio"]
+            missing = [c for c in need if c not in df]
+            if missing:
+                _fail(f"{path}: missing columns {missing}")
+            s = df["s_m"].to_numpy()
+            modes = [
+                ModalParameters(r.fn_hz, r.stiffness_n_per_m, r.damping_ratio)
+                for r in df.itertuples()
+            ]
+        else:
+            from .control.studies import path_modal_model
+            from .sim import VirtualRobot
+
+            model = path_modal_model(VirtualRobot(), directions=(direction,), rng=seed)
+            s = np.linspace(0.335, 1.235, 20)
+            modes = [model.mode(si, direction) for si in s]
+        sched = schedule_gains(s, modes, warn=warnings_seen.append)
+    except ValueError as exc:
+        _fail(str(exc))
+    if plot is not None:
+        sched.plot(plot)
+    doc = {"s_m": sched.s_m, "w1": sched.w1, "w2": sched.w2, "r": sched.r, "stable_with_delay": sched.stable_with_delay,
+           "w1_poly_high_to_low": sched.w1_poly, "w2_poly_high_to_low": sched.w2_poly, "warnings": warnings_seen}  # fmt: skip
+    if json_out:
+        _emit_json(doc)
+        return
+    for si, w1, w2 in zip(sched.s_m, sched.w1, sched.w2, strict=True):
+        typer.echo(f"s = {si * 1e3:7.1f} mm   w1 = {w1:9.5f}   w2 = {w2:9.5f}")
+    for w in warnings_seen:
+        typer.echo(f"warning: {w}")
+    if plot is not None:
+        typer.echo(f"wrote {plot}")
+
+
 @control_app.command("table9")
 def control_table9(json_out: JsonFlag = False) -> None:
     """Gains from the thesis' Table 8 inputs under each plant formulation, beside Table 9."""
