@@ -42,8 +42,12 @@ def main() -> None:
     pred = joint.predict(np.column_stack([np.full(grid.size, s_test), grid]))
     err_joint = np.sqrt(np.mean(np.abs((pred[:, 0] + 1j * pred[:, 1]) / 1e6 - truth) ** 2)) * 1e6
     print(f"{s_train.size} poses x {grid.size} bins (Re, Im); validation at s = {s_test} m")
-    print(f"per-bin GPs ({2 * grid.size} GPs of {s_train.size} points): fit {t_bin:7.3f} s, RMSE {err_bin:.4f} um/N")
-    print(f"one GP over (s, f) ({xs.shape[0]} points)        : fit {t_joint:7.3f} s, RMSE {err_joint:.4f} um/N")
+    print(
+        f"per-bin GPs ({2 * grid.size} GPs of {s_train.size} points): fit {t_bin:7.3f} s, RMSE {err_bin:.4f} um/N"
+    )
+    print(
+        f"one GP over (s, f) ({xs.shape[0]} points)        : fit {t_joint:7.3f} s, RMSE {err_joint:.4f} um/N"
+    )
     print(f"cost ratio joint / per-bin: {t_joint / t_bin:.1f} x")
 
 
