@@ -92,3 +92,43 @@ def test_oma_bad_input():
         oma_frfs(t, f, x, np.linspace(0, 0.1, 1000))
     with pytest.raises(ValueError, match="on the model's frequency grid"):
         FRFPoseModel(np.linspace(1, 10, 5)).fit([0.0, 1.0], np.ones((2, 4)))
+
+
+def test_hybrid_file_workflow_cli(tmp_path):
+    """sim hammer/mill -> frf compute -> hybrid oma/fit/update/predict, all through files."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    run = CliRunner().invoke
+    for s in (0.0, 0.6, 1.2):
+        rec, frf = tmp_path / f"e{s}.uff", tmp_path / f"e{s}.h5"
+        assert run(app, ["sim", "hammer", "--path-s", str(s), "--sample-rate-hz", "2048", "--hits", "2",
+                         "--duration-s", "4", "-o", str(rec)]).exit_code == 0  # fmt: skip
+        res = run(
+            app, ["frf", "compute", str(rec), "-o", str(frf), "--path-s", str(s), "--fmax", "100"]
+        )
+        assert res.exit_code == 0, res.output
+    cut = tmp_path / "cut.csv"
+    res = run(app, ["sim", "mill", "--path", "0.8", "1.0", "--rpm", "2700", "--fz", "0.3", "--ap", "6",
+                    "--ae", "6", "--material", "acetal", "--background", "1.0", "-o", str(cut)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    oma = tmp_path / "oma.h5"
+    res = run(app, ["hybrid", "oma", str(cut), "-o", str(oma), "--rpm", "2700", "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["segments"] >= 3
+    model, updated = tmp_path / "m.h5", tmp_path / "m2.h5"
+    ema_files = [str(tmp_path / f"e{s}.h5") for s in (0.0, 0.6, 1.2)]
+    assert run(app, ["hybrid", "fit", *ema_files, "-o", str(model)]).exit_code == 0
+    res = run(app, ["hybrid", "update", str(model), str(oma), "-o", str(updated), "--json"])
+    assert res.exit_code == 0, res.output
+    res = run(app, ["hybrid", "predict", str(updated), "--s", "0.9", "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert not doc["extrapolating"] and len(doc["compliance_abs_um_per_n"]) == len(
+        doc["frequency_hz"]
+    )
+    res = run(app, ["hybrid", "fit", str(oma).replace("oma", "missing"), "-o", str(model)])
+    assert res.exit_code == 2

@@ -284,6 +284,12 @@ def frf_compute(
     keep_flagged: Annotated[
         bool, typer.Option(help="Keep hits flagged for double hits or overload (default: reject).")
     ] = False,
+    path_s: Annotated[
+        float | None,
+        typer.Option(
+            help="Pose as distance along a tool path [m], stored with the FRF (hybrid model)."
+        ),
+    ] = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
@@ -303,6 +309,10 @@ def frf_compute(
             reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
         )  # fmt: skip
         frf = result.frf.to_compliance(f_min_hz)
+        if path_s is not None:
+            from dataclasses import replace
+
+            frf = replace(frf, meta={**frf.meta, "path_s_m": float(path_s)})
         write_frfs(output, [frf])
     except (ValueError, OSError) as exc:
         _fail(str(exc))
@@ -478,16 +488,25 @@ def sim_hammer(
     ] = 17066.0,
     duration_s: Annotated[float, typer.Option(help="Record length per hit [s].")] = 4.0,
     snr_db: Annotated[float, typer.Option(help="Response signal-to-noise ratio [dB].")] = 40.0,
+    path_s: Annotated[
+        float | None,
+        typer.Option(
+            help="Test on the chapter-4 path instead: distance from its start [m] (0-1.235)."
+        ),
+    ] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
-    """Impact-hammer test of the virtual robot at a workspace pose, written as UFF 58 or CSV."""
+    """Impact-hammer test of the virtual robot at a workspace pose (or a path point), UFF 58 or CSV."""
     from .io import write_recording_uff
     from .sim import VirtualRobot, simulate_hammer_test
 
     try:
+        where, domain = (
+            ((x / 1e3, y / 1e3, rz), "workspace") if path_s is None else (path_s, "path")
+        )
         rec = simulate_hammer_test(
-            VirtualRobot(), (x / 1e3, y / 1e3, rz), direction, n_hits=hits,
+            VirtualRobot(), where, direction, domain=domain, n_hits=hits,
             sample_rate_hz=sample_rate_hz, duration_s=duration_s, snr_db=snr_db, rng=seed,
         )  # fmt: skip
         if output.suffix.lower() in (".uff", ".unv"):
@@ -538,6 +557,15 @@ def sim_mill(
     material: Annotated[
         str, typer.Option(help="Cutting-coefficient preset: al7075 or acetal.")
     ] = "al7075",
+    path: Annotated[
+        tuple[float, float] | None,
+        typer.Option(
+            help="Cut along the chapter-4 path instead: START END distances [m] (0-1.235)."
+        ),
+    ] = None,
+    background: Annotated[
+        float, typer.Option(help="Broadband force content (x spread of the periodic force).")
+    ] = 0.15,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
@@ -550,8 +578,19 @@ def sim_mill(
         _fail(f"unknown material {material!r}; use one of {', '.join(mats)}")
     try:
         cond = CuttingConditions(rpm, fz_mm / 1e3, ap_mm / 1e3, ae_mm / 1e3)
-        move = LinearMove("workspace", (x0 / 1e3, y0 / 1e3, rz), (x1 / 1e3, y1 / 1e3, rz))
-        run = simulate_milling(VirtualRobot(), move, MillingTool(), cond, mats[material], rng=seed)
+        if path is None:
+            move = LinearMove("workspace", (x0 / 1e3, y0 / 1e3, rz), (x1 / 1e3, y1 / 1e3, rz))
+        else:
+            move = LinearMove("path", (path[0],), (path[1],))
+        run = simulate_milling(
+            VirtualRobot(),
+            move,
+            MillingTool(),
+            cond,
+            mats[material],
+            background_noise_rel=background,
+            rng=seed,
+        )
         run.to_csv(output)
     except ValueError as exc:
         _fail(str(exc))
@@ -1275,6 +1314,237 @@ def hybrid_study_cmd(
         t.add_row(d.upper(), f"{row['warm']['iterations_mean']:.1f} ({row['warm']['wall_time_s'] * 1e3:.0f} ms)",
                   f"{row['retrain']['iterations_mean']:.1f} ({row['retrain']['wall_time_s'] * 1e3:.0f} ms)")  # fmt: skip
     con.print(t)
+
+
+def _frfs_on_grid(frfs, grid, partial: bool = False):
+    """Complex compliances (n, n_f) interpolated on ``grid``, path coordinates and bin masks.
+
+    ``partial=True``: grid bins outside an FRF's range are masked (missing), not an error.
+    """
+    vals, s, masks = [], [], []
+    for i, f in enumerate(frfs):
+        if "path_s_m" not in f.meta:
+            raise ValueError(
+                f"FRF {i} has no path coordinate (write it with --path-s / from `hybrid oma`)"
+            )
+        if f.quantity != "compliance":
+            raise ValueError(f"FRF {i} is {f.quantity}, expected compliance")
+        outside = (grid < f.frequency_hz[0] - 1e-3) | (grid > f.frequency_hz[-1] + 1e-3)
+        if np.any(outside) and not partial:
+            raise ValueError(
+                f"FRF {i} covers {f.frequency_hz[0]:g}-{f.frequency_hz[-1]:g} Hz, not the model grid {grid[0]:g}-{grid[-1]:g} Hz"
+            )
+        vals.append(
+            np.interp(grid, f.frequency_hz, f.values.real)
+            + 1j * np.interp(grid, f.frequency_hz, f.values.imag)
+        )
+        flagged = np.asarray(f.meta.get("flagged", np.zeros(f.frequency_hz.size, bool)), bool)
+        nearest = np.clip(np.searchsorted(f.frequency_hz, grid), 0, f.frequency_hz.size - 1)
+        masks.append(~flagged[nearest] & ~outside)
+        s.append(float(f.meta["path_s_m"]))
+    return np.array(vals), np.array(s), np.array(masks)
+
+
+@hybrid_app.command("oma")
+def hybrid_oma(
+    record: Annotated[
+        Path,
+        typer.Argument(
+            help="Synchronised CSV: time_s, force_{x,y,z}_n, displacement_{x,y,z}_m, path_s_m (e.g. from `robovib sim mill`/`sim offset-mass`)."
+        ),
+    ],
+    output: OutOpt,
+    direction: Annotated[str, typer.Option(help="x, y or z.")] = "x",
+    segment_mm: Annotated[float, typer.Option(help="Path length per FRF [mm].")] = 50.0,
+    nperseg: Annotated[int, typer.Option(help="Welch window [samples].")] = 512,
+    fmin: Annotated[float, typer.Option(help="Lowest frequency [Hz].")] = 2.0,
+    fmax: Annotated[float, typer.Option(help="Highest frequency [Hz].")] = 40.0,
+    rpm: Annotated[
+        float | None, typer.Option(help="Spindle speed [rpm]: flags its harmonics.")
+    ] = None,
+    json_out: JsonFlag = False,
+) -> None:
+    """OMA compliance FRFs per path segment from a milling record (flagged bins stored)."""
+    from dataclasses import replace
+
+    import pandas as pd
+
+    from .hybrid import oma_frfs
+    from .io import write_frfs
+
+    try:
+        df = pd.read_csv(record)
+        need = [
+            "time_s",
+            "force_x_n",
+            "force_y_n",
+            "force_z_n",
+            "displacement_x_m",
+            "displacement_y_m",
+            "displacement_z_m",
+            "path_s_m",
+        ]
+        missing = [c for c in need if c not in df]
+        if missing:
+            _fail(f"{record}: missing columns {missing}")
+        segs = oma_frfs(
+            df["time_s"].to_numpy(), df[need[1:4]].to_numpy(), df[need[4:7]].to_numpy(), df["path_s_m"].to_numpy(),
+            direction=direction, segment_length_m=segment_mm / 1e3, nperseg=nperseg, f_min_hz=fmin, f_max_hz=fmax,
+            spindle_rpm=rpm,
+        )  # fmt: skip
+        frfs = [
+            replace(sg.frf, meta={"path_s_m": sg.s_mid_m, "flagged": sg.flagged}) for sg in segs
+        ]
+        write_frfs(output, frfs)
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    doc = {"output": str(output), "segments": len(segs), "s_mid_m": [sg.s_mid_m for sg in segs],
+           "flagged_fraction": float(np.mean([sg.flagged.mean() for sg in segs]))}  # fmt: skip
+    if json_out:
+        _emit_json(doc)
+    else:
+        typer.echo(
+            f"wrote {output}: {len(segs)} OMA FRFs ({direction}), {100 * doc['flagged_fraction']:.0f} % of bins flagged"
+        )
+
+
+@hybrid_app.command("fit")
+def hybrid_fit(
+    ema: Annotated[
+        list[Path],
+        typer.Argument(help="EMA FRF files (.h5) with path coordinates (frf compute --path-s)."),
+    ],
+    output: OutOpt,
+    fmin: Annotated[float, typer.Option(help="Model grid start [Hz].")] = 2.0,
+    fmax: Annotated[float, typer.Option(help="Model grid end [Hz].")] = 40.0,
+    df_hz: Annotated[
+        float, typer.Option("--df", help="Model grid step [Hz] (match the OMA resolution).")
+    ] = 1.953125,
+    json_out: JsonFlag = False,
+) -> None:
+    """Initial per-bin GP model of the compliance over the path from EMA FRFs."""
+    from .hybrid import FRFPoseModel
+    from .io import read_frfs
+
+    grid = np.arange(fmin, fmax + 1e-9, df_hz)
+    try:
+        h, s, m = _frfs_on_grid([f for path in ema for f in read_frfs(path)], grid)
+        model = FRFPoseModel(grid).fit(s, h, mask=m)
+        model.save(output)
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    doc = {
+        "output": str(output),
+        "n_frfs": len(s),
+        "n_bins": int(grid.size),
+        "iterations_mean": model.last_report_.iterations_mean_per_gp,
+    }
+    _emit_json(doc) if json_out else typer.echo(
+        f"wrote {output}: {len(s)} EMA FRFs, {grid.size} bins"
+    )
+
+
+@hybrid_app.command("update")
+def hybrid_update(
+    model_file: Annotated[Path, typer.Argument(help="Model from `hybrid fit`.")],
+    oma: Annotated[Path, typer.Argument(help="OMA FRFs from `hybrid oma`.")],
+    output: OutOpt,
+    mode: Annotated[
+        str, typer.Option(help="warm (re-optimise from the current hyperparameters) or posterior.")
+    ] = "warm",
+    json_out: JsonFlag = False,
+) -> None:
+    """Bayesian update of the model with OMA FRFs (separate noise level for OMA)."""
+    from .hybrid import FRFPoseModel
+    from .io import read_frfs
+
+    try:
+        model = FRFPoseModel.load(model_file)
+        h, s, m = _frfs_on_grid(read_frfs(oma), model.frequency_hz, partial=True)
+        rep = model.update(s, h, mask=m, mode=mode)
+        model.save(output)
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    doc = {
+        "output": str(output),
+        "n_oma": len(s),
+        "mode": mode,
+        "iterations_mean": rep.iterations_mean_per_gp,
+        "wall_time_s": rep.wall_time_s,
+    }
+    _emit_json(doc) if json_out else typer.echo(
+        f"wrote {output}: updated with {len(s)} OMA FRFs ({mode}, {rep.iterations_mean_per_gp:.1f} iterations per GP)"
+    )
+
+
+@hybrid_app.command("predict")
+def hybrid_predict(
+    model_file: Annotated[Path, typer.Argument(help="Model file.")],
+    s: Annotated[float, typer.Option("--s", help="Path coordinate [m].")],
+    measured: Annotated[
+        Path | None, typer.Option(help="A measured FRF file to compare with (first FRF).")
+    ] = None,
+    plot: Annotated[
+        Path | None, typer.Option(help="PNG: predicted FRF with 95 % band (and the measured one).")
+    ] = None,
+    json_out: JsonFlag = False,
+) -> None:
+    """Predicted compliance FRF at a path coordinate, with a band; optional comparison."""
+    from .frf import FRF
+    from .hybrid import FRFPoseModel
+    from .io import read_frfs
+
+    try:
+        model = FRFPoseModel.load(model_file)
+        h, sd = model.predict([s], return_std=True)
+        h, sd = h[0], sd[0]
+        meas = None
+        if measured is not None:
+            f0 = read_frfs(measured)[0]
+            if f0.quantity != "compliance":
+                _fail(f"{measured}: FRF is {f0.quantity}, expected compliance")
+            meas = np.interp(model.frequency_hz, f0.frequency_hz, f0.values.real) + 1j * np.interp(
+                model.frequency_hz, f0.frequency_hz, f0.values.imag
+            )
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    doc = {"s_m": s, "extrapolating": bool(model.extrapolating([s])[0]), "frequency_hz": model.frequency_hz,
+           "compliance_abs_um_per_n": 1e6 * np.abs(h), "std_um_per_n": 1e6 * sd}  # fmt: skip
+    if meas is not None:
+        doc["rmse_um_per_n"] = float(1e6 * np.sqrt(np.mean(np.abs(h - meas) ** 2)))
+    if plot is not None:
+        from .modal.plot import plot_frf_fit
+
+        fig = plot_frf_fit(
+            FRF(model.frequency_hz, h, source="model", estimator="model"),
+            title=f"prediction at s = {s:g} m",
+        )
+        ax = fig.axes[0]
+        ax.fill_between(
+            model.frequency_hz,
+            np.maximum(np.abs(h) - 2 * sd, 1e-12),
+            np.abs(h) + 2 * sd,
+            color="C0",
+            alpha=0.2,
+            label="±2σ",
+        )
+        if meas is not None:
+            ax.semilogy(model.frequency_hz, np.abs(meas), "k--", label="measured")
+        ax.legend(fontsize=8)
+        fig.savefig(plot, dpi=120)
+    if json_out:
+        _emit_json(doc)
+        return
+    if doc["extrapolating"]:
+        typer.echo("warning: s is outside the calibrated range: extrapolation")
+    peak = int(np.argmax(np.abs(h)))
+    typer.echo(
+        f"peak compliance {1e6 * abs(h[peak]):.3f} um/N at {model.frequency_hz[peak]:.2f} Hz (±{2e6 * sd[peak]:.3f} at 2σ)"
+    )
+    if meas is not None:
+        typer.echo(f"RMSE vs measured: {doc['rmse_um_per_n']:.3f} um/N")
+    if plot is not None:
+        typer.echo(f"wrote {plot}")
 
 
 @hybrid_app.command("next-poses")

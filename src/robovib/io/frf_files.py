@@ -4,10 +4,12 @@ HDF5 layout (h5py), format tag ``robovib-frf`` version 1::
 
     /                      attrs: format="robovib-frf", version=1
     /frf/000000/           attrs: quantity, direction, source, estimator, n_averages,
-                                  exp_window_tau_s (NaN if none), pose (6 floats; NaN if none)
+                                  exp_window_tau_s (NaN if none), pose (6 floats; NaN if none),
+                                  meta_<key> for scalar metadata (e.g. meta_path_s_m)
         frequency_hz       (n_f,) float64
         values             (n_f,) complex128, SI (m/N for compliance)
         coherence          (n_f,) float64, optional
+        meta_<key>         array metadata, optional (e.g. meta_flagged: OMA bins not to use)
 
 UFF: one dataset 58 per FRF, function type 4, ordinate = response (8/11/12), denominator =
 force (13), units in the labels (m/N, m/s/N, m/s^2/N); pose is not part of dataset 58 and is
@@ -63,6 +65,15 @@ def write_frfs_hdf5(path: str | Path, frfs: Sequence[FRF]) -> None:
             g.attrs["pose"] = (
                 np.full(6, np.nan) if frf.pose is None else np.asarray(frf.pose, float)
             )
+            for key, value in frf.meta.items():
+                if isinstance(value, np.ndarray):
+                    g.create_dataset(f"meta_{key}", data=value)
+                elif isinstance(value, int | float | str | bool | np.generic):
+                    g.attrs[f"meta_{key}"] = value
+                else:
+                    raise ValueError(
+                        f"FRF meta {key!r} of type {type(value).__name__} cannot be stored"
+                    )
 
 
 def read_frfs_hdf5(path: str | Path) -> list[FRF]:
@@ -98,6 +109,10 @@ def read_frfs_hdf5(path: str | Path) -> list[FRF]:
                         n_averages=int(g.attrs["n_averages"]),
                         exp_window_tau_s=None if np.isnan(tau) else tau,
                         estimator=str(g.attrs["estimator"]),
+                        meta={
+                            **{k[5:]: g.attrs[k] for k in g.attrs if k.startswith("meta_")},
+                            **{k[5:]: g[k][()] for k in g if k.startswith("meta_")},
+                        },
                     )
                 )
             except KeyError as exc:

@@ -33,9 +33,8 @@ def plot_frf_fit(
     n_rows = 3 if frf.coherence is not None else 2
     fig, axes = plt.subplots(n_rows, 1, sharex=True, figsize=(7, 2.2 * n_rows + 0.6))
     f = frf.frequency_hz
-    axes[0].semilogy(
-        f, np.abs(frf.values), color="C0", label=f"measured ({frf.source} {frf.estimator})"
-    )
+    label = "predicted" if frf.source == "model" else f"measured ({frf.source} {frf.estimator})"
+    axes[0].semilogy(f, np.abs(frf.values), color="C0", label=label)
     axes[1].plot(f, np.degrees(np.angle(frf.values)), color="C0")
     if fitted:
         model = sum(m.compliance(f) for m in fitted) + residual
