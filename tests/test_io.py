@@ -162,3 +162,29 @@ def test_cli_frf_compute_and_modal_fit(tmp_path, recording):
     assert png.stat().st_size > 1000
     res = runner.invoke(app, ["modal", "fit", str(tmp_path / "missing.h5")])
     assert res.exit_code == 2 and "error" in res.output
+
+
+def test_voltage_channels_need_and_use_sensitivities(tmp_path):
+    from robovib.io import Sensitivity
+
+    fs = 1000.0
+    t = np.arange(100) / fs
+    path = tmp_path / "volts.csv"
+    lines = ["time_s,force_mv,acceleration_v"] + [
+        f"{ti},{225.0 * np.sin(ti)},{0.1 * np.cos(ti)}" for ti in t
+    ]
+    path.write_text("\n".join(lines))
+    with pytest.raises(ValueError, match="sensitivity"):
+        read_recording_csv(path)
+    rec = read_recording_csv(path, force_sensitivity=Sensitivity(2.25, "N"),
+                             response_sensitivity=Sensitivity(10.0, "g"))  # fmt: skip
+    np.testing.assert_allclose(rec.forces[0], 100.0 * np.sin(t), rtol=1e-9)  # 225 mV / 2.25 mV/N
+    np.testing.assert_allclose(
+        rec.responses[0], 10.0 * np.cos(t) * 9.80665, rtol=1e-9
+    )  # 100 mV / 10 mV/g
+    with pytest.raises(ValueError, match="is force"):
+        read_recording_csv(
+            path,
+            force_sensitivity=Sensitivity(2.25, "g"),
+            response_sensitivity=Sensitivity(10.0, "g"),
+        )

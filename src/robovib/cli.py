@@ -290,6 +290,18 @@ def frf_compute(
             help="Pose as distance along a tool path [m], stored with the FRF (hybrid model)."
         ),
     ] = None,
+    force_sensitivity: Annotated[
+        float | None, typer.Option(help="Hammer sensitivity [mV/N] for a force channel in V or mV.")
+    ] = None,
+    response_sensitivity: Annotated[
+        float | None,
+        typer.Option(
+            help="Response sensor sensitivity [mV per --response-unit] for a channel in V or mV."
+        ),
+    ] = None,
+    response_unit: Annotated[
+        str, typer.Option(help="Unit of the response sensitivity (g, m/s^2, m/s, m).")
+    ] = "g",
     json_out: JsonFlag = False,
 ) -> None:
     """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
@@ -299,7 +311,13 @@ def frf_compute(
     if direction is not None and direction not in ("x", "y", "z"):
         _fail(f"unknown direction {direction!r}; use x, y or z")
     try:
-        rec = read_recording(recording, direction)
+        from .io import Sensitivity
+
+        rec = read_recording(
+            recording, direction,
+            Sensitivity(force_sensitivity, "N") if force_sensitivity else None,
+            Sensitivity(response_sensitivity, response_unit) if response_sensitivity else None,
+        )  # fmt: skip
         result = impact_frf(
             rec.forces, rec.responses, rec.sample_rate_hz,
             response_quantity=rec.response_quantity, estimator=estimator,
@@ -1555,6 +1573,9 @@ def hybrid_next_poses(
     ] = "0,0.585,1.235",
     direction: Annotated[str, typer.Option(help="x, y or z.")] = "x",
     seed: SeedOpt = 0,
+    plot: Annotated[
+        Path | None, typer.Option(help="PNG of the variance along the path with the proposals.")
+    ] = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Where to hammer next along the chapter-4 path: largest integrated predictive variance."""
@@ -1575,6 +1596,30 @@ def hybrid_next_poses(
         picks = model.next_poses(np.linspace(0, PATH_LENGTH_M, 50), k=k)[:, 0]
     except ValueError as exc:
         _fail(str(exc))
+    if plot is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        cand = np.linspace(0, PATH_LENGTH_M, 200)
+        fig, ax = plt.subplots(figsize=(7, 3.5))
+        ax.plot(
+            cand * 1e3,
+            model.integrated_variance(cand),
+            color="C0",
+            label="integrated predictive variance",
+        )
+        for i, s_t in enumerate(tested):
+            ax.axvline(s_t * 1e3, color="k", lw=1, label="tested" if i == 0 else None)
+        for i, s_p in enumerate(picks):
+            ax.axvline(s_p * 1e3, color="C3", ls="--", lw=1, label="proposed" if i == 0 else None)
+        ax.set_xlabel("distance along the path [mm]")
+        ax.set_ylabel("sum over bins of var [(um/N)^2]")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(plot, dpi=120)
+        plt.close(fig)
     if json_out:
         _emit_json({"tested_s_m": tested, "next_s_m": picks})
     else:

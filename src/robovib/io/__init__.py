@@ -13,6 +13,7 @@ from .frf_files import (
 )
 from .recording import (
     HammerRecording,
+    Sensitivity,
     read_recording,
     read_recording_csv,
     read_recording_uff,
@@ -22,6 +23,7 @@ from .units import apply_sensitivity, si_factor
 
 __all__ = [
     "HammerRecording",
+    "Sensitivity",
     "apply_sensitivity",
     "read_frfs",
     "read_frfs_hdf5",

@@ -9,6 +9,8 @@ CSV layout (one header row, comma separated)::
 * ``hit`` (optional): hit number; without it the file holds one hit.
 * time: ``time_s`` or ``time_ms``; uniform sampling is required (checked).
 * force: ``force_n``, ``force_kn`` or ``force_lbf``.
+* voltage channels: unit ``v`` or ``mv`` (``force_mv``, ``acceleration_v``) with a
+  :class:`Sensitivity` passed to the reader;
 * exactly one response column ``<quantity>_<unit>`` with quantity ``acceleration``,
   ``velocity`` or ``displacement`` and unit written with ``_per_`` for ``/`` and ``2`` for
   squares: ``acceleration_g``, ``acceleration_m_per_s2``, ``velocity_mm_per_s``,
@@ -32,6 +34,7 @@ from .units import si_factor
 
 __all__ = [
     "HammerRecording",
+    "Sensitivity",
     "read_recording",
     "read_recording_csv",
     "read_recording_uff",
@@ -74,6 +77,41 @@ class HammerRecording:
         return self.forces.shape[0]
 
 
+@dataclass(frozen=True)
+class Sensitivity:
+    """A sensor sensitivity for voltage channels: ``mv_per_unit`` millivolts per ``unit``.
+
+    E.g. ``Sensitivity(2.25, "N")`` for a PCB 086D05 hammer, ``Sensitivity(10.0, "g")`` for an
+    accelerometer.
+    """
+
+    mv_per_unit: float
+    unit: str
+
+
+def _channel_factor(
+    label: str, expected: str, sensitivity: Sensitivity | None, where: str
+) -> float:
+    """SI factor of a channel; voltage labels (V, mV) need a sensitivity of the right quantity."""
+    key = label.strip().lower()
+    if key in ("v", "mv"):
+        if sensitivity is None:
+            raise ValueError(
+                f"{where}: the {expected} channel is in {label}; give its sensitivity (mV per unit)"
+            )
+        quantity, per_unit = si_factor(sensitivity.unit)
+        if quantity != expected:
+            raise ValueError(
+                f"{where}: sensitivity is per {sensitivity.unit} ({quantity}), the channel is {expected}"
+            )
+        if not sensitivity.mv_per_unit > 0:
+            raise ValueError(
+                f"{where}: sensitivity must be positive, got {sensitivity.mv_per_unit}"
+            )
+        return (1e3 if key == "v" else 1.0) / sensitivity.mv_per_unit * per_unit
+    return si_factor(label, expected)[1]
+
+
 def _sample_rate(time_s: np.ndarray, where: str) -> float:
     if time_s.size < 2:
         raise ValueError(f"{where}: fewer than 2 samples")
@@ -88,7 +126,12 @@ def _unit_from_column(name: str) -> str:
     return unit.replace("_per_", "/").replace("s2", "s^2")
 
 
-def read_recording_csv(path: str | Path, direction: str | None = None) -> HammerRecording:
+def read_recording_csv(
+    path: str | Path,
+    direction: str | None = None,
+    force_sensitivity: Sensitivity | None = None,
+    response_sensitivity: Sensitivity | None = None,
+) -> HammerRecording:
     """Read a hammer recording from CSV (layout in the module docstring)."""
     path = Path(path)
     with path.open(newline="") as fh:
@@ -114,9 +157,13 @@ def read_recording_csv(path: str | Path, direction: str | None = None) -> Hammer
             f"column, got {header}"
         )
     _, t_factor = si_factor(_unit_from_column(time_cols[0]), "time")
-    _, f_factor = si_factor(_unit_from_column(force_cols[0]), "force")
+    f_factor = _channel_factor(
+        _unit_from_column(force_cols[0]), "force", force_sensitivity, str(path)
+    )
     quantity = resp_cols[0].split("_", 1)[0]
-    _, r_factor = si_factor(_unit_from_column(resp_cols[0]), quantity)
+    r_factor = _channel_factor(
+        _unit_from_column(resp_cols[0]), quantity, response_sensitivity, str(path)
+    )
     hits = data[:, col["hit"]].astype(int) if "hit" in col else np.zeros(len(data), int)
     forces, responses, rates = [], [], []
     for h in np.unique(hits):
@@ -133,7 +180,12 @@ def read_recording_csv(path: str | Path, direction: str | None = None) -> Hammer
     return HammerRecording(np.array(forces), np.array(responses), rates[0], quantity, direction)
 
 
-def read_recording_uff(path: str | Path, direction: str | None = None) -> HammerRecording:
+def read_recording_uff(
+    path: str | Path,
+    direction: str | None = None,
+    force_sensitivity: Sensitivity | None = None,
+    response_sensitivity: Sensitivity | None = None,
+) -> HammerRecording:
     """Read force/response time records (UFF dataset 58, function type 1) of one or more hits."""
     import pyuff
 
@@ -161,11 +213,11 @@ def read_recording_uff(path: str | Path, direction: str | None = None) -> Hammer
             fs = _sample_rate(np.asarray(s["x"], float), f"{path} hit {hit}")
         values = np.asarray(s["data"], float)
         if spec == 13:
-            _, factor = si_factor(label, "force")
+            factor = _channel_factor(label, "force", force_sensitivity, str(path))
             by_hit.setdefault(hit, {})["force"] = (values * factor, fs)
         elif spec in _SPEC_TO_QUANTITY:
             q = _SPEC_TO_QUANTITY[spec]
-            _, factor = si_factor(label, q)
+            factor = _channel_factor(label, q, response_sensitivity, str(path))
             if quantity not in (None, q):
                 raise ValueError(f"{path}: mixed response quantities {quantity} and {q}")
             quantity = q
@@ -239,11 +291,19 @@ def write_recording_uff(path: str | Path, recording: HammerRecording) -> None:
     uff.write_sets(sets, mode="add")
 
 
-def read_recording(path: str | Path, direction: str | None = None) -> HammerRecording:
-    """Read a hammer recording by file extension (.csv, .uff/.unv)."""
+def read_recording(
+    path: str | Path,
+    direction: str | None = None,
+    force_sensitivity: Sensitivity | None = None,
+    response_sensitivity: Sensitivity | None = None,
+) -> HammerRecording:
+    """Read a hammer recording by file extension (.csv, .uff/.unv).
+
+    Voltage channels (unit V or mV) are converted with the given sensitivities.
+    """
     suffix = Path(path).suffix.lower()
     if suffix == ".csv":
-        return read_recording_csv(path, direction)
+        return read_recording_csv(path, direction, force_sensitivity, response_sensitivity)
     if suffix in (".uff", ".unv"):
-        return read_recording_uff(path, direction)
+        return read_recording_uff(path, direction, force_sensitivity, response_sensitivity)
     raise ValueError(f"unknown recording format {suffix!r}; expected .csv, .uff or .unv")
