@@ -146,3 +146,24 @@ def test_schedule_cli_from_a_path_file(tmp_path):
     bad.write_text("s_m,fn_hz\n0,10\n")
     res = CliRunner().invoke(app, ["control", "schedule", "--path", str(bad)])
     assert res.exit_code == 2 and "missing columns" in res.output
+
+
+@pytest.mark.parametrize(("r", "delay"), [(100.0, 8), (1.0, 0), (1.0, 8)])
+def test_loop_margins_match_python_control(r, delay):
+    control = pytest.importorskip("control")
+    import warnings
+
+    from robovib.control import loop_margins
+
+    design = design_lqr(MODE, r=[[r]])
+    ours = loop_margins(design, delay)
+    sys = control.ss(design.ad, design.bd, design.gains[None, :], 0, design.period_s)
+    if delay:
+        sys = sys * control.tf([1], [1] + [0] * delay, design.period_s)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gm, pm, _, wp, wc, _ = control.stability_margins(sys, returnall=True)
+    np.testing.assert_allclose(ours.gain_margins, gm, rtol=1e-4)
+    np.testing.assert_allclose(ours.phase_margins_deg, pm, atol=0.05)
+    np.testing.assert_allclose(ours.gain_crossovers_hz, np.asarray(wc) / (2 * np.pi), rtol=1e-3)
+    np.testing.assert_allclose(ours.phase_crossovers_hz, np.asarray(wp) / (2 * np.pi), rtol=1e-3)

@@ -1130,6 +1130,9 @@ def control_gains(
         da = delay_analysis(d, delay_ms / 1e3)
         tuned, r_tuned = tune_r_for_delay(mode, period_ms / 1e3, delay_ms / 1e3)
         aware = design_delay_aware_lqr(mode, period_ms / 1e3, delay_ms / 1e3, r=[[1.0]])
+        from .control import loop_margins
+
+        margins = loop_margins(d, round(delay_ms / period_ms))
     except ValueError as exc:
         _fail(str(exc))
     doc = {
@@ -1138,6 +1141,8 @@ def control_gains(
         "max_stable_delay_ms": 1e3 * da.max_stable_delay_s,
         "delay_tuned": {"r": r_tuned, "w1": tuned.gains[0], "w2": tuned.gains[1]},
         "delay_aware": {"gains": aware.gains, "spectral_radius": aware.spectral_radius},
+        "margins_with_delay": {"gain_margins": margins.gain_margins, "phase_crossovers_hz": margins.phase_crossovers_hz,
+                               "phase_margins_deg": margins.phase_margins_deg, "gain_crossovers_hz": margins.gain_crossovers_hz},
     }  # fmt: skip
     if json_out:
         _emit_json(doc)
@@ -1150,6 +1155,10 @@ def control_gains(
     if not da.stable:
         typer.echo(
             f"best-damped R with the delay: {r_tuned:.3g} -> W = [{tuned.gains[0]:.4g}, {tuned.gains[1]:.4g}]"
+        )
+    if margins.gain_margins.size:
+        typer.echo(
+            f"gain margin with the delay: {margins.gain_margins[0]:.3g} at {margins.phase_crossovers_hz[0]:.2f} Hz"
         )
     typer.echo(f"delay-aware LQR (R = 1): spectral radius {aware.spectral_radius:.3f}")
 
