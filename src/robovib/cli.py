@@ -1256,6 +1256,10 @@ def control_table9(json_out: JsonFlag = False) -> None:
 @control_app.command("simulate")
 def control_simulate(
     experiment: Annotated[str, typer.Argument(help="offset-mass or milling.")],
+    plot: Annotated[
+        Path | None,
+        typer.Option(help="PNG of the X vibration per controller (offset-mass, first speed)."),
+    ] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
@@ -1272,11 +1276,34 @@ def control_simulate(
         task = bar.add_task("virtual EMA along the path + closed-loop runs", total=None)
         model = path_modal_model(robot, rng=seed)
         rows = (
-            offset_mass_study(robot, model, rng=seed)
+            offset_mass_study(robot, model, rng=seed, keep_traces=plot is not None)
             if experiment == "offset-mass"
             else milling_study(robot, model, rng=seed)
         )
         bar.update(task, completed=1)
+    traces = (
+        [r.pop("trace_x_m") for r in rows if "trace_x_m" in r]
+        if experiment == "offset-mass"
+        else []
+    )
+    if plot is not None and experiment == "offset-mass":
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        first = rows[0]["speed_rpm"]
+        fig, ax = plt.subplots(figsize=(9, 4))
+        for r, x in zip([r for r in rows if r["unstable"] is None], traces, strict=True):
+            if r["speed_rpm"] == first:
+                ax.plot(np.arange(x.size) / 1000.0, 1e3 * x, lw=0.7, label=r["controller"])
+        ax.set_xlabel("time [s] (robot moving from the extended end toward the base)")
+        ax.set_ylabel("X vibration [mm]")
+        ax.set_title(f"offset mass at {first:g} rpm on the virtual robot")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(plot, dpi=120)
+        plt.close(fig)
     if json_out:
         _emit_json({"experiment": experiment, "rows": rows})
         return

@@ -152,9 +152,13 @@ def offset_mass_study(
     speed_m_per_s: float = 0.084,
     window_s: float = 1.0,
     delay_aware_r: float = 1.0,
+    keep_traces: bool = False,
     rng=0,
 ) -> list[dict]:
-    """Table 7 analogue: X vibration amplitude at the start and end of the path, per controller."""
+    """Table 7 analogue: X vibration amplitude at the start and end of the path, per controller.
+
+    ``keep_traces=True`` adds the X displacement record (``trace_x_m``, 1 kHz) to each row.
+    """
     from ..sim.experiments import offset_mass_force
 
     move = LinearMove("path", (s_start,), (s_end,))
@@ -191,6 +195,11 @@ def offset_mass_study(
                 )
                 continue
             x = disp[:, 0]
+            if keep_traces:
+                rows.append({"speed_rpm": rpm, "controller": name, "trace_x_m": x,
+                             "start_mm": 1e3 * np.ptp(x[w : 2 * w]) / 2, "end_mm": 1e3 * np.ptp(x[-w:]) / 2,
+                             "unstable": None})  # fmt: skip
+                continue
             rows.append({"speed_rpm": rpm, "controller": name,
                          "start_mm": 1e3 * np.ptp(x[w : 2 * w]) / 2, "end_mm": 1e3 * np.ptp(x[-w:]) / 2,
                          "unstable": None})  # fmt: skip
