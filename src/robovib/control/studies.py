@@ -195,14 +195,12 @@ def offset_mass_study(
                 )
                 continue
             x = disp[:, 0]
+            row = {"speed_rpm": rpm, "controller": name,
+                   "start_mm": 1e3 * np.ptp(x[w : 2 * w]) / 2, "end_mm": 1e3 * np.ptp(x[-w:]) / 2,
+                   "unstable": None}  # fmt: skip
             if keep_traces:
-                rows.append({"speed_rpm": rpm, "controller": name, "trace_x_m": x,
-                             "start_mm": 1e3 * np.ptp(x[w : 2 * w]) / 2, "end_mm": 1e3 * np.ptp(x[-w:]) / 2,
-                             "unstable": None})  # fmt: skip
-                continue
-            rows.append({"speed_rpm": rpm, "controller": name,
-                         "start_mm": 1e3 * np.ptp(x[w : 2 * w]) / 2, "end_mm": 1e3 * np.ptp(x[-w:]) / 2,
-                         "unstable": None})  # fmt: skip
+                row["trace_x_m"] = x
+            rows.append(row)
     return rows
 
 
