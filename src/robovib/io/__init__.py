@@ -3,6 +3,7 @@
 Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
+from .atomic import atomic_path
 from .frf_files import (
     read_frfs,
     read_frfs_hdf5,
@@ -13,27 +14,39 @@ from .frf_files import (
 )
 from .recording import (
     HammerRecording,
+    ReadReport,
     Sensitivity,
     read_recording,
+    read_recording_channels,
     read_recording_csv,
     read_recording_uff,
+    sample_rate_from_time,
+    select_channel,
     write_recording_uff,
 )
+from .uff58 import Record58, write_uff58
 from .units import apply_sensitivity, si_factor
 
 __all__ = [
     "HammerRecording",
+    "ReadReport",
+    "Record58",
     "Sensitivity",
     "apply_sensitivity",
+    "atomic_path",
     "read_frfs",
     "read_frfs_hdf5",
     "read_frfs_uff",
     "read_recording",
+    "read_recording_channels",
     "read_recording_csv",
     "read_recording_uff",
+    "sample_rate_from_time",
+    "select_channel",
     "si_factor",
     "write_frfs",
     "write_frfs_hdf5",
     "write_frfs_uff",
     "write_recording_uff",
+    "write_uff58",
 ]
