@@ -9,7 +9,7 @@ apart. The impacts are found in the force channel:
 3. **Hold-off**: a pulse that starts less than ``hold_off_s`` after the onset of the current hit
    belongs to that hit (it is a double hit, judged later by :func:`robovib.frf.check_hit`); a
    later pulse starts a new hit.
-4. **Cut**: hit ``i`` starts ``pretrigger_s`` before its onset and ends where the next hit
+4. **Cut**: hit ``i`` starts ``pretrigger_s + merge_s`` before its onset and ends where the next hit
    starts; all hits get the shortest such length (averaging needs equal records). A last hit
    with less than half the median spacing left before the end of the record is rejected as
    truncated (reported, never padded).
@@ -143,7 +143,9 @@ def segment_hits(
             n_pulses.append(1)
     if not onsets:
         return HitSegmentation(np.zeros(0, int), 0, np.zeros(0, int), np.zeros(0, int))
-    pre = round(pretrigger_s * fs)
+    # The threshold crossing lags the pulse's first rise: keep merge_s more before it, so that
+    # a trigger at a lower level still has the full pre-trigger.
+    pre = round(pretrigger_s * fs) + round(merge_s * fs)
     starts = np.maximum(np.asarray(onsets) - pre, 0)
     ends = np.append(starts[1:], f.size)
     rejected: list[tuple[int, str]] = []
