@@ -65,6 +65,7 @@ def test_end_to_end_unseen_pose_errors(campaign, tmp_path):
     _, sim, _, out = campaign
     fit = fit_pose_model_from_table(out / "out" / "modal.csv", inputs=["x_mm", "y_mm", "rz_deg"])
     assert list(fit.cv_table["output"]) == fit.model.output_names_
+    assert fit.model.provenance_["mode_switch_found"] == {"x": False, "y": False, "z": False}
     assert (fit.cv_table["relative_rmse_pct"] < 15).all()
     truth = pd.read_csv(sim.truth)
     X = truth[["x_mm", "y_mm", "rz_deg"]].to_numpy()
@@ -160,3 +161,15 @@ def test_manifest_errors(tmp_path):
     (row,) = read_manifest(p)
     assert row.file == (tmp_path / "sub" / "a.uff").resolve() and row.direction == "x"
     assert row.pose_tuple_si() == pytest.approx((0.001, 0.002, 0.003, 0, 0, 4))
+
+
+def test_mode_switch_detected_on_thesis_x_mode_only():
+    """Table A1 (measured): X fn is bimodal (16-23 Hz vs ~63 Hz at full extension), Y/Z not."""
+    from robovib.campaign.model import detect_mode_switch
+    from robovib.datasets import load_table_a1
+
+    a1 = load_table_a1(units="si")
+    assert detect_mode_switch(a1["fn_x_hz"])
+    assert not detect_mode_switch(a1["fn_y_hz"]) and not detect_mode_switch(a1["fn_z_hz"])
+    high = a1["x_high_mode"] > 0.5
+    assert not detect_mode_switch(a1.loc[~high, "fn_x_hz"])

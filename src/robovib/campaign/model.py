@@ -27,6 +27,7 @@ __all__ = [
     "NextPoses",
     "PoseModelFit",
     "TablePoseModel",
+    "detect_mode_switch",
     "fit_pose_model_from_table",
     "next_poses",
     "save_pose_model",
@@ -36,6 +37,35 @@ _OUTPUTS = ("fn_hz", "stiffness_n_per_m", "damping_ns_per_m")
 _FORMAT = "robovib-pose-modal"
 _FIT_FLAGS = ("band edge", "residual", "coherence")
 _UNITS = {"mm": "mm", "deg": "deg", "m": "m"}
+
+
+def detect_mode_switch(fn_hz) -> bool:
+    """True when natural frequencies fall into two clearly separated clusters (a mode switch).
+
+    Two-component Gaussian mixture on ``log fn`` against one component (scikit-learn): a switch
+    needs a BIC gain > 10, both clusters with >= 10 % of the poses (and >= 2 of them), and
+    means more than 4 within-cluster standard deviations and a factor 1.5 apart (another mode,
+    not a pose trend) — e.g. the thesis' X mode at 15-23 Hz vs ~63 Hz at full extension
+    (Table A1), while its 15-17 / 21-23 Hz clusters are one mode over the pose.
+    """
+    from sklearn.mixture import GaussianMixture
+
+    x = np.log(np.asarray(fn_hz, float))
+    x = x[np.isfinite(x)][:, None]
+    if x.shape[0] < 6:
+        return False
+    one = GaussianMixture(1, random_state=0).fit(x)
+    two = GaussianMixture(2, random_state=0, n_init=3).fit(x)
+    if one.bic(x) - two.bic(x) < 10:
+        return False
+    w = two.weights_
+    labels = two.predict(x)
+    if w.min() < 0.1 or np.bincount(labels, minlength=2).min() < 2:
+        return False
+    mu = two.means_[:, 0]
+    sd = np.sqrt(two.covariances_.reshape(2))
+    gap = abs(mu[0] - mu[1])
+    return bool(gap > 4 * sd.max() and gap > np.log(1.5))
 
 
 def _input_unit(name: str) -> str:
@@ -48,8 +78,9 @@ class TablePoseModel:
     Follows the ``robovib.gp.PoseModalModel`` interface (scikit-learn contract). The GPs
     (:class:`robovib.gp.BatchedGPRegressor`, thesis Eq. 6-10) model ``log`` of fn, k and c,
     so predictions stay positive; the mean is ``exp(mu)`` and the standard deviation
-    ``exp(mu) sigma`` (first order). No mode-switch classifier: ``mode_switch`` other than
-    False is accepted and reported as "none found" (``mode_switch_found_ = False``).
+    ``exp(mu) sigma`` (first order). Mode switches are detected (:func:`detect_mode_switch` on
+    each direction's fn, ``mode_switch_found_``) and warned about, not modelled: this model has
+    no classifier.
 
     Parameters
     ----------
@@ -123,7 +154,22 @@ class TablePoseModel:
         logY = np.where(ok, np.log(np.where(ok, Y, 1.0)), 0.0)
         self.gp_ = BatchedGPRegressor(kernel=self.kernel, rng=self.rng).fit(X, logY, mask=ok)
         self.X_train_, self.Y_train_, self.mask_ = X, np.where(ok, Y, np.nan), ok
-        self.mode_switch_found_ = False
+        self.mode_switch_found_ = {
+            d: self.mode_switch is not False and detect_mode_switch(Y[:, 3 * j])
+            for j, d in enumerate(self.directions)
+        }
+        found = [d for d, f in self.mode_switch_found_.items() if f]
+        if found:
+            import warnings
+
+            warnings.warn(
+                f"the natural frequency of direction(s) {', '.join(found)} is bimodal over the "
+                "poses (a mode switch); TablePoseModel fits one smooth GP per output and blends "
+                "the two modes near the switch — use robovib.gp.PoseModalModel (classifier + "
+                "per-mode GPs) for such data",
+                UserWarning,
+                stacklevel=2,
+            )
         self._set_hull()
         return self
 
@@ -163,7 +209,7 @@ class TablePoseModel:
         return (mean, mean * sd) if return_std else mean
 
     def mode_switch_probability(self, X):
-        """None: this model has no mode-switch classifier."""
+        """None: this model has no mode-switch classifier (see ``mode_switch_found_``)."""
         return None
 
     def modes(self, X) -> list[dict]:
@@ -206,8 +252,8 @@ class TablePoseModel:
             h5.attrs["output_names"] = json.dumps(self.output_names_)
             h5.attrs["output_units"] = "SI: Hz, N/m, N*s/m; GPs on the natural log of each"
             h5.attrs["kernel"] = self.kernel
-            h5.attrs["mode_switch"] = str(self.mode_switch)
-            h5.attrs["mode_switch_found"] = False
+            h5.attrs["mode_switch"] = json.dumps(self.mode_switch)
+            h5.attrs["mode_switch_found"] = json.dumps(self.mode_switch_found_)
             h5.create_dataset("X_train", data=self.X_train_)
             h5.create_dataset("Y_train", data=np.nan_to_num(self.Y_train_))
             h5.create_dataset("mask", data=self.mask_)
@@ -232,9 +278,10 @@ class TablePoseModel:
                 input_names=tuple(json.loads(h5.attrs["input_names"])),
                 directions=tuple(json.loads(h5.attrs["directions"])),
                 kernel=str(h5.attrs["kernel"]),
-                mode_switch=str(h5.attrs["mode_switch"]),
+                mode_switch=json.loads(h5.attrs["mode_switch"]),
             )
             X, Y, mask = h5["X_train"][()], h5["Y_train"][()], h5["mask"][()].astype(bool)
+            h5_found = str(h5.attrs["mode_switch_found"])
             hp = GPHyperparameters(
                 **{k: h5["hyperparameters"][k][()] for k in h5["hyperparameters"]}
             )
@@ -243,7 +290,7 @@ class TablePoseModel:
             kernel=model.kernel, optimizer=None, initial_hyperparameters=hp
         ).fit(X, logY, mask=mask)
         model.X_train_, model.Y_train_, model.mask_ = X, np.where(mask, Y, np.nan), mask
-        model.mode_switch_found_ = False
+        model.mode_switch_found_ = json.loads(h5_found)
         model._set_hull()
         return model
 
@@ -319,9 +366,13 @@ def _cv(model_cls, params, X, Y, groups, n_folds):
     fold = np.array([fold_of_group[g] for g in groups])
     pred = np.full_like(Y, np.nan)
     std = np.full_like(Y, np.nan)
+    import warnings
+
     for f in range(k):
         tr, te = fold != f, fold == f
-        m = model_cls(**params).fit(X[tr], Y[tr])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # the final fit warns once
+            m = model_cls(**params).fit(X[tr], Y[tr])
         pred[te], std[te] = m.predict(X[te], return_std=True)
     names = (
         model_cls(**params).output_names_ if hasattr(model_cls(**params), "output_names_") else None
@@ -407,6 +458,7 @@ def fit_pose_model_from_table(
         "cv_folds": int(k),
         "cv": "k-fold grouped by pose (replicates left out together)",
         "excluded_rows": [list(e) for e in excluded],
+        "mode_switch_found": getattr(model, "mode_switch_found_", None),
     }
     return PoseModelFit(model, cv_table, X, Y, groups, excluded)
 
