@@ -29,6 +29,7 @@ __all__ = [
     "TablePoseModel",
     "detect_mode_switch",
     "fit_pose_model_from_table",
+    "mode_switches_found",
     "next_poses",
     "save_pose_model",
 ]
@@ -374,9 +375,7 @@ def _cv(model_cls, params, X, Y, groups, n_folds):
             warnings.simplefilter("ignore", UserWarning)  # the final fit warns once
             m = model_cls(**params).fit(X[tr], Y[tr])
         pred[te], std[te] = m.predict(X[te], return_std=True)
-    names = (
-        model_cls(**params).output_names_ if hasattr(model_cls(**params), "output_names_") else None
-    )
+    names = [f"{d}_{o}" for d in params["directions"] for o in _OUTPUTS]
     rows = []
     for j in range(Y.shape[1]):
         ok = np.isfinite(Y[:, j]) & np.isfinite(pred[:, j])
@@ -384,7 +383,7 @@ def _cv(model_cls, params, X, Y, groups, n_folds):
         err = p - y
         ss = np.sum((y - y.mean()) ** 2)
         rows.append({
-            "output": names[j] if names else str(j), "n": int(ok.sum()),
+            "output": names[j], "n": int(ok.sum()),
             "rmse": float(np.sqrt(np.mean(err**2))) if ok.any() else np.nan,
             "relative_rmse_pct": float(100 * np.sqrt(np.mean(err**2)) / np.mean(y)) if ok.any() else np.nan,
             "r2": float(1 - np.sum(err**2) / ss) if ss > 0 else np.nan,
@@ -448,8 +447,9 @@ def fit_pose_model_from_table(
     params = dict(input_names=inputs, directions=tuple(directions), kernel=kernel,
                   mode_switch=mode_switch, rng=rng)  # fmt: skip
     cv_table, k = _cv(cls, params, X, Y, groups, n_folds)
-    model = cls(**params).fit(X, Y, groups=groups)
+    model = cls(**params).fit(X, Y)  # groups of fit() are noise groups, not poses
     model.cv_table_ = cv_table
+    model.cv_ = {c: cv_table[c].to_numpy(float) for c in cv_table.columns if c != "output"}
     model.provenance_ = {
         "source": str(modal_csv) if not isinstance(modal_csv, pd.DataFrame) else "DataFrame",
         "n_rows": len(table),
@@ -458,28 +458,53 @@ def fit_pose_model_from_table(
         "cv_folds": int(k),
         "cv": "k-fold grouped by pose (replicates left out together)",
         "excluded_rows": [list(e) for e in excluded],
-        "mode_switch_found": getattr(model, "mode_switch_found_", None),
+        "mode_switch_found": mode_switches_found(model),
     }
     return PoseModelFit(model, cv_table, X, Y, groups, excluded)
 
 
+def mode_switches_found(model) -> dict[str, bool]:
+    """Direction -> whether the fitted model found a mode switch there (either model class)."""
+    if hasattr(model, "mode_switches_"):  # PoseModalModel: ModeSwitchDetection per direction
+        return {d: bool(det.found) for d, det in model.mode_switches_.items()}
+    return {d: bool(f) for d, f in getattr(model, "mode_switch_found_", {}).items()}
+
+
+def _flat_provenance(prov: dict) -> dict:
+    return {
+        k: v if isinstance(v, str | int | float | bool) else json.dumps(v) for k, v in prov.items()
+    }
+
+
 def save_pose_model(fit: PoseModelFit, path) -> None:
-    """Save the model (its own HDF5 format) plus the CV table and provenance, atomically."""
+    """Save the model with the CV table and provenance, atomically (temporary file + rename).
+
+    A model whose ``save`` takes ``cv=`` and ``provenance=`` (``PoseModalModel``) stores them
+    itself; otherwise they go to the ``/campaign`` group of the model's HDF5 file.
+    """
+    import inspect
+
     import h5py
 
     from ..io import atomic_path
 
+    cv = fit.cv_table
+    cv_arrays = {c: cv[c].to_numpy(float) for c in cv.columns if c not in ("output",)}
+    prov = _flat_provenance(fit.model.provenance_)
+    if "cv" in inspect.signature(fit.model.save).parameters:
+        with atomic_path(path) as tmp:
+            fit.model.save(tmp, cv=cv_arrays, provenance=prov)
+        return
     with atomic_path(path) as tmp:
         fit.model.save(tmp)
         with h5py.File(tmp, "a") as h5:
             g = h5.require_group("campaign")
-            g.attrs["provenance"] = json.dumps(fit.model.provenance_)
-            cv = fit.cv_table
+            for k, v in prov.items():
+                g.attrs[k] = v
             g.attrs["cv_columns"] = json.dumps(list(cv.columns))
             g.create_dataset("cv_output", data=np.array(cv["output"].astype(str), dtype="S"))
-            for c in cv.columns:
-                if c != "output":
-                    g.create_dataset(f"cv_{c}", data=cv[c].to_numpy(float))
+            for c, v in cv_arrays.items():
+                g.create_dataset(f"cv_{c}", data=v)
 
 
 @dataclass(frozen=True)
@@ -504,10 +529,33 @@ class NextPoses:
     total_variance_before: float
 
 
+def _gps_of(model) -> list[BatchedGPRegressor]:
+    """The fitted GPs of a pose model: ``gp_`` (TablePoseModel) or the BatchedGPRegressors in
+    ``estimators_`` (PoseModalModel; per-mode GPs of a mode-switching direction included)."""
+    if isinstance(getattr(model, "gp_", None), BatchedGPRegressor):
+        return [model.gp_]
+    out = []
+    for est in getattr(model, "estimators_", []) or []:
+        if isinstance(est, BatchedGPRegressor):
+            out.append(est)
+        else:
+            out += [v for v in vars(est).values() if isinstance(v, BatchedGPRegressor)]
+    if not out:
+        raise ValueError("next_poses needs a fitted pose model with GPs (gp_ or estimators_)")
+    return out
+
+
 def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
-    """Posterior covariance (B, m, m) at Xc and noise variances (B,), in the GP's target units."""
+    """Posterior covariance (B, m, m) at Xc, noise and prior variances (B,), in target units.
+
+    Computed from the fitted hyperparameters (data units, squared-exponential kernel,
+    thesis Eq. 6-10), independently of the regressor's internals.
+    """
     hp = gp.hyperparameters_
     X, mask = gp.X_train_, gp.mask_
+    noise = np.asarray(hp.noise_std, float)
+    if noise.ndim == 2:  # noise groups: the first (reference) group
+        noise = noise[:, 0]
     out = []
     for b in range(hp.signal_std.size):
         sf2 = float(hp.signal_std[b]) ** 2
@@ -518,15 +566,11 @@ def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
             return sf2 * np.exp(-0.5 * np.sum(d * d, axis=-1))
 
         Xb = X[mask[:, b]]
-        kxx = k(Xb, Xb) + (float(hp.noise_std[b]) ** 2 + 1e-10 * sf2) * np.eye(len(Xb))
+        kxx = k(Xb, Xb) + (float(noise[b]) ** 2 + 1e-10 * sf2) * np.eye(len(Xb))
         kcx = k(Xc, Xb)
         sol = np.linalg.solve(kxx, kcx.T)
         out.append(k(Xc, Xc) - kcx @ sol)
-    return (
-        np.array(out),
-        np.asarray(hp.noise_std, float) ** 2,
-        np.asarray(hp.signal_std, float) ** 2,
-    )
+    return np.array(out), noise**2, np.asarray(hp.signal_std, float) ** 2
 
 
 def next_poses(model, candidates, k: int = 5) -> NextPoses:
@@ -535,7 +579,8 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
     Parameters
     ----------
     model
-        A fitted pose model exposing its GP as ``gp_`` (:class:`TablePoseModel`).
+        A fitted pose model: :class:`TablePoseModel` or :class:`robovib.gp.PoseModalModel`
+        (all its GPs count, the per-mode GPs of a switching direction included).
     candidates
         (m, n_inputs) array, or a DataFrame with the model's input columns.
     k
@@ -563,12 +608,9 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
         raise ValueError("candidates contain NaN or inf")
     if not 1 <= int(k) <= len(C):
         raise ValueError(f"k must be in [1, {len(C)}], got {k}")
-    gp = getattr(model, "gp_", None)
-    if gp is None:
-        raise ValueError("next_poses needs a fitted pose model with a GP (attribute gp_)")
-    cov, noise, prior = _posterior_cov(gp, C)
-    cov = cov / prior[:, None, None]
-    noise = noise / prior
+    parts = [_posterior_cov(gp, C) for gp in _gps_of(model)]
+    cov = np.concatenate([c / p[:, None, None] for c, _, p in parts])
+    noise = np.concatenate([n / p for _, n, p in parts])
     before = float(np.sum(np.trace(cov, axis1=1, axis2=2)))
     chosen, gains = [], []
     for _ in range(int(k)):
