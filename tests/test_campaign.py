@@ -174,3 +174,19 @@ def test_mode_switch_detected_on_thesis_x_mode_only():
     assert not detect_mode_switch(a1["fn_y_hz"]) and not detect_mode_switch(a1["fn_z_hz"])
     high = a1["x_high_mode"] > 0.5
     assert not detect_mode_switch(a1.loc[~high, "fn_x_hz"])
+
+
+def test_plot_next_poses(campaign, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from robovib.campaign import plot_next_poses
+
+    _, _, res, _ = campaign
+    fit = fit_pose_model_from_table(res.table)
+    cand = pd.DataFrame({"x_mm": [2200.0, 2300, 2400, 2500], "y_mm": [0.0, 100, -200, 500],
+                         "rz_deg": [10.0, 90, 170, 45]})  # fmt: skip
+    nx = next_poses(fit.model, cand, k=2)
+    fig = plot_next_poses(nx, fit.model, cand)
+    fig.savefig(tmp_path / "next.png")
+    assert (tmp_path / "next.png").stat().st_size > 5000

@@ -23,6 +23,7 @@ from .model import (
     next_poses,
     save_pose_model,
 )
+from .plot import plot_next_poses
 from .process import CampaignResult, ProcessingSettings, process_campaign, process_row
 
 __all__ = [
@@ -37,6 +38,7 @@ __all__ = [
     "TablePoseModel",
     "fit_pose_model_from_table",
     "next_poses",
+    "plot_next_poses",
     "process_campaign",
     "process_row",
     "read_manifest",
