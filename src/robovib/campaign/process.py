@@ -47,7 +47,9 @@ class ProcessingSettings:
     pretrigger_s, force_window_s, exp_window_tau_s
         Impact windows of :func:`robovib.frf.impact_frf` [s] (None: no window).
     f_min_hz, f_max_hz
-        Band kept in the compliance FRF [Hz].
+        Band kept in the compliance FRF [Hz]. The default 5 Hz keeps the accelerometer's
+        noise, amplified by 1/(2 pi f)^2 in the compliance, from out-peaking a well damped
+        mode (robot modes: 7-65 Hz in the thesis); lower it for slower structures.
     band_hz
         Dominant-mode fit band [Hz]; None: around the peak.
     keep_flagged
@@ -62,7 +64,7 @@ class ProcessingSettings:
     pretrigger_s: float = 0.01
     force_window_s: float | None = 0.01
     exp_window_tau_s: float | None = None
-    f_min_hz: float = 2.0
+    f_min_hz: float = 5.0
     f_max_hz: float = 200.0
     band_hz: tuple[float, float] | None = None
     keep_flagged: bool = False
