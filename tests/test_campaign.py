@@ -9,7 +9,9 @@ import pytest
 
 from robovib.campaign import (
     fit_pose_model_from_table,
+    load_pose_model,
     next_poses,
+    predict_at,
     process_campaign,
     read_manifest,
     save_pose_model,
@@ -84,8 +86,15 @@ def test_end_to_end_unseen_pose_errors(campaign, tmp_path):
     # Save with CV + provenance, reload: same predictions, no refit.
     path = tmp_path / "model.h5"
     save_pose_model(fit, path)
-    back = type(fit.model).load(path)
+    back = load_pose_model(path)
     np.testing.assert_allclose(back.predict(X), pred, rtol=1e-9)
+    far = predict_at(back, {"x_mm": 9999.0, "y_mm": 0.0, "rz_deg": 0.0})
+    assert far.extrapolating and far.outside_inputs == ("x_mm",)
+    near = predict_at(back, dict(zip(back.input_names, fit.X[0], strict=True)))
+    assert not near.extrapolating
+    assert near.outputs[0]["mean"] == pytest.approx(back.predict(fit.X[:1])[0, 0])
+    with pytest.raises(ValueError, match="missing rz_deg; not an input: a1_deg"):
+        predict_at(back, {"x_mm": 1.0, "y_mm": 0.0, "a1_deg": 3.0})
     assert (
         back.extrapolating([[9999.0, 0.0, 0.0]])[0]
         and not back.extrapolating(X[:1] * 0 + fit.X[:1])[0]
@@ -190,3 +199,14 @@ def test_plot_next_poses(campaign, tmp_path):
     fig = plot_next_poses(nx, fit.model, cand)
     fig.savefig(tmp_path / "next.png")
     assert (tmp_path / "next.png").stat().st_size > 5000
+
+
+def test_pose_table_errors(tmp_path):
+    from robovib.io import read_pose_table
+
+    p = tmp_path / "poses.csv"
+    p.write_text("x_mm,y_mm,rz_deg\n2100,0,0\n2200,abc,0\n")
+    with pytest.raises(ValueError, match=r"line 3: y_mm = 'abc' is not a finite number"):
+        read_pose_table(p, ["x_mm", "y_mm", "rz_deg"])
+    with pytest.raises(ValueError, match="lacks column"):
+        read_pose_table(p, ["a1_deg"])

@@ -18,9 +18,12 @@ from .manifest import (
 from .model import (
     NextPoses,
     PoseModelFit,
+    PosePrediction,
     TablePoseModel,
     fit_pose_model_from_table,
+    load_pose_model,
     next_poses,
+    predict_at,
     save_pose_model,
 )
 from .plot import plot_next_poses
@@ -34,11 +37,14 @@ __all__ = [
     "CampaignRow",
     "NextPoses",
     "PoseModelFit",
+    "PosePrediction",
     "ProcessingSettings",
     "TablePoseModel",
     "fit_pose_model_from_table",
+    "load_pose_model",
     "next_poses",
     "plot_next_poses",
+    "predict_at",
     "process_campaign",
     "process_row",
     "read_manifest",

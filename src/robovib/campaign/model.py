@@ -26,11 +26,14 @@ from ..gp.regressor import BatchedGPRegressor, GPHyperparameters
 __all__ = [
     "NextPoses",
     "PoseModelFit",
+    "PosePrediction",
     "TablePoseModel",
     "detect_mode_switch",
     "fit_pose_model_from_table",
+    "load_pose_model",
     "mode_switches_found",
     "next_poses",
+    "predict_at",
     "save_pose_model",
 ]
 
@@ -582,7 +585,7 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
         A fitted pose model: :class:`TablePoseModel` or :class:`robovib.gp.PoseModalModel`
         (all its GPs count, the per-mode GPs of a switching direction included).
     candidates
-        (m, n_inputs) array, or a DataFrame with the model's input columns.
+        (m, n_inputs) array, or a DataFrame / CSV path with the model's input columns.
     k
         Poses to choose (1 <= k <= m).
 
@@ -596,6 +599,10 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
         Missing input columns, bad ``k``, an unfitted model.
     """
     names = tuple(model.input_names)
+    if isinstance(candidates, str | Path):
+        from ..io import read_pose_table
+
+        candidates = read_pose_table(candidates, names)
     if hasattr(candidates, "columns"):
         missing = [c for c in names if c not in candidates.columns]
         if missing:
@@ -624,3 +631,98 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
         cov = cov - col[:, :, None] * col[:, None, :] / (diag[:, c] + noise)[:, None, None]
     idx = np.array(chosen)
     return NextPoses(C[idx], idx, np.array(gains), before)
+
+
+def load_pose_model(path):
+    """Load a pose model file: ``robovib.gp.PoseModalModel`` or :class:`TablePoseModel`.
+
+    Raises
+    ------
+    ValueError
+        Not a readable HDF5 file, or not a robovib pose model.
+    """
+    import h5py
+
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as h5:
+            fmt = h5.attrs.get("format")
+    except OSError as exc:
+        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+    if fmt == _FORMAT:
+        return TablePoseModel.load(path)
+    cls = _pose_model_class()
+    if cls is TablePoseModel:
+        raise ValueError(f"{path}: not a robovib pose model (format tag {fmt!r})")
+    return cls.load(path)
+
+
+@dataclass(frozen=True)
+class PosePrediction:
+    """Prediction of every output of a pose model at one pose.
+
+    Attributes
+    ----------
+    pose
+        Input name -> value, in the model's units.
+    outputs
+        One dict per output: ``output`` (name with unit), ``mean``, ``std``, ``lower_2sigma``,
+        ``upper_2sigma`` (SI).
+    extrapolating
+        The pose lies outside the training inputs' hull.
+    outside_inputs
+        Inputs outside their training range.
+    """
+
+    pose: dict
+    outputs: tuple
+    extrapolating: bool
+    outside_inputs: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        return {
+            "pose": dict(self.pose),
+            "extrapolating": self.extrapolating,
+            "outside_inputs": list(self.outside_inputs),
+            "predictions": [dict(o) for o in self.outputs],
+        }
+
+
+def predict_at(model, pose) -> PosePrediction:
+    """Predict every output at one pose given by input name (the model's ``input_names``).
+
+    Raises
+    ------
+    ValueError
+        A missing or unknown input name, or a non-finite value.
+    """
+    names = tuple(model.input_names)
+    given = dict(pose)
+    missing = [n for n in names if n not in given]
+    unknown = [n for n in given if n not in names]
+    if missing or unknown:
+        raise ValueError(
+            f"the model takes inputs {', '.join(names)}"
+            + (f"; missing {', '.join(missing)}" if missing else "")
+            + (f"; not an input: {', '.join(unknown)}" if unknown else "")
+        )
+    x = np.array([[float(given[n]) for n in names]])
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"pose values must be finite, got {given}")
+    mean, std = model.predict(x, return_std=True)
+    outs = tuple(
+        {
+            "output": name,
+            "mean": float(m),
+            "std": float(s),
+            "lower_2sigma": float(m - 2 * s),
+            "upper_2sigma": float(m + 2 * s),
+        }
+        for name, m, s in zip(model.output_names_, mean[0], std[0], strict=True)
+    )
+    X = np.asarray(model.X_train_, float)
+    lo, hi = X.min(axis=0), X.max(axis=0)
+    outside = tuple(n for n, v, a, b in zip(names, x[0], lo, hi, strict=True) if v < a or v > b)
+    return PosePrediction(
+        {n: float(given[n]) for n in names}, outs, bool(model.extrapolating(x)[0]), outside
+    )

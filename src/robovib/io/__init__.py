@@ -12,6 +12,7 @@ from .frf_files import (
     write_frfs_hdf5,
     write_frfs_uff,
 )
+from .poses import read_pose_table
 from .recording import (
     HammerRecording,
     ReadReport,
@@ -37,6 +38,7 @@ __all__ = [
     "read_frfs",
     "read_frfs_hdf5",
     "read_frfs_uff",
+    "read_pose_table",
     "read_recording",
     "read_recording_channels",
     "read_recording_csv",
