@@ -88,7 +88,7 @@ def test_end_to_end_unseen_pose_errors(campaign, tmp_path):
     save_pose_model(fit, path)
     back = load_pose_model(path)
     np.testing.assert_allclose(back.predict(X), pred, rtol=1e-9)
-    far = predict_at(back, {"x_mm": 9999.0, "y_mm": 0.0, "rz_deg": 0.0})
+    far = predict_at(back, {"x_mm": 9999.0, "y_mm": fit.X[0, 1], "rz_deg": fit.X[0, 2]})
     assert far.extrapolating and far.outside_inputs == ("x_mm",)
     near = predict_at(back, dict(zip(back.input_names, fit.X[0], strict=True)))
     assert not near.extrapolating
