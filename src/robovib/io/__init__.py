@@ -25,6 +25,15 @@ from .recording import (
     select_channel,
     write_recording_uff,
 )
+from .tables import (
+    read_compliance_tests_csv,
+    read_force_csv,
+    read_milling_record_csv,
+    read_path_modes_csv,
+    write_path_modes_csv,
+    write_recording,
+    write_recording_csv,
+)
 from .uff58 import Record58, write_uff58
 from .units import apply_sensitivity, si_factor
 
@@ -35,9 +44,13 @@ __all__ = [
     "Sensitivity",
     "apply_sensitivity",
     "atomic_path",
+    "read_compliance_tests_csv",
+    "read_force_csv",
     "read_frfs",
     "read_frfs_hdf5",
     "read_frfs_uff",
+    "read_milling_record_csv",
+    "read_path_modes_csv",
     "read_pose_table",
     "read_recording",
     "read_recording_channels",
@@ -49,6 +62,9 @@ __all__ = [
     "write_frfs",
     "write_frfs_hdf5",
     "write_frfs_uff",
+    "write_path_modes_csv",
+    "write_recording",
+    "write_recording_csv",
     "write_recording_uff",
     "write_uff58",
 ]
