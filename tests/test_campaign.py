@@ -93,7 +93,7 @@ def test_end_to_end_unseen_pose_errors(campaign, tmp_path):
     near = predict_at(back, dict(zip(back.input_names, fit.X[0], strict=True)))
     assert not near.extrapolating
     assert near.outputs[0]["mean"] == pytest.approx(back.predict(fit.X[:1])[0, 0])
-    with pytest.raises(ValueError, match="missing rz_deg; not an input: a1_deg"):
+    with pytest.raises(ValueError, match=r"--rz\); missing rz_deg; not an input: a1_deg"):
         predict_at(back, {"x_mm": 1.0, "y_mm": 0.0, "a1_deg": 3.0})
     assert (
         back.extrapolating([[9999.0, 0.0, 0.0]])[0]

@@ -38,6 +38,7 @@ __all__ = [
 ]
 
 _OUTPUTS = ("fn_hz", "stiffness_n_per_m", "damping_ns_per_m")
+_OUTPUT_UNITS = ("Hz", "N/m", "N*s/m")
 _FORMAT = "robovib-pose-modal"
 _FIT_FLAGS = ("band edge", "residual", "coherence")
 _UNITS = {"mm": "mm", "deg": "deg", "m": "m"}
@@ -317,7 +318,7 @@ class PoseModelFit:
     model
         The fitted model (``PoseModalModel`` interface).
     cv_table
-        DataFrame, one row per output: ``output``, ``n``, ``rmse`` (output units),
+        DataFrame, one row per output: ``output``, ``unit``, ``n``, ``rmse`` (in ``unit``),
         ``relative_rmse_pct`` (of the mean), ``r2``, ``mean_std_ratio`` (mean |error|/std).
     X, Y, groups
         Training data (SI outputs) and pose group of each row.
@@ -386,7 +387,7 @@ def _cv(model_cls, params, X, Y, groups, n_folds):
         err = p - y
         ss = np.sum((y - y.mean()) ** 2)
         rows.append({
-            "output": names[j], "n": int(ok.sum()),
+            "output": names[j], "unit": _OUTPUT_UNITS[j % 3], "n": int(ok.sum()),
             "rmse": float(np.sqrt(np.mean(err**2))) if ok.any() else np.nan,
             "relative_rmse_pct": float(100 * np.sqrt(np.mean(err**2)) / np.mean(y)) if ok.any() else np.nan,
             "r2": float(1 - np.sum(err**2) / ss) if ss > 0 else np.nan,
@@ -452,7 +453,9 @@ def fit_pose_model_from_table(
     cv_table, k = _cv(cls, params, X, Y, groups, n_folds)
     model = cls(**params).fit(X, Y)  # groups of fit() are noise groups, not poses
     model.cv_table_ = cv_table
-    model.cv_ = {c: cv_table[c].to_numpy(float) for c in cv_table.columns if c != "output"}
+    model.cv_ = {
+        c: cv_table[c].to_numpy(float) for c in cv_table.columns if c not in ("output", "unit")
+    }
     model.provenance_ = {
         "source": str(modal_csv) if not isinstance(modal_csv, pd.DataFrame) else "DataFrame",
         "n_rows": len(table),
@@ -492,7 +495,7 @@ def save_pose_model(fit: PoseModelFit, path) -> None:
     from ..io import atomic_path
 
     cv = fit.cv_table
-    cv_arrays = {c: cv[c].to_numpy(float) for c in cv.columns if c not in ("output",)}
+    cv_arrays = {c: cv[c].to_numpy(float) for c in cv.columns if c not in ("output", "unit")}
     prov = _flat_provenance(fit.model.provenance_)
     if "cv" in inspect.signature(fit.model.save).parameters:
         with atomic_path(path) as tmp:
@@ -701,8 +704,9 @@ def predict_at(model, pose) -> PosePrediction:
     missing = [n for n in names if n not in given]
     unknown = [n for n in given if n not in names]
     if missing or unknown:
+        options = ", ".join("--" + n.rsplit("_", 1)[0] for n in names)
         raise ValueError(
-            f"the model takes inputs {', '.join(names)}"
+            f"the model takes inputs {', '.join(names)} (options {options})"
             + (f"; missing {', '.join(missing)}" if missing else "")
             + (f"; not an input: {', '.join(unknown)}" if unknown else "")
         )
