@@ -64,3 +64,28 @@ def test_campaign_process_bad_row(tmp_path):
     assert not (tmp_path / "o").exists()
     res = run("campaign", "process", tmp_path / "m.csv", "-o", tmp_path / "o", "--skip-bad")
     assert res.exit_code == 1 and "every row failed" in res.output
+
+
+def test_frf_compute_reports_what_the_reader_did(tmp_path):
+    """A continuous UFF record written by pyuff with 3 hits: cut, reported in --json."""
+    pyuff = pytest.importorskip("pyuff")
+    fs, n = 1024.0, 3 * 1024
+    t = np.arange(n) / fs
+    force = sum(np.where((t >= t0) & (t <= t0 + 0.004), 400 * np.sin(np.pi * (t - t0) / 0.004), 0)
+                for t0 in (0.1, 1.1, 2.1))  # fmt: skip
+    resp = sum(np.where(t >= t0, np.exp(-4 * (t - t0)) * np.sin(2 * np.pi * 20 * (t - t0)), 0)
+               for t0 in (0.1, 1.1, 2.1))  # fmt: skip
+    sets = [pyuff.prepare_58(binary=0, func_type=1, rsp_node=1, rsp_dir=d, ref_node=1, ref_dir=2,
+                             ordinate_spec_data_type=spec, ordinate_axis_units_lab=lab,
+                             orddenom_spec_data_type=0, abscissa_spacing=1, data=v, x=t)
+            for d, spec, lab, v in ((2, 13, "N", force), (2, 12, "m/s^2", resp))]  # fmt: skip
+    pyuff.UFF(str(tmp_path / "cont.uff")).write_sets(sets, mode="add")
+    res = run(
+        "frf", "compute", tmp_path / "cont.uff", "-o", tmp_path / "f.h5", "--fmax", "100", "--json"
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["direction"] == "y" and doc["n_hits"] == 3
+    assert doc["reader"]["layout"] == "continuous" and doc["reader"]["hits_formed"] == 3
+    res = run("frf", "compute", tmp_path / "cont.uff", "-o", tmp_path / "f.h5", "--direction", "x")
+    assert res.exit_code == 1 and "contradicts the file" in res.output
