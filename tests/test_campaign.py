@@ -210,3 +210,26 @@ def test_pose_table_errors(tmp_path):
         read_pose_table(p, ["x_mm", "y_mm", "rz_deg"])
     with pytest.raises(ValueError, match="lacks column"):
         read_pose_table(p, ["a1_deg"])
+
+
+def test_mode_switch_detected_end_to_end(tmp_path):
+    """X hammer tests incl. full extension at Rz 0/180° (virtual robot: ~63 Hz mode dominant
+    there): the modal table shows it and the fitted model reports a switch in X."""
+    import warnings
+
+    from robovib.campaign import mode_switches_found
+
+    rng = np.random.default_rng(3)
+    base = np.column_stack([rng.uniform(2100, 2600, 24), rng.uniform(-300, 600, 24),
+                            rng.uniform(30, 150, 24)])  # fmt: skip
+    ext = np.column_stack([rng.uniform(2660, 2700, 8), rng.uniform(-300, 600, 8),
+                           rng.choice([0.0, 5, 175, 180], 8)])  # fmt: skip
+    poses = np.vstack([base, ext])
+    sim = simulate_campaign(poses, tmp_path, rng=1, n_hits=2, directions=("x",), n_truth=0)
+    res = process_campaign(sim.manifest, tmp_path / "out", n_workers=1)
+    high = res.table["x_mm"] > 2650
+    assert (res.table.loc[high, "fn_hz"] > 60).all() and (res.table.loc[~high, "fn_hz"] < 30).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        fit = fit_pose_model_from_table(tmp_path / "out" / "modal.csv")
+    assert mode_switches_found(fit.model) == {"x": True}

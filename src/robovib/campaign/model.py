@@ -337,7 +337,7 @@ class PoseModelFit:
 def _training_table(table, inputs, directions, use_flagged):
     excluded = []
     if not use_flagged and "flags" in table.columns:
-        flags = table["flags"].fillna("").astype(str)
+        flags = table["flags"].astype("string").fillna("")
         bad = flags.apply(lambda s: any(f in s for f in _FIT_FLAGS))
         for _, r in table[bad].iterrows():
             excluded.append((int(r.get("row", -1)), str(r["flags"])))
