@@ -76,7 +76,7 @@ def demo(
     json_out: JsonFlag = False,
 ) -> None:
     """Chapter-3 study on the shipped thesis data: GPR vs thesis Table 2, MLR, external validation."""
-    from .gp.study import chapter3_study
+    from .studies.chapter3 import chapter3_study
 
     study = chapter3_study(
         kernel=_check_kernel(kernel),
@@ -173,7 +173,8 @@ def gpr_predict(
 ) -> None:
     """Predicted dominant-mode parameters at a pose (Z = 325 mm, Rx = Ry = 0) with ±2σ."""
     from .datasets import X_HIGH_MODE_THRESHOLD_HZ
-    from .gp.study import OUTPUT_LABELS, fit_chapter3_model
+    from .studies.chapter3 import OUTPUT_LABELS
+    from .studies.chapter3 import fit_chapter3_regressor as fit_chapter3_model
 
     pose = np.array([[x, y, rz]], dtype=float)
     if not np.all(np.isfinite(pose)):
@@ -829,9 +830,9 @@ def robot_compare(
     json_out: JsonFlag = False,
 ) -> None:
     """Analytical model vs Table A1 measurements: relative errors of fn and stiffness per direction."""
-    from .robot.compare import compare_with_table_a1, gp_input_comparison, plot_comparison
+    from .studies.analytical import compare_with_table_a1, gp_input_comparison, plot_comparison
 
-    table = compare_with_table_a1()
+    table = compare_with_table_a1().to_frame()
     summary = {}
     for d in "xyz":
         for q in ("fn", "stiffness"):
@@ -841,7 +842,7 @@ def robot_compare(
                 "min": float(e.min()),
                 "max": float(e.max()),
             }
-    gp = gp_input_comparison() if gp_inputs else None
+    gp = gp_input_comparison().to_frame() if gp_inputs else None
     if plot is not None:
         plot_comparison(table, plot)
     if json_out:
@@ -936,7 +937,7 @@ def mill_predict(
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from .gp.study import fit_chapter3_model
+    from .gp import fit_chapter3_model
     from .milling import CuttingConditions
     from .milling.workflow import predict_at_pose
 
@@ -999,13 +1000,14 @@ def mill_lobes(
     json_out: JsonFlag = False,
 ) -> None:
     """Stability lobes (zero-order method) from the pose's predicted X/Y modes."""
-    from .gp.study import fit_chapter3_model
+    from .gp import fit_chapter3_model
     from .milling import CuttingConditions, MillingTool
     from .milling.stability import stability_lobes
     from .milling.workflow import pose_modes
 
     try:
-        modes, _, _ = pose_modes(fit_chapter3_model(rng=seed), x, y, rz)
+        pose = pose_modes(fit_chapter3_model(rng=seed), (x, y, rz))
+        modes = {d: m.parameters for d, m in pose.items()}
         cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae / 1e3)
         feed_dir, normal = ("x", "y") if feed == "x" else ("y", "x")
         lobes = stability_lobes(
@@ -1052,7 +1054,7 @@ def mill_map(
     """Critical axial depth at a spindle speed over the workspace: where to mill."""
     from rich.progress import Progress
 
-    from .gp.study import fit_chapter3_model
+    from .gp import fit_chapter3_model
     from .milling import CuttingConditions, MillingTool
     from .milling.workflow import workspace_lobe_map
 
@@ -1118,13 +1120,14 @@ def control_gains(
 ) -> None:
     """LQR gains W = [w1, w2] at a pose from the GP's predicted mode, with the delay analysis."""
     from .control import delay_analysis, design_delay_aware_lqr, design_lqr, tune_r_for_delay
-    from .gp.study import fit_chapter3_model
+    from .gp import fit_chapter3_model
     from .milling.workflow import pose_modes
 
     if direction not in ("x", "y", "z"):
         _fail(f"unknown direction {direction!r}")
     try:
-        modes, _, _ = pose_modes(fit_chapter3_model(), x, y, rz)
+        pose = pose_modes(fit_chapter3_model(), (x, y, rz))
+        modes = {d: m.parameters for d, m in pose.items()}
         mode = modes[direction]
         d = design_lqr(mode, period_ms / 1e3, r=[[r]])
         da = delay_analysis(d, delay_ms / 1e3)
@@ -1227,9 +1230,9 @@ def control_schedule(
 @control_app.command("table9")
 def control_table9(json_out: JsonFlag = False) -> None:
     """Gains from the thesis' Table 8 inputs under each plant formulation, beside Table 9."""
-    from .control import table_9_comparison
+    from .studies.table9 import table_9_comparison
 
-    rows = table_9_comparison()
+    rows = table_9_comparison().to_dict()["rows"]
     if json_out:
         _emit_json({"rows": rows})
         return

@@ -36,7 +36,7 @@ _REG_PARAMS = ("kernel", "mean", "normalize", "max_iter", "gtol", "n_noise_group
 def write_regressor(group, gp: BatchedGPRegressor) -> None:
     """Store a fitted :class:`BatchedGPRegressor` in an h5py group."""
     gp._require_fitted()
-    if gp._squeeze:
+    if getattr(gp, "_squeeze", False):
         raise ValueError("only regressors fitted on a 2-D Y can be saved")
     for p in _REG_PARAMS:
         group.attrs[p] = getattr(gp, p)
