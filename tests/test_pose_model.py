@@ -194,3 +194,23 @@ def test_bad_input_and_unfitted():
     fitted = clone(m).fit(X, Y)
     with pytest.raises(ValueError, match="columns"):
         fitted.predict(np.ones((2, 3)))
+
+
+def test_path_model_with_one_input(tmp_path):
+    """The chapter-4 shape: one path coordinate s [m], two directions."""
+    gen = np.random.default_rng(4)
+    s = np.repeat(np.linspace(0.0, 0.9, 10), 2)
+    fn = 10 - 3 * s
+    k = (1.4 - 0.6 * s) * 1e6
+    c = 2 * 0.15 * k / (2 * np.pi * fn)
+    one = np.column_stack([fn, k, c])
+    Y = np.hstack([one, 1.1 * one]) * (1 + 0.003 * gen.standard_normal((s.size, 6)))
+    model = PoseModalModel(("s_m",), ("x", "z")).fit(s, Y)
+    assert not any(d.found for d in model.mode_switches_.values())
+    assert model.output_names_[3] == "z_fn_hz" and model.input_units_ == ("m",)
+    np.testing.assert_array_equal(model.extrapolating([0.45, 0.95, -0.01]), [False, True, True])
+    mode = model.modes([0.45])[0]["x"]
+    assert mode.parameters.natural_frequency_hz == pytest.approx(10 - 3 * 0.45, rel=0.01)
+    assert mode.to_dict()["damping_ratio"] == pytest.approx(0.15, rel=0.05)
+    loaded = PoseModalModel.load(model.save(tmp_path / "path.h5"))
+    np.testing.assert_allclose(loaded.predict([0.1, 0.7]), model.predict([0.1, 0.7]), rtol=1e-10)

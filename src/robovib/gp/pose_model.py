@@ -90,6 +90,21 @@ class PoseMode:
     extrapolating: bool
     high_mode_probability: float | None
 
+    def to_dict(self) -> dict:
+        """JSON-ready, units in the keys (fn, k, c, ζ with the std of fn, k, c)."""
+        p = self.parameters
+        return {
+            "fn_hz": p.natural_frequency_hz,
+            "fn_std_hz": self.fn_std_hz,
+            "stiffness_n_per_m": p.stiffness_n_per_m,
+            "stiffness_std_n_per_m": self.stiffness_std_n_per_m,
+            "damping_ns_per_m": p.damping_ns_per_m,
+            "damping_std_ns_per_m": self.damping_std_ns_per_m,
+            "damping_ratio": p.damping_ratio,
+            "extrapolating": self.extrapolating,
+            "high_mode_probability": self.high_mode_probability,
+        }
+
 
 @dataclass(frozen=True)
 class ModeSwitchDetection:
