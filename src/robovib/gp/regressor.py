@@ -789,5 +789,5 @@ class BatchedGPRegressor(BaseEstimator):
                     f"covariance of output {b} not positive definite at the given hyperparameters"
                 ) from None
             a = linalg.solve_triangular(chol, r, lower=True)
-            out[b] = -0.5 * a @ a - np.sum(np.log(np.diag(chol))) - 0.5 * r.size * _LOG_2PI
+            out[b] = -0.5 * a @ a - np.sum(np.log(np.diag(chol))) - 0.5 * r.size * np.log(2 * np.pi)
         return out
