@@ -62,8 +62,19 @@ def write_regressor(group, gp: BatchedGPRegressor) -> None:
     for name in ("_x_loc", "_x_scale", "_y_loc", "_y_scale"):
         if getattr(gp, name, None) is not None:
             data[f"scaler{name}"] = getattr(gp, name)
+    units = {
+        "X": "input units",
+        "Y": "output units",
+        "signal_std": "output units",
+        "noise_std": "output units",
+        "mean": "output units",
+        "length_scales": "input units",
+        "log_marginal_likelihood": "log density in output units",
+    }
     for name, value in data.items():
-        group.create_dataset(name, data=np.asarray(value))
+        ds = group.create_dataset(name, data=np.asarray(value))
+        if name in units:
+            ds.attrs["units"] = units[name]
 
 
 def read_regressor(group) -> BatchedGPRegressor:
@@ -236,6 +247,8 @@ def write_pose_model(model, path, *, cv=None, provenance=None) -> None:
         ):
             g = est.create_group(str(i))
             g.attrs["columns"] = np.asarray(cols, int)
+            g.attrs["input_units"] = list(model.input_units_)
+            g.attrs["output_units"] = [model.output_units_[c] for c in cols]
             if isinstance(e, ModeSwitchingGPRegressor):
                 g.attrs["kind"] = "ModeSwitchingGPRegressor"
                 write_mode_switching(g, e)
