@@ -21,8 +21,8 @@ def shipped():
 
 
 @pytest.fixture(scope="module")
-def fresh():
-    return fit_chapter3_model()
+def fresh(chapter3_model):
+    return chapter3_model  # a fresh fit, shared by the session (tests/conftest.py)
 
 
 def _grid():

@@ -26,6 +26,7 @@ __all__ = [
     "AnalyticalComparison",
     "GPInputComparison",
     "compare_with_table_a1",
+    "comparison_summary",
     "gp_input_comparison",
     "plot_comparison",
     "workspace_joints",
@@ -49,16 +50,7 @@ class AnalyticalComparison:
 
     def summary(self) -> dict[str, dict[str, float]]:
         """Mean, min and max relative error of fn and stiffness per direction."""
-        out = {}
-        for d in "xyz":
-            for q in ("fn", "stiffness"):
-                e = self.table[f"{q}_{d}_rel_error"]
-                out[f"{q}_{d}"] = {
-                    "mean_rel_error": float(e.mean()),
-                    "min": float(e.min()),
-                    "max": float(e.max()),
-                }
-        return out
+        return comparison_summary(self.table)
 
     def to_dict(self) -> dict:
         """JSON-ready: summary and one record per pose (units in the keys)."""
@@ -119,14 +111,34 @@ def compare_with_table_a1(
     return AnalyticalComparison(pd.DataFrame(rows))
 
 
+def comparison_summary(
+    table: AnalyticalComparison | pd.DataFrame,
+) -> dict[str, dict[str, float]]:
+    """Mean, min and max relative error per quantity and direction of :func:`compare_with_table_a1`.
+
+    Returns
+    -------
+    dict
+        ``{"fn_x": {"mean_rel_error", "min", "max"}, "stiffness_x": ..., ...}`` (fractions).
+    """
+    if isinstance(table, AnalyticalComparison):
+        table = table.table
+    summary = {}
+    for d in "xyz":
+        for q in ("fn", "stiffness"):
+            e = table[f"{q}_{d}_rel_error"]
+            summary[f"{q}_{d}"] = {
+                "mean_rel_error": float(e.mean()),
+                "min": float(e.min()),
+                "max": float(e.max()),
+            }
+    return summary
+
+
 def plot_comparison(table: AnalyticalComparison | pd.DataFrame, path=None):
     """Relative errors (analytical / measured - 1) vs arm extension, like thesis Fig. 11."""
     if isinstance(table, AnalyticalComparison):
         table = table.table
-    import matplotlib
-
-    if path is not None:
-        matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
