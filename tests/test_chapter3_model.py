@@ -79,3 +79,17 @@ def test_chapter3_model_on_table_a2_in_si(shipped):
     assert smooth.mean_relative_error[0] > 2 * switching.mean_relative_error[0]
     assert np.all(switching.mean_relative_error[3:] < 0.15)
     assert not np.any(shipped.extrapolating(X))
+
+
+def test_get_chapter3_model_loads_the_shipped_copy_only_for_its_settings(monkeypatch):
+    import robovib.gp.chapter3_model as c3
+
+    calls = []
+    monkeypatch.setattr(c3, "fit_chapter3_model", lambda **kw: calls.append(kw) or "fitted")
+    assert isinstance(c3.get_chapter3_model(), PoseModalModel) and calls == []
+    assert c3.get_chapter3_model(rng=1) == "fitted"
+    assert c3.get_chapter3_model(kernel="isotropic") == "fitted"
+    assert calls == [
+        {"kernel": "ard", "mode_switch": "auto", "rng": 1},
+        {"kernel": "isotropic", "mode_switch": "auto", "rng": 0},
+    ]

@@ -42,12 +42,12 @@ def gains(
         loop_margins,
         tune_r_for_delay,
     )
-    from ..gp import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..milling.workflow import pose_modes
 
     if direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}")
-    modes = {d: m.parameters for d, m in pose_modes(fit_chapter3_model(), (x, y, rz)).items()}
+    modes = {d: m.parameters for d, m in pose_modes(get_chapter3_model(), (x, y, rz)).items()}
     mode = modes[direction]
     d = design_lqr(mode, period_ms / 1e3, r=[[r]])
     da = delay_analysis(d, delay_ms / 1e3)
