@@ -214,3 +214,50 @@ def test_path_model_with_one_input(tmp_path):
     assert mode.to_dict()["damping_ratio"] == pytest.approx(0.15, rel=0.05)
     loaded = PoseModalModel.load(model.save(tmp_path / "path.h5"))
     np.testing.assert_allclose(loaded.predict([0.1, 0.7]), model.predict([0.1, 0.7]), rtol=1e-10)
+
+
+def test_update_posterior_equals_a_fixed_hyperparameter_fit_on_all_data(tmp_path):
+    X, Y, _ = _synthetic(False, n_side=6)
+    first = np.arange(X.shape[0]) < 50
+    model = PoseModalModel(("x_mm", "y_mm"), ("x",)).fit(X[first], Y[first])
+    hp = model.estimators_[0].hyperparameters_
+    model.update(X[~first], Y[~first])
+    assert model.X_train_.shape[0] == X.shape[0]
+    # Reference: the same hyperparameters held fixed, all data, one fit.
+    ref = BatchedGPRegressor(kernel="ard", optimizer=None, initial_hyperparameters=hp).fit(X, Y)
+    q = np.array([[2250.0, 100.0], [2650.0, -200.0]])
+    m0, s0 = ref.predict(q, return_std=True)
+    m1, s1 = model.predict(q, return_std=True)
+    np.testing.assert_allclose(m1, m0, rtol=1e-8)
+    np.testing.assert_allclose(s1, s0, rtol=1e-6)
+    with pytest.raises(ValueError, match="unknown update mode"):
+        model.update(X[:2], Y[:2], mode="full")
+    with pytest.raises(ValueError, match=r"Y must be \(n, 3\)"):
+        model.update(X[:2], Y[:2, :2])
+
+
+def test_update_with_a_new_high_mode_pose(switch_model, tmp_path):
+    from sklearn.gaussian_process import GaussianProcessClassifier
+
+    model = clone(switch_model[0]).fit(*switch_model[1:3])
+    msgp = model.estimators_[0]
+    old = msgp.classifier_.base_estimator_
+    old_rows = np.column_stack([old.X_train_, old.y_train_])
+    pose = np.array([[2450.0, 600.0]])  # between the training poses, in the low-mode region
+    model.update(np.repeat(pose, 3, axis=0), np.tile([63.0, 4.0e6, 1.2e3], (3, 1)))
+    assert msgp.n_high_ == int(switch_model[3].sum()) + 3
+    # The high-mode GP holds the new pose; the low-mode GP does not see its switching outputs.
+    assert msgp.high_model_.predict(pose)[0, 0] == pytest.approx(63.0, abs=1.0)
+    assert not msgp.low_model_.mask_[-3:].any()
+    # Classifier: scikit-learn's GPC with the kernel held fixed on the old + new (pose, label).
+    xs = (pose - msgp._x_loc) / msgp._x_scale
+    rows = np.unique(np.vstack([old_rows, [[*xs[0], 1.0]]]), axis=0)
+    ref = GaussianProcessClassifier(old.kernel_, optimizer=None).fit(rows[:, :-1], rows[:, -1] > 0)
+    q = np.column_stack([np.linspace(2100, 2700, 13), np.linspace(-300, 600, 13)])
+    np.testing.assert_allclose(
+        model.mode_switch_probability(q)[:, 0],
+        ref.predict_proba((q - msgp._x_loc) / msgp._x_scale)[:, 1],
+        atol=1e-12,
+    )
+    loaded = PoseModalModel.load(model.save(tmp_path / "u.h5"))
+    np.testing.assert_allclose(loaded.predict(q), model.predict(q), rtol=1e-9)

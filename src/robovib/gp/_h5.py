@@ -1,7 +1,7 @@
 """HDF5 reading/writing of the GP estimators and :class:`~robovib.gp.PoseModalModel` (no pickle).
 
 What is stored is what defines the fitted state: training data, mask, noise groups,
-hyperparameters in data units, scalers (kept to check the reload), optimiser statistics and,
+hyperparameters in data units, scalers (a record), optimiser statistics and,
 for a mode switch, the classifier's training data and fitted kernel hyperparameters. Loading
 re-creates every estimator with its stored hyperparameters held fixed (``optimizer=None``) on
 the stored data, which reproduces the posterior exactly (no optimisation, no randomness).
@@ -100,10 +100,9 @@ def read_regressor(group) -> BatchedGPRegressor:
         mask=mask,
         groups=d["groups"].astype(int) if n_groups > 1 else None,
     )
-    for name in ("_x_loc", "_x_scale", "_y_loc", "_y_scale"):
-        stored, now = d.get(f"scaler{name}"), getattr(gp, name, None)
-        if stored is not None and now is not None and not np.allclose(stored, now, rtol=1e-12):
-            raise ValueError(f"{group.file.filename}: stored scaler {name[1:]} does not match data")
+    # The stored scalers are a record only: after an update they are those of the first fit,
+    # while the reload standardises with all data. The posterior does not depend on the
+    # scaling (hyperparameters are held fixed in data units), only round-off does.
     optimizer = str(a["optimizer"])
     n_restarts, rng = int(a["n_restarts"]), int(a["rng"])
     gp.set_params(

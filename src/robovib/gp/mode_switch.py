@@ -164,6 +164,76 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         self._all_high = labels.size > 0 and labels.all()
         return self
 
+    def update(
+        self, X_new, Y_new, mask=None, groups=None, *, mode: str = "posterior"
+    ) -> ModeSwitchingGPRegressor:
+        """Bayesian update with new samples (same names as :meth:`BatchedGPRegressor.update`).
+
+        New samples are split by ``threshold`` as in :meth:`fit`: the low-mode GP gets every
+        sample (switching outputs of high-mode samples masked), the high-mode GP the high-mode
+        samples, the classifier the new labels. ``mode="posterior"`` keeps every
+        hyperparameter (the GPs' and the classifier kernel's); ``"warm"`` re-optimises them from
+        the current values.
+
+        Raises
+        ------
+        NotFittedError
+            If not fitted.
+        ValueError
+            Unknown ``mode``; high-mode samples for a model without a high-mode GP, or both
+            labels for a model fitted with one (refit with :meth:`fit` then).
+        """
+        from sklearn.gaussian_process import GaussianProcessClassifier
+
+        self._require_fitted()
+        if mode not in ("posterior", "warm"):
+            raise ValueError(f"unknown update mode {mode!r}; expected 'posterior' or 'warm'")
+        X_new = np.asarray(X_new, float)
+        Y_new = np.asarray(Y_new, float)
+        mask = np.isfinite(Y_new) if mask is None else np.asarray(mask, bool)
+        groups = None if groups is None else np.asarray(groups)
+        sw = self._switching
+        observed = mask[:, self.indicator_output]
+        indicator = np.where(observed, Y_new[:, self.indicator_output], -np.inf)
+        high = observed & (indicator > self.threshold)
+        if np.any(high) and self.high_model_ is None:
+            raise ValueError("this model has no high-mode GP to update; refit it with fit()")
+        labels = high[observed]
+        if self.classifier_ is None and labels.size and labels.any() != self._all_high:
+            raise ValueError("the new samples add a second mode to a one-mode model; use fit()")
+        low_mask = mask.copy()
+        low_mask[np.ix_(high, sw)] = False
+        self.low_model_.update(
+            X_new, np.where(low_mask, Y_new, 0.0), low_mask, groups=groups, mode=mode
+        )
+        if np.any(high):
+            m_high = mask[np.ix_(high, sw)]
+            self.high_model_.update(
+                X_new[high],
+                np.where(m_high, Y_new[np.ix_(high, sw)], 0.0),
+                m_high,
+                groups=None if groups is None else groups[high],
+                mode=mode,
+            )
+            self.n_high_ += int(high.sum())
+        if self.classifier_ is not None and labels.size:
+            base = self.classifier_.base_estimator_
+            xs = (self._features(X_new[observed]) - self._x_loc) / self._x_scale
+            rows = np.vstack(
+                [
+                    np.column_stack([base.X_train_, base.y_train_]),
+                    np.column_stack([xs, labels]),
+                ]
+            )
+            unique = np.unique(rows, axis=0)
+            kernel = base.kernel_
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message=".*close to the specified")
+                self.classifier_ = GaussianProcessClassifier(
+                    kernel, optimizer=None if mode == "posterior" else "fmin_l_bfgs_b"
+                ).fit(unique[:, :-1], unique[:, -1].astype(bool))
+        return self
+
     def high_mode_probability(self, X) -> np.ndarray:
         """Probability (n,) that the high mode is the dominant one at each input."""
         self._require_fitted()

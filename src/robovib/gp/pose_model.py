@@ -401,6 +401,47 @@ class PoseModalModel(BaseEstimator):
             ``mode_switch=True`` when no switch is found.
         """
         names, dirs = self._check_params()
+        X, Y, mask, obs, groups = self._validated(X, Y, mask, groups, names, dirs)
+        n_groups = 1 if groups is None else int(groups.max()) + 1
+
+        self.mode_switches_ = self._detect(obs, mask, dirs)
+        if self.mode_switch is True and not any(s.found for s in self.mode_switches_.values()):
+            raise ValueError(
+                "mode_switch=True but no direction shows a mode switch: "
+                + "; ".join(f"{d}: {s.reason}" for d, s in self.mode_switches_.items())
+                + " (use mode_switch='auto' to fit without one)"
+            )
+        features = _RzCos2(names.index("rz_deg")) if self.rz_symmetric else None
+        switching = [i for i, d in enumerate(dirs) if self.mode_switches_[d].found]
+        smooth_cols = [3 * i + j for i in range(len(dirs)) if i not in switching for j in range(3)]
+        self.estimators_, self.estimator_columns_ = [], []
+        if smooth_cols:
+            gp = BatchedGPRegressor(kernel=self.kernel, rng=self.rng, n_noise_groups=n_groups)
+            gp.fit(X, Y[:, smooth_cols], mask=mask[:, smooth_cols], groups=groups)
+            self.estimators_.append(gp)
+            self.estimator_columns_.append(np.array(smooth_cols))
+        for i in switching:
+            cols = np.arange(3 * i, 3 * i + 3)
+            msgp = ModeSwitchingGPRegressor(
+                switching_outputs=(0, 1, 2),
+                indicator_output=0,
+                threshold=self.mode_switches_[dirs[i]].threshold_hz,
+                classifier_features=features,
+                kernel=self.kernel,
+                rng=self.rng,
+                n_noise_groups=n_groups,
+            )
+            msgp.fit(
+                X, np.where(mask[:, cols], Y[:, cols], np.nan), mask=mask[:, cols], groups=groups
+            )
+            self.estimators_.append(msgp)
+            self.estimator_columns_.append(cols)
+        self._set_fitted(names, dirs, X, np.where(mask, Y, np.nan), mask, groups)
+        return self
+
+    @staticmethod
+    def _validated(X, Y, mask, groups, names, dirs):
+        """Checked (X, Y, mask, Y with NaN where unobserved, groups) of fit/update."""
         X = np.asarray(X, float)
         Y = np.asarray(Y, float)
         n_out = 3 * len(dirs)
@@ -439,41 +480,65 @@ class PoseModalModel(BaseEstimator):
             if np.any(groups < 0):
                 raise ValueError("groups must be >= 0")
             groups = groups.astype(int)
-        n_groups = 1 if groups is None else int(groups.max()) + 1
+        return X, Y, mask, obs, groups
 
-        self.mode_switches_ = self._detect(obs, mask, dirs)
-        if self.mode_switch is True and not any(s.found for s in self.mode_switches_.values()):
+    def update(
+        self, X_new, Y_new, mask=None, groups=None, *, mode: str = "posterior"
+    ) -> PoseModalModel:
+        """Bayesian update with new poses (the one name for updating in robovib, thesis §5.2.4).
+
+        Parameters
+        ----------
+        X_new, Y_new, mask, groups
+            As in :meth:`fit` (same inputs, directions and SI columns).
+        mode
+            ``"posterior"``: every hyperparameter kept, posterior recomputed with the enlarged
+            data (Eq. 9-10); ``"warm"``: hyperparameters re-optimised from the current ones.
+
+        Returns
+        -------
+        self
+
+        Notes
+        -----
+        The mode-switch test is not re-run: ``mode_switches_`` stays as fitted (call
+        :meth:`fit` on all data to re-test). In a direction with a switch, new samples are
+        assigned to a mode by its threshold.
+
+        Raises
+        ------
+        NotFittedError, ValueError
+        """
+        self._require_fitted()
+        if mode not in ("posterior", "warm"):
+            raise ValueError(f"unknown update mode {mode!r}; expected 'posterior' or 'warm'")
+        names, dirs = self.input_names_, self.directions_
+        X_new, Y_new, mask, obs, groups = self._validated(X_new, Y_new, mask, groups, names, dirs)
+        n_groups = int(self.estimators_[0].n_noise_groups)
+        if groups is not None and int(groups.max()) >= n_groups:
             raise ValueError(
-                "mode_switch=True but no direction shows a mode switch: "
-                + "; ".join(f"{d}: {s.reason}" for d, s in self.mode_switches_.items())
-                + " (use mode_switch='auto' to fit without one)"
+                f"groups must be in [0, {n_groups}): the model was fitted with {n_groups} "
+                "noise group(s)"
             )
-        features = _RzCos2(names.index("rz_deg")) if self.rz_symmetric else None
-        switching = [i for i, d in enumerate(dirs) if self.mode_switches_[d].found]
-        smooth_cols = [3 * i + j for i in range(len(dirs)) if i not in switching for j in range(3)]
-        self.estimators_, self.estimator_columns_ = [], []
-        if smooth_cols:
-            gp = BatchedGPRegressor(kernel=self.kernel, rng=self.rng, n_noise_groups=n_groups)
-            gp.fit(X, Y[:, smooth_cols], mask=mask[:, smooth_cols], groups=groups)
-            self.estimators_.append(gp)
-            self.estimator_columns_.append(np.array(smooth_cols))
-        for i in switching:
-            cols = np.arange(3 * i, 3 * i + 3)
-            msgp = ModeSwitchingGPRegressor(
-                switching_outputs=(0, 1, 2),
-                indicator_output=0,
-                threshold=self.mode_switches_[dirs[i]].threshold_hz,
-                classifier_features=features,
-                kernel=self.kernel,
-                rng=self.rng,
-                n_noise_groups=n_groups,
-            )
-            msgp.fit(
-                X, np.where(mask[:, cols], Y[:, cols], np.nan), mask=mask[:, cols], groups=groups
-            )
-            self.estimators_.append(msgp)
-            self.estimator_columns_.append(cols)
-        self._set_fitted(names, dirs, X, np.where(mask, Y, np.nan), mask, groups)
+        if groups is None and self.groups_ is not None:
+            groups = np.zeros(X_new.shape[0], int)
+        for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
+            m = mask[:, cols]
+            if isinstance(est, ModeSwitchingGPRegressor):
+                est.update(X_new, obs[:, cols], m, groups=groups, mode=mode)
+            else:
+                est.update(X_new, np.where(m, Y_new[:, cols], 0.0), m, groups=groups, mode=mode)
+        old_groups = self.groups_
+        if groups is not None and old_groups is None:
+            old_groups = np.zeros(self.X_train_.shape[0], int)
+        self._set_fitted(
+            names,
+            dirs,
+            np.vstack([self.X_train_, X_new]),
+            np.vstack([self.Y_train_, obs]),
+            np.vstack([self.mask_, mask]),
+            None if groups is None else np.concatenate([old_groups, groups]),
+        )
         return self
 
     def _detect(self, obs, mask, dirs) -> dict[str, ModeSwitchDetection]:
