@@ -71,9 +71,9 @@ def predict(
     if any(v is not None for v in (z, rx, ry, a1, a2, a3, a4, a5, a6)):
         raise typer.BadParameter("--z, --rx, --ry, --a1..--a6 need a --model that uses them")
     from ..gp.pose_prediction import predict_pose
-    from ..gp.study import OUTPUT_LABELS, fit_chapter3_model
+    from ..studies.chapter3 import OUTPUT_LABELS, fit_chapter3_regressor
 
-    model = fit_chapter3_model(kernel=check_kernel(kernel), mode_switch=mode_switch, rng=seed)
+    model = fit_chapter3_regressor(kernel=check_kernel(kernel), mode_switch=mode_switch, rng=seed)
     p = predict_pose(model, x, y, rz, OUTPUT_LABELS)
     if json_out:
         emit_json(
