@@ -52,6 +52,9 @@ def test_campaign_cli_flow(tmp_path):
     doc = json.loads(res.output)
     assert doc["extrapolating"] and "x_mm" in doc["outside_inputs"]
     assert doc["predictions"][0]["output"] == "x_fn_hz"
+    for cmd in (("mill", "lobes"), ("control", "gains")):
+        res = run(*cmd, "--x", 2300, "--y", 100, "--rz", 40, "--model", model, "--json")
+        assert res.exit_code == 0, (cmd, res.output)
     res = run("gpr", "predict", "--model", model, "--x", 2300, "--a1", 3)
     assert res.exit_code == 1 and "missing y_mm, rz_deg; not an input: a1_deg" in res.output
 

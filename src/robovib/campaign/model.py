@@ -636,14 +636,31 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
     return NextPoses(C[idx], idx, np.array(gains), before)
 
 
-def load_pose_model(path):
+def load_pose_model(path, require_inputs=None):
     """Load a pose model file: ``robovib.gp.PoseModalModel`` or :class:`TablePoseModel`.
+
+    Parameters
+    ----------
+    path
+        The model's HDF5 file.
+    require_inputs
+        If given, the input names the caller needs (e.g. ``("x_mm", "y_mm", "rz_deg")``).
 
     Raises
     ------
     ValueError
-        Not a readable HDF5 file, or not a robovib pose model.
+        Not a readable HDF5 file, not a robovib pose model, or other inputs than required.
     """
+    model = _load_pose_model(path)
+    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
+        raise ValueError(
+            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
+            f"the model has {', '.join(model.input_names)}"
+        )
+    return model
+
+
+def _load_pose_model(path):
     import h5py
 
     path = Path(path)

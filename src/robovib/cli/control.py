@@ -9,6 +9,7 @@ import typer
 
 from ._common import (
     JsonFlag,
+    ModelOpt,
     SeedOpt,
     Table,
     console,
@@ -18,6 +19,7 @@ from ._common import (
     new_app,
     save_figure,
     use_agg,
+    workspace_model,
 )
 
 app = new_app("Pose-dependent LQR vibration control (thesis ch. 4).")
@@ -32,6 +34,7 @@ def gains(
     period_ms: Annotated[float, typer.Option(help="Command period [ms] (RSI: 4 ms).")] = 4.0,
     delay_ms: Annotated[float, typer.Option(help="Actuator delay [ms] (KRC4: 32 ms).")] = 32.0,
     r: Annotated[float, typer.Option("--r", help="Input weight R (Q = diag(1, 0.001)).")] = 0.001,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """LQR gains W = [w1, w2] at a pose from the GP's predicted mode, with the delay analysis."""
@@ -42,12 +45,13 @@ def gains(
         loop_margins,
         tune_r_for_delay,
     )
-    from ..gp import get_chapter3_model
     from ..milling.workflow import pose_modes
 
     if direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}")
-    modes = {d: m.parameters for d, m in pose_modes(get_chapter3_model(), (x, y, rz)).items()}
+    modes = {
+        d: m.parameters for d, m in pose_modes(workspace_model(model_path), (x, y, rz)).items()
+    }
     mode = modes[direction]
     d = design_lqr(mode, period_ms / 1e3, r=[[r]])
     da = delay_analysis(d, delay_ms / 1e3)

@@ -10,6 +10,7 @@ import typer
 
 from ._common import (
     JsonFlag,
+    ModelOpt,
     SeedOpt,
     Table,
     console,
@@ -19,6 +20,7 @@ from ._common import (
     new_app,
     save_figure,
     use_agg,
+    workspace_model,
 )
 
 app = new_app("Milling vibration and chatter stability at a pose (thesis §3.5).")
@@ -59,10 +61,10 @@ def predict(
         int, typer.Option(help="Monte-Carlo draws of the GP prediction for the band.")
     ] = 50,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..gp import get_chapter3_model
     from ..io import read_force_csv
     from ..milling import CuttingConditions
     from ..milling.prediction import resample_force
@@ -71,7 +73,7 @@ def predict(
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
     f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
     res = predict_at_pose(
-        get_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
+        workspace_model(model_path, seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
@@ -113,15 +115,15 @@ def lobes(
     rpm_max: Annotated[float, typer.Option(help="Highest speed of the plot [rpm].")] = 3000.0,
     plot: Annotated[Path | None, typer.Option(help="PNG of the lobes.")] = None,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Stability lobes (zero-order method) from the pose's predicted X/Y modes."""
-    from ..gp import get_chapter3_model
     from ..milling import CuttingConditions, MillingTool
     from ..milling.stability import stability_lobes
     from ..milling.workflow import pose_modes
 
-    pose = pose_modes(get_chapter3_model(rng=seed), (x, y, rz))
+    pose = pose_modes(workspace_model(model_path, seed), (x, y, rz))
     modes = {d: m.parameters for d, m in pose.items()}
     cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae / 1e3)
     feed_dir, normal = ("x", "y") if feed == "x" else ("y", "x")
@@ -164,17 +166,17 @@ def lobe_map(
     ny: Annotated[int, typer.Option(help="Grid points in Y.")] = 10,
     plot: Annotated[Path | None, typer.Option(help="PNG heat map over X-Y.")] = None,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Critical axial depth at a spindle speed over the workspace: where to mill."""
     from rich.progress import Progress
 
-    from ..gp import get_chapter3_model
     from ..milling import CuttingConditions, MillingTool
     from ..milling.workflow import best_pose, plot_lobe_map, workspace_lobe_map
 
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
-    model = get_chapter3_model(rng=seed)
+    model = workspace_model(model_path, seed)
     cond = CuttingConditions(rpm, 1e-4, 1e-3, ae / 1e3)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task("lobes over the workspace", total=nx * ny)
