@@ -173,18 +173,6 @@ def test_manifest_errors(tmp_path):
     assert row.pose_tuple_si() == pytest.approx((0.001, 0.002, 0.003, 0, 0, 4))
 
 
-def test_mode_switch_detected_on_thesis_x_mode_only():
-    """Table A1 (measured): X fn is bimodal (16-23 Hz vs ~63 Hz at full extension), Y/Z not."""
-    from robovib.campaign.model import detect_mode_switch
-    from robovib.datasets import load_table_a1
-
-    a1 = load_table_a1(units="si")
-    assert detect_mode_switch(a1["fn_x_hz"])
-    assert not detect_mode_switch(a1["fn_y_hz"]) and not detect_mode_switch(a1["fn_z_hz"])
-    high = a1["x_high_mode"] > 0.5
-    assert not detect_mode_switch(a1.loc[~high, "fn_x_hz"])
-
-
 def test_plot_next_poses(campaign, tmp_path):
     import matplotlib
 

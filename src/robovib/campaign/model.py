@@ -3,9 +3,9 @@
 * :func:`fit_pose_model_from_table` — reads ``modal.csv`` (:func:`process_campaign`), builds
   one training row per pose (and replicate) with ``[fn_hz, stiffness_n_per_m,
   damping_ns_per_m]`` per direction (missing cells masked), fits the pose model
-  (:class:`robovib.gp.PoseModalModel` when available, else :class:`TablePoseModel`, the same
-  interface) and cross-validates it grouped by pose (all replicates of a pose left out
-  together, thesis §3.3.2).
+  (:class:`robovib.gp.PoseModalModel`: mode switches detected and modelled) and
+  cross-validates it grouped by pose (all replicates of a pose left out together, thesis
+  §3.3.2).
 * :func:`next_poses` — greedy choice of the candidate poses whose measurement reduces the
   integrated posterior variance over all candidates the most (thesis Eq. 10: the GP variance
   does not depend on the measured values, so the reduction is known before measuring):
@@ -21,14 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..gp.regressor import BatchedGPRegressor, GPHyperparameters
+from ..gp.regressor import BatchedGPRegressor
 
 __all__ = [
     "NextPoses",
     "PoseModelFit",
     "PosePrediction",
-    "TablePoseModel",
-    "detect_mode_switch",
     "fit_pose_model_from_table",
     "load_pose_model",
     "mode_switches_found",
@@ -39,274 +37,13 @@ __all__ = [
 
 _OUTPUTS = ("fn_hz", "stiffness_n_per_m", "damping_ns_per_m")
 _OUTPUT_UNITS = ("Hz", "N/m", "N*s/m")
-_FORMAT = "robovib-pose-modal"
 _FIT_FLAGS = ("band edge", "residual", "coherence")
-_UNITS = {"mm": "mm", "deg": "deg", "m": "m"}
-
-
-def detect_mode_switch(fn_hz) -> bool:
-    """True when natural frequencies fall into two clearly separated clusters (a mode switch).
-
-    Two-component Gaussian mixture on ``log fn`` against one component (scikit-learn): a switch
-    needs a BIC gain > 10, both clusters with >= 10 % of the poses (and >= 2 of them), and
-    means more than 4 within-cluster standard deviations and a factor 1.5 apart (another mode,
-    not a pose trend) — e.g. the thesis' X mode at 15-23 Hz vs ~63 Hz at full extension
-    (Table A1), while its 15-17 / 21-23 Hz clusters are one mode over the pose.
-    """
-    from sklearn.mixture import GaussianMixture
-
-    x = np.log(np.asarray(fn_hz, float))
-    x = x[np.isfinite(x)][:, None]
-    if x.shape[0] < 6:
-        return False
-    one = GaussianMixture(1, random_state=0).fit(x)
-    two = GaussianMixture(2, random_state=0, n_init=3).fit(x)
-    if one.bic(x) - two.bic(x) < 10:
-        return False
-    w = two.weights_
-    labels = two.predict(x)
-    if w.min() < 0.1 or np.bincount(labels, minlength=2).min() < 2:
-        return False
-    mu = two.means_[:, 0]
-    sd = np.sqrt(two.covariances_.reshape(2))
-    gap = abs(mu[0] - mu[1])
-    return bool(gap > 4 * sd.max() and gap > np.log(1.5))
-
-
-def _input_unit(name: str) -> str:
-    return name.rsplit("_", 1)[-1] if "_" in name else ""
-
-
-class TablePoseModel:
-    """Pose model of every modal output: one GP per output on the log of the value.
-
-    Follows the ``robovib.gp.PoseModalModel`` interface (scikit-learn contract). The GPs
-    (:class:`robovib.gp.BatchedGPRegressor`, thesis Eq. 6-10) model ``log`` of fn, k and c,
-    so predictions stay positive; the mean is ``exp(mu)`` and the standard deviation
-    ``exp(mu) sigma`` (first order). Mode switches are detected (:func:`detect_mode_switch` on
-    each direction's fn, ``mode_switch_found_``) and warned about, not modelled: this model has
-    no classifier.
-
-    Parameters
-    ----------
-    input_names
-        Names of the input columns, units in the name (``x_mm``, ``rz_deg``, ``a2_deg``...).
-    directions
-        Directions modelled; outputs are ``<d>_fn_hz, <d>_stiffness_n_per_m,
-        <d>_damping_ns_per_m`` per direction.
-    kernel
-        ``"ard"`` or ``"isotropic"``.
-    mode_switch
-        Accepted for interface compatibility (see above).
-    rng
-        Seed of the optimiser restarts.
-    """
-
-    def __init__(
-        self,
-        input_names=("x_mm", "y_mm", "rz_deg"),
-        directions=("x", "y", "z"),
-        kernel: str = "ard",
-        mode_switch="auto",
-        rng=0,
-    ) -> None:
-        self.input_names = input_names
-        self.directions = directions
-        self.kernel = kernel
-        self.mode_switch = mode_switch
-        self.rng = rng
-
-    # scikit-learn contract (clone) without importing sklearn at module import
-    def get_params(self, deep: bool = True) -> dict:
-        return {
-            k: getattr(self, k)
-            for k in ("input_names", "directions", "kernel", "mode_switch", "rng")
-        }
-
-    def set_params(self, **params) -> TablePoseModel:
-        for k, v in params.items():
-            setattr(self, k, v)
-        return self
-
-    @property
-    def output_names_(self) -> list[str]:
-        return [f"{d}_{o}" for d in self.directions for o in _OUTPUTS]
-
-    def _check_X(self, X) -> np.ndarray:
-        X = np.atleast_2d(np.asarray(X, float))
-        if X.ndim != 2 or X.shape[1] != len(self.input_names):
-            raise ValueError(
-                f"X must be (n, {len(self.input_names)}) = {tuple(self.input_names)}, got {X.shape}"
-            )
-        if not np.all(np.isfinite(X)):
-            raise ValueError("X contains NaN or inf")
-        return X
-
-    def fit(self, X, Y, mask=None, groups=None) -> TablePoseModel:
-        """Fit on X (n, n_inputs) and SI outputs Y (n, 3 n_directions); NaN/masked cells skipped."""
-        X = self._check_X(X)
-        Y = np.asarray(Y, float)
-        n_out = 3 * len(self.directions)
-        if Y.shape != (X.shape[0], n_out):
-            raise ValueError(
-                f"Y must be ({X.shape[0]}, {n_out}) = {self.output_names_}, got {Y.shape}"
-            )
-        ok = np.isfinite(Y) & (Y > 0) if mask is None else np.asarray(mask, bool) & np.isfinite(Y)
-        if np.any(ok & (Y <= 0)):
-            raise ValueError("modal outputs must be positive (fn, k, c)")
-        if self.kernel not in ("ard", "isotropic"):
-            raise ValueError(f"unknown kernel {self.kernel!r}; expected 'ard' or 'isotropic'")
-        logY = np.where(ok, np.log(np.where(ok, Y, 1.0)), 0.0)
-        self.gp_ = BatchedGPRegressor(kernel=self.kernel, rng=self.rng).fit(X, logY, mask=ok)
-        self.X_train_, self.Y_train_, self.mask_ = X, np.where(ok, Y, np.nan), ok
-        self.mode_switch_found_ = {
-            d: self.mode_switch is not False and detect_mode_switch(Y[:, 3 * j])
-            for j, d in enumerate(self.directions)
-        }
-        found = [d for d, f in self.mode_switch_found_.items() if f]
-        if found:
-            import warnings
-
-            warnings.warn(
-                f"the natural frequency of direction(s) {', '.join(found)} is bimodal over the "
-                "poses (a mode switch); TablePoseModel fits one smooth GP per output and blends "
-                "the two modes near the switch — use robovib.gp.PoseModalModel (classifier + "
-                "per-mode GPs) for such data",
-                UserWarning,
-                stacklevel=2,
-            )
-        self._set_hull()
-        return self
-
-    def _set_hull(self) -> None:
-        from scipy.spatial import Delaunay
-
-        X = self.X_train_
-        self._lo, self._hi = X.min(axis=0), X.max(axis=0)
-        self._hull = None
-        span = np.where(self._hi > self._lo, self._hi - self._lo, 1.0)
-        if X.shape[1] <= 4 and X.shape[0] > X.shape[1] + 1:
-            try:
-                self._hull = Delaunay((X - self._lo) / span)
-            except Exception:  # degenerate (coplanar) inputs: fall back to the bounding box
-                self._hull = None
-
-    def _require_fitted(self) -> None:
-        if not hasattr(self, "gp_"):
-            raise ValueError("the pose model is not fitted yet; call fit() first")
-
-    def extrapolating(self, X) -> np.ndarray:
-        """(n,) True where a pose lies outside the training inputs' convex hull (or box)."""
-        self._require_fitted()
-        X = self._check_X(X)
-        span = np.where(self._hi > self._lo, self._hi - self._lo, 1.0)
-        outside_box = np.any((X < self._lo - 1e-9 * span) | (X > self._hi + 1e-9 * span), axis=1)
-        if self._hull is None:
-            return outside_box
-        return outside_box | (self._hull.find_simplex((X - self._lo) / span, tol=1e-9) < 0)
-
-    def predict(self, X, return_std: bool = False):
-        """(n, 3 n_directions) SI outputs [fn_hz, stiffness_n_per_m, damping_ns_per_m] per direction."""
-        self._require_fitted()
-        X = self._check_X(X)
-        mu, sd = self.gp_.predict(X, return_std=True)
-        mean = np.exp(mu)
-        return (mean, mean * sd) if return_std else mean
-
-    def mode_switch_probability(self, X):
-        """None: this model has no mode-switch classifier (see ``mode_switch_found_``)."""
-        return None
-
-    def modes(self, X) -> list[dict]:
-        """Per pose: direction -> dict of ModalParameters and standard deviations."""
-        from ..modal import ModalParameters
-
-        mean, std = self.predict(X, return_std=True)
-        extra = self.extrapolating(X)
-        out = []
-        for i in range(mean.shape[0]):
-            row = {}
-            for j, d in enumerate(self.directions):
-                fn, k, c = mean[i, 3 * j : 3 * j + 3]
-                row[d] = {
-                    "parameters": ModalParameters.from_fn_k_c(fn, k, c),
-                    "fn_std_hz": std[i, 3 * j], "stiffness_std_n_per_m": std[i, 3 * j + 1],
-                    "damping_std_ns_per_m": std[i, 3 * j + 2], "extrapolating": bool(extra[i]),
-                    "high_mode_probability": None,
-                }  # fmt: skip
-            out.append(row)
-        return out
-
-    # -------------------------------------------------------------- persistence (no pickle)
-    def save(self, path) -> None:
-        """HDF5: format tag + version, inputs (names, units), training data, hyperparameters."""
-        import h5py
-
-        from .. import __version__
-
-        self._require_fitted()
-        hp = self.gp_.hyperparameters_
-        with h5py.File(path, "w") as h5:
-            h5.attrs["format"] = _FORMAT
-            h5.attrs["version"] = 1
-            h5.attrs["model"] = "TablePoseModel"
-            h5.attrs["robovib_version"] = __version__
-            h5.attrs["input_names"] = json.dumps(list(self.input_names))
-            h5.attrs["input_units"] = json.dumps([_input_unit(n) for n in self.input_names])
-            h5.attrs["directions"] = json.dumps(list(self.directions))
-            h5.attrs["output_names"] = json.dumps(self.output_names_)
-            h5.attrs["output_units"] = "SI: Hz, N/m, N*s/m; GPs on the natural log of each"
-            h5.attrs["kernel"] = self.kernel
-            h5.attrs["mode_switch"] = json.dumps(self.mode_switch)
-            h5.attrs["mode_switch_found"] = json.dumps(self.mode_switch_found_)
-            h5.create_dataset("X_train", data=self.X_train_)
-            h5.create_dataset("Y_train", data=np.nan_to_num(self.Y_train_))
-            h5.create_dataset("mask", data=self.mask_)
-            g = h5.create_group("hyperparameters")
-            for name in ("signal_std", "length_scales", "noise_std", "mean"):
-                g.create_dataset(name, data=np.asarray(getattr(hp, name)))
-
-    @classmethod
-    def load(cls, path) -> TablePoseModel:
-        """Rebuild a saved model exactly (stored hyperparameters, no re-optimisation)."""
-        import h5py
-
-        path = Path(path)
-        try:
-            h5 = h5py.File(path, "r")
-        except OSError as exc:
-            raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
-        with h5:
-            if h5.attrs.get("format") != _FORMAT or int(h5.attrs.get("version", -1)) != 1:
-                raise ValueError(f"{path}: not a robovib pose model (format {_FORMAT!r} v1)")
-            model = cls(
-                input_names=tuple(json.loads(h5.attrs["input_names"])),
-                directions=tuple(json.loads(h5.attrs["directions"])),
-                kernel=str(h5.attrs["kernel"]),
-                mode_switch=json.loads(h5.attrs["mode_switch"]),
-            )
-            X, Y, mask = h5["X_train"][()], h5["Y_train"][()], h5["mask"][()].astype(bool)
-            h5_found = str(h5.attrs["mode_switch_found"])
-            hp = GPHyperparameters(
-                **{k: h5["hyperparameters"][k][()] for k in h5["hyperparameters"]}
-            )
-        logY = np.where(mask, np.log(np.where(mask, Y, 1.0)), 0.0)
-        model.gp_ = BatchedGPRegressor(
-            kernel=model.kernel, optimizer=None, initial_hyperparameters=hp
-        ).fit(X, logY, mask=mask)
-        model.X_train_, model.Y_train_, model.mask_ = X, np.where(mask, Y, np.nan), mask
-        model.mode_switch_found_ = json.loads(h5_found)
-        model._set_hull()
-        return model
 
 
 def _pose_model_class():
-    try:
-        from ..gp import PoseModalModel  # engineer "gp": the shared interface
+    from ..gp import PoseModalModel
 
-        return PoseModalModel
-    except ImportError:
-        return TablePoseModel
+    return PoseModalModel
 
 
 @dataclass(frozen=True)
@@ -482,35 +219,12 @@ def _flat_provenance(prov: dict) -> dict:
     }
 
 
-def save_pose_model(fit: PoseModelFit, path) -> None:
-    """Save the model with the CV table and provenance, atomically (temporary file + rename).
-
-    A model whose ``save`` takes ``cv=`` and ``provenance=`` (``PoseModalModel``) stores them
-    itself; otherwise they go to the ``/campaign`` group of the model's HDF5 file.
-    """
-    import inspect
-
-    import h5py
-
-    from ..io import atomic_path
-
+def save_pose_model(fit: PoseModelFit, path) -> Path:
+    """Save the model (``PoseModalModel.save``: HDF5, format tag, no pickle, atomic) with the
+    grouped CV figures and the provenance of the fit."""
     cv = fit.cv_table
     cv_arrays = {c: cv[c].to_numpy(float) for c in cv.columns if c not in ("output", "unit")}
-    prov = _flat_provenance(fit.model.provenance_)
-    if "cv" in inspect.signature(fit.model.save).parameters:
-        with atomic_path(path) as tmp:
-            fit.model.save(tmp, cv=cv_arrays, provenance=prov)
-        return
-    with atomic_path(path) as tmp:
-        fit.model.save(tmp)
-        with h5py.File(tmp, "a") as h5:
-            g = h5.require_group("campaign")
-            for k, v in prov.items():
-                g.attrs[k] = v
-            g.attrs["cv_columns"] = json.dumps(list(cv.columns))
-            g.create_dataset("cv_output", data=np.array(cv["output"].astype(str), dtype="S"))
-            for c, v in cv_arrays.items():
-                g.create_dataset(f"cv_{c}", data=v)
+    return fit.model.save(path, cv=cv_arrays, provenance=_flat_provenance(fit.model.provenance_))
 
 
 @dataclass(frozen=True)
@@ -536,10 +250,8 @@ class NextPoses:
 
 
 def _gps_of(model) -> list[BatchedGPRegressor]:
-    """The fitted GPs of a pose model: ``gp_`` (TablePoseModel) or the BatchedGPRegressors in
-    ``estimators_`` (PoseModalModel; per-mode GPs of a mode-switching direction included)."""
-    if isinstance(getattr(model, "gp_", None), BatchedGPRegressor):
-        return [model.gp_]
+    """The BatchedGPRegressors of a fitted pose model (``PoseModalModel.estimators_``; the
+    per-mode GPs of a mode-switching direction included)."""
     out = []
     for est in getattr(model, "estimators_", []) or []:
         if isinstance(est, BatchedGPRegressor):
@@ -547,7 +259,7 @@ def _gps_of(model) -> list[BatchedGPRegressor]:
         else:
             out += [v for v in vars(est).values() if isinstance(v, BatchedGPRegressor)]
     if not out:
-        raise ValueError("next_poses needs a fitted pose model with GPs (gp_ or estimators_)")
+        raise ValueError("next_poses needs a fitted pose model (no GPs found in estimators_)")
     return out
 
 
@@ -585,8 +297,8 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
     Parameters
     ----------
     model
-        A fitted pose model: :class:`TablePoseModel` or :class:`robovib.gp.PoseModalModel`
-        (all its GPs count, the per-mode GPs of a switching direction included).
+        A fitted :class:`robovib.gp.PoseModalModel` (all its GPs count, the per-mode GPs of a
+        switching direction included).
     candidates
         (m, n_inputs) array, or a DataFrame / CSV path with the model's input columns.
     k
@@ -637,7 +349,7 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
 
 
 def load_pose_model(path, require_inputs=None):
-    """Load a pose model file: ``robovib.gp.PoseModalModel`` or :class:`TablePoseModel`.
+    """Load a pose model file (``robovib.gp.PoseModalModel``), optionally checking its inputs.
 
     Parameters
     ----------
@@ -661,20 +373,7 @@ def load_pose_model(path, require_inputs=None):
 
 
 def _load_pose_model(path):
-    import h5py
-
-    path = Path(path)
-    try:
-        with h5py.File(path, "r") as h5:
-            fmt = h5.attrs.get("format")
-    except OSError as exc:
-        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
-    if fmt == _FORMAT:
-        return TablePoseModel.load(path)
-    cls = _pose_model_class()
-    if cls is TablePoseModel:
-        raise ValueError(f"{path}: not a robovib pose model (format tag {fmt!r})")
-    return cls.load(path)
+    return _pose_model_class().load(path)
 
 
 @dataclass(frozen=True)
