@@ -243,3 +243,32 @@ def test_study_is_reproducible_per_seed():
     assert doc == "robovib.studies.hybrid"
     with pytest.raises(ValueError, match="unknown models"):
         hybrid_study(models=("magic",))
+
+
+def test_workspace_model_end_to_end(tmp_path):
+    """EMA at 9 workspace poses + OMA along a cut -> FRF at unseen poses vs the sim's truth.
+
+    Tolerance: RMSE over 2-40 Hz within 15 % of the true peak compliance at each unseen pose,
+    and the updated model no worse than 1.5 x the EMA-only one. The model round-trips through
+    HDF5 with its input names and units.
+    """
+    import h5py
+
+    from robovib.studies.hybrid import workspace_study
+
+    res = workspace_study(direction="y", seed=0)
+    assert res.model.input_names == ("x_m", "y_m", "rz_deg")
+    rel = res.relative_rmse()
+    assert np.all(rel < 0.15), rel
+    assert np.all(rel <= 1.5 * res.relative_rmse("ema") + 0.02)
+    assert res.band_coverage(3.0) > 0.6
+    path = tmp_path / "ws.h5"
+    res.model.save(path, provenance={"source": "virtual robot", "seed": 0})
+    with h5py.File(path) as h5:
+        assert list(h5.attrs["input_names"]) == ["x_m", "y_m", "rz_deg"]
+        assert h5.attrs["compliance_unit"] == "um/N" and "robovib_version" in h5.attrs
+        assert h5.attrs["provenance/source"] == "virtual robot"
+    back = FRFPoseModel.load(path)
+    np.testing.assert_allclose(back.predict(res.test_poses), res.predicted_m_per_n, rtol=1e-9)
+    with pytest.raises(ValueError, match=r"poses must be \(n, 3\)"):
+        back.predict([0.5])

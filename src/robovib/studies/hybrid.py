@@ -43,11 +43,15 @@ __all__ = [
     "HybridStudyResult",
     "NextPoses",
     "OMASettingsResult",
+    "StudyData",
+    "WorkspaceStudyResult",
     "ema_frf_on_grid",
     "hybrid_study",
     "oma_settings_study",
     "plot_next_poses",
     "propose_next_poses",
+    "study_data",
+    "workspace_study",
 ]
 
 MODELS = ("ema", "robust", "robust_warm", "posterior", "warm", "retrain")
@@ -66,14 +70,18 @@ BACKGROUND_EVIDENCE = (
 
 
 def ema_frf_on_grid(
-    robot: VirtualRobot, s_m: float, direction: str, grid_hz: np.ndarray, rng
+    robot: VirtualRobot, s_m, direction: str, grid_hz: np.ndarray, rng, domain: str = "path"
 ) -> np.ndarray:
-    """Compliance FRF [m/N] of a virtual hammer test at path coordinate ``s_m`` on ``grid_hz``."""
+    """Compliance FRF [m/N] of a virtual hammer test on ``grid_hz``.
+
+    ``s_m`` is the path coordinate [m] (``domain="path"``) or a workspace pose
+    ``(x_m, y_m, rz_deg)`` (``domain="workspace"``).
+    """
     rec = simulate_hammer_test(
         robot,
         s_m,
         direction,
-        domain="path",
+        domain=domain,
         n_hits=3,
         sample_rate_hz=2048.0,
         duration_s=4.0,
@@ -161,17 +169,44 @@ def _score(pred, val, truth) -> dict:
     }
 
 
-def _one_seed(
-    robot, seed, *, ema_s_m, validation_s_m, directions, oma_kwargs, f_range_hz, background, models
+@dataclass(frozen=True)
+class StudyData:
+    """One (seed, direction) of the study: EMA, OMA and validation FRFs on the OMA grid."""
+
+    seed: int
+    direction: str
+    frequency_hz: np.ndarray  #: (n_f,) [Hz]
+    ema_s_m: np.ndarray  #: (3,) [m]
+    ema_m_per_n: np.ndarray  #: (3, n_f) complex
+    oma_s_m: np.ndarray  #: (n_seg,) [m]
+    oma_m_per_n: np.ndarray  #: (n_seg, n_f) complex
+    oma_mask: np.ndarray  #: (n_seg, n_f) bool, True = usable
+    oma_error_m_per_n: np.ndarray  #: (n_seg, n_f) H1 random error
+    validation_m_per_n: np.ndarray  #: (n_f,) complex hammer FRF at the validation pose
+    truth_m_per_n: np.ndarray  #: (n_f,) complex true FRF there
+
+
+def study_data(
+    robot=None,
+    seed: int = 0,
+    *,
+    ema_s_m=(0.0, 0.585, 1.235),
+    validation_s_m: float = 0.91,
+    directions=("x", "y", "z"),
+    oma_kwargs=None,
+    f_range_hz=(2.0, 40.0),
+    background_noise_rel: float = 1.0,
 ):
+    """Yield :class:`StudyData` per direction for one seed (the data every model sees)."""
+    robot = robot or VirtualRobot()
+    oma_kwargs = oma_kwargs or {}
     gen = np.random.default_rng(seed)
     tool = MillingTool()
     cond = CuttingConditions(2700.0, 0.3e-3, 6e-3, 6e-3)
     run = simulate_milling(
         robot, LinearMove("path", (0.635,), (1.235,)), tool, cond, ACETAL,
-        background_noise_rel=background, rng=gen,
+        background_noise_rel=background_noise_rel, rng=gen,
     )  # fmt: skip
-    rows = []
     for d in directions:
         segs = oma_frfs(
             run.time_s, run.force_n, run.displacement_m, run.coords, direction=d,
@@ -181,14 +216,30 @@ def _one_seed(
         grid = segs[0].frf.frequency_hz
         ema_x = np.array(ema_s_m, float)
         ema_h = np.array([ema_frf_on_grid(robot, s, d, grid, gen) for s in ema_x])
-        oma_x = np.array([sg.s_mid_m for sg in segs])
-        oma_h = np.array([sg.frf.values for sg in segs])
-        oma_mask = ~np.array([sg.flagged for sg in segs])
-        oma_err = np.array([sg.random_error_m_per_n for sg in segs])
-        val = ema_frf_on_grid(robot, validation_s_m, d, grid, gen)
-        truth = robot.path.modes(validation_s_m, d).compliance(grid)[0]
+        yield StudyData(
+            seed, d, grid, ema_x, ema_h,
+            np.array([sg.s_mid_m for sg in segs]), np.array([sg.frf.values for sg in segs]),
+            ~np.array([sg.flagged for sg in segs]),
+            np.array([sg.random_error_m_per_n for sg in segs]),
+            ema_frf_on_grid(robot, validation_s_m, d, grid, gen),
+            robot.path.modes(validation_s_m, d).compliance(grid)[0],
+        )  # fmt: skip
+
+
+def _one_seed(
+    robot, seed, *, ema_s_m, validation_s_m, directions, oma_kwargs, f_range_hz, background, models
+):
+    rows = []
+    for sd in study_data(
+        robot, seed, ema_s_m=ema_s_m, validation_s_m=validation_s_m, directions=directions,
+        oma_kwargs=oma_kwargs, f_range_hz=f_range_hz, background_noise_rel=background,
+    ):  # fmt: skip
+        d, grid = sd.direction, sd.frequency_hz
+        ema_x, ema_h, oma_x, oma_h = sd.ema_s_m, sd.ema_m_per_n, sd.oma_s_m, sd.oma_m_per_n
+        oma_mask, oma_err = sd.oma_mask, sd.oma_error_m_per_n
+        val, truth = sd.validation_m_per_n, sd.truth_m_per_n
         common = {"seed": seed, "direction": d, "n_bins": int(grid.size),
-                  "n_oma_segments": len(segs), "flagged_fraction": float(1 - oma_mask.mean())}  # fmt: skip
+                  "n_oma_segments": len(oma_x), "flagged_fraction": float(1 - oma_mask.mean())}  # fmt: skip
         for name in models:
             t0 = time.perf_counter()
             rejected, iters, total = 0.0, 0.0, 0
@@ -308,9 +359,10 @@ def oma_settings_study(
     Parameters
     ----------
     settings
-        Iterable of dicts with keys among ``nperseg, noverlap, window, segment_length_m``.
-        Default: nperseg 256/512/1024 (3.9/1.95/0.98 Hz) with 50 mm segments, and nperseg
-        1024/2048 with 100/200 mm segments.
+        Iterable of dicts with keys among ``nperseg, noverlap, window, segment_length_m,
+        f_range_hz``. Default: nperseg 256/512/1024 (3.9/1.95/0.98 Hz) with 50 mm segments,
+        Hann and boxcar, nperseg 1024/2048/4096 with 100/200/200 mm segments, and 1024 over
+        2-130 Hz (131 bins, the thesis' count).
     seeds, directions, **kwargs
         Passed to :func:`hybrid_study`.
 
@@ -328,6 +380,8 @@ def oma_settings_study(
             {"nperseg": 1024},
             {"nperseg": 1024, "segment_length_m": 0.1},
             {"nperseg": 2048, "segment_length_m": 0.2},
+            {"nperseg": 1024, "f_range_hz": (2.0, 130.0)},
+            {"nperseg": 4096, "segment_length_m": 0.2},
         ]
     rows = []
     for st in settings:
@@ -340,7 +394,9 @@ def oma_settings_study(
             rows.append({
                 "nperseg": st.get("nperseg", 512), "noverlap": st.get("noverlap"),
                 "window": st.get("window", "hann"),
-                "segment_length_m": st.get("segment_length_m", 0.05), "direction": d,
+                "segment_length_m": st.get("segment_length_m", 0.05),
+                "f_max_hz": float(st.get("f_range_hz", kwargs.get("f_range_hz", (2.0, 40.0)))[1]),
+                "direction": d,
                 "n_bins": int(sub.n_bins.iloc[0]), "n_oma_segments": int(sub.n_oma_segments.iloc[0]),
                 "flagged_fraction": float(sub.flagged_fraction.mean()),
                 "rmse_ema_um_per_n": float(summ.loc[(d, "ema"), "rmse_vs_truth_um_per_n"]),
@@ -410,3 +466,103 @@ def plot_next_poses(result: NextPoses, ax=None):
     ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+@dataclass(frozen=True)
+class WorkspaceStudyResult:
+    """Whole-workspace FRF model (EMA at poses + OMA along a path) checked at unseen poses."""
+
+    model: FRFPoseModel  #: fitted and updated model, inputs ("x_m", "y_m", "rz_deg")
+    report: object  #: UpdateReport of the OMA update
+    test_poses: np.ndarray  #: (m, 3) unseen poses (x_m, y_m, rz_deg)
+    truth_m_per_n: np.ndarray  #: (m, n_f) complex true compliance
+    ema_only_m_per_n: np.ndarray  #: (m, n_f) complex prediction of the EMA-only model
+    predicted_m_per_n: np.ndarray  #: (m, n_f) complex prediction after the update
+    std_m_per_n: np.ndarray  #: (m, n_f) predictive std after the update
+
+    def relative_rmse(self, which: str = "updated") -> np.ndarray:
+        """(m,) RMSE over the grid / max |truth| at each test pose."""
+        pred = self.predicted_m_per_n if which == "updated" else self.ema_only_m_per_n
+        rmse = np.sqrt(np.mean(np.abs(pred - self.truth_m_per_n) ** 2, axis=1))
+        return rmse / np.abs(self.truth_m_per_n).max(axis=1)
+
+    def band_coverage(self, k: float = 2.0) -> float:
+        """Fraction of (pose, bin) where |prediction - truth| <= k std."""
+        return float(
+            np.mean(np.abs(self.predicted_m_per_n - self.truth_m_per_n) <= k * self.std_m_per_n)
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "test_poses": self.test_poses.tolist(),
+            "relative_rmse_updated": self.relative_rmse().tolist(),
+            "relative_rmse_ema_only": self.relative_rmse("ema").tolist(),
+            "band_coverage_2sigma": self.band_coverage(),
+            "update": self.report.to_dict(),
+        }
+
+    def to_frame(self):
+        import pandas as pd
+
+        return pd.DataFrame({
+            "x_m": self.test_poses[:, 0], "y_m": self.test_poses[:, 1], "rz_deg": self.test_poses[:, 2],
+            "relative_rmse_ema_only": self.relative_rmse("ema"),
+            "relative_rmse_updated": self.relative_rmse(),
+        })  # fmt: skip
+
+
+def workspace_study(
+    *,
+    direction: str = "y",
+    ema_poses=None,
+    oma_start=(2.2, -0.2, 45.0),
+    oma_end=(2.6, 0.5, 45.0),
+    test_poses=((2.45, 0.05, 45.0), (2.3, 0.3, 45.0)),
+    f_range_hz=(2.0, 40.0),
+    nperseg: int = 512,
+    background_noise_rel: float = 1.0,
+    seed: int = 0,
+) -> WorkspaceStudyResult:
+    """EMA at workspace poses + OMA along a straight cut -> FRF at unseen poses (issue 17.4).
+
+    The thesis' future work (§5.5): the per-bin GP over the workspace pose
+    ``(x_m, y_m, rz_deg)`` with an ARD kernel, fed by virtual hammer tests at ``ema_poses``
+    (default: a 3 x 3 grid over X 2.1-2.7 m, Y -0.3-0.6 m at Rz = 45°) and OMA FRFs from a
+    milling pass from ``oma_start`` to ``oma_end`` (50 mm segments, robust update), predicted
+    with a band at ``test_poses`` and compared with the simulator's true FRF.
+
+    Returns
+    -------
+    WorkspaceStudyResult
+    """
+    robot = VirtualRobot()
+    gen = np.random.default_rng(seed)
+    if ema_poses is None:
+        ema_poses = [(x, y, 45.0) for x in (2.1, 2.4, 2.7) for y in (-0.3, 0.15, 0.6)]
+    ema_poses = np.asarray(ema_poses, float)
+    cond = CuttingConditions(2700.0, 0.3e-3, 6e-3, 6e-3)
+    run = simulate_milling(
+        robot, LinearMove("workspace", tuple(oma_start), tuple(oma_end)), MillingTool(), cond,
+        ACETAL, background_noise_rel=background_noise_rel, rng=gen,
+    )  # fmt: skip
+    segs = oma_frfs(
+        run.time_s, run.force_n, run.displacement_m, run.coords, direction=direction,
+        nperseg=nperseg, f_min_hz=f_range_hz[0], f_max_hz=f_range_hz[1],
+        spindle_rpm=cond.spindle_rpm,
+    )  # fmt: skip
+    grid = segs[0].frf.frequency_hz
+    ema_h = np.array(
+        [ema_frf_on_grid(robot, p, direction, grid, gen, domain="workspace") for p in ema_poses]
+    )
+    names = ("x_m", "y_m", "rz_deg")
+    ema_only = FRFPoseModel(grid, kernel="ard", input_names=names, rng=seed).fit(ema_poses, ema_h)
+    model = FRFPoseModel(grid, kernel="ard", input_names=names, rng=seed).fit(ema_poses, ema_h)
+    rep = model.update(
+        np.array([sg.pose_mid for sg in segs]), np.array([sg.frf.values for sg in segs]),
+        mask=~np.array([sg.flagged for sg in segs]),
+        noise_std=np.array([sg.random_error_m_per_n for sg in segs]),
+    )  # fmt: skip
+    tp = np.asarray(test_poses, float)
+    truth = np.array([robot.workspace.modes(p[None], direction).compliance(grid)[0] for p in tp])
+    pred, std = model.predict(tp, return_std=True)
+    return WorkspaceStudyResult(model, rep, tp, truth, ema_only.predict(tp), pred, std)
