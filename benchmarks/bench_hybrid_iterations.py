@@ -1,6 +1,6 @@
 """Optimiser effort of updating vs retraining on the same data (thesis Table 13, issue 17.5).
 
-    python benchmarks/bench_hybrid_iterations.py [--seeds 0-4] [--nperseg 512]
+    python benchmarks/bench_hybrid_iterations.py [--seeds 0-4] [--nperseg 1024]
 
 Per (seed, direction) of the chapter-5 study, the same EMA + OMA FRFs are given to
 * ``posterior``   — EMA hyperparameters kept (no optimisation);
@@ -61,7 +61,7 @@ def _measure(fn, prepare=None):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-4")
-    ap.add_argument("--nperseg", type=int, default=512)
+    ap.add_argument("--nperseg", type=int, default=1024)
     args = ap.parse_args()
     a, _, b = args.seeds.partition("-")
     seeds = range(int(a), int(b or a) + 1)

@@ -35,7 +35,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="0-4")
     ap.add_argument("--background", type=float, default=1.0)
     ap.add_argument("--validation", type=float, default=0.91, help="validation pose s [m]")
-    ap.add_argument("--nperseg", type=int, default=512)
+    ap.add_argument("--nperseg", type=int, default=1024)
     ap.add_argument("--settings", action="store_true", help="OMA settings table instead")
     args = ap.parse_args()
     pd.set_option("display.width", 200)

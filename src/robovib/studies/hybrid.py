@@ -275,7 +275,7 @@ def hybrid_study(
     ema_s_m=(0.0, 0.585, 1.235),
     validation_s_m: float = 0.91,
     directions=("x", "y", "z"),
-    nperseg: int = 512,
+    nperseg: int = 1024,
     noverlap: int | None = None,
     window: str = "hann",
     segment_length_m: float = 0.05,
@@ -294,7 +294,9 @@ def hybrid_study(
     ema_s_m, validation_s_m
         EMA and validation path coordinates [m] (thesis: 0, 0.585, 1.235; validation 1.040).
     nperseg, noverlap, window, segment_length_m
-        OMA estimator settings (samples, samples, SciPy window, m).
+        OMA estimator settings (samples, samples, SciPy window, m). Default 1024 samples
+        (0.98 Hz at 1 kHz, 2 Welch averages per 50 mm segment): across 5 seeds it beats 512
+        in every direction (see :func:`oma_settings_study`).
     f_range_hz
         Model band [Hz].
     background_noise_rel
@@ -378,6 +380,8 @@ def oma_settings_study(
             {"nperseg": 512},
             {"nperseg": 512, "window": "boxcar"},
             {"nperseg": 1024},
+            {"nperseg": 1024, "noverlap": 768},
+            {"nperseg": 1024, "window": "boxcar"},
             {"nperseg": 1024, "segment_length_m": 0.1},
             {"nperseg": 2048, "segment_length_m": 0.2},
             {"nperseg": 1024, "f_range_hz": (2.0, 130.0)},
@@ -392,7 +396,7 @@ def oma_settings_study(
         for d in directions:
             sub = df[(df.direction == d) & (df.model == "robust")]
             rows.append({
-                "nperseg": st.get("nperseg", 512), "noverlap": st.get("noverlap"),
+                "nperseg": st.get("nperseg", 1024), "noverlap": st.get("noverlap"),
                 "window": st.get("window", "hann"),
                 "segment_length_m": st.get("segment_length_m", 0.05),
                 "f_max_hz": float(st.get("f_range_hz", kwargs.get("f_range_hz", (2.0, 40.0)))[1]),
