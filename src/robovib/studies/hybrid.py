@@ -58,14 +58,18 @@ MODELS = ("ema", "robust", "robust_warm", "posterior", "warm", "retrain")
 
 #: Why the default background force of the study is what it is (issue 17, item 3).
 BACKGROUND_EVIDENCE = (
-    "The thesis gives no number for the broadband content of its cutting forces (Figure 33 is "
-    "a plot only); §5.2.2 states only that OMA works 'when there is sufficient background noise "
-    "excitation'. Its own result is the evidence: 131 usable bins and better predictions in all "
-    "three directions mean that most bins between the harmonics had coherent force-response "
-    "content. In the virtual cell that needs a background force of the order of the periodic "
-    "force's spread (background_noise_rel ~ 1); at the simulator's 0.15 the Z bins mostly fail "
-    "coherence and oma_frfs warns (OMAQualityWarning). The study's default is therefore 1.0, "
-    "stated as a condition OMA needs, not as a measured property of acetal milling."
+    "Evidence for the broadband force content: the thesis gives no amplitude (Figure 33 is a "
+    "plot; §5.2.2 says only that OMA works 'when there is sufficient background noise "
+    "excitation', citing [58-60, 68]). The author's OMA paper on the same cell (Nguyen & "
+    "Melkote, Procedia Manufacturing 48 (2020) 154-158, doi:10.1016/j.promfg.2020.05.032) "
+    "reports that the periodic milling forces were accompanied by background white noise "
+    "exciting the robot across its spectrum, and OMA FRFs agreed well with hammer FRFs; the "
+    "thesis then used 131 bins in all three directions. So the measured condition is: most "
+    "bins between the harmonics had coherent force-response content. In the virtual cell "
+    "that needs a background of the order of the periodic force's spread "
+    "(background_noise_rel ~ 1, the study's default); at the simulator's generic 0.15 most Z "
+    "bins fail coherence, oma_frfs warns (OMAQualityWarning) and the robust update uses what "
+    "passes. The 1.0 is a stated condition for OMA, not a measured property of acetal milling."
 )
 
 
