@@ -7,7 +7,10 @@ Per (seed, direction) of the chapter-5 study, the same EMA + OMA FRFs are given 
 * ``warm``        — the thesis' update: BFGS from the EMA optimum, OMA noise started at the EMA noise;
 * ``robust_warm`` — BFGS from the EMA kernel with the OMA noise started at its marginal-
   likelihood estimate (after the bias checks);
+* ``warm_shared_noise`` — the thesis' Eq. 33 literally: one noise level for EMA and OMA, BFGS
+  from the EMA optimum;
 * ``retrain``     — BFGS from the default start (no restarts), all data as one set;
+* ``retrain_shared_noise`` — the same with one noise level (the thesis' retraining);
 * ``retrain_restarts`` — the library default for a fresh fit (2 extra random starts).
 Printed: quasi-Newton iterations and objective evaluations per GP (mean over the 2 n_f GPs and
 the seeds, ± std over seeds), total iterations per model (the thesis sums over its 131 GPs),
@@ -78,9 +81,10 @@ def main() -> None:
             def ema(sd=sd, grid=grid, seed=seed):
                 return FRFPoseModel(grid, rng=seed).fit(sd.ema_s_m, sd.ema_m_per_n)
 
-            def updated(m, mode, reopt=False, sd=sd):
+            def updated(m, mode, reopt=False, sd=sd, group=1):
                 m.update(sd.oma_s_m, sd.oma_m_per_n, mask=sd.oma_mask, mode=mode,
-                         noise_std=sd.oma_error_m_per_n, reoptimize=reopt)  # fmt: skip
+                         noise_std=sd.oma_error_m_per_n, reoptimize=reopt,
+                         groups=np.full(len(sd.oma_s_m), group))  # fmt: skip
                 return m
 
             def retrain(
@@ -94,7 +98,9 @@ def main() -> None:
                 "posterior": (lambda m: updated(m, "posterior"), ema),
                 "warm": (lambda m: updated(m, "warm"), ema),
                 "robust_warm": (lambda m: updated(m, "robust", True), ema),
+                "warm_shared_noise": (lambda m: updated(m, "warm", group=0), ema),
                 "retrain": (lambda: retrain(0), None),
+                "retrain_shared_noise": (lambda: retrain(0, shared=True), None),
                 "retrain_restarts": (lambda: retrain(None), None),
             }
             for name, (fn, prep) in cases.items():

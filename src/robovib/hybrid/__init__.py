@@ -2,12 +2,24 @@
 
 from .model import UPDATE_MODES, FRFPoseModel, UpdateReport
 from .oma import OMAQualityWarning, OMASegment, oma_frfs
+from .workflow import (
+    FRFPrediction,
+    frfs_on_path_grid,
+    oma_frfs_with_path,
+    plot_frf_prediction,
+    predict_frf_at,
+)
 
 __all__ = [
     "UPDATE_MODES",
     "FRFPoseModel",
+    "FRFPrediction",
     "OMAQualityWarning",
     "OMASegment",
     "UpdateReport",
+    "frfs_on_path_grid",
     "oma_frfs",
+    "oma_frfs_with_path",
+    "plot_frf_prediction",
+    "predict_frf_at",
 ]

@@ -94,9 +94,7 @@ def ema_frf_on_grid(
     frf = impact_frf(
         rec.forces, rec.responses, rec.sample_rate_hz, f_max_hz=float(grid_hz[-1]) + 5
     ).frf.to_compliance(1.0)
-    return np.interp(grid_hz, frf.frequency_hz, frf.values.real) + 1j * np.interp(
-        grid_hz, frf.frequency_hz, frf.values.imag
-    )
+    return frf.interpolate(grid_hz).values
 
 
 @dataclass(frozen=True)
