@@ -88,10 +88,12 @@ def main() -> None:
                 return m
 
             def retrain(
-                restarts, grid=grid, x_all=x_all, h_all=h_all, m_all=m_all, g_all=g_all, seed=seed
-            ):
+                restarts, shared=False, grid=grid, x_all=x_all, h_all=h_all, m_all=m_all,
+                g_all=g_all, seed=seed,
+            ):  # fmt: skip
+                groups = np.zeros_like(g_all) if shared else g_all
                 return FRFPoseModel(grid, rng=seed, n_restarts=restarts).fit(
-                    x_all, h_all, mask=m_all, groups=g_all
+                    x_all, h_all, mask=m_all, groups=groups
                 )
 
             cases = {

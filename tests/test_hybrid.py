@@ -272,3 +272,49 @@ def test_workspace_model_end_to_end(tmp_path):
     np.testing.assert_allclose(back.predict(res.test_poses), res.predicted_m_per_n, rtol=1e-9)
     with pytest.raises(ValueError, match=r"poses must be \(n, 3\)"):
         back.predict([0.5])
+
+
+def test_hybrid_workspace_cli(tmp_path):
+    """Workspace poses through the files: frf compute --x/--y/--rz, fit --inputs workspace,
+    oma of a workspace cut, robust update (rejections reported), predict --x/--y/--rz."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    run = CliRunner().invoke
+    files = []
+    for x, y in ((2100, -300), (2100, 600), (2700, -300), (2700, 600)):
+        rec, frf = tmp_path / f"e{x}_{y}.uff", tmp_path / f"e{x}_{y}.h5"
+        args = ["--x", str(x), "--y", str(y), "--rz", "45"]
+        res = run(app, ["sim", "hammer", *args, "--direction", "y", "--hits", "2",
+                        "--sample-rate-hz", "2048", "-o", str(rec)])  # fmt: skip
+        assert res.exit_code == 0, res.output
+        res = run(app, ["frf", "compute", str(rec), "--fmax", "100", *args, "-o", str(frf)])
+        assert res.exit_code == 0, res.output
+        files.append(str(frf))
+    model = tmp_path / "m.h5"
+    res = run(app, ["hybrid", "fit", *files, "--inputs", "workspace", "-o", str(model), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["input_names"] == ["x_m", "y_m", "rz_deg"]
+    cut, oma = tmp_path / "cut.csv", tmp_path / "oma.h5"
+    res = run(app, ["sim", "mill", "--x0", "2300", "--y0", "0", "--x1", "2450", "--y1", "100", "--rz", "45",
+                    "--rpm", "2700", "--fz", "0.3", "--ap", "6", "--ae", "6", "--material", "acetal",
+                    "--background", "1", "-o", str(cut)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    res = run(app, ["hybrid", "oma", str(cut), "--rpm", "2700", "--direction", "y",
+                    "--window", "hann", "--noverlap", "256", "-o", str(oma), "--json"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["segments"] >= 3
+    updated = tmp_path / "m2.h5"
+    res = run(app, ["hybrid", "update", str(model), str(oma), "-o", str(updated), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["mode"] == "robust" and 0 <= doc["n_rejected"] <= doc["n_observations"]
+    res = run(app, ["hybrid", "predict", str(updated), "--x", "2400", "--y", "50", "--rz", "45", "--json"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["x_m"] == 2.4 and not doc["extrapolating"]
+    res = run(app, ["hybrid", "predict", str(updated), "--path-s", "0.5"])
+    assert res.exit_code == 1 and "--x [mm]" in res.output
