@@ -68,7 +68,7 @@ def study(
         emit_json(res.to_dict())
         return
     summ = res.summary()
-    t = Table(title="FRF RMSE at the validation pose vs truth [um/N], change vs EMA (mean / worst "
+    t = Table(title="FRF RMSE at the validation pose vs truth (um/N), change vs EMA (mean / worst "
                     "seed), peak error vs hammer FRF, iterations per GP - Table 12/13 analogues")  # fmt: skip
     for col in ("dir", "model", "RMSE", "change", "worst", "peak err", "rejected", "iter/GP"):
         t.add_column(col, justify="right")
