@@ -197,6 +197,12 @@ def test_update_bad_input():
         model.update(s, _family(s, f), noise_std=np.ones((2, 5)))
     with pytest.raises(ValueError, match=r"poses must be \(n, 1\)"):
         model.predict(np.ones((2, 3)))
+    with pytest.raises(ValueError, match="group 1"):
+        model.update(s, _family(s, f), groups=np.zeros(3, int))
+    from sklearn.base import clone
+
+    twin = clone(model)
+    assert twin.get_params()["input_names"] == ("s_m",) and not hasattr(twin, "gp_")
 
 
 def test_oma_random_error_and_quality_warning(robot):

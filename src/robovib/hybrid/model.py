@@ -312,6 +312,11 @@ class FRFPoseModel(BaseEstimator):
         n_obs = int(m[:, : self.frequency_hz_.size].sum())
         t0 = time.perf_counter()
         if mode == "robust":
+            if np.any(g != 1):
+                raise ValueError(
+                    "mode='robust' checks a new source against the model: the new FRFs must all be "
+                    "group 1 (OMA); use mode='posterior' or 'warm' to add EMA FRFs (group 0)"
+                )
             report = self._robust_update(x, y, m, g, noise_std, n_obs, reoptimize)
             report = UpdateReport(**{**asdict(report), "wall_time_s": time.perf_counter() - t0})
         else:
