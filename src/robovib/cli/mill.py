@@ -62,7 +62,7 @@ def predict(
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..io import read_force_csv
     from ..milling import CuttingConditions
     from ..milling.prediction import resample_force
@@ -71,7 +71,7 @@ def predict(
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
     f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
     res = predict_at_pose(
-        fit_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
+        get_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
@@ -116,12 +116,13 @@ def lobes(
     json_out: JsonFlag = False,
 ) -> None:
     """Stability lobes (zero-order method) from the pose's predicted X/Y modes."""
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..milling import CuttingConditions, MillingTool
     from ..milling.stability import stability_lobes
     from ..milling.workflow import pose_modes
 
-    modes, _, _ = pose_modes(fit_chapter3_model(rng=seed), x, y, rz)
+    pose = pose_modes(get_chapter3_model(rng=seed), (x, y, rz))
+    modes = {d: m.parameters for d, m in pose.items()}
     cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae / 1e3)
     feed_dir, normal = ("x", "y") if feed == "x" else ("y", "x")
     result = stability_lobes(
@@ -168,12 +169,12 @@ def lobe_map(
     """Critical axial depth at a spindle speed over the workspace: where to mill."""
     from rich.progress import Progress
 
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..milling import CuttingConditions, MillingTool
     from ..milling.workflow import best_pose, plot_lobe_map, workspace_lobe_map
 
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
-    model = fit_chapter3_model(rng=seed)
+    model = get_chapter3_model(rng=seed)
     cond = CuttingConditions(rpm, 1e-4, 1e-3, ae / 1e3)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task("lobes over the workspace", total=nx * ny)
