@@ -118,11 +118,8 @@ class UpdateReport:
 
 
 def _gp_add(gp: BatchedGPRegressor, x, y, mask, groups, reoptimize: bool) -> None:
-    """Add observations through whichever updating name the GP class has."""
-    if hasattr(gp, "add_observations"):
-        gp.add_observations(x, y, mask=mask, reoptimize=reoptimize, groups=groups)
-    else:  # pragma: no cover - newer BatchedGPRegressor
-        gp.update(x, y, mask=mask, groups=groups, mode="warm" if reoptimize else "posterior")
+    """Add observations through the house's updating name (``update``)."""
+    gp.update(x, y, mask=mask, groups=groups, mode="warm" if reoptimize else "posterior")
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
