@@ -407,8 +407,8 @@ def critical_depths(
     delay_s,
     *,
     depth_range_m: tuple[float, float] | None = None,
-    n_scan: int = 12,
-    rtol: float = 1e-4,
+    n_scan: int = 10,
+    rtol: float = 1e-3,
     max_iter: int = 40,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Lowest unstable depth [m] at each delay [s] of the semi-discretized DDE, and its multiplier.
@@ -422,6 +422,7 @@ def critical_depths(
     depth_range_m : (float, float), optional
         Geometric scan range [m]; default ``/30`` to ``x300`` of the smallest 1-DOF turning limit
         (:func:`turning_minimum_depth`) with the largest averaged force coefficient.
+        Speeds leave the scan at their first unstable depth, which is then refined.
     n_scan, rtol, max_iter
         Scan points; relative tolerance and iteration cap of the Illinois refinement.
 
@@ -443,7 +444,7 @@ def critical_depths(
         if not h_avg > 0:
             raise ValueError("the specific force matrices are all zero: nothing regenerates")
         ref = min(turning_minimum_depth(md, h_avg) for md in modes)
-        lo, hi = ref / 30, ref * 300
+        lo, hi = ref / 10, ref * 1000
     else:
         lo, hi = (float(v) for v in depth_range_m)
         if not 0 < lo < hi:
@@ -455,17 +456,21 @@ def critical_depths(
 
     grid = np.geomspace(lo, hi, int(n_scan))
     nb = delay.size
-    rho = np.empty((nb, grid.size))
+    rho = np.full((nb, grid.size), np.nan)
+    # Scan upwards; a speed leaves the scan at its first unstable depth.
+    first = np.full(nb, -1)
     for k, a in enumerate(grid):
-        rho[:, k] = radius(np.full(nb, a), np.arange(nb))[0]
-    unstable = rho >= 1
-    first = np.where(unstable.any(axis=1), unstable.argmax(axis=1), -1)
+        todo = np.flatnonzero(first < 0)
+        if todo.size == 0:
+            break
+        rho[todo, k] = radius(np.full(todo.size, a), todo)[0]
+        first[todo[rho[todo, k] >= 1]] = k
     a_lim = np.full(nb, np.inf)
     mu_crit = np.full(nb, np.nan + 0j)
     active = np.flatnonzero(first >= 0)
     if active.size:
         k = first[active]
-        a_hi = grid[k]
+        a_hi = grid[k].astype(float)
         f_hi = np.log(rho[active, k])
         a_lo = np.where(k > 0, grid[np.maximum(k - 1, 0)], 0.0)
         f_lo = np.where(k > 0, np.log(rho[active, np.maximum(k - 1, 0)]), np.nan)
@@ -476,22 +481,26 @@ def critical_depths(
         side = np.zeros(active.size, int)
         mu_hi = np.full(active.size, np.nan + 0j)
         for _ in range(int(max_iter)):
-            denom = f_hi - f_lo
-            a_new = np.where(denom > 0, a_hi - f_hi * (a_hi - a_lo) / denom, 0.5 * (a_lo + a_hi))
-            bad = ~((a_new > a_lo) & (a_new < a_hi))
-            a_new = np.where(bad, 0.5 * (a_lo + a_hi), a_new)
-            r, mu = radius(a_new, active)
+            i = np.flatnonzero((a_hi - a_lo) > rtol * a_hi)  # speeds still being refined
+            if i.size == 0:
+                break
+            denom = f_hi[i] - f_lo[i]
+            a_new = np.where(
+                denom > 0, a_hi[i] - f_hi[i] * (a_hi[i] - a_lo[i]) / np.where(denom > 0, denom, 1),
+                0.5 * (a_lo[i] + a_hi[i]),
+            )  # fmt: skip
+            bad = ~((a_new > a_lo[i]) & (a_new < a_hi[i]))
+            a_new = np.where(bad, 0.5 * (a_lo[i] + a_hi[i]), a_new)
+            r, mu = radius(a_new, active[i])
             f_new = np.log(r)
             up = f_new >= 0
             # Illinois: halve the stale end's value when the same end is kept twice.
-            f_lo = np.where(up & (side == 1), 0.5 * f_lo, f_lo)
-            f_hi = np.where(~up & (side == -1), 0.5 * f_hi, f_hi)
-            a_hi, f_hi = np.where(up, a_new, a_hi), np.where(up, f_new, f_hi)
-            mu_hi = np.where(up, mu, mu_hi)
-            a_lo, f_lo = np.where(up, a_lo, a_new), np.where(up, f_lo, f_new)
-            side = np.where(up, 1, -1)
-            if np.all((a_hi - a_lo) <= rtol * a_hi):
-                break
+            f_lo[i] = np.where(up & (side[i] == 1), 0.5 * f_lo[i], f_lo[i])
+            f_hi[i] = np.where(~up & (side[i] == -1), 0.5 * f_hi[i], f_hi[i])
+            a_hi[i], f_hi[i] = np.where(up, a_new, a_hi[i]), np.where(up, f_new, f_hi[i])
+            mu_hi[i] = np.where(up, mu, mu_hi[i])
+            a_lo[i], f_lo[i] = np.where(up, a_lo[i], a_new), np.where(up, f_lo[i], f_new)
+            side[i] = np.where(up, 1, -1)
         a_lim[active] = 0.5 * (a_lo + a_hi)
         missing = ~np.isfinite(mu_hi)
         if np.any(missing):
@@ -512,8 +521,8 @@ def sdm_lobes(
     steps_per_vibration: float = 12.0,
     max_steps: int = 200,
     depth_range_m: tuple[float, float] | None = None,
-    n_scan: int = 12,
-    rtol: float = 1e-4,
+    n_scan: int = 10,
+    rtol: float = 1e-3,
     max_iter: int = 40,
 ) -> LobeEnvelope:
     """Stability envelope (critical axial depth at every speed) by semi-discretization.
@@ -537,8 +546,8 @@ def sdm_lobes(
         at least ``steps_per_vibration`` steps per period of the highest mode, capped at
         ``max_steps`` (the state dimension grows with the steps).
     depth_range_m : (float, float), optional
-        Depth scan [m]; default from the 1-DOF turning limit of the stiffest-damped mode
-        (``/30`` to ``x300``). Speeds still stable at its top get ``inf``.
+        Depth scan [m]; default from the 1-DOF turning limit of the most flexible mode
+        (``/10`` to ``x1000``). Speeds still stable at its top get ``inf``.
     n_scan : int
         Geometric scan points before refinement.
     rtol : float
