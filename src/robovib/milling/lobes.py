@@ -16,6 +16,7 @@ from .stability import StabilityLobes
 
 __all__ = [
     "LobeEnvelope",
+    "insperger_benchmark",
     "lobes_title",
     "plot_lobes",
     "plot_method_comparison",
@@ -277,3 +278,38 @@ def plot_method_comparison(envelopes, ax=None, *, title: str | None = None):
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     return ax.figure
+
+
+def insperger_benchmark(spindle_rpm=None, *, steps_per_period: int = 40):
+    """SDM and ZOA envelopes of the published 1-DOF down-milling benchmark.
+
+    Insperger, Mann, Stépán & Bayly, *Int. J. Mach. Tools Manuf.* 43 (2003) / Insperger & Stépán
+    (2004): 2 teeth, ``K_t = 6e8``, ``K_n = 2e8`` N/m², ``fn = 922`` Hz, ``zeta = 0.011``,
+    ``k = 1.34`` MN/m (x, feed direction only), radial immersion a/D = 0.05, down-milling.
+
+    Parameters
+    ----------
+    spindle_rpm : array_like, optional
+        Speeds [rpm] (default 5,000-25,000 rpm, 200 points).
+    steps_per_period : int
+        SDM steps across the cut.
+
+    Returns
+    -------
+    (LobeEnvelope, LobeEnvelope)
+        Semi-discretization and zero-order envelopes.
+    """
+    from ..modal.parameters import ModalParameters
+    from .forces import CuttingCoefficients, CuttingConditions, MillingTool
+    from .sdm import sdm_lobes
+    from .stability import stability_lobes
+
+    rpm = np.linspace(5000, 25000, 200) if spindle_rpm is None else np.asarray(spindle_rpm, float)
+    mode = ModalParameters(922.0, 1.34e6, 0.011)
+    tool = MillingTool(diameter_m=0.02, n_flutes=2, helix_deg=0.0)
+    cond = CuttingConditions(10000, 1e-4, 1e-3, 0.05 * 0.02, down_milling=True)
+    coef = CuttingCoefficients(ktc=6e8, krc=2e8, kac=0.0)
+    sdm = sdm_lobes([mode], [], tool, cond, coef, rpm, steps_per_period=steps_per_period)
+    zoa = zoa_envelope(stability_lobes([mode], [], tool, cond, coef, n_lobes=40), rpm,
+                       settings={"n_lobes": 40})  # fmt: skip
+    return sdm, zoa
