@@ -129,7 +129,7 @@ class StabilityProbability:
 
     def depth_quantile_m(self, q: float) -> np.ndarray:
         """Depth [m] at each speed that is stable with probability ``1 - q`` (e.g. q = 0.05)."""
-        return np.quantile(self.a_lim_samples_m, q, axis=0)
+        return np.quantile(self.a_lim_samples_m, q, axis=0, method="nearest")  # inf-safe
 
 
 def _envelope(mx, my, tool, cond, coef, rpm, method, **kw):
