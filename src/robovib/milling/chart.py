@@ -28,6 +28,7 @@ __all__ = [
     "LobesChart",
     "lobes_chart",
     "parse_mode_spec",
+    "parse_operating_point",
     "parse_rpm_range",
     "plot_lobes_chart",
     "read_frf_csv",
@@ -53,6 +54,21 @@ def parse_mode_spec(spec: str) -> tuple[str, ModalParameters]:
             f"mode {spec!r}: damping ratio ZETA must be in [0, 1), got {zeta} (a ratio, not %)"
         )
     return direction, ModalParameters(fn, k, zeta)
+
+
+def parse_operating_point(spec: str) -> tuple[float, float]:
+    """``"RPM,DEPTH_MM"`` -> (rpm, depth [m])."""
+    try:
+        a, b = (float(v) for v in spec.split(","))
+    except ValueError as exc:
+        raise ValueError(
+            f"operating point {spec!r} must read RPM,DEPTH_MM (e.g. 9000,1.5)"
+        ) from exc
+    if not (a > 0 and b > 0 and math.isfinite(a) and math.isfinite(b)):
+        raise ValueError(
+            f"operating point needs a positive speed [rpm] and depth [mm], got {spec!r}"
+        )
+    return a, b * 1e-3
 
 
 def parse_rpm_range(spec: str) -> np.ndarray:
@@ -135,6 +151,7 @@ class LobesChart:
     operating_point_stable: bool | None = None
     frf_file: str | None = None
     settings: dict = field(default_factory=dict)
+    probability: object | None = None
 
     def to_dict(self) -> dict:
         """JSON document: ``rpm``, ``a_lim_m`` arrays, units in every key, all inputs."""
@@ -167,6 +184,14 @@ class LobesChart:
             }
         if self.cuts is not None:
             doc["cuts"] = self.cuts.to_dict()
+        if self.probability is not None:
+            p = self.probability
+            doc["probability"] = {
+                "n_samples": p.settings["n_samples"],
+                "a_lim_p05_m": p.depth_quantile_m(0.05),
+                "a_lim_p95_m": p.depth_quantile_m(0.95),
+                "sampling": p.settings["sampling"],
+            }
         return doc
 
 
@@ -185,6 +210,11 @@ def lobes_chart(
     pose_label: str | None = None,
     material_label: str | None = None,
     steps_per_period: int = 40,
+    pose_model=None,
+    pose: tuple[float, float, float] | None = None,
+    feed_direction: str = "x",
+    n_samples: int = 0,
+    rng=0,
 ) -> LobesChart:
     """Stability envelope from modes or a measured FRF file, with cuts and an operating point.
 
@@ -206,6 +236,12 @@ def lobes_chart(
     operating_point : (rpm, depth [m]), optional
     pose_label, material_label : str, optional
         For the title.
+    pose_model, pose : optional
+        Without modes or an FRF file: the pose model and the pose ``(x_mm, y_mm, rz_deg)`` whose
+        predicted feed/normal modes are used (``feed_direction`` x or y in the base frame).
+    n_samples : int
+        With a pose model: Monte-Carlo samples of its predictive distribution for the probability
+        of a stable cut (:func:`robovib.milling.uncertainty.stability_probability`); 0 = none.
 
     Returns
     -------
@@ -233,6 +269,22 @@ def lobes_chart(
                     raise
                 fitted[d] = ()  # the zero-order method uses the measured FRF itself
         modes_x, modes_y = fitted.get("x", ()), fitted.get("y", ())
+    probability = None
+    if not modes_x and not modes_y and not frfs and pose_model is not None:
+        from .uncertainty import mode_distribution_at_pose, stability_probability
+
+        if pose is None or len(pose) != 3:
+            raise ValueError("a pose (x_mm, y_mm, rz_deg) is needed with a pose model")
+        if feed_direction not in ("x", "y"):
+            raise ValueError(f"feed_direction must be 'x' or 'y', got {feed_direction!r}")
+        dist = mode_distribution_at_pose(pose_model, pose)
+        normal = "y" if feed_direction == "x" else "x"
+        modes_x, modes_y = (dist[feed_direction].mean,), (dist[normal].mean,)
+        if int(n_samples) > 0:
+            probability = stability_probability(
+                dist, tool, conditions, coefficients, rpm, n_samples=int(n_samples),
+                method=method, feed_direction=feed_direction, rng=rng,
+            )  # fmt: skip
     if not modes_x and not modes_y and not frfs:
         raise ValueError("give at least one mode (--mode x:FN,K,ZETA) or an FRF file")
     if method == "sdm":
@@ -283,7 +335,8 @@ def lobes_chart(
     title = lobes_title(pose=pose_label, tool=tool_txt, material=material_label,
                         extra=f"{method.upper()}" + (f", FRF {Path(frf_file).name}" if frf_file else ""))  # fmt: skip
     return LobesChart(env, modes_x, modes_y, tool, conditions, coefficients, title, cuts,
-                      operating_point, op_stable, None if frf_file is None else str(frf_file))  # fmt: skip
+                      operating_point, op_stable, None if frf_file is None else str(frf_file),
+                      probability=probability)  # fmt: skip
 
 
 def plot_lobes_chart(chart: LobesChart, ax=None):
@@ -293,5 +346,10 @@ def plot_lobes_chart(chart: LobesChart, ax=None):
     -------
     matplotlib.figure.Figure
     """
+    if chart.probability is not None:
+        from .uncertainty import plot_stability_probability
+
+        return plot_stability_probability(chart.probability, ax=ax, title=chart.title,
+                                          operating_point=chart.operating_point, cuts=chart.cuts)  # fmt: skip
     return plot_lobes(chart.envelope, ax=ax, operating_point=chart.operating_point,
                       cuts=chart.cuts, title=chart.title)  # fmt: skip

@@ -216,7 +216,14 @@ def stability_probability(
     )  # fmt: skip
 
 
-def plot_stability_probability(result: StabilityProbability, ax=None, *, title: str | None = None):
+def plot_stability_probability(
+    result: StabilityProbability,
+    ax=None,
+    *,
+    title: str | None = None,
+    operating_point: tuple[float, float] | None = None,
+    cuts=None,
+):
     """Shaded lobes: probability of a stable cut, mean envelope, 5 % / 95 % depth quantiles.
 
     Returns
@@ -230,6 +237,7 @@ def plot_stability_probability(result: StabilityProbability, ax=None, *, title: 
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 4.5))
     plot_lobes(result.mean, ax=ax, probability=result, depth_max_m=float(result.depth_m.max()),
+               operating_point=operating_point, cuts=cuts,
                title=title or f"probability of a stable cut ({result.settings['n_samples']} samples)")  # fmt: skip
     for q, ls in ((0.05, ":"), (0.95, "--")):
         ax.plot(result.spindle_rpm, result.depth_quantile_m(q) * 1e3, color="0.2", ls=ls, lw=1,
