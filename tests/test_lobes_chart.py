@@ -99,3 +99,33 @@ def test_most_stable_speed_is_an_interior_maximum():
     chart = sdm_lobes([MX], [MY], TOOL, COND, ALUMINIUM_7075, RPM)
     best = chart.most_stable_speed()
     assert best is not None and RPM[0] < best[0] < RPM[-1]
+
+
+def test_cli_mill_lobes_with_explicit_modes_frf_cuts_and_operating_point(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    cuts = tmp_path / "cuts.csv"
+    cuts.write_text("spindle_rpm,depth_mm,result\n6000,0.5,stable\n")
+    common = ["mill", "lobes", "--teeth", "3", "--diameter", "16", "--radial-immersion", "0.25",
+              "--milling", "up", "--rpm-range", "3000:15000:40", "--json"]  # fmt: skip
+    res = CliRunner().invoke(app, [*common, "--mode", "x:600,6e6,0.03", "--mode", "y:700,8e6,0.025",
+                                   "--cuts", str(cuts), "--operating-point", "9000,50",
+                                   "--plot", str(tmp_path / "l.png")])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    np.testing.assert_allclose(
+        doc["a_lim_m"], sdm_lobes([MX], [MY], TOOL, COND, ALUMINIUM_7075, RPM).a_lim_m
+    )
+    assert doc["operating_point"]["stable"] is False and doc["cuts"]["chatter"] == [False]
+    assert doc["tool"]["diameter_m"] == pytest.approx(0.016) and (tmp_path / "l.png").stat().st_size
+    path = tmp_path / "frf.csv"
+    _write_frf_csv(path)
+    res = CliRunner().invoke(app, [*common, "--frf", str(path), "--method", "zoa"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["method"] == "zoa"
+    res = CliRunner().invoke(app, [*common, "--mode", "q:1,2,0.1"])
+    assert res.exit_code == 1 and "direction" in res.output
