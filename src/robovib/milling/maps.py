@@ -119,7 +119,8 @@ def workspace_lobe_map(
         Base-frame feed direction (the other horizontal direction is the normal).
     scheduler : str, optional
         ``"sync"``, ``"threads"``, ``"processes"`` or ``"tcp://host:port"``; default
-        ``"processes"`` when ``n_workers > 1`` else ``"sync"``.
+        ``"processes"`` for the SDM when ``n_workers > 1``, else ``"sync"`` (the zero-order
+        method is cheaper than starting worker processes).
     n_workers : int, optional
         Local workers (default: the CPU count).
     poses_per_chunk : int
@@ -167,7 +168,7 @@ def workspace_lobe_map(
         for c in chunks
     ]
     workers = int(n_workers or os.cpu_count() or 1)
-    sched = scheduler or ("processes" if workers > 1 else "sync")
+    sched = scheduler or ("processes" if workers > 1 and method == "sdm" else "sync")
     results = _compute(tasks, sched, workers, progress)
     a = np.concatenate([r[0] for r in results]).reshape(xs.size, ys.size, rzs.size, rpm.size)
     f = np.concatenate([r[1] for r in results]).reshape(a.shape)
