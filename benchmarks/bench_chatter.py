@@ -81,6 +81,10 @@ def main() -> None:
     t_two = time.perf_counter() - t0
     assert np.allclose(one.a_lim_m.values, two.a_lim_m.values, equal_nan=True)
     t0 = time.perf_counter()
+    workspace_lobe_map(model, xs, [0.0], [45.0], rpm, TOOL, COND, AL,
+                       **{**common, "scheduler": "threads"}, n_workers=2)  # fmt: skip
+    t_thr = time.perf_counter() - t0
+    t0 = time.perf_counter()
     workspace_lobe_map(model, xs, [0.0], [45.0], rpm, TOOL, COND, AL, method="zoa",
                        scheduler="sync", poses_per_chunk=1)  # fmt: skip
     t_zoa = time.perf_counter() - t0
