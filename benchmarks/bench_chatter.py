@@ -94,6 +94,7 @@ def main() -> None:
     print(
         f"  2 local worker processes: {t_two / n:.2f} s per pose -> speed-up {t_one / t_two:.2f}x"
     )
+    print(f"  2 local threads: {t_thr / n:.2f} s per pose -> speed-up {t_one / t_thr:.2f}x")
     print(
         f"ZOA chart, same speeds: {t_zoa / n:.3f} s per pose -> SDM costs {t_one / t_zoa:.0f}x ZOA"
     )
