@@ -120,6 +120,10 @@ RadialOpt = Annotated[
     typer.Option("--radial-immersion", help="Radial immersion a/D [-] (instead of --ae)."),
 ]
 MillingOpt = Annotated[str, typer.Option("--milling", help="up or down milling.")]
+StepsOpt = Annotated[
+    int,
+    typer.Option("--steps", help="SDM steps across the cut (40; 20 is ~4x faster, <1 % change)."),
+]
 MethodOpt = Annotated[
     str,
     typer.Option("--method", help="sdm (semi-discretization, flip lobes) or zoa (zero-order)."),
@@ -230,7 +234,7 @@ def lobes(
         operating_point=None if operating_point is None else parse_operating_point(operating_point),
         pose_label=pose_label, material_label=material_name if kt is None and kn is None else
         f"Kt {coef.ktc:.3g}, Kn {coef.krc:.3g} N/m²", pose_model=model, pose=pose,
-        feed_direction=feed, n_samples=samples, rng=seed,
+        feed_direction=feed, n_samples=samples, rng=seed, steps_per_period=steps,
     )  # fmt: skip
     if plot is not None:
         use_agg()
@@ -296,6 +300,7 @@ def lobe_map(
         int | None, typer.Option(help="Local Dask workers (default: all cores).")
     ] = None,
     chunk: Annotated[int, typer.Option(help="Poses per Dask task.")] = 4,
+    steps: StepsOpt = 40,
     output: Annotated[
         Path | None, typer.Option("-o", "--output", help="NetCDF (.nc) of the map.")
     ] = None,
@@ -320,6 +325,7 @@ def lobe_map(
         ds = workspace_lobe_map(
             model, xs, ys, [rz], speeds, tool, cond, coef, method=method, feed_direction=feed,
             scheduler=scheduler, n_workers=workers, poses_per_chunk=chunk,
+            **({"steps_per_period": steps} if method == "sdm" else {}),
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )  # fmt: skip
     if output is not None:

@@ -284,6 +284,7 @@ def lobes_chart(
             probability = stability_probability(
                 dist, tool, conditions, coefficients, rpm, n_samples=int(n_samples),
                 method=method, feed_direction=feed_direction, rng=rng,
+                **({"steps_per_period": steps_per_period} if method == "sdm" else {}),
             )  # fmt: skip
     if not modes_x and not modes_y and not frfs:
         raise ValueError("give at least one mode (--mode x:FN,K,ZETA) or an FRF file")
