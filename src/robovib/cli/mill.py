@@ -202,6 +202,7 @@ def lobes(
             help="Pose model only: samples of its predictive distribution (shaded lobes)."
         ),
     ] = 0,
+    steps: StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
