@@ -155,8 +155,11 @@ class LobesChart:
 
     def to_dict(self) -> dict:
         """JSON document: ``rpm``, ``a_lim_m`` arrays, units in every key, all inputs."""
+        from .. import __version__
+
         env = self.envelope.to_dict()
         doc = {
+            "robovib_version": __version__,
             "method": self.envelope.method,
             "rpm": env["rpm"],
             "a_lim_m": env["a_lim_m"],
