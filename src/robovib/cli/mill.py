@@ -62,7 +62,7 @@ def predict(
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..io import read_force_csv
     from ..milling import CuttingConditions
     from ..milling.prediction import resample_force
@@ -71,7 +71,7 @@ def predict(
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
     f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
     res = predict_at_pose(
-        fit_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
+        get_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
@@ -225,9 +225,9 @@ def lobes(
     if not parsed and frf is None:
         if x is None or y is None or rz is None:
             raise ValueError("give --x --y --rz (pose model), --mode ... or --frf FILE")
-        from ..gp.study import fit_chapter3_model
+        from ..gp import get_chapter3_model
 
-        model, pose = fit_chapter3_model(rng=seed), (x, y, rz)
+        model, pose = get_chapter3_model(rng=seed), (x, y, rz)
         pose_label = f"X {x:g} mm, Y {y:g} mm, Rz {rz:g}°, feed {feed}"
     chart = lobes_chart(
         tool=tool, conditions=cond, coefficients=coef, spindle_rpm=parse_rpm_range(rpm_range),
@@ -312,7 +312,7 @@ def lobe_map(
     """Critical axial depth over the workspace × spindle speeds (Dask): where and how fast to mill."""
     from rich.progress import Progress
 
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..milling.chart import parse_rpm_range
     from ..milling.maps import plot_lobe_map, save_lobe_map, workspace_lobe_map
 
@@ -320,7 +320,7 @@ def lobe_map(
                                 radial_immersion, milling)  # fmt: skip
     speeds = np.array([rpm]) if rpm_range is None else np.union1d(parse_rpm_range(rpm_range), [rpm])
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
-    model = fit_chapter3_model(rng=seed)
+    model = get_chapter3_model(rng=seed)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task(f"{method.upper()} lobes over the workspace", total=None)
         ds = workspace_lobe_map(
