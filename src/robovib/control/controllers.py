@@ -1,0 +1,436 @@
+"""Run-time vibration controllers for the command channel (thesis ch. 4 and beyond).
+
+Every controller here follows one small protocol, run once per command period (RSI: 4 ms):
+
+* ``reset(coords, period_s, sample_rate_hz)``: called once before a run with the pose
+  coordinates at every command instant (path distance [m], shape (n_cmd,), or workspace poses
+  (n_cmd, 3)). Scheduled gains are looked up here for the whole run (a table per instant), so
+  the cycle itself does no interpolation.
+* ``command(k, tracker_m, force_n) -> (3,)``: called at command instant ``k`` with the tracker
+  samples (m, 3) [m] and force-sensor samples (m, 3) [N] of the period that ends at the current
+  sample (last row = now, 1 kHz), returning the path correction [m] per direction.
+
+Controllers (directions are the keys ``0, 1, 2`` = X, Y, Z of the dicts they take):
+
+* :class:`StateFeedback` — the thesis' ``u = -(w1 x + w2 v)`` (Eq. 23-25) with the velocity by
+  backward difference over the command period; gains constant or scheduled along the path
+  (Eq. 28-29).
+* :class:`DelayAwareFeedback` — ``u = -K [x, v, u_{k-1}, ..., u_{k-d}]`` (LQR on the
+  delay-augmented model, :func:`~robovib.control.lqr.design_delay_aware_lqr`) with either the
+  backward-difference state or a steady-state Kalman filter run on every 1 kHz tracker sample
+  (LQG, :func:`design_lqg`).
+* :class:`ForceFeedforward` — beyond the thesis: the deflection the measured cutting force will
+  cause once the correction arrives (``delay`` later) is predicted from the force one (or more)
+  excitation periods earlier (the cutting force repeats every tooth period) and cancelled.
+* :class:`Combined` — the sum of controllers (feedforward + feedback).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+
+from ..modal.parameters import ModalParameters
+from .lqr import continuous_model, design_delay_aware_lqr, discretize
+
+__all__ = [
+    "Combined",
+    "DelayAwareFeedback",
+    "ForceFeedforward",
+    "KalmanDesign",
+    "ScheduledTable",
+    "StateFeedback",
+    "design_kalman",
+    "implemented_loop_matrix",
+]
+
+
+@dataclass(frozen=True)
+class ScheduledTable:
+    """Values designed at path distances ``s_m`` (n,), rows ``values`` (n, m); linear lookup.
+
+    A single row (n = 1) is a constant. Outside ``s_m`` the end values are held.
+    """
+
+    s_m: np.ndarray
+    values: np.ndarray
+
+    def __post_init__(self) -> None:
+        s = np.atleast_1d(np.asarray(self.s_m, float))
+        v = np.asarray(self.values, float)
+        v = v.reshape(s.size, -1)
+        if s.ndim != 1 or not np.all(np.isfinite(s)) or not np.all(np.isfinite(v)):
+            raise ValueError("scheduled table needs finite 1-D s_m [m] and finite values")
+        if s.size > 1 and np.any(np.diff(s) <= 0):
+            raise ValueError("scheduled table s_m [m] must be strictly increasing")
+        object.__setattr__(self, "s_m", s)
+        object.__setattr__(self, "values", v)
+
+    @classmethod
+    def constant(cls, values) -> ScheduledTable:
+        return cls(np.array([0.0]), np.atleast_2d(np.asarray(values, float)))
+
+    def at(self, coords) -> np.ndarray:
+        """Rows at the path distances ``coords`` (n,) [m] (first column of (n, 3) poses)."""
+        c = np.asarray(coords, float)
+        s = c if c.ndim == 1 else c[:, 0]
+        if self.s_m.size == 1:
+            return np.repeat(self.values, s.size, axis=0)
+        return np.column_stack(
+            [np.interp(s, self.s_m, self.values[:, j]) for j in range(self.values.shape[1])]
+        )
+
+
+def _table(spec) -> ScheduledTable:
+    if isinstance(spec, ScheduledTable):
+        return spec
+    return ScheduledTable.constant(spec)
+
+
+class StateFeedback:
+    """Thesis controller ``u = -(w1 x + w2 v)`` per direction (Eq. 23-25, 28-29).
+
+    Parameters
+    ----------
+    gains
+        Direction index -> ``(w1, w2)`` constants or a :class:`ScheduledTable` with 2 columns
+        (w1 [m/m], w2 [s]).
+    """
+
+    def __init__(self, gains: dict[int, ScheduledTable | Sequence[float]]):
+        self.gains = {int(a): _table(g) for a, g in gains.items()}
+        for a, g in self.gains.items():
+            if a not in (0, 1, 2) or g.values.shape[1] != 2:
+                raise ValueError("StateFeedback gains: direction 0-2 -> (w1, w2)")
+
+    def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
+        self._tab = {a: g.at(coords) for a, g in self.gains.items()}
+        self._period = float(period_s)
+        self._prev = np.zeros(3)
+
+    def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        x = tracker_m[-1]
+        vel = (x - self._prev) / self._period if k > 0 else np.zeros(3)
+        self._prev = x
+        u = np.zeros(3)
+        for a, tab in self._tab.items():
+            u[a] = -(tab[k, 0] * x[a] + tab[k, 1] * vel[a])
+        return u
+
+
+@dataclass(frozen=True)
+class KalmanDesign:
+    """Steady-state Kalman filter of one mode at the sensor rate (state [x, v]).
+
+    ``phi`` (2, 2), ``gamma_u`` (2,) (applied correction [m] -> state), ``gain`` (2,) the
+    filter gain ``L`` of the update ``x += L (y - x[0])``, ``p`` the a-priori covariance.
+    """
+
+    phi: np.ndarray
+    gamma_u: np.ndarray
+    gain: np.ndarray
+    p: np.ndarray
+
+
+def design_kalman(
+    mode: ModalParameters,
+    dt_s: float = 1e-3,
+    *,
+    force_std_n: float = 20.0,
+    tracker_noise_m: float = 2e-6,
+    tracker_resolution_m: float = 1e-5,
+) -> KalmanDesign:
+    """Kalman filter for ``[x, v]`` of ``mode`` from tracker samples every ``dt_s``.
+
+    The unmeasured force is white process noise of std ``force_std_n`` [N] held over each
+    sample; the tracker noise variance is ``tracker_noise_m**2 + tracker_resolution_m**2 / 12``
+    (quantisation). The steady-state a-priori covariance solves the filter Riccati equation
+    (SciPy DARE on the dual problem; the same as python-control ``dlqe``, tested).
+    """
+    a, bu = continuous_model(mode, input="displacement")
+    _, bf = continuous_model(mode, input="force")
+    phi, gu = discretize(a, bu, dt_s)
+    _, gf = discretize(a, bf, dt_s)
+    qn = (gf @ gf.T) * force_std_n**2
+    rn = np.array([[tracker_noise_m**2 + tracker_resolution_m**2 / 12.0]])
+    c = np.array([[1.0, 0.0]])
+    p = linalg.solve_discrete_are(phi.T, c.T, qn, rn)
+    gain = (p @ c.T @ np.linalg.inv(c @ p @ c.T + rn))[:, 0]
+    return KalmanDesign(phi, gu[:, 0], gain, p)
+
+
+class DelayAwareFeedback:
+    """``u = -K [x, v, u_{k-1}, ..., u_{k-d}]`` per direction, scheduled along the path.
+
+    Parameters
+    ----------
+    gains
+        Direction -> :class:`ScheduledTable` of the delay-aware gains (2 + d columns), e.g.
+        from :func:`~robovib.control.lqr.design_delay_aware_lqr` at grid points.
+    kalman
+        ``None``: ``[x, v]`` from the latest tracker sample and the backward difference over
+        the command period. Otherwise direction -> ``(s_grid_m, [KalmanDesign, ...])``: a
+        steady-state Kalman filter run on every tracker sample (LQG), fed with the corrections
+        this controller sent, ``delay_samples`` late.
+    delay_samples
+        The nominal transport delay in tracker samples (used by the Kalman filter).
+    """
+
+    def __init__(
+        self,
+        gains: dict[int, ScheduledTable],
+        kalman: dict[int, tuple[np.ndarray, list[KalmanDesign]]] | None = None,
+        delay_samples: int = 32,
+    ):
+        self.gains = {int(a): _table(g) for a, g in gains.items()}
+        self.kalman = kalman
+        self.delay_samples = int(delay_samples)
+
+    def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
+        self._tab = {a: g.at(coords) for a, g in self.gains.items()}
+        self._hist = {a: np.zeros(t.shape[1] - 2) for a, t in self._tab.items()}
+        self._period = float(period_s)
+        self._every = round(period_s * sample_rate_hz)
+        self._prev = np.zeros(3)
+        self._kf = None
+        if self.kalman is not None:
+            self._kf = {}
+            for a, (s_grid, designs) in self.kalman.items():
+                rows = np.array(
+                    [np.concatenate([d.phi.ravel(), d.gamma_u, d.gain]) for d in designs]
+                )
+                self._kf[a] = ScheduledTable(np.asarray(s_grid, float), rows).at(coords)
+            self._xhat = {a: np.zeros(2) for a in self._kf}
+            n = len(np.atleast_1d(coords if np.ndim(coords) == 1 else np.asarray(coords)[:, 0]))
+            self._sent = np.zeros(((n + 2) * self._every + self.delay_samples, 3))
+            self._sample = -1
+
+    def _kalman_step(self, k, tracker_m):
+        for row in tracker_m:
+            self._sample += 1
+            i = self._sample
+            applied = self._sent[i - self.delay_samples] if i >= self.delay_samples else None
+            for a, tab in self._kf.items():
+                r = tab[k]
+                x = self._xhat[a]
+                x = x + r[6:8] * (row[a] - x[0])  # update with this sample
+                u = 0.0 if applied is None else applied[a]
+                self._xhat[a] = np.array(
+                    [r[0] * x[0] + r[1] * x[1] + r[4] * u, r[2] * x[0] + r[3] * x[1] + r[5] * u]
+                )
+                self._post = getattr(self, "_post", {})
+                self._post[a] = x
+
+    def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        u = np.zeros(3)
+        if self._kf is not None:
+            self._kalman_step(k, tracker_m)
+        else:
+            x = tracker_m[-1]
+            vel = (x - self._prev) / self._period if k > 0 else np.zeros(3)
+            self._prev = x
+        for a, tab in self._tab.items():
+            g = tab[k]
+            state = self._post[a] if self._kf is not None else (x[a], vel[a])
+            hist = self._hist[a]
+            ua = -(g[0] * state[0] + g[1] * state[1] + g[2:] @ hist)
+            if hist.size:
+                hist[1:] = hist[:-1]
+                hist[0] = ua
+            u[a] = ua
+        if self._kf is not None:
+            i = self._sample
+            self._sent[i : i + self._every] = u
+        return u
+
+
+class ForceFeedforward:
+    """Cancel the deflection the measured periodic force will cause when the correction lands.
+
+    A correction ``u`` enters the structure like a force ``k_s u`` at the tool (``k_s`` the
+    static stiffness of the direction, ``1 / H(0)`` of the pose's FRF), so the correction that
+    cancels the deflection ``H F`` of a force ``F`` is ``u = -F / k_s`` at every frequency
+    (``P_u^-1 H = 1 / k_s``). The force acting when the correction arrives, ``delay`` to
+    ``delay + period`` later, is predicted from the measured force ``p`` excitation periods
+    earlier (averaged over ``n_periods`` periods to shed the non-repeating part), which is
+    causal as long as the excitation period is longer than delay + command period.
+
+    Parameters
+    ----------
+    stiffness
+        Direction -> static stiffness [N/m] (constant or a 1-column :class:`ScheduledTable`
+        along the path), from the pose model.
+    excitation_period_s
+        Period of the force [s] (tooth period ``60 / (rpm * teeth)``, rotation period for an
+        offset mass).
+    delay_s
+        Nominal transport delay [s] of the command channel.
+    n_periods
+        Past periods averaged in the prediction.
+    include_mean
+        Also cancel the mean (static) deflection; ``False`` cancels only the vibration.
+    """
+
+    def __init__(
+        self,
+        stiffness: dict[int, ScheduledTable | float],
+        excitation_period_s: float,
+        delay_s: float = 0.032,
+        *,
+        n_periods: int = 3,
+        include_mean: bool = False,
+    ):
+        if not (math.isfinite(excitation_period_s) and excitation_period_s > 0):
+            raise ValueError(f"excitation_period_s must be > 0 [s], got {excitation_period_s!r}")
+        if not delay_s >= 0:
+            raise ValueError(f"delay_s must be >= 0 [s], got {delay_s!r}")
+        if int(n_periods) < 1:
+            raise ValueError("n_periods must be >= 1")
+        self.stiffness = {int(a): _table(k) for a, k in stiffness.items()}
+        self.excitation_period_s = float(excitation_period_s)
+        self.delay_s = float(delay_s)
+        self.n_periods = int(n_periods)
+        self.include_mean = bool(include_mean)
+
+    def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
+        fs = float(sample_rate_hz)
+        self._every = round(period_s * fs)
+        self._delay = round(self.delay_s * fs)
+        self._n = self.excitation_period_s * fs  # samples per period (may be fractional)
+        need = self._delay + self._every
+        if self._n < need:
+            raise ValueError(
+                f"the excitation period {self.excitation_period_s * 1e3:.1f} ms is shorter than "
+                f"delay + command period {need / fs * 1e3:.1f} ms: the force cannot be predicted"
+            )
+        self._p0 = max(1, math.ceil(need / self._n))
+        self._k = {a: t.at(coords)[:, 0] for a, t in self.stiffness.items()}
+        n_cmd = next(iter(self._k.values())).size if self._k else 0
+        self._buf = np.zeros(((n_cmd + 2) * self._every, 3))
+        self._len = 0
+        self._sum = np.zeros(3)
+
+    def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        m = force_n.shape[0]
+        self._buf[self._len : self._len + m] = force_n
+        self._sum += force_n.sum(axis=0)
+        self._len += m
+        i = self._len - 1
+        offsets = i + self._delay + np.arange(self._every)  # samples the correction will act on
+        preds, used = np.zeros(3), 0
+        for p in range(self._p0, self._p0 + self.n_periods):
+            src = offsets - p * self._n
+            if src[0] < 0:
+                break
+            lo = np.floor(src).astype(int)
+            w = src - lo
+            f = self._buf[lo] * (1 - w)[:, None] + self._buf[np.minimum(lo + 1, i)] * w[:, None]
+            preds += f.mean(axis=0)
+            used += 1
+        u = np.zeros(3)
+        if used == 0:
+            return u
+        pred = preds / used
+        if not self.include_mean:
+            pred = pred - self._sum / self._len
+        for a, kk in self._k.items():
+            u[a] = -pred[a] / kk[k]
+        return u
+
+
+class Combined:
+    """Sum of the commands of several controllers (e.g. feedforward + feedback)."""
+
+    def __init__(self, *parts):
+        if not parts:
+            raise ValueError("Combined needs at least one controller")
+        self.parts = parts
+
+    def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
+        for p in self.parts:
+            p.reset(coords, period_s, sample_rate_hz)
+
+    def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        return sum(p.command(k, tracker_m, force_n) for p in self.parts)
+
+
+def implemented_loop_matrix(
+    mode: ModalParameters | Sequence[ModalParameters],
+    gains: Sequence[float],
+    period_s: float = 0.004,
+    delay_steps: int = 8,
+    *,
+    velocity: str = "difference",
+) -> np.ndarray:
+    """Closed-loop matrix of a plant under ``u = -(g0 x + g1 v + g[2:] u_hist)`` with delay.
+
+    The loop as run: the command-rate model (exact ZOH) of one mode or of a sum of modes (the
+    tip displacement is their sum; a correction enters each mode like a force ``k_s u``,
+    ``k_s = 1 / sum(1 / k_r)``, as in :mod:`robovib.sim.plant`), the correction applied
+    ``delay_steps`` periods late, and the velocity either by backward difference over one
+    period (``"difference"``, the thesis' implementation: the state gets ``x_{k-1}``) or exact
+    (``"exact"``). ``gains`` has 2 entries ([w1, w2]) or 2 + ``delay_steps`` (delay-aware).
+    State ``[modes' (x, v)..., (x_{k-1}), u_{k-1}, ..., u_{k-d}]``. Stable iff the spectral
+    radius < 1.
+    """
+    modes = [mode] if isinstance(mode, ModalParameters) else list(mode)
+    g = np.asarray(gains, float)
+    d = int(delay_steps)
+    if g.size not in (2, 2 + d):
+        raise ValueError(f"gains must have 2 or 2 + delay_steps = {2 + d} entries, got {g.size}")
+    if velocity not in ("difference", "exact"):
+        raise ValueError(f"unknown velocity {velocity!r}; expected 'difference' or 'exact'")
+    k_s = 1.0 / sum(1.0 / m.stiffness_n_per_m for m in modes)
+    nm = 2 * len(modes)
+    ad = np.zeros((nm, nm))
+    bd = np.zeros((nm, 1))
+    for i, m in enumerate(modes):
+        a, b = continuous_model(m)
+        ai, bi = discretize(a, b * (k_s / m.stiffness_n_per_m), period_s)
+        ad[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = ai
+        bd[2 * i : 2 * i + 2] = bi
+    cx = np.zeros(nm)
+    cx[0::2] = 1.0  # tip displacement
+    cv = np.zeros(nm)
+    cv[1::2] = 1.0  # tip velocity
+    hist = g[2:] if g.size > 2 else np.zeros(d)
+    diff = velocity == "difference"
+    n = nm + int(diff) + d
+    big = np.zeros((n, n))
+    big[:nm, :nm] = ad
+    h0 = nm + int(diff)  # index of u_{k-1}
+    row = np.zeros(n)  # u_k as a row over the state
+    if diff:
+        row[:nm] = -(g[0] + g[1] / period_s) * cx
+        row[nm] = g[1] / period_s
+        big[nm, :nm] = cx
+    else:
+        row[:nm] = -g[0] * cx - g[1] * cv
+    row[h0 : h0 + d] = -hist
+    if d == 0:
+        big[:nm, :] += bd @ row[None, :]
+        return big
+    big[:nm, h0 + d - 1] += bd[:, 0]
+    big[h0, :] = row
+    for i in range(1, d):
+        big[h0 + i, h0 + i - 1] = 1.0
+    return big
+
+
+def spectral_radius(matrix: np.ndarray) -> float:
+    """Largest eigenvalue magnitude (< 1: the discrete loop is stable)."""
+    return float(np.max(np.abs(np.linalg.eigvals(matrix))))
+
+
+def delay_aware_gains(
+    mode: ModalParameters, r: float, period_s: float, delay_s: float
+) -> np.ndarray:
+    """Delay-aware LQR gains (2 + d,) with thesis Q and ``R = r`` (see ``design_delay_aware_lqr``)."""
+    return design_delay_aware_lqr(mode, period_s, delay_s, r=[[r]]).gains
+
+
+__all__ += ["delay_aware_gains", "spectral_radius"]

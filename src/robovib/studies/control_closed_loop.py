@@ -1,0 +1,570 @@
+"""Closed-loop studies on the virtual robot (thesis §4.2-4.4, Tables 7 and 10).
+
+1. :func:`path_modal_model`: hammer tests at points along the chapter-4 path (thesis: 20 points
+   56 mm apart), dominant-mode fits, and a GP over path distance — the pose model every
+   controller is designed from (the truth stays hidden from the design).
+2. :func:`fixed_pose_offset_mass` (§4.3.2): the thesis' own gains 0.079 / 0.0059 on the mode it
+   measured (8.5 Hz, 0.775 MN/m, 0.179) at 480 / 960 / 1440 rpm, open vs closed loop, through a
+   given command channel; :func:`calibrate_channel` searches the channel options against
+   §4.3.2 and Table 7; :func:`sensitivity_bound` is the best any non-amplifying channel allows.
+3. :func:`offset_mass_study` (Table 7 analogue): 1 kg at 50.8 mm while the robot moves 900 mm
+   toward the base at 84 mm/s; the controllers of :func:`build_controllers`.
+4. :func:`milling_study` (Table 10 analogue): the eight cuts at Positions 1 and 2, X and Z.
+
+Measurement realism comes from :func:`robovib.sim.run_closed_loop`: tracker at 1 kHz with
+noise and 0.01 mm resolution, force sensor with 0.5 N noise, commands at 250 Hz through a
+:class:`~robovib.sim.CommandChannel` (default: 32 ms pure delay).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..control.controllers import (
+    Combined,
+    DelayAwareFeedback,
+    ForceFeedforward,
+    ScheduledTable,
+    StateFeedback,
+    design_kalman,
+    implemented_loop_matrix,
+    spectral_radius,
+)
+from ..control.lqr import design_delay_aware_lqr
+from ..control.schedule import GainSchedule, schedule_gains
+from ..frf.impact import impact_frf
+from ..gp.regressor import BatchedGPRegressor
+from ..milling.forces import (
+    ACETAL,
+    CuttingCoefficients,
+    CuttingConditions,
+    MillingTool,
+    milling_forces,
+)
+from ..modal.parameters import ModalParameters
+from ..modal.sdof import fit_dominant_mode
+from ..sim import (
+    PATH_LENGTH_M,
+    POSITION_1_S_M,
+    POSITION_2_S_M,
+    PURE_DELAY,
+    CommandChannel,
+    ConstantModesRobot,
+    LinearMove,
+    ModeSet,
+    VirtualRobot,
+    offset_mass_force,
+    run_closed_loop,
+    simulate_hammer_test,
+)
+
+__all__ = [
+    "CALIBRATED_CHANNEL",
+    "CONTROLLERS",
+    "SECOND_MODE_HYPOTHESES",
+    "TABLE_10_CONDITIONS",
+    "THESIS_OFFSET_MASS_MODE",
+    "PathModalModel",
+    "build_controllers",
+    "calibrate_channel",
+    "fixed_pose_offset_mass",
+    "milling_study",
+    "offset_mass_study",
+    "path_modal_model",
+    "sensitivity_bound",
+    "stability_over_band",
+]
+
+#: The controllers compared in the studies (names used in the result rows and the CLI).
+CONTROLLERS = (
+    "thesis",
+    "constant-start",
+    "constant-end",
+    "lqg",
+    "robust",
+    "feedforward",
+    "feedforward+robust",
+)
+
+#: §4.3.2: the Y-direction mode measured at the offset-mass pose (8.5 Hz, 0.775 MN/m, 0.179).
+THESIS_OFFSET_MASS_MODE = ModalParameters(8.5, 0.775e6, 0.179)
+#: §4.3.2 gains (w1, w2) the thesis computed for that mode.
+THESIS_OFFSET_MASS_GAINS = (0.079, 0.0059)
+
+#: Channel fitted by :func:`calibrate_channel` (``python benchmarks/study_control.py
+#: calibrate``) with the delay held at the 32 ms the thesis measured: over lag 0-40 ms,
+#: breakaway 0-50 µm, rate limit 0.02 m/s-inf and 0-1 extra RSI hold, the pure delay fits
+#: §4.3.2 best (RMS log error 0.78, i.e. a factor 2.2). No non-amplifying channel can do much
+#: better: :func:`sensitivity_bound` limits the closed/open ratio of the thesis' gains on the
+#: thesis' measured mode to >= 0.53 at 8 Hz and >= 0.81 at 16 Hz, against the thesis' 0.42
+#: and 0.42. (Freeing the delay, the best fit is no delay at all — contradicting the measured
+#: 32 ms — and still misses 960 rpm by a factor 2.5.)
+CALIBRATED_CHANNEL = CommandChannel(delay_s=0.032)
+
+
+@dataclass(frozen=True)
+class PathModalModel:
+    """GP of (fn, k, zeta) of the dominant mode over path distance, per direction.
+
+    The chapter-4 path model; it becomes a ``robovib.gp.PoseModalModel`` with
+    ``input_names=("s_m",)`` once that type lands.
+    """
+
+    gps: dict  #: direction -> BatchedGPRegressor on s [m] -> (fn [Hz], k [MN/m], zeta)
+    s_tested_m: np.ndarray
+
+    def mode(self, s_m: float, direction: str) -> ModalParameters:
+        fn, k, z = self.gps[direction].predict(np.array([[s_m]]))[0]
+        return ModalParameters(float(fn), float(k) * 1e6, float(z))
+
+    def band(self, s_m: float, direction: str, z_score: float = 1.96) -> list[ModalParameters]:
+        """The 8 corners of the GP's band (mean ± ``z_score`` std in fn, k and zeta)."""
+        mean, std = self.gps[direction].predict(np.array([[s_m]]), return_std=True)
+        mean, std = mean[0], std[0]
+        out = []
+        for sf in (-1, 1):
+            for sk in (-1, 1):
+                for sz in (-1, 1):
+                    fn = mean[0] + sf * z_score * std[0]
+                    k = (mean[1] + sk * z_score * std[1]) * 1e6
+                    z = mean[2] + sz * z_score * std[2]
+                    out.append(ModalParameters(max(fn, 0.1), max(k, 1e3), min(max(z, 1e-3), 0.95)))
+        return out
+
+
+def path_modal_model(
+    robot: VirtualRobot,
+    directions=("x", "z"),
+    n_points: int = 20,
+    *,
+    sample_rate_hz: float = 2048.0,
+    n_hits: int = 3,
+    rng=0,
+) -> PathModalModel:
+    """EMA at ``n_points`` along the chapter-4 path (virtual hammer tests) and a GP over s."""
+    s = np.linspace(0.0, PATH_LENGTH_M, n_points)
+    gen = np.random.default_rng(rng)
+    gps = {}
+    for d in directions:
+        rows = []
+        for si in s:
+            rec = simulate_hammer_test(robot, si, d, domain="path", n_hits=n_hits, sample_rate_hz=sample_rate_hz,
+                                       duration_s=4.0, rng=gen)  # fmt: skip
+            fit = fit_dominant_mode(
+                impact_frf(rec.forces, rec.responses, rec.sample_rate_hz, f_max_hz=100).frf
+            )
+            p = fit.parameters
+            rows.append([p.natural_frequency_hz, p.stiffness_n_per_m / 1e6, p.damping_ratio])
+        gps[d] = BatchedGPRegressor(kernel="isotropic", rng=rng).fit(s[:, None], np.array(rows))
+    return PathModalModel(gps, s)
+
+
+# --------------------------------------------------------------------------- design
+def _schedule(model: PathModalModel, direction: str, s_grid) -> GainSchedule:
+    return schedule_gains(s_grid, [model.mode(si, direction) for si in s_grid])
+
+
+#: Unmodelled-dynamics hypotheses of the robust design: a second mode at (fn ratio, k ratio,
+#: zeta) relative to the dominant one. The hammer-test FRFs along the path show a second,
+#: lighter-damped mode at 2-3 x the dominant frequency that the dominant-mode GP drops; a
+#: design checked only on the dominant mode goes unstable on it with 32 ms of delay.
+SECOND_MODE_HYPOTHESES = ((2.0, 5.0, 0.03), (2.0, 20.0, 0.03), (3.0, 5.0, 0.03), (3.0, 20.0, 0.03))
+
+
+def _model_set(model: PathModalModel, s_m: float, direction: str, second_modes=True):
+    """Plants the robust design must hold on: nominal + band corners (x second-mode variants)."""
+    singles = [model.mode(s_m, direction), *model.band(s_m, direction)]
+    out = [[m] for m in singles]
+    if second_modes:
+        for m in singles:
+            for fr, kr, z in SECOND_MODE_HYPOTHESES:
+                out.append(
+                    [m, ModalParameters(fr * m.natural_frequency_hz, kr * m.stiffness_n_per_m, z)]
+                )
+    return out
+
+
+def _robust_r(plants, nominal: ModalParameters, period_s, delay_s, r_grid, velocity="difference"):
+    """R whose delay-aware gains (designed on the nominal mode) minimise the worst spectral
+    radius of the implemented loop over ``plants`` (lists of modes)."""
+    d = round(delay_s / period_s)
+    best = None
+    for r in r_grid:
+        g = design_delay_aware_lqr(nominal, period_s, delay_s, r=[[r]]).gains
+        rho = max(
+            spectral_radius(implemented_loop_matrix(p, g, period_s, d, velocity=velocity))
+            for p in plants
+        )
+        if best is None or rho < best[0]:
+            best = (rho, g, r)
+    return best
+
+
+def build_controllers(
+    model: PathModalModel,
+    axes: dict[int, str],
+    s_grid,
+    *,
+    names=CONTROLLERS,
+    excitation_period_s: float | None = None,
+    s_start: float | None = None,
+    s_end: float | None = None,
+    period_s: float = 0.004,
+    delay_s: float = 0.032,
+    lqg_r: float | None = None,
+    robust_r_grid=None,
+) -> dict[str, object]:
+    """Controllers designed from the pose model only, scheduled over ``s_grid`` [m].
+
+    Returns a name -> controller dict (fresh objects: they hold state). ``constant-start`` /
+    ``constant-end`` use the pose-dependent design at ``s_start`` / ``s_end``. The
+    feedforward controllers need ``excitation_period_s`` (the force's period).
+    """
+    grid = np.asarray(s_grid, float)
+    r_grid = np.logspace(-2, 3, 11) if robust_r_grid is None else np.asarray(robust_r_grid)
+    out: dict[str, object] = {}
+    sched = {a: _schedule(model, d, grid) for a, d in axes.items()}
+    if "thesis" in names:
+        out["thesis"] = StateFeedback(
+            {a: ScheduledTable(grid, np.column_stack([s.w1, s.w2])) for a, s in sched.items()}
+        )
+    for name, s_at in (("constant-start", s_start), ("constant-end", s_end)):
+        if name in names:
+            s_at = grid[0] if s_at is None else s_at
+            out[name] = StateFeedback({a: s.gains_at(s_at) for a, s in sched.items()})
+    if "lqg" in names:
+        gains, kal = {}, {}
+        for a, d in axes.items():
+            modes = [model.mode(si, d) for si in grid]
+            if lqg_r is None:  # R picked like the robust design, on the exact state
+                rows = [_robust_r(_model_set(model, si, d), m, period_s, delay_s, r_grid, "exact")[1]
+                        for si, m in zip(grid, modes, strict=True)]  # fmt: skip
+            else:
+                rows = [
+                    design_delay_aware_lqr(m, period_s, delay_s, r=[[lqg_r]]).gains for m in modes
+                ]
+            gains[a] = ScheduledTable(grid, np.array(rows))
+            kal[a] = (grid, [design_kalman(m) for m in modes])
+        out["lqg"] = DelayAwareFeedback(gains, kal, delay_samples=round(delay_s * 1000.0))
+    robust = None
+    if "robust" in names or "feedforward+robust" in names:
+        tabs = {}
+        for a, d in axes.items():
+            rows = [
+                _robust_r(_model_set(model, si, d), model.mode(si, d), period_s, delay_s, r_grid)[1]
+                for si in grid
+            ]
+            tabs[a] = ScheduledTable(grid, np.array(rows))
+        robust = tabs
+        if "robust" in names:
+            out["robust"] = DelayAwareFeedback(robust)
+    if "feedforward" in names or "feedforward+robust" in names:
+        if excitation_period_s is None:
+            raise ValueError("feedforward controllers need excitation_period_s [s]")
+        stiff = {
+            a: ScheduledTable(grid, np.array([[model.mode(si, d).stiffness_n_per_m] for si in grid]))
+            for a, d in axes.items()
+        }  # fmt: skip
+        if "feedforward" in names:
+            out["feedforward"] = ForceFeedforward(stiff, excitation_period_s, delay_s)
+        if "feedforward+robust" in names:
+            out["feedforward+robust"] = Combined(
+                ForceFeedforward(stiff, excitation_period_s, delay_s), DelayAwareFeedback(robust)
+            )
+    unknown = set(names) - set(CONTROLLERS)
+    if unknown:
+        raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
+    return out
+
+
+def _controller_gains(ctrl, axis: int, coords) -> np.ndarray | None:
+    """Feedback gains (n, m) of a controller along ``coords`` (None: no feedback)."""
+    if isinstance(ctrl, Combined):
+        for p in ctrl.parts:
+            g = _controller_gains(p, axis, coords)
+            if g is not None:
+                return g
+        return None
+    if isinstance(ctrl, StateFeedback | DelayAwareFeedback):
+        return ctrl.gains[axis].at(coords)
+    return None
+
+
+def stability_over_band(
+    model: PathModalModel,
+    controllers: dict[str, object],
+    axes: dict[int, str],
+    s_points,
+    *,
+    period_s: float = 0.004,
+    delay_s: float = 0.032,
+    second_modes: bool = False,
+) -> dict[str, float]:
+    """Worst spectral radius of each feedback loop over the GP 95 % band at every pose.
+
+    The implemented loop (backward-difference velocity; the LQG is checked with its
+    state-feedback gains on the exact state) with the nominal delay, for the nominal mode and
+    the 8 band corners at each of ``s_points`` (``second_modes=True``: also with each
+    :data:`SECOND_MODE_HYPOTHESES` second mode). < 1: stable everywhere. NaN: no feedback.
+    """
+    d = round(delay_s / period_s)
+    s = np.asarray(s_points, float)
+    out = {}
+    for name, ctrl in controllers.items():
+        worst = np.nan
+        for a, direction in axes.items():
+            g = _controller_gains(ctrl, a, s)
+            if g is None:
+                continue
+            vel = "exact" if name == "lqg" else "difference"
+            for si, gi in zip(s, g, strict=True):
+                for p in _model_set(model, si, direction, second_modes):
+                    rho = spectral_radius(implemented_loop_matrix(p, gi, period_s, d, velocity=vel))
+                    worst = rho if np.isnan(worst) else max(worst, rho)
+        out[name] = float(worst)
+    return out
+
+
+# --------------------------------------------------------------------------- runs
+def _run(robot, move, force, controller, rng, channel):
+    try:
+        rec = run_closed_loop(robot, move, force, 1000.0, controller, channel=channel, rng=rng)
+        return rec.true_displacement_m, None
+    except ValueError as exc:
+        return None, str(exc)
+
+
+def fixed_pose_offset_mass(
+    channel: CommandChannel = PURE_DELAY,
+    speeds_rpm=(480.0, 960.0, 1440.0),
+    *,
+    mode: ModalParameters = THESIS_OFFSET_MASS_MODE,
+    gains=THESIS_OFFSET_MASS_GAINS,
+    duration_s: float = 2.0,
+    settle_s: float = 1.0,
+    rng=0,
+) -> list[dict]:
+    """§4.3.2: the offset mass at a fixed pose, open loop vs the thesis gains, in Y.
+
+    Amplitudes are peak-to-peak [mm] of the true Y vibration after ``settle_s``
+    (§4.3.2's 0.93 mm open loop at 480 rpm matches the peak-to-peak of the measured mode's
+    response, 2 x 0.46 mm; Table 7's numbers match half of it). Returns one row per speed.
+    """
+    robot = ConstantModesRobot(
+        {
+            "y": ModeSet(
+                np.array([[mode.natural_frequency_hz]]),
+                np.array([[mode.stiffness_n_per_m]]),
+                np.array([[mode.damping_ratio]]),
+            )
+        }
+    )
+    n = round(duration_s * 1000)
+    t = np.arange(n) / 1000.0
+    move = LinearMove("path", (0.0,), (0.04,))  # 20 mm/s for 2 s; the modes do not change
+    w = round(settle_s * 1000)
+    rows = []
+    for rpm in speeds_rpm:
+        force = offset_mass_force(t, rpm)
+        row = {"speed_rpm": rpm}
+        for name, ctrl in (("open", None), ("closed", StateFeedback({1: gains}))):
+            disp, err = _run(robot, move, force, ctrl, rng, channel)
+            row[f"{name}_ptp_mm"] = np.nan if disp is None else 1e3 * np.ptp(disp[w:, 1])
+            row[f"{name}_unstable"] = err
+        row["ratio"] = row["closed_ptp_mm"] / row["open_ptp_mm"]
+        rows.append(row)
+    return rows
+
+
+def sensitivity_bound(
+    speeds_hz,
+    mode: ModalParameters = THESIS_OFFSET_MASS_MODE,
+    gains=THESIS_OFFSET_MASS_GAINS,
+    period_s: float = 0.004,
+) -> np.ndarray:
+    """Smallest closed/open amplitude ratio ``|S|`` reachable at ``speeds_hz`` with ``gains``.
+
+    For a channel that does not amplify (``|G_a| <= 1``: any delay, lag, rate limit or
+    breakaway), ``|S| = 1 / |1 + P G_a C| >= 1 / (1 + |P| |C|)`` with ``P`` the mode's
+    correction-to-tip FRF and ``C`` the controller (w1 + w2 x backward difference, ZOH).
+    """
+    f = np.asarray(speeds_hz, float)
+    s = 2j * np.pi * f
+    wn, z = mode.omega_n, mode.damping_ratio
+    p = wn**2 / (s**2 + 2 * z * wn * s + wn**2)
+    c = (gains[0] + gains[1] * (1 - np.exp(-s * period_s)) / period_s) * np.exp(-s * period_s / 2)
+    return 1.0 / (1.0 + np.abs(p) * np.abs(c))
+
+
+def calibrate_channel(
+    delays_s=(0.0, 0.008, 0.016, 0.024, 0.032),
+    lags_s=(0.0, 0.01, 0.02, 0.04),
+    breakaways_m=(0.0, 2e-5),
+    rate_limits_m_per_s=(math.inf, 0.05),
+    holds=(0, 1),
+    *,
+    targets=((480.0, 0.39 / 0.93), (960.0, 0.15 / 0.36)),
+    rng=0,
+) -> list[dict]:
+    """Grid search of the channel options against the §4.3.2 closed/open ratios.
+
+    ``targets``: (rpm, thesis closed / open) pairs; the score is the RMS log error of the
+    simulated ratios; the 1440 rpm run is reported (the thesis: no suppression). Rows sorted
+    by score.
+    """
+    rows = []
+    for d in delays_s:
+        for lag in lags_s:
+            for b in breakaways_m:
+                for rl in rate_limits_m_per_s:
+                    for h in holds:
+                        ch = CommandChannel(d, lag_s=lag, rate_limit_m_per_s=rl, breakaway_m=b, hold_periods=h)  # fmt: skip
+                        res = fixed_pose_offset_mass(ch, rng=rng)
+                        by = {r["speed_rpm"]: r for r in res}
+                        err = [math.log(by[rpm]["ratio"] / tgt) for rpm, tgt in targets]
+                        rows.append({**ch.to_dict(),
+                                     **{f"ratio_{int(r['speed_rpm'])}": r["ratio"] for r in res},
+                                     "score": float(np.sqrt(np.mean(np.square(err))))})  # fmt: skip
+    rows.sort(key=lambda r: np.nan_to_num(r["score"], nan=np.inf))
+    return rows
+
+
+def _thesis_eq28(s_start: float):
+    """The thesis' printed schedule (Eq. 28-29, d = distance from the path start [mm])."""
+
+    def gains(coords):
+        d = np.abs(np.asarray(coords, float) - s_start) * 1e3
+        w1 = -4.3e-5 * d + 0.12
+        w2 = -3e-14 * d**4 + 7e-11 * d**3 - 6e-8 * d**2 + 1e-5 * d + 0.006
+        return np.column_stack([w1, w2])
+
+    return gains
+
+
+def offset_mass_study(
+    robot: VirtualRobot,
+    model: PathModalModel,
+    speeds_rpm=(480.0, 960.0),
+    *,
+    controllers=(
+        "thesis",
+        "constant-start",
+        "constant-end",
+        "lqg",
+        "robust",
+        "feedforward",
+        "feedforward+robust",
+    ),
+    channel: CommandChannel = PURE_DELAY,
+    thesis_gains: bool = False,
+    s_start: float = PATH_LENGTH_M,
+    s_end: float = PATH_LENGTH_M - 0.9,
+    speed_m_per_s: float = 0.084,
+    window_s: float = 1.0,
+    keep_traces: bool = False,
+    rng=0,
+) -> list[dict]:
+    """Table 7 analogue: X vibration amplitude (half peak-to-peak) at the start and end.
+
+    ``thesis_gains=True`` adds the thesis' printed gains (Eq. 28-29 schedule and the constants
+    0.11 / 0.0065 and 0.06 / 0.005) as ``thesis-printed``, ``thesis-printed-start`` and
+    ``thesis-printed-end``. ``keep_traces=True`` adds the X displacement record
+    (``trace_x_m``, 1 kHz) to each row.
+    """
+    move = LinearMove("path", (s_start,), (s_end,))
+    n = round(move.length_m / speed_m_per_s * 1000.0)
+    t = np.arange(n) / 1000.0
+    grid = np.linspace(min(s_start, s_end), max(s_start, s_end), 20)
+    w = round(window_s * 1000)
+    rows = []
+    for rpm in speeds_rpm:
+        force = offset_mass_force(t, rpm)
+        ctrls = {"no-feedback": None}
+        ctrls.update(build_controllers(model, {0: "x"}, grid, names=controllers,
+                                       excitation_period_s=60.0 / rpm, s_start=s_start, s_end=s_end))  # fmt: skip
+        if thesis_gains:
+            tab = _thesis_eq28(s_start)(grid)
+            ctrls["thesis-printed"] = StateFeedback({0: ScheduledTable(grid, tab)})
+            ctrls["thesis-printed-start"] = StateFeedback({0: (0.11, 0.0065)})
+            ctrls["thesis-printed-end"] = StateFeedback({0: (0.06, 0.005)})
+        for name, ctrl in ctrls.items():
+            disp, err = _run(robot, move, force, ctrl, rng, channel)
+            row = {"speed_rpm": rpm, "controller": name, "start_mm": np.nan, "end_mm": np.nan,
+                   "unstable": err}  # fmt: skip
+            if disp is not None:
+                x = disp[:, 0]
+                row["start_mm"] = 1e3 * np.ptp(x[w : 2 * w]) / 2
+                row["end_mm"] = 1e3 * np.ptp(x[-w:]) / 2
+                if keep_traces:
+                    row["trace_x_m"] = x
+            rows.append(row)
+    return rows
+
+
+#: Table 10 cutting conditions: (spindle rpm, feed per tooth [m], axial depth [m]).
+TABLE_10_CONDITIONS = tuple(
+    (rpm, fz, ap) for rpm in (125.0, 250.0) for fz in (0.5e-3, 0.3e-3) for ap in (6e-3, 3e-3)
+)
+
+
+def milling_study(
+    robot: VirtualRobot,
+    model: PathModalModel,
+    conditions=TABLE_10_CONDITIONS,
+    positions=(("Position 1", POSITION_1_S_M), ("Position 2", POSITION_2_S_M)),
+    *,
+    controllers=("thesis", "lqg", "robust", "feedforward", "feedforward+robust"),
+    channel: CommandChannel = PURE_DELAY,
+    tool: MillingTool | None = None,
+    coefficients: CuttingCoefficients = ACETAL,
+    radial_depth_m: float = 6e-3,
+    cut_length_m: float = 0.05,
+    background_noise_rel: float = 0.15,
+    keep_traces: bool = False,
+    rng=0,
+) -> list[dict]:
+    """Table 10 analogue: RMS X and Z vibration [mm] (about the mean) open vs each controller.
+
+    One row per cut, position and controller with ``x_rms_mm``, ``z_rms_mm``, the open-loop
+    values and the reductions [%] (NaN and ``unstable`` set when the loop went unstable).
+    The RMS is taken after the first fifth of the cut (start-up transient).
+    """
+    tool = tool or MillingTool()
+    gen = np.random.default_rng(rng)
+    rows = []
+    for pos_name, s_mid in positions:
+        move = LinearMove("path", (s_mid - cut_length_m / 2,), (s_mid + cut_length_m / 2,))
+        grid = np.linspace(move.start[0], move.end[0], 6)
+        for i, (rpm, fz, ap) in enumerate(conditions):
+            cond = CuttingConditions(rpm, fz, ap, radial_depth_m)
+            n = round(move.length_m / cond.feed_speed_m_per_s(tool) * 1000.0)
+            t = np.arange(n) / 1000.0
+            local = milling_forces(t, tool, cond, coefficients)
+            # Feed along the path (-Y); normal = Z x feed = +X; axial = Z.
+            force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
+            force += gen.normal(size=force.shape) * background_noise_rel * force.std(axis=0)
+            ctrls = {"open": None}
+            ctrls.update(build_controllers(model, {0: "x", 2: "z"}, grid, names=controllers,
+                                           excitation_period_s=1.0 / cond.tooth_passing_hz(tool)))  # fmt: skip
+            base = {"test": i + 1, "position": pos_name, "speed_rpm": rpm, "feed_mm": fz * 1e3,
+                    "axial_depth_mm": ap * 1e3}  # fmt: skip
+            open_rms = None
+            for name, ctrl in ctrls.items():
+                disp, err = _run(robot, move, force, ctrl, rng, channel)
+                row = {**base, "controller": name, "unstable": err}
+                for axis, d in ((0, "x"), (2, "z")):
+                    rms = np.nan if disp is None else 1e3 * np.std(disp[n // 5 :, axis])
+                    row[f"{d}_rms_mm"] = rms
+                    if open_rms is not None:
+                        row[f"{d}_open_rms_mm"] = open_rms[d]
+                        row[f"{d}_reduction_pct"] = 100 * (1 - rms / open_rms[d])
+                if keep_traces and disp is not None:
+                    row["trace_m"] = disp[:, [0, 2]]
+                if name == "open":
+                    open_rms = {"x": row["x_rms_mm"], "z": row["z_rms_mm"]}
+                    continue
+                rows.append(row)
+    return rows
