@@ -113,14 +113,21 @@ def test_bad_input():
     assert delay_analysis(design_lqr(MODE), 0.030, rounding="round").delay_steps == 8
 
 
-def test_offset_mass_study_short_path():
+@pytest.fixture(scope="module")
+def path_model():
     from robovib.sim import VirtualRobot
-    from robovib.studies.control_closed_loop import offset_mass_study, path_modal_model
+    from robovib.studies.control_closed_loop import path_modal_model
 
     robot = VirtualRobot()
-    model = path_modal_model(robot, directions=("x",), n_points=8, n_hits=2)
+    return robot, path_modal_model(robot, n_points=8, n_hits=2)
+
+
+def test_offset_mass_study_short_path(path_model):
+    from robovib.studies.control_closed_loop import offset_mass_study
+
+    robot, model = path_model
     rows = offset_mass_study(
-        robot, model, speeds_rpm=(480.0,), s_start=1.235, s_end=1.035,
+        robot, model, speeds_rpm=(480.0,), s_start=1.235, s_end=1.085, window_s=0.5,
         controllers=("robust", "feedforward"),
     )  # fmt: skip
     by = {r["controller"]: r for r in rows}
@@ -265,3 +272,34 @@ def test_thesis_gains_sensitivity_bound_and_fixed_pose_run():
     r = 480.0 / 60 / 8.5
     amp = 0.0508 * (2 * np.pi * 8.0) ** 2 / 0.775e6 / np.hypot(1 - r**2, 2 * 0.179 * r)
     assert rows[0]["open_ptp_mm"] == pytest.approx(2e3 * amp, rel=0.02)
+
+
+def test_short_milling_study_and_plots(path_model):
+    """One short Table 10 cut: the force feedforward with robust feedback, and the figures."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from robovib.sim import POSITION_2_S_M
+    from robovib.studies.control_closed_loop import (
+        TABLE_10_CONDITIONS,
+        build_controllers,
+        milling_study,
+        plot_milling,
+        stability_over_band,
+    )
+
+    robot, model = path_model
+    rows = milling_study(robot, model, TABLE_10_CONDITIONS[4:5], (("Position 2", POSITION_2_S_M),),
+                         controllers=("feedforward+robust",), cut_length_m=0.008)  # fmt: skip
+    (row,) = rows
+    assert row["unstable"] is None
+    assert row["x_reduction_pct"] > 40 and row["z_reduction_pct"] > 40
+    fig = plot_milling(rows, "z")
+    ax = fig.axes[0]
+    assert "[mm]" in ax.get_ylabel() and ax.get_xlabel()
+    plt.close(fig)
+    grid = np.linspace(POSITION_2_S_M - 0.004, POSITION_2_S_M + 0.004, 3)
+    ctrls = build_controllers(model, {0: "x"}, grid, names=("robust",))
+    assert stability_over_band(model, ctrls, {0: "x"}, grid, second_modes=True)["robust"] < 1

@@ -74,6 +74,8 @@ __all__ = [
     "milling_study",
     "offset_mass_study",
     "path_modal_model",
+    "plot_milling",
+    "plot_offset_mass",
     "sensitivity_bound",
     "stability_over_band",
 ]
@@ -226,7 +228,8 @@ def build_controllers(
     grid = np.asarray(s_grid, float)
     r_grid = np.logspace(-2, 3, 11) if robust_r_grid is None else np.asarray(robust_r_grid)
     out: dict[str, object] = {}
-    sched = {a: _schedule(model, d, grid) for a, d in axes.items()}
+    need_sched = {"thesis", "constant-start", "constant-end"} & set(names)
+    sched = {a: _schedule(model, d, grid) for a, d in axes.items()} if need_sched else {}
     if "thesis" in names:
         out["thesis"] = StateFeedback(
             {a: ScheduledTable(grid, np.column_stack([s.w1, s.w2])) for a, s in sched.items()}
@@ -568,3 +571,77 @@ def milling_study(
                     continue
                 rows.append(row)
     return rows
+
+
+# --------------------------------------------------------------------------- figures
+def plot_offset_mass(rows: list[dict], speed_rpm: float | None = None, ax=None):
+    """Vibration envelope (moving max of |x| over 0.25 s) [mm] vs time per controller.
+
+    ``rows`` from :func:`offset_mass_study` with ``keep_traces=True``; one speed (default:
+    the first). Returns the matplotlib Figure.
+    """
+    import matplotlib.pyplot as plt
+    from scipy.ndimage import maximum_filter1d
+
+    traced = [r for r in rows if "trace_x_m" in r]
+    if not traced:
+        raise ValueError("no traces in the rows: run offset_mass_study(..., keep_traces=True)")
+    speed = traced[0]["speed_rpm"] if speed_rpm is None else speed_rpm
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(9, 4))
+    else:
+        fig = ax.figure
+    for r in traced:
+        if r["speed_rpm"] != speed:
+            continue
+        x = np.abs(r["trace_x_m"]) * 1e3
+        env = maximum_filter1d(x, size=250)
+        ax.plot(np.arange(x.size) / 1000.0, env, lw=1.0, label=r["controller"])
+    ax.set_xlabel("time [s] (robot moving from the extended end toward the base)")
+    ax.set_ylabel("X vibration envelope [mm]")
+    ax.set_title(f"offset mass at {speed:g} rpm on the virtual robot (Table 7 analogue)")
+    ax.legend(fontsize=8, ncol=2)
+    fig.tight_layout()
+    return fig
+
+
+def plot_milling(rows: list[dict], direction: str = "x", ax=None):
+    """RMS vibration [mm] per cut for each controller, both positions (Table 10 analogue).
+
+    ``rows`` from :func:`milling_study`. Open loop drawn as black ticks; unstable runs as
+    missing bars. Returns the matplotlib Figure.
+    """
+    import matplotlib.pyplot as plt
+
+    if direction not in ("x", "z"):
+        raise ValueError(f"direction must be 'x' or 'z', got {direction!r}")
+    if not rows:
+        raise ValueError("no milling rows to plot")
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(10, 4))
+    else:
+        fig = ax.figure
+    cuts = sorted({(r["position"], r["test"]) for r in rows})
+    names = list(dict.fromkeys(r["controller"] for r in rows))
+    width = 0.8 / max(len(names), 1)
+    x0 = np.arange(len(cuts))
+    for j, name in enumerate(names):
+        vals = []
+        for cut in cuts:
+            match = [
+                r for r in rows if (r["position"], r["test"]) == cut and r["controller"] == name
+            ]
+            vals.append(match[0][f"{direction}_rms_mm"] if match else np.nan)
+        ax.bar(x0 + (j - (len(names) - 1) / 2) * width, vals, width, label=name)
+    opens = []
+    for cut in cuts:
+        match = [r for r in rows if (r["position"], r["test"]) == cut]
+        opens.append(match[0][f"{direction}_open_rms_mm"])
+    ax.scatter(x0, opens, marker="_", s=400, color="k", label="open loop", zorder=3)
+    ax.set_xticks(x0, [f"{p[-1]}-T{t}" for p, t in cuts], fontsize=7)
+    ax.set_xlabel("position - test (Table 10 cuts)")
+    ax.set_ylabel(f"RMS {direction.upper()} vibration [mm]")
+    ax.set_title(f"milling on the virtual robot: {direction.upper()} vibration per controller")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    return fig
