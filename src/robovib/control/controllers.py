@@ -42,6 +42,7 @@ __all__ = [
     "DelayAwareFeedback",
     "ForceFeedforward",
     "KalmanDesign",
+    "RepetitiveFeedback",
     "ScheduledTable",
     "StateFeedback",
     "design_kalman",
@@ -342,6 +343,118 @@ class ForceFeedforward:
         return u
 
 
+class RepetitiveFeedback:
+    """Feedback with an internal model of the periodic disturbance (harmonic repetitive control).
+
+    Uses the tracker only (no force sensor). The correction is a sum of harmonics of the
+    excitation frequency, ``u(t) = Re sum_h U_h e^{j h w0 t}`` (evaluated at the time the
+    correction lands, ``delay_s`` after it is sent), whose phasors are learnt: every
+    command period the residual tip vibration's harmonics ``R_h`` are estimated over the last
+    excitation period (a DFT: broadband noise is rejected) and ``U_h <- U_h - gain R_h /
+    P(j h w0)``, with ``P(j w) = wn^2 / (wn^2 - w^2 + 2 j zeta wn w)`` the pose model's
+    correction-to-tip FRF and ``gain = period / learning_time``. The 32 ms delay does not matter
+    for a phasor fixed in absolute time; the learning loop converges when ``Re(P / P_model) > 0``
+    at each harmonic and the learning is slow against delay + window. Only harmonics below
+    ``max_harmonic_ratio`` x the mode's frequency are used (above, unmodelled modes make the
+    model's phase unreliable).
+
+    Parameters
+    ----------
+    modes
+        Direction -> :class:`ScheduledTable` with columns (fn [Hz], zeta) along the path.
+    excitation_period_s
+        Period of the disturbance [s] (tooth period).
+    delay_s
+        Nominal transport delay [s] of the command channel.
+    n_harmonics
+        Most harmonics cancelled.
+    learning_time_s
+        Time constant of the learning [s].
+    max_harmonic_ratio
+        Harmonics above this multiple of the mode's natural frequency are left alone.
+    """
+
+    def __init__(
+        self,
+        modes: dict[int, ScheduledTable],
+        excitation_period_s: float,
+        delay_s: float = 0.032,
+        *,
+        n_harmonics: int = 4,
+        learning_time_s: float = 0.4,
+        max_harmonic_ratio: float = 1.6,
+    ):
+        if not (math.isfinite(excitation_period_s) and excitation_period_s > 0):
+            raise ValueError(f"excitation_period_s must be > 0 [s], got {excitation_period_s!r}")
+        if int(n_harmonics) < 1 or not learning_time_s > 0 or not max_harmonic_ratio > 0:
+            raise ValueError("n_harmonics >= 1, learning_time_s > 0 [s], max_harmonic_ratio > 0")
+        self.modes = {int(a): _table(m) for a, m in modes.items()}
+        self.excitation_period_s = float(excitation_period_s)
+        self.delay_s = float(delay_s)
+        self.n_harmonics = int(n_harmonics)
+        self.learning_time_s = float(learning_time_s)
+        self.max_harmonic_ratio = float(max_harmonic_ratio)
+
+    def harmonics_used(self, mode: ModalParameters) -> np.ndarray:
+        """Frequencies [Hz] of the harmonics this controller cancels for a model ``mode``."""
+        f = np.arange(1, self.n_harmonics + 1) / self.excitation_period_s
+        return f[f <= self.max_harmonic_ratio * mode.natural_frequency_hz]
+
+    def loop_radius(self, plant: Sequence[ModalParameters], model: ModalParameters,
+                    period_s: float = 0.004) -> float:  # fmt: skip
+        """Worst :func:`repetitive_loop_radius` over the used harmonics for a true ``plant``."""
+        f = self.harmonics_used(model)
+        if f.size == 0:
+            return 0.0
+        ratio = modal_correction_frf(plant, f) / modal_correction_frf([model], f)
+        return max(
+            repetitive_loop_radius(r, period_s / self.learning_time_s,
+                                   round(self.delay_s / period_s),
+                                   round(self.excitation_period_s / period_s))
+            for r in ratio
+        )  # fmt: skip
+
+    def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
+        fs = float(sample_rate_hz)
+        self._dt = 1.0 / fs
+        self._every = round(period_s * fs)
+        self._delay = round(self.delay_s * fs)
+        self._w0 = 2 * math.pi / self.excitation_period_s
+        self._window = max(2, round(self.excitation_period_s * fs))
+        self._gain = period_s / self.learning_time_s
+        hw = np.arange(1, self.n_harmonics + 1) * self._w0
+        self._hw = hw
+        self._pinv = {}
+        for a, tab in self.modes.items():
+            rows = tab.at(coords)  # (n_cmd, 2): fn, zeta
+            wn = 2 * np.pi * rows[:, :1]
+            z = rows[:, 1:2]
+            p = wn**2 / (wn**2 - hw**2 + 2j * z * wn * hw)
+            self._pinv[a] = np.where(hw <= self.max_harmonic_ratio * wn, 1.0 / p, 0.0)
+        n_cmd = next(iter(self._pinv.values())).shape[0] if self._pinv else 0
+        self._y = np.zeros(((n_cmd + 2) * self._every, 3))
+        self._len = 0
+        self._u = np.zeros((self.n_harmonics, 3), complex)
+
+    def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        m = tracker_m.shape[0]
+        self._y[self._len : self._len + m] = tracker_m
+        self._len += m
+        i = self._len - 1
+        if self._len >= self._window:
+            lo = self._len - self._window
+            seg = self._y[lo : self._len]
+            seg = seg - seg.mean(axis=0)
+            tj = np.arange(lo, self._len) * self._dt
+            resid = 2.0 / self._window * (np.exp(-1j * np.outer(self._hw, tj)) @ seg)  # (H, 3)
+            for a, pinv in self._pinv.items():
+                self._u[:, a] -= self._gain * resid[:, a] * pinv[k]
+        # The phasors are fixed in absolute time: evaluate them when the correction lands.
+        target = (i + self._delay + np.arange(self._every)) * self._dt
+        phase = np.exp(1j * np.outer(self._hw, target)).mean(axis=1)  # (H,)
+        return np.real(phase @ self._u)
+
+
 class Combined:
     """Sum of the commands of several controllers (e.g. feedforward + feedback)."""
 
@@ -421,6 +534,41 @@ def implemented_loop_matrix(
     return big
 
 
+def repetitive_loop_radius(
+    ratio: complex, gain: float, delay_cycles: int, window_cycles: int
+) -> float:
+    """Spectral radius of the phasor learning loop of :class:`RepetitiveFeedback` at one harmonic.
+
+    Per command cycle ``U_{n+1} = U_n - gain (D + ratio * mean(U_{n-m}, ..., U_{n-m-L+1}))``
+    with ``ratio = P_true / P_model`` at the harmonic, ``m = delay_cycles`` (the transport
+    delay) and ``L = window_cycles`` (the DFT window of one excitation period). The
+    characteristic polynomial ``z^M (z - 1) + (gain ratio / L) sum_q z^{M-q}``
+    (``M = m + L - 1``) has all roots inside the unit circle iff the learning converges.
+    """
+    m, L = int(delay_cycles), max(1, int(window_cycles))
+    big_m = m + L - 1
+    coeffs = np.zeros(big_m + 2, complex)  # highest power first: z^{M+1}
+    coeffs[0] = 1.0
+    coeffs[1] = -1.0
+    for q in range(m, m + L):
+        coeffs[1 + q] += gain * ratio / L
+    return float(np.max(np.abs(np.roots(coeffs))))
+
+
+def modal_correction_frf(modes: Sequence[ModalParameters], frequency_hz) -> np.ndarray:
+    """Correction-to-tip FRF of a sum of modes (a held correction moves the tip by itself).
+
+    ``sum_r (k_s / k_r) wn_r^2 / (wn_r^2 - w^2 + 2 j zeta_r wn_r w)``, ``k_s = 1 / sum(1 / k_r)``.
+    """
+    w = 2 * np.pi * np.asarray(frequency_hz, float)
+    k_s = 1.0 / sum(1.0 / m.stiffness_n_per_m for m in modes)
+    out = np.zeros(w.shape, complex)
+    for m in modes:
+        wn, z = m.omega_n, m.damping_ratio
+        out += (k_s / m.stiffness_n_per_m) * wn**2 / (wn**2 - w**2 + 2j * z * wn * w)
+    return out
+
+
 def spectral_radius(matrix: np.ndarray) -> float:
     """Largest eigenvalue magnitude (< 1: the discrete loop is stable)."""
     return float(np.max(np.abs(np.linalg.eigvals(matrix))))
@@ -433,4 +581,9 @@ def delay_aware_gains(
     return design_delay_aware_lqr(mode, period_s, delay_s, r=[[r]]).gains
 
 
-__all__ += ["delay_aware_gains", "spectral_radius"]
+__all__ += [
+    "delay_aware_gains",
+    "modal_correction_frf",
+    "repetitive_loop_radius",
+    "spectral_radius",
+]

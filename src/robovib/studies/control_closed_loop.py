@@ -27,6 +27,7 @@ from ..control.controllers import (
     Combined,
     DelayAwareFeedback,
     ForceFeedforward,
+    RepetitiveFeedback,
     ScheduledTable,
     StateFeedback,
     design_kalman,
@@ -89,6 +90,7 @@ CONTROLLERS = (
     "robust",
     "feedforward",
     "feedforward+robust",
+    "repetitive",
 )
 
 #: §4.3.2: the Y-direction mode measured at the offset-mass pose (8.5 Hz, 0.775 MN/m, 0.179).
@@ -277,6 +279,15 @@ def build_controllers(
             out["feedforward+robust"] = Combined(
                 ForceFeedforward(stiff, excitation_period_s, delay_s), DelayAwareFeedback(robust)
             )
+    if "repetitive" in names:
+        if excitation_period_s is None:
+            raise ValueError("the repetitive controller needs excitation_period_s [s]")
+        modes = {
+            a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
+                                              for m in (model.mode(si, d) for si in grid)]))
+            for a, d in axes.items()
+        }  # fmt: skip
+        out["repetitive"] = RepetitiveFeedback(modes, excitation_period_s, delay_s)
     unknown = set(names) - set(CONTROLLERS)
     if unknown:
         raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
@@ -312,12 +323,23 @@ def stability_over_band(
     state-feedback gains on the exact state) with the nominal delay, for the nominal mode and
     the 8 band corners at each of ``s_points`` (``second_modes=True``: also with each
     :data:`SECOND_MODE_HYPOTHESES` second mode). < 1: stable everywhere. NaN: no feedback.
+    The repetitive controller is checked through its phasor learning loop
+    (:meth:`~robovib.control.controllers.RepetitiveFeedback.loop_radius`).
     """
     d = round(delay_s / period_s)
     s = np.asarray(s_points, float)
     out = {}
     for name, ctrl in controllers.items():
         worst = np.nan
+        if isinstance(ctrl, RepetitiveFeedback):
+            for direction in axes.values():
+                for si in s:
+                    nominal = model.mode(si, direction)
+                    for p in _model_set(model, si, direction, second_modes):
+                        rho = ctrl.loop_radius(p, nominal, period_s)
+                        worst = rho if np.isnan(worst) else max(worst, rho)
+            out[name] = float(worst)
+            continue
         for a, direction in axes.items():
             g = _controller_gains(ctrl, a, s)
             if g is None:
