@@ -340,3 +340,35 @@ def test_repetitive_feedback_learns_a_periodic_disturbance_with_a_wrong_model():
     tail = slice(4000, None)
     ratio = rec.true_displacement_m[tail, 0].std() / open_.true_displacement_m[tail, 0].std()
     assert ratio < 0.3
+
+
+def test_lqg_loop_matrix_matches_the_simulated_loop():
+    """The period map of the Kalman-filter loop grows at the rate the simulated loop grows."""
+    from robovib.control.controllers import (
+        DelayAwareFeedback,
+        ScheduledTable,
+        design_kalman,
+        lqg_loop_matrix,
+        spectral_radius,
+    )
+    from robovib.control.lqr import design_delay_aware_lqr
+    from robovib.modal import ModalParameters
+    from robovib.sim import ConstantModesRobot, LinearMove, ModeSet, run_closed_loop
+
+    nominal = ModalParameters(9.5, 1.2e6, 0.15)
+    plant = [nominal, ModalParameters(24.7, 12e6, 0.05)]  # an unmodelled second mode
+    gains = design_delay_aware_lqr(nominal, r=[[0.1]]).gains
+    kf = design_kalman(nominal)
+    rho = spectral_radius(lqg_loop_matrix(plant, gains, kf))
+    robot = ConstantModesRobot({"x": ModeSet(*(np.array([[getattr(m, a) for m in plant]]) for a in
+                                              ("natural_frequency_hz", "stiffness_n_per_m", "damping_ratio")))})  # fmt: skip
+    force = np.zeros((6000, 3))
+    force[:20, 0] = 2000.0
+    ctrl = DelayAwareFeedback({0: ScheduledTable.constant(gains)}, {0: (np.array([0.0]), [kf])}, 32)
+    rec = run_closed_loop(robot, LinearMove("path", (0.0,), (0.1,)), force, 1000.0, ctrl,
+                          tracker_noise_m=0.0, tracker_resolution_m=0.0, force_noise_n=0.0,
+                          max_command_m=1e9)  # fmt: skip
+    x = np.abs(rec.true_displacement_m[:, 0])
+    env = [x[i : i + 400].max() for i in (2000, 5000)]
+    assert rho > 1  # this plant destabilises the nominal LQG ...
+    assert (env[1] / env[0]) ** (1 / 750) == pytest.approx(rho, abs=1e-3)  # ... as simulated

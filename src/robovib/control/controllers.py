@@ -569,6 +569,56 @@ def modal_correction_frf(modes: Sequence[ModalParameters], frequency_hz) -> np.n
     return out
 
 
+def lqg_loop_matrix(
+    plant: Sequence[ModalParameters],
+    gains: Sequence[float],
+    kalman: KalmanDesign,
+    period_s: float = 0.004,
+    dt_s: float = 1e-3,
+    delay_samples: int = 32,
+) -> np.ndarray:
+    """Monodromy matrix (one command period) of :class:`DelayAwareFeedback` with its Kalman filter.
+
+    The loop exactly as run: the true ``plant`` (a sum of modes, corrections entering through
+    the static stiffness) at the sensor rate, the Kalman filter updated with every tracker
+    sample and fed with the corrections ``delay_samples`` late, the delay-aware gains
+    ``[K_x, K_v, K_u1..K_ud]`` applied at each command instant. The period map is built by
+    propagating the basis of the state ``[plant (x, v per mode), filter prior (2),
+    u_{k-1} .. u_{k-d-1}]`` through the samples of one period. Stable iff its spectral
+    radius < 1. Needs ``delay_samples`` to be a whole number of command periods.
+    """
+    every = round(period_s / dt_s)
+    if delay_samples % every:
+        raise ValueError("delay_samples must be a whole number of command periods")
+    d = delay_samples // every
+    g = np.asarray(gains, float)
+    if g.size != 2 + d:
+        raise ValueError(f"gains must have 2 + d = {2 + d} entries, got {g.size}")
+    modes = list(plant)
+    k_s = 1.0 / sum(1.0 / m.stiffness_n_per_m for m in modes)
+    nm = 2 * len(modes)
+    a1 = np.zeros((nm, nm))
+    b1 = np.zeros(nm)
+    for i, m in enumerate(modes):
+        a, b = continuous_model(m)
+        ai, bi = discretize(a, b * (k_s / m.stiffness_n_per_m), dt_s)
+        a1[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = ai
+        b1[2 * i : 2 * i + 2] = bi[:, 0]
+    n = nm + 2 + d + 1
+    z = np.eye(n)  # every basis vector at once, one per column
+    p, prior, buf = z[:nm], z[nm : nm + 2], z[nm + 2 :]
+    for o in range(every):
+        y = p[0::2].sum(axis=0)
+        post = prior + kalman.gain[:, None] * (y - prior[0])[None, :]
+        if o == 0:
+            u = -(g[0] * post[0] + g[1] * post[1] + g[2:] @ buf[:d])
+            buf = np.vstack([u[None, :], buf[:-1]])
+        applied = buf[-1]
+        prior = kalman.phi @ post + kalman.gamma_u[:, None] * applied[None, :]
+        p = a1 @ p + b1[:, None] * applied[None, :]
+    return np.vstack([p, prior, buf])
+
+
 def spectral_radius(matrix: np.ndarray) -> float:
     """Largest eigenvalue magnitude (< 1: the discrete loop is stable)."""
     return float(np.max(np.abs(np.linalg.eigvals(matrix))))

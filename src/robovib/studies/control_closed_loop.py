@@ -32,6 +32,7 @@ from ..control.controllers import (
     StateFeedback,
     design_kalman,
     implemented_loop_matrix,
+    lqg_loop_matrix,
     spectral_radius,
 )
 from ..control.lqr import design_delay_aware_lqr
@@ -191,19 +192,31 @@ def _model_set(model: PathModalModel, s_m: float, direction: str, second_modes=T
     return out
 
 
+_DESIGN_CACHE: dict = {}
+
+
 def _robust_r(plants, nominal: ModalParameters, period_s, delay_s, r_grid, velocity="difference"):
     """R whose delay-aware gains (designed on the nominal mode) minimise the worst spectral
-    radius of the implemented loop over ``plants`` (lists of modes)."""
+    radius of the implemented loop over ``plants`` (lists of modes). ``velocity="kalman"``:
+    the loop with the 1 kHz Kalman filter of :func:`design_kalman` (LQG)."""
     d = round(delay_s / period_s)
+    key = (nominal, tuple(tuple(p) for p in plants), period_s, delay_s, tuple(r_grid), velocity)
+    if key in _DESIGN_CACHE:
+        return _DESIGN_CACHE[key]
+    kf = design_kalman(nominal) if velocity == "kalman" else None
+
+    def radius(p, g):
+        if kf is not None:
+            return spectral_radius(lqg_loop_matrix(p, g, kf, period_s, 1e-3, round(delay_s * 1e3)))
+        return spectral_radius(implemented_loop_matrix(p, g, period_s, d, velocity=velocity))
+
     best = None
     for r in r_grid:
         g = design_delay_aware_lqr(nominal, period_s, delay_s, r=[[r]]).gains
-        rho = max(
-            spectral_radius(implemented_loop_matrix(p, g, period_s, d, velocity=velocity))
-            for p in plants
-        )
+        rho = max(radius(p, g) for p in plants)
         if best is None or rho < best[0]:
             best = (rho, g, r)
+    _DESIGN_CACHE[key] = best
     return best
 
 
@@ -244,8 +257,8 @@ def build_controllers(
         gains, kal = {}, {}
         for a, d in axes.items():
             modes = [model.mode(si, d) for si in grid]
-            if lqg_r is None:  # R picked like the robust design, on the exact state
-                rows = [_robust_r(_model_set(model, si, d), m, period_s, delay_s, r_grid, "exact")[1]
+            if lqg_r is None:  # R picked like the robust design, on the loop with the filter
+                rows = [_robust_r(_model_set(model, si, d), m, period_s, delay_s, r_grid, "kalman")[1]
                         for si, m in zip(grid, modes, strict=True)]  # fmt: skip
             else:
                 rows = [
@@ -319,8 +332,8 @@ def stability_over_band(
 ) -> dict[str, float]:
     """Worst spectral radius of each feedback loop over the GP 95 % band at every pose.
 
-    The implemented loop (backward-difference velocity; the LQG is checked with its
-    state-feedback gains on the exact state) with the nominal delay, for the nominal mode and
+    The implemented loop (backward-difference velocity; the LQG with its 1 kHz Kalman filter,
+    :func:`~robovib.control.controllers.lqg_loop_matrix`) with the nominal delay, for the nominal mode and
     the 8 band corners at each of ``s_points`` (``second_modes=True``: also with each
     :data:`SECOND_MODE_HYPOTHESES` second mode). < 1: stable everywhere. NaN: no feedback.
     The repetitive controller is checked through its phasor learning loop
@@ -344,10 +357,13 @@ def stability_over_band(
             g = _controller_gains(ctrl, a, s)
             if g is None:
                 continue
-            vel = "exact" if name == "lqg" else "difference"
+            lqg = isinstance(ctrl, DelayAwareFeedback) and ctrl.kalman is not None
             for si, gi in zip(s, g, strict=True):
+                kf = design_kalman(model.mode(si, direction)) if lqg else None
                 for p in _model_set(model, si, direction, second_modes):
-                    rho = spectral_radius(implemented_loop_matrix(p, gi, period_s, d, velocity=vel))
+                    m = (lqg_loop_matrix(p, gi, kf, period_s, 1e-3, round(delay_s * 1e3)) if lqg
+                         else implemented_loop_matrix(p, gi, period_s, d))  # fmt: skip
+                    rho = spectral_radius(m)
                     worst = rho if np.isnan(worst) else max(worst, rho)
         out[name] = float(worst)
     return out
