@@ -31,6 +31,7 @@ from ..control.controllers import (
     ScheduledTable,
     StateFeedback,
     design_kalman,
+    design_tuned_state_feedback,
     implemented_loop_matrix,
     lqg_loop_matrix,
     spectral_radius,
@@ -87,6 +88,7 @@ CONTROLLERS = (
     "thesis",
     "constant-start",
     "constant-end",
+    "tuned",
     "lqg",
     "robust",
     "feedforward",
@@ -292,6 +294,21 @@ def build_controllers(
             out["feedforward+robust"] = Combined(
                 ForceFeedforward(stiff, excitation_period_s, delay_s), DelayAwareFeedback(robust)
             )
+    if "tuned" in names:
+        if excitation_period_s is None:
+            raise ValueError("the tuned controller needs excitation_period_s [s]")
+        tab = {}
+        for a, d in axes.items():
+            rows = []
+            for si in grid:
+                key = ("tuned", id(model), float(si), d, excitation_period_s, period_s, delay_s)
+                if key not in _DESIGN_CACHE:
+                    _DESIGN_CACHE[key] = design_tuned_state_feedback(
+                        _model_set(model, si, d), model.mode(si, d), 1.0 / excitation_period_s,
+                        period_s=period_s, delay_s=delay_s)[0]  # fmt: skip
+                rows.append(_DESIGN_CACHE[key])
+            tab[a] = ScheduledTable(grid, np.array(rows))
+        out["tuned"] = StateFeedback(tab)
     if "repetitive" in names:
         if excitation_period_s is None:
             raise ValueError("the repetitive controller needs excitation_period_s [s]")
