@@ -300,6 +300,18 @@ def test_short_milling_study_and_plots(path_model):
     ax = fig.axes[0]
     assert "[mm]" in ax.get_ylabel() and ax.get_xlabel()
     plt.close(fig)
+    import json
+
+    from robovib.studies.control_closed_loop import ControlSimulation, simulate_control
+
+    doc = json.loads(json.dumps(ControlSimulation("milling", tuple(rows), {"seed": 0}).to_dict()))
+    assert doc["rows"][0]["controller"] == "feedforward+robust" and "x_rms_mm" in doc["units"]
+    with pytest.raises(ValueError, match="unknown actuator"):
+        simulate_control("milling", actuator="magic")
+    with pytest.raises(ValueError, match="unknown controllers"):
+        simulate_control("milling", ["pid"])
+    with pytest.raises(ValueError, match="unknown experiment"):
+        simulate_control("drilling")
     grid = np.linspace(POSITION_2_S_M - 0.004, POSITION_2_S_M + 0.004, 3)
     ctrls = build_controllers(model, {0: "x"}, grid, names=("robust",))
     assert stability_over_band(model, ctrls, {0: "x"}, grid, second_modes=True)["robust"] < 1
@@ -372,3 +384,32 @@ def test_lqg_loop_matrix_matches_the_simulated_loop():
     env = [x[i : i + 400].max() for i in (2000, 5000)]
     assert rho > 1  # this plant destabilises the nominal LQG ...
     assert (env[1] / env[0]) ** (1 / 750) == pytest.approx(rho, abs=1e-3)  # ... as simulated
+
+
+def test_state_feedback_sensitivity_matches_simulation_and_tuning_is_stable():
+    from robovib.control.controllers import (
+        StateFeedback,
+        design_tuned_state_feedback,
+        implemented_loop_matrix,
+        spectral_radius,
+        state_feedback_sensitivity,
+    )
+    from robovib.modal import ModalParameters
+    from robovib.sim import ConstantModesRobot, LinearMove, ModeSet, run_closed_loop
+
+    mode = ModalParameters(8.0, 1e6, 0.15)
+    robot = ConstantModesRobot(
+        {"x": ModeSet(np.array([[8.0]]), np.array([[1e6]]), np.array([[0.15]]))}
+    )
+    gains, sens, rho = design_tuned_state_feedback([[mode]], mode, 8.0, n_grid=15)
+    assert rho < 1 and sens < 0.8
+    assert spectral_radius(implemented_loop_matrix(mode, gains)) == pytest.approx(rho)
+    t = np.arange(5000) / 1000.0
+    force = np.zeros((5000, 3))
+    force[:, 0] = 200 * np.sin(2 * np.pi * 8.0 * t)
+    move = LinearMove("path", (0.0,), (0.1,))
+    kw = {"tracker_noise_m": 0.0, "tracker_resolution_m": 0.0, "rng": 0}
+    open_ = run_closed_loop(robot, move, force, 1000.0, None, **kw).true_displacement_m[3000:, 0]
+    closed = run_closed_loop(robot, move, force, 1000.0, StateFeedback({0: gains}), **kw)
+    ratio = np.ptp(closed.true_displacement_m[3000:, 0]) / np.ptp(open_)
+    assert ratio == pytest.approx(state_feedback_sensitivity(mode, gains, 8.0), rel=0.05)

@@ -65,11 +65,13 @@ from ..sim import (
 )
 
 __all__ = [
+    "ACTUATORS",
     "CALIBRATED_CHANNEL",
     "CONTROLLERS",
     "SECOND_MODE_HYPOTHESES",
     "TABLE_10_CONDITIONS",
     "THESIS_OFFSET_MASS_MODE",
+    "ControlSimulation",
     "PathModalModel",
     "build_controllers",
     "calibrate_channel",
@@ -80,6 +82,7 @@ __all__ = [
     "plot_milling",
     "plot_offset_mass",
     "sensitivity_bound",
+    "simulate_control",
     "stability_over_band",
 ]
 
@@ -700,3 +703,104 @@ def plot_milling(rows: list[dict], direction: str = "x", ax=None):
     ax.legend(fontsize=7, ncol=3)
     fig.tight_layout()
     return fig
+
+
+# --------------------------------------------------------------------------- one entry point
+#: Command-channel choices of ``robovib control simulate --actuator``.
+ACTUATORS = {"pure-delay": PURE_DELAY, "calibrated": CALIBRATED_CHANNEL}
+
+
+@dataclass(frozen=True)
+class ControlSimulation:
+    """Result of :func:`simulate_control`: rows (one per run) and the settings used."""
+
+    experiment: str  #: "offset-mass" (Table 7 analogue) or "milling" (Table 10 analogue)
+    rows: tuple  #: dicts; traces (``trace_x_m`` / ``trace_m``) only with ``keep_traces``
+    settings: dict
+
+    def to_frame(self):
+        """pandas DataFrame of the rows without the traces."""
+        import pandas as pd
+
+        return pd.DataFrame(
+            [{k: v for k, v in r.items() if not k.startswith("trace")} for r in self.rows]
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: settings, rows (no traces) and the units of every column."""
+        rows = self.to_frame().replace({np.nan: None}).to_dict(orient="records")
+        units = {"speed_rpm": "rev/min", "start_mm": "mm (half peak-to-peak)",
+                 "end_mm": "mm (half peak-to-peak)", "feed_mm": "mm per tooth",
+                 "axial_depth_mm": "mm"}  # fmt: skip
+        for d in ("x", "z"):
+            units[f"{d}_rms_mm"] = units[f"{d}_open_rms_mm"] = "mm (RMS about the mean)"
+            units[f"{d}_reduction_pct"] = "% of the open-loop RMS"
+        return {
+            "experiment": self.experiment,
+            "settings": self.settings,
+            "rows": rows,
+            "units": units,
+        }
+
+    def plot(self, direction: str = "x", ax=None):
+        """:func:`plot_offset_mass` (needs traces) or :func:`plot_milling` of the rows."""
+        if self.experiment == "offset-mass":
+            return plot_offset_mass(list(self.rows), ax=ax)
+        return plot_milling(list(self.rows), direction, ax=ax)
+
+
+def simulate_control(
+    experiment: str,
+    controllers=None,
+    *,
+    actuator: str = "pure-delay",
+    speeds_rpm=(480.0, 960.0),
+    keep_traces: bool = False,
+    rng=0,
+) -> ControlSimulation:
+    """Closed-loop runs on the virtual robot with controllers designed from the path model.
+
+    Parameters
+    ----------
+    experiment
+        ``"offset-mass"`` (Table 7 analogue, X, 900 mm path) or ``"milling"`` (Table 10
+        analogue, X and Z, 8 cuts x 2 positions).
+    controllers
+        Names from :data:`CONTROLLERS` (default: all).
+    actuator
+        ``"pure-delay"`` (32 ms) or ``"calibrated"`` (:data:`CALIBRATED_CHANNEL`).
+    speeds_rpm
+        Offset-mass spindle speeds [rev/min].
+    keep_traces
+        Keep the displacement records (for :meth:`ControlSimulation.plot`).
+    rng
+        Seed of the virtual EMA and the sensor noise.
+
+    Raises
+    ------
+    ValueError
+        Unknown experiment, controller or actuator.
+    """
+    if experiment not in ("offset-mass", "milling"):
+        raise ValueError(f"unknown experiment {experiment!r}; expected 'offset-mass' or 'milling'")
+    if actuator not in ACTUATORS:
+        raise ValueError(f"unknown actuator {actuator!r}; expected one of {sorted(ACTUATORS)}")
+    names = tuple(CONTROLLERS if controllers is None else controllers)
+    unknown = set(names) - set(CONTROLLERS)
+    if unknown:
+        raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
+    channel = ACTUATORS[actuator]
+    robot = VirtualRobot()
+    model = path_modal_model(
+        robot, directions=("x",) if experiment == "offset-mass" else ("x", "z"), rng=rng
+    )
+    if experiment == "offset-mass":
+        rows = offset_mass_study(robot, model, speeds_rpm, controllers=names, channel=channel,
+                                 keep_traces=keep_traces, rng=rng)  # fmt: skip
+    else:
+        rows = milling_study(robot, model, controllers=names, channel=channel,
+                             keep_traces=keep_traces, rng=rng)  # fmt: skip
+    settings = {"controllers": list(names), "actuator": actuator, "channel": channel.to_dict(),
+                "command_period_s": 0.004, "sample_rate_hz": 1000.0, "seed": rng,
+                "speeds_rpm": list(speeds_rpm) if experiment == "offset-mass" else None}  # fmt: skip
+    return ControlSimulation(experiment, tuple(rows), settings)
