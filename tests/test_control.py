@@ -413,3 +413,24 @@ def test_state_feedback_sensitivity_matches_simulation_and_tuning_is_stable():
     closed = run_closed_loop(robot, move, force, 1000.0, StateFeedback({0: gains}), **kw)
     ratio = np.ptp(closed.true_displacement_m[3000:, 0]) / np.ptp(open_)
     assert ratio == pytest.approx(state_feedback_sensitivity(mode, gains, 8.0), rel=0.05)
+
+
+def test_plot_offset_mass_envelopes():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from robovib.studies.control_closed_loop import plot_offset_mass
+
+    t = np.arange(2000) / 1000.0
+    rows = [{"speed_rpm": 480.0, "controller": c, "trace_x_m": a * 1e-4 * np.sin(2 * np.pi * 8 * t)}
+            for c, a in (("no-feedback", 3.0), ("feedforward", 0.3))]  # fmt: skip
+    fig = plot_offset_mass(rows)
+    ax = fig.axes[0]
+    assert "[mm]" in ax.get_ylabel() and "[s]" in ax.get_xlabel()
+    peak = max(line.get_ydata().max() for line in ax.get_lines())
+    assert peak == pytest.approx(0.3, rel=0.01)  # envelope of the 0.3 mm sine
+    plt.close(fig)
+    with pytest.raises(ValueError, match="keep_traces"):
+        plot_offset_mass([{"speed_rpm": 480.0, "controller": "x"}])

@@ -652,14 +652,15 @@ def design_tuned_state_feedback(
     w2_range=(-0.06, 0.06),
     n_grid: int = 31,
     max_harmonic_gain: float = 1.1,
+    max_radius: float = 0.995,
 ) -> tuple[np.ndarray, float, float]:
     """[w1, w2] tuned to one disturbance frequency instead of by LQR (the thesis' structure).
 
     Over a ``n_grid`` x ``n_grid`` grid: the gains with the smallest nominal
     :func:`state_feedback_sensitivity` at ``frequency_hz`` among those whose loop is stable
-    for every plant in ``plants`` (spectral radius of :func:`implemented_loop_matrix` < 1)
-    and that amplify the 2nd and 3rd harmonics by at most ``max_harmonic_gain``. With 32 ms of
-    delay the best gains at 8 Hz are *negative* (the delay turns the phase by ~100°).
+    for every plant in ``plants`` with a decay margin (spectral radius of
+    :func:`implemented_loop_matrix` < ``max_radius``) and that amplify the 2nd and 3rd
+    harmonics by at most ``max_harmonic_gain``. With 32 ms of delay the best gains at 8 Hz are *negative* (the delay turns the phase by ~100°).
     Returns ``(gains, |S| at the frequency, worst spectral radius)``.
     """
     d = round(delay_s / period_s)
@@ -673,9 +674,9 @@ def design_tuned_state_feedback(
             rho = 0.0
             for p in plants:
                 rho = max(rho, spectral_radius(implemented_loop_matrix(p, (w1, w2), period_s, d)))
-                if rho >= 1:
+                if rho >= max_radius:
                     break
-            if rho < 1:
+            if rho < max_radius:
                 best = (np.array([w1, w2]), float(sens[0]), rho)
     return best
 
