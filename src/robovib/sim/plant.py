@@ -166,6 +166,19 @@ class ConstantModesRobot:
         return ModeSet(*(np.repeat(np.asarray(a, float), n, axis=0) for a in (ms.fn_hz, ms.stiffness_n_per_m, ms.damping_ratio)))  # fmt: skip
 
 
+#: One-entry cache of the plant maps of the last (robot, move, length, rate): the studies run
+#: several controllers on the same cut, which share the truth, the maps and the force response.
+_CACHE: dict = {}
+
+
+def _cached(key, build):
+    if key not in _CACHE:
+        if len(_CACHE) > 8:
+            _CACHE.clear()
+        _CACHE[key] = build()
+    return _CACHE[key]
+
+
 def _transitions(robot, move, n, dt, allow_extrapolation):
     """Per-sample transition components (n_modes, n), static stiffness per mode and owners."""
     duration = n * dt
@@ -287,14 +300,22 @@ def run_closed_loop(
     coords = move.coords_at(t / (n * dt))
     tracker_noise = gen.normal(size=(n, 3)) * tracker_noise_m
     force_meas = force + gen.normal(size=(n, 3)) * force_noise_n if force_noise_n > 0 else force
-    p, k_static, owner = _transitions(robot, move, n, dt, allow_extrapolation)
+    base_key = (id(robot), move, n, dt, allow_extrapolation)
+    p, k_static, owner = _cached(
+        ("transitions", *base_key),
+        lambda: _transitions(robot, move, n, dt, allow_extrapolation),
+    )
     rich = hasattr(controller, "command")
     if rich:
         controller.reset(coords[::every], every * dt, sample_rate_hz)
+    tip_force = _cached(
+        ("force", *base_key, hash(force.tobytes())),
+        lambda: _command_response(p, np.ones_like(k_static), owner, force),
+    )
     args = (force, force_meas, tracker_noise, p, k_static, owner, every, delay_steps, channel,
             controller, rich, t, coords, tracker_resolution_m, max_command_m, dt)  # fmt: skip
     if method == "blocked":
-        disp_true, tracked, applied = _blocked(*args)
+        disp_true, tracked, applied = _blocked(*args, tip_force=tip_force, key=base_key)
     else:
         disp_true, tracked, applied = _per_sample(*args)
     if not math.isfinite(float(np.max(np.abs(disp_true)))):
@@ -352,51 +373,61 @@ def _per_sample(force, force_meas, noise, p, k_static, owner, every, delay_steps
     return disp_true, tracked, applied
 
 
-def _block_matrices(p, k_static, owner, every):
-    """Exact per-command-period maps of the command-driven state (dense, block-diagonal).
+def _block_matrices(p, k_static, owner, length):
+    """Exact maps of the command-driven state over blocks of ``length`` samples.
 
-    State ``S`` (2 n_modes,) = [x_0, v_0, x_1, v_1, ...]; input ``U`` (every * 3,) = the applied
-    corrections of the period's samples (row-major (offset, axis)). Returns, per period j:
-    ``M[j]`` (S -> S at the next period start), ``G[j]`` (U -> S), ``O[j]`` (S -> tip at the
-    period's ``every`` samples, (every * 3, 2 n_modes)) and ``F[j]`` (U -> tip).
+    State ``S`` (2 n_modes,) = [x_0, v_0, x_1, v_1, ...]; input ``U`` (length, 3) = the applied
+    corrections of the block's samples. Returns, per block j: ``M[j]`` (S -> S at the next
+    block start), ``G[j]`` (U flattened row-major -> S), ``O[j]`` (S -> tip at the block's
+    samples, (length * 3, 2 n_modes), row-major (sample, axis)) and ``F[j, a]`` (length,
+    length): axis ``a``'s inputs -> its tip displacement at the block's samples.
     """
     p00, p01, p10, p11, g0, g1 = p
     nm, n = p00.shape
-    nb = -(-n // every)
-    pad = nb * every - n
+    nb = -(-n // length)
+    pad = nb * length - n
 
     def blocks(a, fill):
         a = np.concatenate([a, np.full((nm, pad), fill)], axis=1)
-        return a.reshape(nm, nb, every).transpose(1, 0, 2)  # (nb, nm, every)
+        return a.reshape(nm, nb, length).transpose(1, 0, 2)  # (nb, nm, length)
 
     q00, q01, q10, q11 = (blocks(a, f) for a, f in ((p00, 1.0), (p01, 0.0), (p10, 0.0), (p11, 1.0)))
     b0, b1 = blocks(g0 * k_static, 0.0), blocks(g1 * k_static, 0.0)
-    # Phi: state map from the period start to offset o; Gam: response to a unit input per offset.
-    phi = np.zeros((nb, nm, 2, 2))
-    phi[..., 0, 0] = phi[..., 1, 1] = 1.0
-    gam = np.zeros((nb, nm, 2, every))
-    ox = np.zeros((nb, every, nm, 2))
-    fx = np.zeros((nb, every, nm, every))
-    for o in range(every):
-        ox[:, o] = phi[..., 0, :]
-        fx[:, o] = gam[..., 0, :]
-        a = np.stack([np.stack([q00[..., o], q01[..., o]], -1), np.stack([q10[..., o], q11[..., o]], -1)], -2)  # fmt: skip
-        phi = a @ phi
-        gam = a @ gam
-        gam[..., 0, o] += b0[..., o]
-        gam[..., 1, o] += b1[..., o]
+    # P[o]: state map from the block start to offset o (cumulative product of the per-sample
+    # transitions); the response at offset o to a unit input at offset o' < o is
+    # P[o] P[o'+1]^-1 b[o'] (the maps are 2x2 and well conditioned over a block).
+    c00, c01, c10, c11 = (np.empty((nb, nm, length + 1)) for _ in range(4))
+    c00[..., 0], c01[..., 0], c10[..., 0], c11[..., 0] = 1.0, 0.0, 0.0, 1.0
+    for o in range(length):
+        a00, a01, a10, a11 = q00[..., o], q01[..., o], q10[..., o], q11[..., o]
+        p00_, p01_, p10_, p11_ = c00[..., o], c01[..., o], c10[..., o], c11[..., o]
+        c00[..., o + 1] = a00 * p00_ + a01 * p10_
+        c01[..., o + 1] = a00 * p01_ + a01 * p11_
+        c10[..., o + 1] = a10 * p00_ + a11 * p10_
+        c11[..., o + 1] = a10 * p01_ + a11 * p11_
+    n00, n01, n10, n11 = c00[..., 1:], c01[..., 1:], c10[..., 1:], c11[..., 1:]
+    det = n00 * n11 - n01 * n10
+    w0 = (n11 * b0 - n01 * b1) / det  # (nb, nm, L): P[o'+1]^-1 b[o']
+    w1 = (n00 * b1 - n10 * b0) / det
+    causal = np.tril(np.ones((length, length)), -1)
+    fx = (c00[..., :length, None] * w0[..., None, :] + c01[..., :length, None] * w1[..., None, :]) * causal  # fmt: skip
     ns = 2 * nm
     M = np.zeros((nb, ns, ns))
-    G = np.zeros((nb, ns, every * 3))
-    O = np.zeros((nb, every * 3, ns))  # noqa: E741
-    F = np.zeros((nb, every * 3, every * 3))
-    cols = np.arange(every) * 3
+    G = np.zeros((nb, ns, length * 3))
+    O = np.zeros((nb, length * 3, ns))  # noqa: E741
+    F = np.zeros((nb, 3, length, length))
+    cols = np.arange(length) * 3
+    e00, e01, e10, e11 = c00[..., length], c01[..., length], c10[..., length], c11[..., length]
     for m in range(nm):
         a = owner[m]
-        M[:, 2 * m : 2 * m + 2, 2 * m : 2 * m + 2] = phi[:, m]
-        G[:, 2 * m : 2 * m + 2, cols + a] = gam[:, m]
-        O[:, cols + a, 2 * m : 2 * m + 2] = ox[:, :, m]
-        F[:, (cols + a)[:, None], (cols + a)[None, :]] += fx[:, :, m]
+        r = slice(2 * m, 2 * m + 2)
+        M[:, 2 * m, 2 * m], M[:, 2 * m, 2 * m + 1] = e00[:, m], e01[:, m]
+        M[:, 2 * m + 1, 2 * m], M[:, 2 * m + 1, 2 * m + 1] = e10[:, m], e11[:, m]
+        G[:, 2 * m, cols + a] = e00[:, m, None] * w0[:, m] + e01[:, m, None] * w1[:, m]
+        G[:, 2 * m + 1, cols + a] = e10[:, m, None] * w0[:, m] + e11[:, m, None] * w1[:, m]
+        O[:, cols + a, r.start] = c00[:, m, :length]
+        O[:, cols + a, r.start + 1] = c01[:, m, :length]
+        F[:, a] += fx[:, m]
     return M, G, O, F
 
 
@@ -412,62 +443,80 @@ def _command_response(p, k_static, owner, applied):
 
 
 def _blocked(force, force_meas, noise, p, k_static, owner, every, delay_steps, channel,
-             controller, rich, t, coords, res, max_command_m, dt):  # fmt: skip
+             controller, rich, t, coords, res, max_command_m, dt, *, tip_force, key):  # fmt: skip
+    """Advance the loop in blocks of whole command periods no longer than the delay.
+
+    Every correction applied inside a block was decided before it (the delay is at least the
+    block), so the block's tracker readings come from one matrix product; the controller is
+    then called once per command instant of the block and the state advanced by one more.
+    """
     n = force.shape[0]
-    tip_force = _command_response(p, np.ones_like(k_static), owner, force)
     if controller is None:
         return tip_force, _quantise(tip_force + noise, res), np.zeros((n, 3))
-    M, G, O, F = _block_matrices(p, k_static, owner, every)  # noqa: E741
+    per_block = delay_steps // every
+    if per_block < 1:  # the delay is shorter than a command period: one sample at a time
+        return _per_sample(force, force_meas, noise, p, k_static, owner, every, delay_steps,
+                           channel, controller, rich, t, coords, res, max_command_m, dt)  # fmt: skip
+    # Blocks of up to 4 command periods (the matrices grow with the block length).
+    per_block = min(per_block, 4)
+    length = per_block * every
+    M, G, Obs, F = _cached(
+        ("blocks", *key, length), lambda: _block_matrices(p, k_static, owner, length)
+    )
     nb = M.shape[0]
-    n_pad = nb * every
+    n_pad = nb * length
+    n_cmd = -(-n // every)
     extra = np.zeros((n_pad - n, 3))
     # What the tracker would read without any correction; the loop adds the command response.
     seen = np.concatenate([tip_force + noise, extra])
     fmeas = np.concatenate([force_meas, extra])
     # Which command instant feeds each sample (after the delay); -1: nothing yet.
     src = np.arange(n_pad) - delay_steps
-    src_idx = np.where(src >= 0, src // every, -1).reshape(nb, every)
-    cmds = np.zeros((nb + 1, 3))  # cmds[-1] stays zero: "no command yet"
+    src_idx = np.where(src >= 0, src // every, -1).reshape(nb, length)
+    cmds = np.zeros((nb * per_block + 1, 3))  # cmds[-1] stays zero: "no command yet"
     state = _ChannelState(channel, dt) if channel.dynamic else None
     applied = np.zeros((n_pad, 3))
-    O0 = np.ascontiguousarray(O[:, :3])
-    tracked = np.zeros((n_pad, 3)) if rich else None
-    meas_at = np.zeros((nb, 3))
+    tracked = np.zeros((n_pad, 3))
     inv = 1.0 / res if res > 0 else 0.0
     S = np.zeros(2 * owner.size)
     prev = np.zeros(3)
     zero3 = np.zeros(3)
+    period = every * dt
+    disp = np.zeros((n_pad, 3))
+    noise_pad = np.concatenate([noise, extra])
     for j in range(nb):
-        i0 = j * every
-        raw = O0[j] @ S + seen[i0]
-        meas = np.round(raw * inv) * res if res > 0 else raw
-        meas_at[j] = meas
-        if rich:
-            lo = max(0, i0 - every + 1)
-            tracked[i0] = meas
-            held = np.asarray(controller.command(j, tracked[lo : i0 + 1], fmeas[lo : i0 + 1]), float).reshape(3)  # fmt: skip
-        else:
-            vel = (meas - prev) / (every * dt) if i0 > 0 else zero3
-            prev = meas
-            held = np.asarray(controller(t[i0], meas, vel, coords[i0]), float).reshape(3)
-        if not np.abs(held).max() <= max_command_m:
-            _check_command(held, t[i0], max_command_m)
-        cmds[j] = held
+        lo, hi = j * length, (j + 1) * length
         u = cmds[src_idx[j]]
         if state is not None:
             u = state.advance(u)
-        applied[i0 : i0 + every] = u
-        flat = u.ravel()
-        if rich:
-            raw = (O[j] @ S + F[j] @ flat).reshape(every, 3) + seen[i0 : i0 + every]
-            tracked[i0 : i0 + every] = np.round(raw * inv) * res if res > 0 else raw
-            tracked[i0] = meas
-        S = M[j] @ S + G[j] @ flat
+        applied[lo:hi] = u
+        raw = (
+            (Obs[j] @ S).reshape(length, 3)
+            + seen[lo:hi]
+            + np.matmul(F[j], u.T[:, :, None])[:, :, 0].T
+        )
+        disp[lo:hi] = raw - noise_pad[lo:hi]
+        tracked[lo:hi] = np.round(raw * inv) * res if res > 0 else raw
+        k0 = j * per_block
+        k1 = min(k0 + per_block, n_cmd)
+        for k in range(k0, k1):
+            i0 = k * every
+            if rich:
+                a = max(0, i0 - every + 1)
+                held = controller.command(k, tracked[a : i0 + 1], fmeas[a : i0 + 1])
+            else:
+                meas = tracked[i0]
+                vel = (meas - prev) / period if i0 > 0 else zero3
+                prev = meas
+                held = controller(t[i0], meas, vel, coords[i0])
+            if np.shape(held) != (3,):
+                raise ValueError(
+                    f"the controller must return a (3,) correction [m], got shape {np.shape(held)}"
+                )
+            cmds[k] = held
+        if k1 > k0 and not np.abs(cmds[k0:k1]).max() <= max_command_m:
+            bad = k0 + int(np.argmax(~(np.abs(cmds[k0:k1]).max(axis=1) <= max_command_m)))
+            _check_command(cmds[bad], t[bad * every], max_command_m)
+        S = M[j] @ S + G[j] @ u.ravel()
     applied = applied[:n]
-    disp = tip_force + _command_response(p, k_static, owner, applied)
-    if rich:
-        tracked = tracked[:n]
-    else:
-        tracked = _quantise(disp + noise, res)
-        tracked[::every] = meas_at[: -(-n // every)]  # exactly what the controller saw
-    return disp, tracked, applied
+    return disp[:n], tracked[:n], applied

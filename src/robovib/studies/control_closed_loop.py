@@ -173,8 +173,15 @@ def path_modal_model(
 
 
 # --------------------------------------------------------------------------- design
+#: Designs already made in this process (the studies design the same gains for every cut).
+_DESIGN_CACHE: dict = {}
+
+
 def _schedule(model: PathModalModel, direction: str, s_grid) -> GainSchedule:
-    return schedule_gains(s_grid, [model.mode(si, direction) for si in s_grid])
+    key = ("schedule", id(model), direction, tuple(np.asarray(s_grid, float)))
+    if key not in _DESIGN_CACHE:
+        _DESIGN_CACHE[key] = schedule_gains(s_grid, [model.mode(si, direction) for si in s_grid])
+    return _DESIGN_CACHE[key]
 
 
 #: Unmodelled-dynamics hypotheses of the robust design: a second mode at (fn ratio, k ratio,
@@ -195,9 +202,6 @@ def _model_set(model: PathModalModel, s_m: float, direction: str, second_modes=T
                     [m, ModalParameters(fr * m.natural_frequency_hz, kr * m.stiffness_n_per_m, z)]
                 )
     return out
-
-
-_DESIGN_CACHE: dict = {}
 
 
 def _robust_r(plants, nominal: ModalParameters, period_s, delay_s, r_grid, velocity="difference"):
