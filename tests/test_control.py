@@ -13,10 +13,10 @@ from robovib.control import (
     design_delay_aware_lqr,
     design_lqr,
     discretize,
-    table_9_comparison,
 )
 from robovib.control.schedule import schedule_gains
 from robovib.modal import ModalParameters
+from robovib.studies.table9 import table_9_comparison
 
 MODE = ModalParameters(8.5, 0.775e6, 0.179)  # §4.3.2 offset-mass pose, Y direction
 
@@ -44,7 +44,7 @@ def test_riccati_solution_and_python_control():
 def test_table_9_trends_with_displacement_input():
     rows = [
         r
-        for r in table_9_comparison()
+        for r in table_9_comparison().rows
         if r["formulation"] == "physical" and r["input"] == "displacement"
     ]
     g = {(r["position"], r["direction"]): (r["w1"], r["w2"]) for r in rows}
@@ -150,14 +150,14 @@ def test_schedule_cli_from_a_path_file(tmp_path):
     ]
     csv = tmp_path / "path.csv"
     csv.write_text("\n".join(lines))
-    res = CliRunner().invoke(app, ["control", "schedule", "--path", str(csv), "--json"])
+    res = CliRunner().invoke(app, ["control", "schedule", "--path-file", str(csv), "--json"])
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     assert len(doc["w1"]) == 8 and all(doc["stable_with_delay"])
     bad = tmp_path / "bad.csv"
     bad.write_text("s_m,fn_hz\n0,10\n")
-    res = CliRunner().invoke(app, ["control", "schedule", "--path", str(bad)])
-    assert res.exit_code == 2 and "missing columns" in res.output
+    res = CliRunner().invoke(app, ["control", "schedule", "--path-file", str(bad)])
+    assert res.exit_code == 1 and "missing columns" in res.output
 
 
 @pytest.mark.parametrize(("r", "delay"), [(100.0, 8), (1.0, 0), (1.0, 8)])
@@ -434,3 +434,24 @@ def test_plot_offset_mass_envelopes():
     plt.close(fig)
     with pytest.raises(ValueError, match="keep_traces"):
         plot_offset_mass([{"speed_rpm": 480.0, "controller": "x"}])
+
+
+def test_cli_control_simulate_offset_mass_feedforward(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    png = tmp_path / "om.png"
+    res = CliRunner().invoke(app, ["control", "simulate", "offset-mass", "--controller", "feedforward",
+                                   "--json", "--plot", str(png)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    by = {(r["speed_rpm"], r["controller"]): r for r in doc["rows"]}
+    assert set(by) == {(480.0, "no-feedback"), (480.0, "feedforward"), (960.0, "no-feedback"), (960.0, "feedforward")}  # fmt: skip
+    assert by[(480.0, "feedforward")]["start_mm"] < 0.3 * by[(480.0, "no-feedback")]["start_mm"]
+    assert doc["settings"]["channel"]["delay_s"] == 0.032 and "start_mm" in doc["units"]
+    assert png.stat().st_size > 0
+    res = CliRunner().invoke(app, ["control", "simulate", "milling", "--actuator", "magic"])
+    assert res.exit_code == 1 and "unknown actuator" in res.output

@@ -84,6 +84,7 @@ __all__ = [
     "sensitivity_bound",
     "simulate_control",
     "stability_over_band",
+    "virtual_path_modes",
 ]
 
 #: The controllers compared in the studies (names used in the result rows and the CLI).
@@ -170,6 +171,23 @@ def path_modal_model(
             rows.append([p.natural_frequency_hz, p.stiffness_n_per_m / 1e6, p.damping_ratio])
         gps[d] = BatchedGPRegressor(kernel="isotropic", rng=rng).fit(s[:, None], np.array(rows))
     return PathModalModel(gps, s)
+
+
+def virtual_path_modes(
+    robot: VirtualRobot | None = None, direction: str = "x", n_points: int = 20, rng=0
+) -> tuple[np.ndarray, list[ModalParameters]]:
+    """Dominant modes along the chapter-4 path from a virtual EMA (:func:`path_modal_model`).
+
+    Returns
+    -------
+    s_m
+        (n_points,) path coordinates [m], 0.335-1.235 m.
+    modes
+        One :class:`ModalParameters` per coordinate in ``direction``.
+    """
+    model = path_modal_model(robot or VirtualRobot(), directions=(direction,), rng=rng)
+    s = np.linspace(0.335, 1.235, n_points)
+    return s, [model.mode(si, direction) for si in s]
 
 
 # --------------------------------------------------------------------------- design
