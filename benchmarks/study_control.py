@@ -138,7 +138,7 @@ def stability() -> None:
 def best() -> None:
     """Best [w1, w2] feedback at each tooth frequency (stable over the GP band + second modes)."""
     from robovib.control.controllers import design_tuned_state_feedback
-    from robovib.studies.control_closed_loop import _model_set
+    from robovib.studies.control_closed_loop import _model_set, path_mode
 
     robot = VirtualRobot()
     model = path_modal_model(robot)
@@ -147,7 +147,7 @@ def best() -> None:
         for d in ("x", "z"):
             for f in (125 / 30, 250 / 30):
                 g, sens, rho = design_tuned_state_feedback(
-                    _model_set(model, s, d), model.mode(s, d), f
+                    _model_set(model, s, d), path_mode(model, s, d), f
                 )
                 rows.append({"position": pos, "direction": d, "tooth_hz": f, "w1": g[0], "w2": g[1],
                              "S_at_tooth": sens, "reduction_at_tooth_pct": 100 * (1 - sens),

@@ -171,12 +171,14 @@ class ConstantModesRobot:
 _CACHE: dict = {}
 
 
-def _cached(key, build):
+def _cached(key, build, robot):
+    """``build()`` once per key; the entry holds ``robot`` so that its ``id`` (part of the
+    key) cannot be reused by another object while the entry lives."""
     if key not in _CACHE:
         if len(_CACHE) > 8:
             _CACHE.clear()
-        _CACHE[key] = build()
-    return _CACHE[key]
+        _CACHE[key] = (robot, build())
+    return _CACHE[key][1]
 
 
 def _transitions(robot, move, n, dt, allow_extrapolation):
@@ -304,6 +306,7 @@ def run_closed_loop(
     p, k_static, owner = _cached(
         ("transitions", *base_key),
         lambda: _transitions(robot, move, n, dt, allow_extrapolation),
+        robot,
     )
     rich = hasattr(controller, "command")
     if rich:
@@ -311,6 +314,7 @@ def run_closed_loop(
     tip_force = _cached(
         ("force", *base_key, hash(force.tobytes())),
         lambda: _command_response(p, np.ones_like(k_static), owner, force),
+        robot,
     )
     args = (force, force_meas, tracker_noise, p, k_static, owner, every, delay_steps, channel,
             controller, rich, t, coords, tracker_resolution_m, max_command_m, dt)  # fmt: skip
@@ -461,7 +465,7 @@ def _blocked(force, force_meas, noise, p, k_static, owner, every, delay_steps, c
     per_block = min(per_block, 4)
     length = per_block * every
     M, G, Obs, F = _cached(
-        ("blocks", *key, length), lambda: _block_matrices(p, k_static, owner, length)
+        ("blocks", *key, length), lambda: _block_matrices(p, k_static, owner, length), None
     )
     nb = M.shape[0]
     n_pad = nb * length

@@ -39,7 +39,7 @@ from ..control.controllers import (
 from ..control.lqr import design_delay_aware_lqr
 from ..control.schedule import GainSchedule, schedule_gains
 from ..frf.impact import impact_frf
-from ..gp.regressor import BatchedGPRegressor
+from ..gp import PoseModalModel
 from ..milling.forces import (
     ACETAL,
     CuttingCoefficients,
@@ -72,13 +72,14 @@ __all__ = [
     "TABLE_10_CONDITIONS",
     "THESIS_OFFSET_MASS_MODE",
     "ControlSimulation",
-    "PathModalModel",
     "build_controllers",
     "calibrate_channel",
     "fixed_pose_offset_mass",
     "milling_study",
     "offset_mass_study",
+    "path_band",
     "path_modal_model",
+    "path_mode",
     "plot_milling",
     "plot_offset_mass",
     "sensitivity_bound",
@@ -116,36 +117,6 @@ THESIS_OFFSET_MASS_GAINS = (0.079, 0.0059)
 CALIBRATED_CHANNEL = CommandChannel(delay_s=0.032)
 
 
-@dataclass(frozen=True)
-class PathModalModel:
-    """GP of (fn, k, zeta) of the dominant mode over path distance, per direction.
-
-    The chapter-4 path model; it becomes a ``robovib.gp.PoseModalModel`` with
-    ``input_names=("s_m",)`` once that type lands.
-    """
-
-    gps: dict  #: direction -> BatchedGPRegressor on s [m] -> (fn [Hz], k [MN/m], zeta)
-    s_tested_m: np.ndarray
-
-    def mode(self, s_m: float, direction: str) -> ModalParameters:
-        fn, k, z = self.gps[direction].predict(np.array([[s_m]]))[0]
-        return ModalParameters(float(fn), float(k) * 1e6, float(z))
-
-    def band(self, s_m: float, direction: str, z_score: float = 1.96) -> list[ModalParameters]:
-        """The 8 corners of the GP's band (mean ± ``z_score`` std in fn, k and zeta)."""
-        mean, std = self.gps[direction].predict(np.array([[s_m]]), return_std=True)
-        mean, std = mean[0], std[0]
-        out = []
-        for sf in (-1, 1):
-            for sk in (-1, 1):
-                for sz in (-1, 1):
-                    fn = mean[0] + sf * z_score * std[0]
-                    k = (mean[1] + sk * z_score * std[1]) * 1e6
-                    z = mean[2] + sz * z_score * std[2]
-                    out.append(ModalParameters(max(fn, 0.1), max(k, 1e3), min(max(z, 1e-3), 0.95)))
-        return out
-
-
 def path_modal_model(
     robot: VirtualRobot,
     directions=("x", "z"),
@@ -154,11 +125,16 @@ def path_modal_model(
     sample_rate_hz: float = 2048.0,
     n_hits: int = 3,
     rng=0,
-) -> PathModalModel:
-    """EMA at ``n_points`` along the chapter-4 path (virtual hammer tests) and a GP over s."""
+) -> PoseModalModel:
+    """EMA at ``n_points`` along the chapter-4 path (virtual hammer tests) and a GP over s.
+
+    Returns a :class:`~robovib.gp.PoseModalModel` with ``input_names=("s_m",)`` (path distance
+    [m]) of the dominant mode per direction (fn [Hz], k [N/m], c [N s/m]); read it with
+    :func:`path_mode` and :func:`path_band`.
+    """
     s = np.linspace(0.0, PATH_LENGTH_M, n_points)
     gen = np.random.default_rng(rng)
-    gps = {}
+    cols = []
     for d in directions:
         rows = []
         for si in s:
@@ -168,9 +144,35 @@ def path_modal_model(
                 impact_frf(rec.forces, rec.responses, rec.sample_rate_hz, f_max_hz=100).frf
             )
             p = fit.parameters
-            rows.append([p.natural_frequency_hz, p.stiffness_n_per_m / 1e6, p.damping_ratio])
-        gps[d] = BatchedGPRegressor(kernel="isotropic", rng=rng).fit(s[:, None], np.array(rows))
-    return PathModalModel(gps, s)
+            rows.append([p.natural_frequency_hz, p.stiffness_n_per_m, p.damping_ns_per_m])
+        cols.append(np.array(rows))
+    model = PoseModalModel(input_names=("s_m",), directions=tuple(directions), kernel="isotropic",
+                           mode_switch=False, rng=rng)  # fmt: skip
+    return model.fit(s[:, None], np.hstack(cols))
+
+
+def path_mode(model: PoseModalModel, s_m: float, direction: str) -> ModalParameters:
+    """Mean dominant mode of ``direction`` at path distance ``s_m`` [m]."""
+    return model.modes(np.array([[float(s_m)]]))[0][direction].parameters
+
+
+def path_band(
+    model: PoseModalModel, s_m: float, direction: str, z_score: float = 1.96
+) -> list[ModalParameters]:
+    """The 8 corners of the GP band at ``s_m`` [m]: mean ± ``z_score`` std in fn, k and c."""
+    pm = model.modes(np.array([[float(s_m)]]))[0][direction]
+    p = pm.parameters
+    out = []
+    for sf in (-1, 1):
+        for sk in (-1, 1):
+            for sc in (-1, 1):
+                fn = max(p.natural_frequency_hz + sf * z_score * pm.fn_std_hz, 0.1)
+                k = max(p.stiffness_n_per_m + sk * z_score * pm.stiffness_std_n_per_m, 1e3)
+                c = max(p.damping_ns_per_m + sc * z_score * pm.damping_std_ns_per_m, 0.0)
+                m = ModalParameters.from_fn_k_c(fn, k, c)
+                zeta = min(max(m.damping_ratio, 1e-3), 0.95)
+                out.append(ModalParameters(fn, k, zeta))
+    return out
 
 
 def virtual_path_modes(
@@ -187,7 +189,7 @@ def virtual_path_modes(
     """
     model = path_modal_model(robot or VirtualRobot(), directions=(direction,), rng=rng)
     s = np.linspace(0.335, 1.235, n_points)
-    return s, [model.mode(si, direction) for si in s]
+    return s, [path_mode(model, si, direction) for si in s]
 
 
 # --------------------------------------------------------------------------- design
@@ -195,10 +197,11 @@ def virtual_path_modes(
 _DESIGN_CACHE: dict = {}
 
 
-def _schedule(model: PathModalModel, direction: str, s_grid) -> GainSchedule:
-    key = ("schedule", id(model), direction, tuple(np.asarray(s_grid, float)))
+def _schedule(model: PoseModalModel, direction: str, s_grid) -> GainSchedule:
+    modes = tuple(path_mode(model, si, direction) for si in s_grid)
+    key = ("schedule", tuple(np.asarray(s_grid, float)), modes)  # keyed by the design inputs
     if key not in _DESIGN_CACHE:
-        _DESIGN_CACHE[key] = schedule_gains(s_grid, [model.mode(si, direction) for si in s_grid])
+        _DESIGN_CACHE[key] = schedule_gains(s_grid, list(modes))
     return _DESIGN_CACHE[key]
 
 
@@ -209,9 +212,9 @@ def _schedule(model: PathModalModel, direction: str, s_grid) -> GainSchedule:
 SECOND_MODE_HYPOTHESES = ((2.0, 5.0, 0.03), (2.0, 20.0, 0.03), (3.0, 5.0, 0.03), (3.0, 20.0, 0.03))
 
 
-def _model_set(model: PathModalModel, s_m: float, direction: str, second_modes=True):
-    """Plants the robust design must hold on: nominal + band corners (x second-mode variants)."""
-    singles = [model.mode(s_m, direction), *model.band(s_m, direction)]
+def _model_set(model: PoseModalModel, s_m: float, direction: str, second_modes=True):
+    """Plants the robust design must hold on: nominal (first) + band corners (x second modes)."""
+    singles = [path_mode(model, s_m, direction), *path_band(model, s_m, direction)]
     out = [[m] for m in singles]
     if second_modes:
         for m in singles:
@@ -248,7 +251,7 @@ def _robust_r(plants, nominal: ModalParameters, period_s, delay_s, r_grid, veloc
 
 
 def build_controllers(
-    model: PathModalModel,
+    model: PoseModalModel,
     axes: dict[int, str],
     s_grid,
     *,
@@ -283,7 +286,7 @@ def build_controllers(
     if "lqg" in names:
         gains, kal = {}, {}
         for a, d in axes.items():
-            modes = [model.mode(si, d) for si in grid]
+            modes = [path_mode(model, si, d) for si in grid]
             if lqg_r is None:  # R picked like the robust design, on the loop with the filter
                 rows = [_robust_r(_model_set(model, si, d), m, period_s, delay_s, r_grid, "kalman")[1]
                         for si, m in zip(grid, modes, strict=True)]  # fmt: skip
@@ -299,7 +302,9 @@ def build_controllers(
         tabs = {}
         for a, d in axes.items():
             rows = [
-                _robust_r(_model_set(model, si, d), model.mode(si, d), period_s, delay_s, r_grid)[1]
+                _robust_r(
+                    _model_set(model, si, d), path_mode(model, si, d), period_s, delay_s, r_grid
+                )[1]
                 for si in grid
             ]
             tabs[a] = ScheduledTable(grid, np.array(rows))
@@ -310,7 +315,7 @@ def build_controllers(
         if excitation_period_s is None:
             raise ValueError("feedforward controllers need excitation_period_s [s]")
         stiff = {
-            a: ScheduledTable(grid, np.array([[model.mode(si, d).stiffness_n_per_m] for si in grid]))
+            a: ScheduledTable(grid, np.array([[path_mode(model, si, d).stiffness_n_per_m] for si in grid]))
             for a, d in axes.items()
         }  # fmt: skip
         if "feedforward" in names:
@@ -326,10 +331,17 @@ def build_controllers(
         for a, d in axes.items():
             rows = []
             for si in grid:
-                key = ("tuned", id(model), float(si), d, excitation_period_s, period_s, delay_s)
+                plants = _model_set(model, si, d)
+                key = (
+                    "tuned",
+                    tuple(tuple(p) for p in plants),
+                    excitation_period_s,
+                    period_s,
+                    delay_s,
+                )
                 if key not in _DESIGN_CACHE:
                     _DESIGN_CACHE[key] = design_tuned_state_feedback(
-                        _model_set(model, si, d), model.mode(si, d), 1.0 / excitation_period_s,
+                        plants, plants[0][0], 1.0 / excitation_period_s,
                         period_s=period_s, delay_s=delay_s)[0]  # fmt: skip
                 rows.append(_DESIGN_CACHE[key])
             tab[a] = ScheduledTable(grid, np.array(rows))
@@ -339,7 +351,7 @@ def build_controllers(
             raise ValueError("the repetitive controller needs excitation_period_s [s]")
         modes = {
             a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
-                                              for m in (model.mode(si, d) for si in grid)]))
+                                              for m in (path_mode(model, si, d) for si in grid)]))
             for a, d in axes.items()
         }  # fmt: skip
         out["repetitive"] = RepetitiveFeedback(modes, excitation_period_s, delay_s)
@@ -363,7 +375,7 @@ def _controller_gains(ctrl, axis: int, coords) -> np.ndarray | None:
 
 
 def stability_over_band(
-    model: PathModalModel,
+    model: PoseModalModel,
     controllers: dict[str, object],
     axes: dict[int, str],
     s_points,
@@ -389,7 +401,7 @@ def stability_over_band(
         if isinstance(ctrl, RepetitiveFeedback):
             for direction in axes.values():
                 for si in s:
-                    nominal = model.mode(si, direction)
+                    nominal = path_mode(model, si, direction)
                     for p in _model_set(model, si, direction, second_modes):
                         rho = ctrl.loop_radius(p, nominal, period_s)
                         worst = rho if np.isnan(worst) else max(worst, rho)
@@ -401,7 +413,7 @@ def stability_over_band(
                 continue
             lqg = isinstance(ctrl, DelayAwareFeedback) and ctrl.kalman is not None
             for si, gi in zip(s, g, strict=True):
-                kf = design_kalman(model.mode(si, direction)) if lqg else None
+                kf = design_kalman(path_mode(model, si, direction)) if lqg else None
                 for p in _model_set(model, si, direction, second_modes):
                     m = (lqg_loop_matrix(p, gi, kf, period_s, 1e-3, round(delay_s * 1e3)) if lqg
                          else implemented_loop_matrix(p, gi, period_s, d))  # fmt: skip
@@ -529,7 +541,7 @@ def _thesis_eq28(s_start: float):
 
 def offset_mass_study(
     robot: VirtualRobot,
-    model: PathModalModel,
+    model: PoseModalModel,
     speeds_rpm=(480.0, 960.0),
     *,
     controllers=(
@@ -595,7 +607,7 @@ TABLE_10_CONDITIONS = tuple(
 
 def milling_study(
     robot: VirtualRobot,
-    model: PathModalModel,
+    model: PoseModalModel,
     conditions=TABLE_10_CONDITIONS,
     positions=(("Position 1", POSITION_1_S_M), ("Position 2", POSITION_2_S_M)),
     *,
