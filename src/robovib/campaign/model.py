@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..gp.predictor import PosePrediction, predict_at
 from ..gp.regressor import BatchedGPRegressor
 
 __all__ = [
@@ -374,75 +375,3 @@ def load_pose_model(path, require_inputs=None):
 
 def _load_pose_model(path):
     return _pose_model_class().load(path)
-
-
-@dataclass(frozen=True)
-class PosePrediction:
-    """Prediction of every output of a pose model at one pose.
-
-    Attributes
-    ----------
-    pose
-        Input name -> value, in the model's units.
-    outputs
-        One dict per output: ``output`` (name with unit), ``mean``, ``std``, ``lower_2sigma``,
-        ``upper_2sigma`` (SI).
-    extrapolating
-        The pose lies outside the training inputs' hull.
-    outside_inputs
-        Inputs outside their training range.
-    """
-
-    pose: dict
-    outputs: tuple
-    extrapolating: bool
-    outside_inputs: tuple[str, ...]
-
-    def to_dict(self) -> dict:
-        return {
-            "pose": dict(self.pose),
-            "extrapolating": self.extrapolating,
-            "outside_inputs": list(self.outside_inputs),
-            "predictions": [dict(o) for o in self.outputs],
-        }
-
-
-def predict_at(model, pose) -> PosePrediction:
-    """Predict every output at one pose given by input name (the model's ``input_names``).
-
-    Raises
-    ------
-    ValueError
-        A missing or unknown input name, or a non-finite value.
-    """
-    names = tuple(model.input_names)
-    given = dict(pose)
-    missing = [n for n in names if n not in given]
-    unknown = [n for n in given if n not in names]
-    if missing or unknown:
-        options = ", ".join("--" + n.rsplit("_", 1)[0] for n in names)
-        raise ValueError(
-            f"the model takes inputs {', '.join(names)} (options {options})"
-            + (f"; missing {', '.join(missing)}" if missing else "")
-            + (f"; not an input: {', '.join(unknown)}" if unknown else "")
-        )
-    x = np.array([[float(given[n]) for n in names]])
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"pose values must be finite, got {given}")
-    mean, std = model.predict(x, return_std=True)
-    outs = tuple(
-        {
-            "output": name,
-            "mean": float(m),
-            "std": float(s),
-            "lower_2sigma": float(m - 2 * s),
-            "upper_2sigma": float(m + 2 * s),
-        }
-        for name, m, s in zip(model.output_names_, mean[0], std[0], strict=True)
-    )
-    X = np.asarray(model.X_train_, float)
-    lo, hi = X.min(axis=0), X.max(axis=0)
-    outside = tuple(n for n, v, a, b in zip(names, x[0], lo, hi, strict=True) if v < a or v > b)
-    return PosePrediction(
-        {n: float(given[n]) for n in names}, outs, bool(model.extrapolating(x)[0]), outside
-    )

@@ -9,14 +9,12 @@ import typer
 
 from ._common import (
     JsonFlag,
-    KernelOpt,
-    ModeSwitchOpt,
-    SeedOpt,
     Table,
     check_kernel,
     console,
     emit_json,
     escape,
+    fail,
     new_app,
 )
 
@@ -24,6 +22,11 @@ app = new_app("GP models of the modal parameters over the workspace (thesis ch. 
 
 
 _Deg = Annotated[float | None, typer.Option(help="Pose input [deg] of a --model that uses it.")]
+
+
+#: Engineering units of the table (JSON stays SI): SI unit -> (shown unit, factor).
+_SHOWN = {"N/m": ("MN/m", 1e-6), "N*s/m": ("kN·s/m", 1e-3)}
+_SUFFIXES = ("_hz", "_ns_per_m", "_n_per_m")
 
 
 @app.command("predict")
@@ -37,15 +40,31 @@ def predict(
     rz: Annotated[
         float | None, typer.Option("--rz", help="Rotation about the tool axis [deg].")
     ] = None,
-    kernel: KernelOpt = "ard",
-    seed: SeedOpt = 0,
-    mode_switch: ModeSwitchOpt = True,
+    kernel: Annotated[
+        str,
+        typer.Option(
+            help="Refit the thesis model with this kernel ('isotropic', thesis Eq. 7; seconds) "
+            "instead of loading the shipped one ('ard')."
+        ),
+    ] = "ard",
+    seed: Annotated[
+        int, typer.Option(help="Refit the thesis model with this optimiser seed (seconds).")
+    ] = 0,
+    mode_switch: Annotated[
+        bool,
+        typer.Option(
+            "--mode-switch/--no-mode-switch",
+            help="--no-mode-switch refits the thesis model with one smooth GP per output "
+            "(seconds); default: the shipped model, ~63 Hz X-mode switch classified.",
+        ),
+    ] = True,
     model: Annotated[
         Path | None,
         typer.Option(
             "--model",
             help="Your pose model (.h5 from 'robovib model fit'); pose options follow its "
-            "inputs (--x --y --z [mm], --rx --ry --rz, --a1..--a6 [deg]). Default: the thesis model.",
+            "inputs (--x --y --z [mm], --rx --ry --rz, --a1..--a6 [deg]). Default: the thesis "
+            "model shipped with robovib (loaded, not refitted).",
         ),
     ] = None,
     z: Annotated[float | None, typer.Option("--z", help="Tool-tip Z [mm] (--model only).")] = None,
@@ -59,69 +78,56 @@ def predict(
     a6: _Deg = None,
     json_out: JsonFlag = False,
 ) -> None:
-    """Predicted dominant-mode parameters at a pose (Z = 325 mm, Rx = Ry = 0) with ±2σ."""
+    """Predicted dominant-mode parameters (fn, k, c per direction, SI) at a pose with ±2σ.
+
+    Without --model: the thesis' chapter-3 model of Table A1 (Z = 325 mm, Rx = Ry = 0), loaded
+    from package data in milliseconds; --kernel isotropic, --seed or --no-mode-switch refit it.
+    """
+    from ..gp.predictor import predict_at
+
+    given = {"x_mm": x, "y_mm": y, "z_mm": z, "rx_deg": rx, "ry_deg": ry, "rz_deg": rz,
+             "a1_deg": a1, "a2_deg": a2, "a3_deg": a3, "a4_deg": a4, "a5_deg": a5,
+             "a6_deg": a6}  # fmt: skip
+    pose = {k: v for k, v in given.items() if v is not None}
+    refit = (check_kernel(kernel), seed, mode_switch) != ("ard", 0, True)
     if model is not None:
-        given = {"x_mm": x, "y_mm": y, "z_mm": z, "rx_deg": rx, "ry_deg": ry, "rz_deg": rz,
-                 "a1_deg": a1, "a2_deg": a2, "a3_deg": a3, "a4_deg": a4, "a5_deg": a5,
-                 "a6_deg": a6}  # fmt: skip
-        _predict_with_model(model, {k: v for k, v in given.items() if v is not None}, json_out)
-        return
-    if x is None or y is None or rz is None:
-        raise typer.BadParameter("--x, --y and --rz are required (or give --model)")
-    if any(v is not None for v in (z, rx, ry, a1, a2, a3, a4, a5, a6)):
-        raise typer.BadParameter("--z, --rx, --ry, --a1..--a6 need a --model that uses them")
-    from ..gp.pose_prediction import predict_pose
-    from ..studies.chapter3 import OUTPUT_LABELS, fit_chapter3_regressor
+        if refit:
+            fail("--kernel, --seed and --no-mode-switch refit the thesis model; they do not "
+                 "apply to --model")  # fmt: skip
+        from ..gp.predictor import load_pose_predictor
 
-    model = fit_chapter3_regressor(kernel=check_kernel(kernel), mode_switch=mode_switch, rng=seed)
-    p = predict_pose(model, x, y, rz, OUTPUT_LABELS)
+        pm, source = load_pose_predictor(model), str(model)
+    elif refit:
+        from ..gp import get_chapter3_model
+
+        pm = get_chapter3_model(kernel, "auto" if mode_switch else False, rng=seed)
+        source = f"thesis chapter-3 model refitted (kernel {kernel}, seed {seed}, " + (
+            "mode switch classified)" if mode_switch else "no mode switch)"
+        )
+    else:
+        from ..gp.chapter3_model import load_chapter3_predictor
+
+        pm, source = load_chapter3_predictor(), "thesis chapter-3 model (shipped, Table A1)"
+    p = predict_at(pm, pose)
     if json_out:
-        emit_json(
-            {
-                "pose": {"x_mm": x, "y_mm": y, "z_mm": 325.0, "rz_deg": rz},
-                "extrapolation": list(p.extrapolation),
-                "x_high_mode_probability": p.x_high_mode_probability,
-                "note": p.note,
-                "predictions": list(p.records),
-            }
-        )
-        return
-    con = console()
-    t = Table(title=f"GPR prediction at X={x:g} mm, Y={y:g} mm, Rz={rz:g}° (Z=325 mm)")
-    for col in ("output", "mean", "± 2σ", "range (2σ)"):
-        t.add_column(col, justify="right")
-    for r in p.records:
-        t.add_row(
-            escape(r["output"]),
-            f"{r['mean']:.3f}",
-            f"{2 * r['std']:.3f}",
-            escape(f"[{r['lower_2sigma']:.3f}, {r['upper_2sigma']:.3f}]"),
-        )
-    con.print(t)
-    if p.extrapolation:
-        con.print(
-            f"[yellow]warning:[/] {', '.join(p.extrapolation)} outside the calibrated workspace: extrapolation"
-        )
-    if p.note:
-        con.print(f"[yellow]note:[/] {p.note}")
-
-
-def _predict_with_model(model_path: Path, pose: dict, json_out: bool) -> None:
-    from ..campaign import load_pose_model, predict_at
-
-    p = predict_at(load_pose_model(model_path), pose)
-    if json_out:
-        emit_json({"model": str(model_path), **p.to_dict()})
+        emit_json({"model": source, **p.to_dict()})
         return
     con = console()
     where = ", ".join(f"{k}={v:g}" for k, v in p.pose.items())
-    t = Table(title=f"Prediction of {model_path.name} at {where}")
-    for col in ("output", "mean", "± 2σ", "range (2σ)"):
+    t = Table(title=f"Prediction at {where}", caption=source)
+    for col in ("output", "unit", "mean", "± 2σ", "range (2σ)"):
         t.add_column(col, justify="right")
     for r in p.outputs:
-        t.add_row(escape(r["output"]), f"{r['mean']:.5g}", f"{2 * r['std']:.3g}",
-                  escape(f"[{r['lower_2sigma']:.5g}, {r['upper_2sigma']:.5g}]"))  # fmt: skip
+        unit, f = _SHOWN.get(r["unit"], (r["unit"] or "", 1.0))
+        name = next((r["output"][: -len(u)] for u in _SUFFIXES if r["output"].endswith(u)),
+                    r["output"])  # fmt: skip
+        t.add_row(escape(name), escape(unit), f"{f * r['mean']:.4g}", f"{2 * f * r['std']:.3g}",
+                  escape(f"[{f * r['lower_2sigma']:.4g}, {f * r['upper_2sigma']:.4g}]"))  # fmt: skip
     con.print(t)
     if p.extrapolating:
         outside = ", ".join(p.outside_inputs) or "the combination of inputs"
-        con.print(f"[yellow]warning:[/] {outside} outside the training poses: extrapolation")
+        con.print(
+            f"[yellow]warning:[/] {escape(outside)} outside the training poses: extrapolation"
+        )
+    for note in p.notes:
+        con.print(f"[yellow]note:[/] {escape(note)}")

@@ -1,21 +1,39 @@
-"""Gaussian-process regression of pose-dependent quantities (thesis §3.3, Eq. 6-10, 33-36)."""
+"""Gaussian-process regression of pose-dependent quantities (thesis §3.3, Eq. 6-10, 33-36).
 
-from .chapter3_model import fit_chapter3_model, get_chapter3_model, load_chapter3_model
-from .mode_switch import ModeSwitchingGPRegressor
-from .pose_model import ModeSwitchDetection, PoseModalModel, PoseMode, detect_mode_switch
-from .regressor import BatchedGPRegressor, GPHyperparameters, GPNumericalError, JitterWarning
+Names are imported on first use (PEP 562): ``from robovib.gp.predictor import ...`` (NumPy only)
+does not pay for scikit-learn, which the estimators need.
+"""
 
-__all__ = [
-    "BatchedGPRegressor",
-    "GPHyperparameters",
-    "GPNumericalError",
-    "JitterWarning",
-    "ModeSwitchDetection",
-    "ModeSwitchingGPRegressor",
-    "PoseModalModel",
-    "PoseMode",
-    "detect_mode_switch",
-    "fit_chapter3_model",
-    "get_chapter3_model",
-    "load_chapter3_model",
-]
+from importlib import import_module
+
+_WHERE = {
+    "BatchedGPRegressor": "regressor",
+    "GPHyperparameters": "regressor",
+    "GPNumericalError": "regressor",
+    "JitterWarning": "regressor",
+    "ModeSwitchDetection": "pose_model",
+    "ModeSwitchingGPRegressor": "mode_switch",
+    "PoseModalModel": "pose_model",
+    "PoseMode": "pose_model",
+    "PosePredictor": "predictor",
+    "detect_mode_switch": "pose_model",
+    "fit_chapter3_model": "chapter3_model",
+    "get_chapter3_model": "chapter3_model",
+    "load_chapter3_model": "chapter3_model",
+    "load_chapter3_predictor": "chapter3_model",
+    "load_pose_predictor": "predictor",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))

@@ -8,20 +8,23 @@ commands answer without refitting.
 
 from __future__ import annotations
 
-from importlib import resources
-from typing import Literal
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from ..datasets import load_table_a1, modal_output_columns, pose_columns
-from .pose_model import PoseModalModel
+if TYPE_CHECKING:  # imported where used: the predictor path must not import scikit-learn/pandas
+    from .pose_model import PoseModalModel
+    from .predictor import PosePredictor
 
 __all__ = [
     "CHAPTER3_INPUTS",
+    "chapter3_model_path",
     "chapter3_training_data",
     "fit_chapter3_model",
     "get_chapter3_model",
     "load_chapter3_model",
+    "load_chapter3_predictor",
 ]
 
 #: Inputs of the chapter-3 model (Z = 325 mm, Rx = Ry = 0 throughout Table A1).
@@ -36,6 +39,8 @@ def chapter3_training_data(
 
     ``Y`` columns: fn [Hz], k [N/m], c [N·s/m] for X, Y, Z; NaN where a cell is missing.
     """
+    from ..datasets import load_table_a1, modal_output_columns, pose_columns
+
     a1 = load_table_a1(units="si", stiffness_reading=stiffness_reading)
     X = a1[pose_columns("si")].to_numpy() * [1e3, 1e3, 1.0]
     Y = a1[modal_output_columns("si")].to_numpy()
@@ -68,6 +73,8 @@ def fit_chapter3_model(
         Fitted; the mode classifier sees cos(2 Rz) (Rz and Rz + 180° are the same arm
         configuration).
     """
+    from .pose_model import PoseModalModel
+
     X, Y, _ = chapter3_training_data(stiffness_reading)
     model = PoseModalModel(
         input_names=CHAPTER3_INPUTS,
@@ -78,6 +85,24 @@ def fit_chapter3_model(
         rz_symmetric=True,
     )
     return model.fit(X, Y)
+
+
+def chapter3_model_path() -> Path:
+    """Path of the shipped chapter-3 model file (package data).
+
+    Raises
+    ------
+    FileNotFoundError
+        If the package data is missing (run ``python scripts/build_chapter3_model.py``).
+    """
+    # Next to this package rather than importlib.resources.files("robovib.datasets"), which
+    # would import robovib.datasets (pandas, ~0.2 s) before a prediction.
+    path = Path(__file__).resolve().parent.parent / "datasets" / "data" / _FILE
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path}: shipped chapter-3 model missing; run scripts/build_chapter3_model.py"
+        )
+    return path
 
 
 def load_chapter3_model() -> PoseModalModel:
@@ -93,13 +118,25 @@ def load_chapter3_model() -> PoseModalModel:
     FileNotFoundError
         If the package data is missing (run ``python scripts/build_chapter3_model.py``).
     """
-    ref = resources.files("robovib.datasets").joinpath("data", _FILE)
-    with resources.as_file(ref) as path:
-        if not path.is_file():
-            raise FileNotFoundError(
-                f"{path}: shipped chapter-3 model missing; run scripts/build_chapter3_model.py"
-            )
-        return PoseModalModel.load(path)
+    from .pose_model import PoseModalModel
+
+    return PoseModalModel.load(chapter3_model_path())
+
+
+def load_chapter3_predictor() -> PosePredictor:
+    """The shipped chapter-3 model as a :class:`~robovib.gp.predictor.PosePredictor`.
+
+    Predictions equal :func:`load_chapter3_model`'s (to ~1e-12) without importing scikit-learn:
+    what ``robovib gpr predict`` uses to answer in well under a second.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the package data is missing (run ``python scripts/build_chapter3_model.py``).
+    """
+    from .predictor import load_pose_predictor
+
+    return load_pose_predictor(chapter3_model_path())
 
 
 def get_chapter3_model(

@@ -1,0 +1,555 @@
+"""Read-only predictor of a saved :class:`~robovib.gp.PoseModalModel`: NumPy, h5py, SciPy's qhull.
+
+``robovib gpr predict`` starts, loads a pose model and answers in well under a second: what costs
+the time is not the prediction (microseconds) but importing scikit-learn and SciPy's optimisers
+(~0.7 s on one core), which :class:`~robovib.gp.PoseModalModel` needs to *fit*. A
+:class:`PosePredictor` reads the same HDF5 file (:meth:`PoseModalModel.save`) and evaluates the
+same posterior without them:
+
+* each GP output (thesis Eq. 9-10): standardised inputs and targets as the fit, squared-exponential
+  kernel with the stored hyperparameters (data units), ``alpha = K_y^-1 (y - m)`` and the latent
+  variance ``sf^2 - |L^-1 k*|^2``;
+* the mode-switch classifier (binary Laplace GP classifier, Rasmussen & Williams 2006, Algorithms
+  3.1-3.2, as :class:`sklearn.gaussian_process.GaussianProcessClassifier` with ``optimizer=None``
+  on the stored kernel): Newton iterations for the posterior mode, then the Williams-Barber
+  five-erf approximation of the predictive probability;
+* extrapolation: outside the box of the training inputs or outside the Delaunay triangulation
+  of the standardised unique training poses (as :meth:`PoseModalModel.extrapolating`).
+
+The tests check it against :meth:`PoseModalModel.load` to 1e-10. A file whose covariance
+needed jitter to factorise is refused (``ValueError``); :func:`load_pose_predictor` then falls
+back to the full model.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "AMBIGUOUS_MODE_PROBABILITY",
+    "PosePrediction",
+    "PosePredictor",
+    "load_pose_predictor",
+    "predict_at",
+]
+
+_FORMAT = "robovib.PoseModalModel"  # = pose_model.FORMAT (not imported: it imports scikit-learn)
+_FORMAT_VERSION = 1
+_QUANTITIES = (("fn", "hz"), ("stiffness", "n_per_m"), ("damping", "ns_per_m"))
+_UNIT_LABELS = {"hz": "Hz", "n_per_m": "N/m", "ns_per_m": "N*s/m"}
+# Williams & Barber's approximation of the logistic sigmoid by five error functions (the
+# coefficients of scikit-learn's _gpc.py, fitted by least squares there).
+_LAMBDAS = np.array([0.41, 0.4, 0.37, 0.44, 0.39])[:, None]
+_COEFS = np.array([-1854.8214151, 3516.89893646, 221.29346712, 128.12323805, -2010.49422654])[
+    :, None
+]
+
+
+class _NeedsJitter(ValueError):
+    pass
+
+
+def _str(v) -> str:
+    return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def _chol(a: np.ndarray) -> np.ndarray:
+    try:
+        L = np.linalg.cholesky(a)
+    except np.linalg.LinAlgError:
+        raise _NeedsJitter("covariance not positive definite without jitter") from None
+    if not np.all(np.isfinite(L)):
+        raise _NeedsJitter("covariance not positive definite without jitter")
+    return L
+
+
+def _tri_inv(L: np.ndarray) -> np.ndarray:
+    """Inverse of a lower-triangular matrix (forward substitution, NumPy only)."""
+    return np.linalg.solve(L, np.eye(L.shape[-1]))
+
+
+class _GP:
+    """Posterior of a fitted BatchedGPRegressor group (stored hyperparameters, data units)."""
+
+    def __init__(self, group) -> None:
+        d = {k: group[k][()] for k in group}
+        a = group.attrs
+        kernel = _str(a["kernel"])
+        normalize = bool(a["normalize"])
+        mean_kind = _str(a["mean"])
+        n_groups = int(a["n_noise_groups"])
+        X = np.asarray(d["X"], float)
+        mask = np.asarray(d["mask"], bool)
+        Y = np.where(mask, d["Y"], 0.0)
+        groups = np.asarray(d["groups"], int) if n_groups > 1 else np.zeros(X.shape[0], int)
+        n, n_feat = X.shape
+        n_out = Y.shape[1]
+        if normalize:
+            x_loc, x_scale = X.mean(axis=0), X.std(axis=0)
+            x_scale[x_scale == 0] = 1.0
+            counts = mask.sum(axis=0)
+            y_loc = np.where(mask, Y, 0).sum(axis=0) / counts
+            y_scale = np.sqrt(np.where(mask, (Y - y_loc) ** 2, 0).sum(axis=0) / counts)
+        else:
+            x_loc, x_scale = np.zeros(n_feat), np.ones(n_feat)
+            y_loc, y_scale = np.zeros(n_out), np.ones(n_out)
+        sf2 = (np.asarray(d["signal_std"], float) / y_scale) ** 2
+        ls = np.broadcast_to(np.asarray(d["length_scales"], float), (n_out, n_feat)) / x_scale
+        if kernel == "isotropic":
+            ls = np.broadcast_to(np.exp(np.mean(np.log(ls), axis=1, keepdims=True)), ls.shape)
+        noise = np.asarray(d["noise_std"], float).reshape(n_out, -1) / y_scale[:, None]
+        m_s = (np.asarray(d["mean"], float) - y_loc) / y_scale
+        if mean_kind == "zero":
+            m_s = np.zeros(n_out)
+        x_s = (X - x_loc) / x_scale
+        y_s = np.where(mask, (Y - y_loc) / y_scale, 0.0)
+        inv_l2 = ls**-2.0
+        sq = (x_s[:, None, :] - x_s[None, :, :]) ** 2
+        alpha = np.zeros((n_out, n))
+        chol_inv = np.zeros((n_out, n, n))
+        for b in range(n_out):
+            obs = mask[:, b]
+            k = sf2[b] * np.exp(-0.5 * (sq[np.ix_(obs, obs)] @ inv_l2[b]))
+            k[np.diag_indices_from(k)] += noise[b, groups[obs]] ** 2
+            L = _chol(k)
+            Li = _tri_inv(L)
+            alpha[b, obs] = Li.T @ (Li @ (y_s[obs, b] - m_s[b]))
+            chol_inv[b][np.ix_(obs, obs)] = Li
+        self.x_loc, self.x_scale, self.y_loc, self.y_scale = x_loc, x_scale, y_loc, y_scale
+        self.x_s, self.mask, self.sf2, self.inv_l2 = x_s, mask, sf2, inv_l2
+        self.alpha, self.chol_inv, self.m_s = alpha, chol_inv, m_s
+        self.X_train = X
+
+    def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        xq = (X - self.x_loc) / self.x_scale
+        sq = (xq[:, None, :] - self.x_s[None, :, :]) ** 2  # (m, n, d)
+        k = self.sf2[:, None, None] * np.exp(-0.5 * np.einsum("mnd,bd->bmn", sq, self.inv_l2))
+        k = k * self.mask.T[:, None, :]  # (B, m, n)
+        mean_s = self.m_s[:, None] + np.einsum("bmn,bn->bm", k, self.alpha)
+        v = np.matmul(self.chol_inv, k.transpose(0, 2, 1))  # (B, n, m)
+        var_s = self.sf2[:, None] - np.sum(v * v, axis=1)
+        mean = (mean_s * self.y_scale[:, None] + self.y_loc[:, None]).T
+        std = (np.sqrt(np.maximum(var_s, 0.0)) * self.y_scale[:, None]).T
+        return mean, std
+
+
+class _LaplaceGPC:
+    """Binary Laplace GP classifier with a fixed kernel C * RBF (as scikit-learn's, optimizer=None)."""
+
+    def __init__(self, X: np.ndarray, y: np.ndarray, theta: np.ndarray) -> None:
+        self.X = np.asarray(X, float)
+        self.c = math.exp(theta[0])
+        self.ls = np.exp(np.asarray(theta[1:], float))
+        labels = np.asarray(y).astype(bool)
+        self.y = labels.astype(float)  # LabelEncoder of (False, True) -> 0, 1
+        K = self._kernel(self.X, self.X)
+        f = np.zeros_like(self.y)
+        lml_prev = -np.inf
+        for _ in range(100):  # scikit-learn's max_iter_predict
+            pi = 1.0 / (1.0 + np.exp(-f))
+            W = pi * (1 - pi)
+            W_sr = np.sqrt(W)
+            W_sr_K = W_sr[:, None] * K
+            B = np.eye(W.shape[0]) + W_sr_K * W_sr
+            L = np.linalg.cholesky(B)
+            b = W * f + (self.y - pi)
+            z = np.linalg.solve(L, W_sr_K @ b)
+            a = b - W_sr * np.linalg.solve(L.T, z)
+            f = K @ a
+            lml = (
+                -0.5 * a @ f
+                - np.log1p(np.exp(-(self.y * 2 - 1) * f)).sum()
+                - np.log(np.diag(L)).sum()
+            )
+            if lml - lml_prev < 1e-10:
+                break
+            lml_prev = lml
+        self.pi, self.W_sr, self.L = pi, W_sr, L
+
+    def _kernel(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        d2 = (((A[:, None, :] - B[None, :, :]) / self.ls) ** 2).sum(axis=-1)
+        return self.c * np.exp(-0.5 * d2)
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """(m,) probability of the positive class (the high mode)."""
+        K_star = self._kernel(self.X, X)
+        f_star = K_star.T @ (self.y - self.pi)
+        v = np.linalg.solve(self.L, self.W_sr[:, None] * K_star)
+        var = self.c - np.einsum("ij,ij->j", v, v)
+        alpha = 1 / (2 * var)
+        gamma = _LAMBDAS * f_star
+        erf = np.vectorize(math.erf, otypes=[float])
+        integrals = (
+            np.sqrt(np.pi / alpha)
+            * erf(gamma * np.sqrt(alpha / (alpha + _LAMBDAS**2)))
+            / (2 * np.sqrt(var * 2 * np.pi))
+        )
+        return (_COEFS * integrals).sum(axis=0) + 0.5 * _COEFS.sum()
+
+
+class _Switching:
+    """A stored ModeSwitchingGPRegressor: low-mode GP, optional high-mode GP, classifier."""
+
+    def __init__(self, group) -> None:
+        a = group.attrs
+        self.switching = np.asarray(a["switching_outputs"], int)
+        self.features = _str(a["classifier_features"])
+        self.low = _GP(group["low"])
+        self.high = _GP(group["high"]) if "high" in group else None
+        self.high_mean = group["high_mean"][()] if "high_mean" in group else None
+        self.all_high = bool(a["all_high"])
+        self.classifier = None
+        if "classifier" in group:
+            c = group["classifier"]
+            self.x_loc, self.x_scale = c["x_loc"][()], c["x_scale"][()]
+            self.classifier = _LaplaceGPC(c["X"][()], c["y"][()], c["kernel_theta"][()])
+
+    def _features(self, X: np.ndarray) -> np.ndarray:
+        tag = self.features
+        if tag == "none":
+            return X
+        kind, _, index = tag.partition(":")
+        if kind != "rz_cos2":
+            raise ValueError(f"unknown classifier feature map {tag!r}")
+        X = np.array(X, float)
+        i = int(index)
+        X[:, i] = np.cos(np.radians(2.0 * X[:, i]))
+        return X
+
+    def high_mode_probability(self, X: np.ndarray) -> np.ndarray:
+        if self.classifier is None:
+            return np.full(X.shape[0], 1.0 if self.all_high else 0.0)
+        return self.classifier.predict_proba((self._features(X) - self.x_loc) / self.x_scale)
+
+    def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        mean, std = self.low.predict(X)
+        use_high = self.high_mode_probability(X) > 0.5
+        if np.any(use_high):
+            cols = self.switching
+            if self.high is not None:
+                h_mean, h_std = self.high.predict(X[use_high])
+            else:
+                h_mean = np.tile(self.high_mean, (int(use_high.sum()), 1))
+                h_std = np.full_like(h_mean, np.nan)
+            mean[np.ix_(use_high, cols)] = h_mean
+            std[np.ix_(use_high, cols)] = h_std
+        return mean, std
+
+
+class PosePredictor:
+    """Predictions of a saved pose model, without scikit-learn (see the module docstring).
+
+    Offers the prediction part of the :class:`~robovib.gp.PoseModalModel` interface:
+    ``input_names``, ``output_names_``, ``output_units_``, ``X_train_``, :meth:`predict`,
+    :meth:`outside_inputs`, :meth:`extrapolating`, :meth:`mode_switch_probability`. To refit,
+    update or save, load the :class:`~robovib.gp.PoseModalModel` itself.
+
+    Use :meth:`load` (or :func:`load_pose_predictor`).
+    """
+
+    @classmethod
+    def load(cls, path) -> PosePredictor:
+        """Read a ``robovib.PoseModalModel`` HDF5 file (format version 1).
+
+        Raises
+        ------
+        ValueError
+            Not a readable HDF5 file, not a pose model, a newer format version, or a stored
+            covariance that needed jitter (use :meth:`PoseModalModel.load`).
+        """
+        import h5py
+
+        path = Path(path)
+        try:
+            h5 = h5py.File(path, "r")
+        except OSError as exc:
+            raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+        self = cls()
+        with h5:
+            a = h5.attrs
+            if _str(a.get("format", "")) != _FORMAT:
+                raise ValueError(f"{path}: not a {_FORMAT} file (format tag {a.get('format')!r})")
+            version = int(a.get("format_version", -1))
+            if version < 1 or version > _FORMAT_VERSION:
+                raise ValueError(
+                    f"{path}: {_FORMAT} format version {version}; this robovib reads up to "
+                    f"{_FORMAT_VERSION}"
+                )
+            params = json.loads(_str(a["params_json"]))
+            self.input_names = self.input_names_ = tuple(params["input_names"])
+            self.directions = self.directions_ = tuple(params["directions"])
+            self.params_ = params
+            self.output_names_ = tuple(
+                f"{d}_{q}_{u}" for d in self.directions_ for q, u in _QUANTITIES
+            )
+            self.output_units_ = tuple(
+                _UNIT_LABELS[u] for _ in self.directions_ for _, u in _QUANTITIES
+            )
+            t = h5["training"]
+            self.X_train_ = np.asarray(t["X"][()], float)
+            self.n_outputs_ = len(self.output_names_)
+            self._estimators = []
+            try:
+                for i in range(len(h5["estimators"])):
+                    g = h5["estimators"][str(i)]
+                    kind = _str(g.attrs["kind"])
+                    cols = np.asarray(g.attrs["columns"], int)
+                    if kind == "BatchedGPRegressor":
+                        self._estimators.append((_GP(g), cols))
+                    elif kind == "ModeSwitchingGPRegressor":
+                        self._estimators.append((_Switching(g), cols))
+                    else:
+                        raise ValueError(f"{path}: unknown estimator kind {kind!r}")
+            except _NeedsJitter as exc:
+                raise ValueError(f"{path}: {exc}; load it with PoseModalModel.load") from None
+            self.mode_switches_ = {
+                d: {k: (_str(v) if isinstance(v, bytes | str) else v) for k, v in g.attrs.items()}
+                for d, g in h5["mode_switches"].items()
+            }
+            self.provenance_ = {k: _str(v) if isinstance(v, bytes) else v
+                                for k, v in h5["provenance"].attrs.items()}  # fmt: skip
+        X = self.X_train_
+        self.input_min_, self.input_max_ = X.min(axis=0), X.max(axis=0)
+        self._hull_pts = None
+        if X.shape[1] >= 2:
+            self._hull_loc = X.mean(axis=0)
+            self._hull_scale = np.where(X.std(axis=0) > 0, X.std(axis=0), 1.0)
+            pts = _unique_rows((X - self._hull_loc) / self._hull_scale)
+            # As PoseModalModel: no hull (box test only) where the poses span no volume.
+            if pts.shape[0] > X.shape[1] and np.linalg.matrix_rank(pts - pts[0]) == X.shape[1]:
+                self._hull_pts = pts
+        return self
+
+    def _check_X(self, X) -> np.ndarray:
+        X = np.asarray(X, float)
+        n_in = len(self.input_names_)
+        if X.ndim == 1:
+            X = X[:, None] if n_in == 1 else X[None, :]
+        if X.ndim != 2 or X.shape[1] != n_in:
+            raise ValueError(
+                f"X must be (n, {n_in}) with columns {list(self.input_names_)}, got shape {X.shape}"
+            )
+        if not np.all(np.isfinite(X)):
+            raise ValueError(f"X contains NaN or inf (columns {list(self.input_names_)})")
+        return X
+
+    def predict(self, X, return_std: bool = False):
+        """Mean (n, 3 n_directions) SI and optionally the latent std, as PoseModalModel.predict."""
+        X = self._check_X(X)
+        mean = np.empty((X.shape[0], self.n_outputs_))
+        std = np.empty_like(mean)
+        for est, cols in self._estimators:
+            m, s = est.predict(X)
+            mean[:, cols], std[:, cols] = m, s
+        return (mean, std) if return_std else mean
+
+    def outside_inputs(self, X) -> np.ndarray:
+        """(n, n_inputs) bool: input value outside the training range of that input."""
+        X = self._check_X(X)
+        tol = 1e-9 * np.maximum(1.0, self.input_max_ - self.input_min_)
+        return (self.input_min_ - tol > X) | (self.input_max_ + tol < X)
+
+    def extrapolating(self, X) -> np.ndarray:
+        """(n,) bool: outside the box or the convex hull of the training inputs.
+
+        The hull test is a non-negative least-squares problem (:func:`_in_hull`) instead of
+        SciPy's Delaunay triangulation (importing ``scipy.spatial`` costs ~0.3 s); both say
+        "inside" within ~1e-9 of the hull in standardised inputs.
+        """
+        X = self._check_X(X)
+        out = np.any(self.outside_inputs(X), axis=1)
+        if self._hull_pts is not None:
+            xs = (X - self._hull_loc) / self._hull_scale
+            for i in np.flatnonzero(~out):
+                out[i] = not _in_hull(self._hull_pts, xs[i])
+        return out
+
+    def mode_switch_probability(self, X) -> np.ndarray | None:
+        """(n, n_directions) probability that the high mode dominates; None without switches."""
+        X = self._check_X(X)
+        if not any(isinstance(e, _Switching) for e, _ in self._estimators):
+            return None
+        p = np.full((X.shape[0], len(self.directions_)), np.nan)
+        for est, cols in self._estimators:
+            if isinstance(est, _Switching):
+                p[:, cols[0] // 3] = est.high_mode_probability(X)
+        return p
+
+
+def _unique_rows(a: np.ndarray) -> np.ndarray:
+    """Distinct rows of ``a`` (``np.unique(a, axis=0)`` imports numpy.ma: ~30 ms at start-up)."""
+    s = a[np.lexsort(a.T[::-1])]
+    return s[np.r_[True, np.any(s[1:] != s[:-1], axis=1)]]
+
+
+def _in_hull(points: np.ndarray, x: np.ndarray, tol: float = 1e-9) -> bool:
+    """Whether ``x`` (d,) lies in the convex hull of ``points`` (m, d), within ``tol``.
+
+    ``x`` is in the hull iff weights ``w >= 0`` with ``sum(w) = 1`` and ``points.T @ w = x``
+    exist: the non-negative least-squares residual of ``[points.T; 1] w = [x; 1]`` is zero
+    (Lawson & Hanson's active-set algorithm, NumPy only).
+    """
+    A = np.vstack([points.T, np.ones(points.shape[0])])
+    b = np.append(x, 1.0)
+    n = A.shape[1]
+    passive = np.zeros(n, bool)
+    w = np.zeros(n)
+    for _ in range(3 * n):
+        grad = A.T @ (b - A @ w)
+        if np.linalg.norm(b - A @ w) <= tol or passive.all() or grad[~passive].max() <= 1e-14:
+            break
+        passive[np.argmax(np.where(passive, -np.inf, grad))] = True
+        while True:
+            z = np.zeros(n)
+            z[passive] = np.linalg.lstsq(A[:, passive], b, rcond=None)[0]
+            if np.all(z[passive] > 0):
+                w = z
+                break
+            neg = passive & (z <= 0)
+            step = np.min(w[neg] / (w[neg] - z[neg]))
+            w = w + step * (z - w)
+            passive &= w > 1e-15
+            w[~passive] = 0.0
+    return bool(np.linalg.norm(b - A @ w) <= tol)
+
+
+def load_pose_predictor(path):
+    """A :class:`PosePredictor` of the file, or the full ``PoseModalModel`` where it must be.
+
+    The full model (scikit-learn imported, ~1 s more) is loaded only when the stored covariance
+    needed jitter to factorise.
+    """
+    try:
+        return PosePredictor.load(path)
+    except ValueError as exc:
+        if "jitter" not in str(exc):
+            raise
+    from .pose_model import PoseModalModel
+
+    return PoseModalModel.load(path)
+
+
+#: Probability band of the high mode in which the dominant mode counts as ambiguous.
+AMBIGUOUS_MODE_PROBABILITY = (0.2, 0.8)
+
+
+@dataclass(frozen=True)
+class PosePrediction:
+    """Prediction of every output of a pose model at one pose.
+
+    Attributes
+    ----------
+    pose
+        Input name -> value, in the model's units.
+    outputs
+        One dict per output: ``output`` (name with unit suffix, e.g. ``x_fn_hz``), ``unit``,
+        ``mean``, ``std``, ``lower_2sigma``, ``upper_2sigma`` (SI, in ``unit``).
+    extrapolating
+        The pose lies outside the training inputs' box or convex hull.
+    outside_inputs
+        Inputs outside their training range.
+    high_mode_probability
+        Direction -> probability that the high mode dominates, for directions with a modelled
+        mode switch (empty without).
+    notes
+        Warnings on the dominant mode: one per direction whose high-mode probability lies in
+        :data:`AMBIGUOUS_MODE_PROBABILITY` (the data cannot tell which mode dominates).
+    """
+
+    pose: dict
+    outputs: tuple
+    extrapolating: bool
+    outside_inputs: tuple[str, ...]
+    high_mode_probability: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict:
+        """JSON-ready: ``predictions`` keyed by output name (unit suffix), each with its unit."""
+        return {
+            "pose": dict(self.pose),
+            "extrapolating": self.extrapolating,
+            "outside_inputs": list(self.outside_inputs),
+            "high_mode_probability": dict(self.high_mode_probability),
+            "notes": list(self.notes),
+            "predictions": {
+                o["output"]: {k: v for k, v in o.items() if k != "output"} for o in self.outputs
+            },
+        }
+
+
+def predict_at(model, pose) -> PosePrediction:
+    """Predict every output at one pose given by input name (the model's ``input_names``).
+
+    Parameters
+    ----------
+    model
+        A fitted :class:`robovib.gp.PoseModalModel` or its read-only
+        :class:`robovib.gp.predictor.PosePredictor` (same file, same numbers).
+    pose
+        Mapping input name -> value in the units of the name (``x_mm``, ``rz_deg``, ...).
+
+    Returns
+    -------
+    PosePrediction
+        SI outputs with ±2σ (latent std, thesis Eq. 10), extrapolation and mode-switch flags.
+
+    Raises
+    ------
+    ValueError
+        A missing or unknown input name, or a non-finite value.
+    """
+    names = tuple(model.input_names)
+    given = dict(pose)
+    missing = [n for n in names if n not in given]
+    unknown = [n for n in given if n not in names]
+    if missing or unknown:
+        options = ", ".join("--" + n.rsplit("_", 1)[0] for n in names)
+        raise ValueError(
+            f"the model takes inputs {', '.join(names)} (options {options})"
+            + (f"; missing {', '.join(missing)}" if missing else "")
+            + (f"; not an input: {', '.join(unknown)}" if unknown else "")
+        )
+    x = np.array([[float(given[n]) for n in names]])
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"pose values must be finite, got {given}")
+    mean, std = model.predict(x, return_std=True)
+    units = getattr(model, "output_units_", None) or (None,) * len(model.output_names_)
+    outs = tuple(
+        {
+            "output": name,
+            "unit": unit,
+            "mean": float(m),
+            "std": float(s),
+            "lower_2sigma": float(m - 2 * s),
+            "upper_2sigma": float(m + 2 * s),
+        }
+        for name, unit, m, s in zip(model.output_names_, units, mean[0], std[0], strict=True)
+    )
+    X = np.asarray(model.X_train_, float)
+    lo, hi = X.min(axis=0), X.max(axis=0)
+    outside = tuple(n for n, v, a, b in zip(names, x[0], lo, hi, strict=True) if v < a or v > b)
+    p = model.mode_switch_probability(x)
+    dirs = tuple(getattr(model, "directions_", getattr(model, "directions", ())))
+    high = (
+        {} if p is None else {d: float(p[0, i]) for i, d in enumerate(dirs) if np.isfinite(p[0, i])}
+    )
+    a, b = AMBIGUOUS_MODE_PROBABILITY
+    notes = tuple(
+        f"P(high {d} mode dominant) = {q:.2f}: the data cannot tell which {d} mode dominates "
+        f"here; the {d} values are those of the more probable mode"
+        for d, q in high.items()
+        if a < q < b
+    )
+    return PosePrediction(
+        {n: float(given[n]) for n in names},
+        outs,
+        bool(model.extrapolating(x)[0]),
+        outside,
+        high,
+        notes,
+    )
