@@ -63,7 +63,7 @@ def test_library_error_is_one_line_exit_1(tmp_path):
 
 def test_gpr_predict():
     doc = run_json("gpr", "predict", "--x", "2400", "--y", "0", "--rz", "45")
-    assert len(doc["predictions"]) == 9 and doc["extrapolation"] == []
+    assert len(doc["predictions"]) == 9 and doc["extrapolating"] is False
 
 
 def test_sim_hammer_csv_and_frf_compute_modal_fit(tmp_path):

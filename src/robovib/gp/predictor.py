@@ -103,9 +103,7 @@ class _GP:
         if kernel == "isotropic":
             ls = np.broadcast_to(np.exp(np.mean(np.log(ls), axis=1, keepdims=True)), ls.shape)
         noise = np.asarray(d["noise_std"], float).reshape(n_out, -1) / y_scale[:, None]
-        m_s = (np.asarray(d["mean"], float) - y_loc) / y_scale
-        if mean_kind == "zero":
-            m_s = np.zeros(n_out)
+        m_s = np.zeros(n_out)
         x_s = (X - x_loc) / x_scale
         y_s = np.where(mask, (Y - y_loc) / y_scale, 0.0)
         inv_l2 = ls**-2.0
@@ -118,6 +116,9 @@ class _GP:
             k[np.diag_indices_from(k)] += noise[b, groups[obs]] ** 2
             L = _chol(k)
             Li = _tri_inv(L)
+            if mean_kind == "constant":  # profiled (GLS) mean at these hyperparameters, as the fit
+                k_inv_1 = Li.T @ Li.sum(axis=1)
+                m_s[b] = (k_inv_1 @ y_s[obs, b]) / k_inv_1.sum()
             alpha[b, obs] = Li.T @ (Li @ (y_s[obs, b] - m_s[b]))
             chol_inv[b][np.ix_(obs, obs)] = Li
         self.x_loc, self.x_scale, self.y_loc, self.y_scale = x_loc, x_scale, y_loc, y_scale
