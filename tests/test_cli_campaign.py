@@ -51,9 +51,8 @@ def test_campaign_cli_flow(tmp_path):
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     assert doc["extrapolating"] and "x_mm" in doc["outside_inputs"]
-    assert (
-        list(doc["predictions"])[0] == "x_fn_hz" and doc["predictions"]["x_fn_hz"]["unit"] == "Hz"
-    )
+    assert next(iter(doc["predictions"])) == "x_fn_hz"
+    assert doc["predictions"]["x_fn_hz"]["unit"] == "Hz"
     for cmd in (("mill", "lobes"), ("control", "gains")):
         res = run(*cmd, "--x", 2300, "--y", 100, "--rz", 40, "--model", model, "--json")
         assert res.exit_code == 0, (cmd, res.output)
