@@ -36,17 +36,19 @@ from typing import Literal
 import numpy as np
 from scipy import optimize
 
+from .._threads import single_blas_thread
+from . import _likelihood
 from .optimize import batched_bfgs
 
 __all__ = ["BatchedGPRegressor", "GPHyperparameters", "GPNumericalError", "JitterWarning"]
-
-_LOG_2PI = np.log(2.0 * np.pi)
 
 # Box for the log-hyperparameters in the scaled space (standardised inputs, unit-variance targets).
 _LOG_SIGNAL_BOUNDS = (np.log(1e-3), np.log(1e2))
 _LOG_LENGTH_BOUNDS = (np.log(1e-2), np.log(1e3))
 _LOG_NOISE_BOUNDS = (np.log(1e-4), np.log(1e1))
-_JITTER_STEPS = (1e-10, 1e-8, 1e-6, 1e-4)
+_JITTER_STEPS = _likelihood._JITTER_STEPS
+# Random restarts are chosen as the best of this many screened candidates each.
+_SCREEN_PER_START = 8
 
 
 class GPNumericalError(np.linalg.LinAlgError):
@@ -86,16 +88,6 @@ class GPHyperparameters:
             noise_std=self.noise_std[index],
             mean=self.mean[index],
         )
-
-
-def _inverse_from_cholesky(chol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(K^-1, L^-1) from lower Cholesky factors L (k, n, n).
-
-    NumPy only: alternating NumPy's and SciPy's OpenBLAS in this hot loop makes their thread
-    pools contend (measured 4x slower on 2 cores).
-    """
-    chol_inv = np.linalg.inv(chol)
-    return np.matmul(chol_inv.transpose(0, 2, 1), chol_inv), chol_inv
 
 
 def _as_2d_float(name: str, value, ndim_hint: str) -> np.ndarray:
@@ -300,110 +292,57 @@ class BatchedGPRegressor:
         return log_sf, log_l, log_sn
 
     # ------------------------------------------------------------------ likelihood core
-    def _covariance(self, theta, sq_diff, mask):
-        """K (noise-free, masked) and the full K + noise for each row of theta.
+    def _design(self, x_s, y_s, mask, groups=None):
+        """The replicate-collapsed training set (scaled x (n, d), y and mask (n, B))."""
+        groups = self._groups_for(x_s.shape[0]) if groups is None else groups
+        return _likelihood.collapse_replicates(x_s, y_s.T, mask.T, groups, self._n_groups)
 
-        sq_diff: (n, n, d) squared input differences (scaled); mask: (k, n).
-        """
-        log_sf, log_l, log_sn = self._split(theta)
-        inv_l2 = np.exp(-2.0 * log_l)  # (k, 1 or d)
-        n = sq_diff.shape[0]
-        if inv_l2.shape[1] == 1:
-            dist = sq_diff.sum(axis=-1)[None] * inv_l2[:, :, None]  # (k, n, n)
-        else:
-            dist = (inv_l2 @ sq_diff.reshape(n * n, -1).T).reshape(-1, n, n)
-        k_f = np.exp(2.0 * log_sf)[:, None, None] * np.exp(-0.5 * dist)
-        pair = mask[:, :, None] & mask[:, None, :]
-        k_f = np.where(pair, k_f, 0.0)
-        diag = np.where(mask, np.exp(2.0 * log_sn)[:, self._groups_for(mask.shape[1])], 1.0)
-        k_y = k_f.copy()
-        idx = np.arange(k_y.shape[-1])
-        k_y[:, idx, idx] += diag
-        return k_f, k_y, inv_l2
-
-    @staticmethod
-    def _cholesky(k_y, jitter_scale=None):
-        """Batched Cholesky; on failure escalate jitter per matrix. Returns (L, jitter)."""
-        jitter = np.zeros(k_y.shape[0])
-        try:
-            chol = np.linalg.cholesky(k_y)
-            if np.all(np.isfinite(chol)):
-                return chol, jitter
-        except np.linalg.LinAlgError:
-            pass
-        chol = np.empty_like(k_y)
-        n = k_y.shape[-1]
-
-        def factor(matrix):
-            try:
-                out = np.linalg.cholesky(matrix)
-            except np.linalg.LinAlgError:
-                return None
-            return out if np.all(np.isfinite(out)) else None
-
-        for b in range(k_y.shape[0]):
-            out = factor(k_y[b])
-            if out is not None:
-                chol[b] = out
-                continue
-            scale = float(np.mean(np.diag(k_y[b])))
-            for step in _JITTER_STEPS:
-                out = factor(k_y[b] + step * scale * np.eye(n)) if np.isfinite(scale) else None
-                if out is not None:
-                    chol[b], jitter[b] = out, step * scale
-                    break
-            else:
-                chol[b], jitter[b] = np.nan, np.inf
-        return chol, jitter
-
-    def _nll_and_grad(self, theta, y, mask, sq_diff, *, want_grad=True, allow_fail=True):
-        """Negative log marginal likelihood (Eq. 33, mean profiled) and its gradient.
-
-        theta: (k, p); y, mask: (k, n) scaled targets and observation masks.
-        """
-        k_f, k_y, inv_l2 = self._covariance(theta, sq_diff, mask)
-        chol, jitter = self._cholesky(k_y)
-        failed = ~np.isfinite(jitter)
+    def _evaluate(self, theta, design, *, want_grad=True, allow_fail=True, want_state=False):
+        nll, grad, state = _likelihood.evaluate(
+            theta,
+            design,
+            n_groups=self._n_groups,
+            constant_mean=self.mean == "constant",
+            want_grad=want_grad,
+            want_state=want_state,
+        )
+        failed = ~np.isfinite(nll)
         if np.any(failed) and not allow_fail:
             raise GPNumericalError(
                 f"covariance not positive definite for outputs {np.flatnonzero(failed).tolist()} "
                 f"even with jitter up to {_JITTER_STEPS[-1]:g} x mean diagonal"
             )
-        eye = np.eye(k_y.shape[-1])
-        chol_safe = np.where(failed[:, None, None], eye, chol)
-        k_inv, chol_inv = _inverse_from_cholesky(chol_safe)
-        ones = mask.astype(float)
-        if self.mean == "constant":
-            k_inv_1 = np.matmul(k_inv, ones[:, :, None])[:, :, 0]
-            m = np.sum(k_inv_1 * y, axis=1) / np.sum(k_inv_1 * ones, axis=1)
-        else:
-            m = np.zeros(theta.shape[0])
-        r = np.where(mask, y - m[:, None], 0.0)
-        alpha = np.matmul(k_inv, r[:, :, None])[:, :, 0]
-        n_obs = mask.sum(axis=1)
-        log_det_half = np.sum(np.log(np.diagonal(chol_safe, axis1=1, axis2=2)), axis=1)
-        nll = 0.5 * np.sum(r * alpha, axis=1) + log_det_half + 0.5 * n_obs * _LOG_2PI
-        nll = np.where(failed, np.inf, nll)
-        if not want_grad:
-            return nll, None, (chol_inv, k_inv, alpha, m, jitter)
-        # dNLL/dtheta_j = -1/2 tr((alpha alpha^T - K^-1) dK/dtheta_j)
-        w = alpha[:, :, None] * alpha[:, None, :] - k_inv
-        wk = (w * k_f).reshape(theta.shape[0], -1)
-        grad = np.empty_like(theta)
-        grad[:, 0] = -np.sum(wk, axis=1)  # dK/dlog sf = 2 K_f
-        flat_sq = sq_diff.reshape(wk.shape[1], -1)
-        if inv_l2.shape[1] == 1:
-            grad[:, 1] = -0.5 * (wk @ flat_sq.sum(axis=1)) * inv_l2[:, 0]
-        else:
-            grad[:, 1 : 1 + inv_l2.shape[1]] = -0.5 * (wk @ flat_sq) * inv_l2
-        g = self._n_groups
-        w_diag = np.where(mask, np.diagonal(w, axis1=1, axis2=2), 0.0)
-        for j in range(g):
-            noise_var = np.exp(2.0 * theta[:, theta.shape[1] - g + j])
-            in_group = self._groups_for(mask.shape[1]) == j
-            grad[:, theta.shape[1] - g + j] = -np.sum(w_diag[:, in_group], axis=1) * noise_var
-        grad = np.where(failed[:, None], 0.0, grad)
-        return nll, grad, (chol_inv, k_inv, alpha, m, jitter)
+        return nll, grad, state
+
+    def _nll_and_grad(self, theta, y, mask, sq_diff, *, want_grad=True, allow_fail=True):
+        """Negative log marginal likelihood (Eq. 33, mean profiled) and its gradient.
+
+        theta: (k, p); y, mask: (k, n) scaled targets and observation masks; sq_diff: (n, n, d)
+        squared scaled input differences. No replicate collapsing (see :meth:`_design`).
+        Returns (nll (k,), grad (k, p) or None, (chol_inv, alpha, mean, jitter)).
+        """
+        n = sq_diff.shape[0]
+        k = y.shape[0]
+        G = self._n_groups
+        design = _likelihood.Design(
+            x=np.zeros((n, 0)),
+            sq_flat=sq_diff.reshape(n * n, -1),
+            group=self._groups_for(n),
+            y=np.where(mask, y, 0.0),
+            obs=np.asarray(mask, bool),
+            count=np.ones((k, n)),
+            ss=np.zeros((k, G)),
+            extra=np.zeros((k, G)),
+            half_log_count=np.zeros(k),
+            index=np.arange(n),
+        )
+        nll, grad, state = self._evaluate(
+            theta, design, want_grad=want_grad, allow_fail=allow_fail, want_state=not want_grad
+        )
+        extra = None
+        if state is not None:
+            extra = (state["chol_inv"], state["alpha"], state["mean"], state["jitter"])
+        return nll, grad, extra
 
     # ------------------------------------------------------------------ fitting
     def _initial_thetas(self, n_out: int, n_features: int, rng: np.random.Generator):
@@ -421,6 +360,10 @@ class BatchedGPRegressor:
                 np.array([0.0, *[0.0] * n_len, *[np.log(0.1)] * self._n_groups]), (n_out, 1)
             )
             n_random = 2 if self.n_restarts is None else int(self.n_restarts)
+            if n_random > 0 and self.optimizer is not None:
+                return [base], self._candidates(
+                    n_out, n_features, rng, _SCREEN_PER_START * n_random
+                )
         starts = [base]
         for _ in range(n_random):
             draw = np.column_stack(
@@ -431,29 +374,52 @@ class BatchedGPRegressor:
                 ]
             )
             starts.append(np.clip(draw, lower, upper))
-        return starts
+        return starts, None
 
-    def _optimize(self, x_s, y_s, mask, theta_starts):
+    def _candidates(self, n_out, n_features, rng, n_cand):
+        """(n_cand, n_out, p) Latin-hypercube starting points in a wide box (scaled space)."""
+        from scipy.stats import qmc
+
+        n_len = self._n_length(n_features)
+        lo = np.array([np.log(0.1), *[np.log(0.03)] * n_len, *[np.log(1e-3)] * self._n_groups])
+        hi = np.array([np.log(10.0), *[np.log(30.0)] * n_len, *[np.log(1.0)] * self._n_groups])
+        sampler = qmc.LatinHypercube(d=lo.size, seed=rng)
+        u = sampler.random(n_cand * n_out).reshape(n_cand, n_out, lo.size)
+        return lo + u * (hi - lo)
+
+    def _screen(self, design, candidates, n_keep):
+        """The ``n_keep`` candidates of highest likelihood, per output (value-only evaluations).
+
+        Screening many cheap points and starting BFGS from the best few finds the global mode of
+        multimodal likelihoods (short vs long length scale) more often than as many random starts.
+        """
+        n_cand, n_out, p = candidates.shape
+        flat = candidates.reshape(n_cand * n_out, p)
+        owner = np.tile(np.arange(n_out), n_cand)
+        nll, _, _ = self._evaluate(flat, design.take(owner), want_grad=False)
+        nll = np.where(np.isfinite(nll), nll, np.inf).reshape(n_cand, n_out)
+        order = np.argsort(nll, axis=0, kind="stable")[:n_keep]  # (n_keep, n_out)
+        return [candidates[order[j], np.arange(n_out)] for j in range(n_keep)]
+
+    def _optimize(self, x_s, y_s, mask, theta_starts, candidates=None):
         n_out, n_features = y_s.shape[1], x_s.shape[1]
-        sq_diff = (x_s[:, None, :] - x_s[None, :, :]) ** 2
-        y_t, mask_t = y_s.T, mask.T
+        design = self._design(x_s, y_s, mask)
+        if candidates is not None:
+            n_keep = candidates.shape[0] // _SCREEN_PER_START
+            theta_starts = [*theta_starts, *self._screen(design, candidates, n_keep)]
         n_starts = len(theta_starts)
         theta0 = np.concatenate(theta_starts, axis=0)
         owner = np.tile(np.arange(n_out), n_starts)
         lower, upper = self._bounds(n_features)
         if self.optimizer is None:
             theta_opt = theta0
-            nll, _, _ = self._nll_and_grad(
-                theta0, y_t[owner], mask_t[owner], sq_diff, want_grad=False
-            )
+            nll, _, _ = self._evaluate(theta0, design.take(owner), want_grad=False)
             n_iter = np.zeros(theta0.shape[0], dtype=int)
             converged = np.ones(theta0.shape[0], dtype=bool)
         elif self.optimizer == "bfgs":
 
             def fun(theta, index):
-                nll, grad, _ = self._nll_and_grad(
-                    theta, y_t[owner[index]], mask_t[owner[index]], sq_diff
-                )
+                nll, grad, _ = self._evaluate(theta, design.take(owner[index]))
                 return nll, grad
 
             res = batched_bfgs(
@@ -466,10 +432,10 @@ class BatchedGPRegressor:
             n_iter = np.zeros(theta0.shape[0], dtype=int)
             converged = np.zeros(theta0.shape[0], dtype=bool)
             for row in range(theta0.shape[0]):
-                yb, mb = y_t[owner[row]][None], mask_t[owner[row]][None]
+                one = design.take(owner[row : row + 1])
 
-                def fun1(t, yb=yb, mb=mb):
-                    val, grad, _ = self._nll_and_grad(t[None], yb, mb, sq_diff)
+                def fun1(t, one=one):
+                    val, grad, _ = self._evaluate(t[None], one)
                     return (val[0], grad[0]) if np.isfinite(val[0]) else (1e300, np.zeros_like(t))
 
                 out = optimize.minimize(
@@ -522,6 +488,10 @@ class BatchedGPRegressor:
         mask
             Optional boolean array like ``Y``: ``True`` where the target is observed.
         """
+        with single_blas_thread():
+            return self._fit(X, Y, mask, groups)
+
+    def _fit(self, X, Y, mask, groups) -> BatchedGPRegressor:
         self._check_params()
         X, Y, mask, squeeze = self._check_xy(X, Y, mask)
         if int(self.n_noise_groups) < 1:
@@ -529,9 +499,9 @@ class BatchedGPRegressor:
         self._active_groups = self._set_groups(groups, X.shape[0])
         self._fit_scalers(X, Y, mask)
         rng = np.random.default_rng(self.rng)
-        starts = self._initial_thetas(Y.shape[1], X.shape[1], rng)
+        starts, candidates = self._initial_thetas(Y.shape[1], X.shape[1], rng)
         x_s, y_s = self._scale_x(X), self._scale_y(Y, mask)
-        self._theta = self._optimize(x_s, y_s, mask, starts)
+        self._theta = self._optimize(x_s, y_s, mask, starts, candidates)
         self._squeeze = squeeze
         self._set_training_data(X, Y, mask)
         return self
@@ -539,9 +509,15 @@ class BatchedGPRegressor:
     def _set_training_data(self, X, Y, mask):
         self.X_train_, self.Y_train_, self.mask_ = X, np.where(mask, Y, np.nan), mask
         x_s, y_s = self._scale_x(X), self._scale_y(Y, mask)
-        sq_diff = (x_s[:, None, :] - x_s[None, :, :]) ** 2
-        nll, _, (chol_inv, _, alpha, m, jitter) = self._nll_and_grad(
-            self._theta, y_s.T, mask.T, sq_diff, want_grad=False, allow_fail=False
+        design = self._design(x_s, y_s, mask)
+        nll, _, state = self._evaluate(
+            self._theta, design, want_grad=False, allow_fail=False, want_state=True
+        )
+        chol_inv, alpha, m, jitter = (
+            state["chol_inv"],
+            state["alpha"],
+            state["mean"],
+            state["jitter"],
         )
         if np.any(jitter > 0):
             warnings.warn(
@@ -553,7 +529,9 @@ class BatchedGPRegressor:
         self.jitter_ = jitter
         # Predictive variance as sf^2 - |L^-1 k*|^2 (as scikit-learn): less cancellation than
         # k*^T K^-1 k* when the posterior variance is small.
-        self._x_s, self._chol_inv, self._alpha, self._m_s = x_s, chol_inv, alpha, m
+        # The posterior given replicates equals that given their means: keep the unique inputs.
+        self._x_s, self._chol_inv, self._alpha, self._m_s = design.x, chol_inv, alpha, m
+        self._obs_u = design.obs  # (B, u) outputs observed at each unique input
         log_sf, log_l, log_sn = self._split(self._theta)
         self._sf2 = np.exp(2.0 * log_sf)
         self._inv_l2 = np.broadcast_to(
@@ -587,6 +565,10 @@ class BatchedGPRegressor:
         so that the warm start stays meaningful. ``groups`` assigns the new samples to noise
         groups (needed when ``n_noise_groups > 1``).
         """
+        with single_blas_thread():
+            return self._add_observations(X_new, Y_new, mask, reoptimize, groups)
+
+    def _add_observations(self, X_new, Y_new, mask, reoptimize, groups):
         self._require_fitted()
         X_new, Y_new, mask_new, _ = self._check_xy(X_new, Y_new, mask, min_observed=0)
         if X_new.shape[1] != self.n_features_in_ or Y_new.shape[1] != self.n_outputs_:
@@ -633,6 +615,10 @@ class BatchedGPRegressor:
         mean : ndarray (n_query, n_outputs) — or (n_query,) if fitted on a 1-D ``Y``
         std : ndarray, same shape, if ``return_std``
         """
+        with single_blas_thread():
+            return self._predict(X, return_std, include_noise)
+
+    def _predict(self, X, return_std, include_noise):
         self._require_fitted()
         Xq = _as_2d_float("X", X, "(n_query, n_features)")
         if Xq.shape[1] != self.n_features_in_:
@@ -645,7 +631,7 @@ class BatchedGPRegressor:
         sq = (xq[:, None, :] - self._x_s[None, :, :]) ** 2  # (m, n, d)
         m_q, n_tr = sq.shape[:2]
         dist = (self._inv_l2 @ sq.reshape(m_q * n_tr, -1).T).reshape(-1, m_q, n_tr)
-        k_star = self._sf2[:, None, None] * np.exp(-0.5 * dist) * self.mask_.T[:, None, :]
+        k_star = self._sf2[:, None, None] * np.exp(-0.5 * dist) * self._obs_u[:, None, :]
         mean_s = self._m_s[:, None] + np.matmul(k_star, self._alpha[:, :, None])[:, :, 0]
         mean = (mean_s * self._y_scale[:, None] + self._y_loc[:, None]).T
         if not return_std:
@@ -671,15 +657,11 @@ class BatchedGPRegressor:
             raise ValueError(f"x must have shape ({self.n_features_in_},), got {xs.shape}")
         d2 = (self._x_s - xs) ** 2  # (n, d)
         k = self._sf2[:, None] * np.exp(-0.5 * (self._inv_l2 @ d2.T))  # (B, n)
-        k *= self._mask_t
+        k *= self._obs_u
         mean = (self._m_s + np.einsum("bn,bn->b", k, self._alpha)) * self._y_scale + self._y_loc
         v = np.matmul(self._chol_inv, k[:, :, None])[:, :, 0]
         var = self._sf2 - np.sum(v * v, axis=1)
         return mean, np.sqrt(np.maximum(var, 0.0)) * self._y_scale
-
-    @property
-    def _mask_t(self):
-        return self.mask_.T
 
     def log_marginal_likelihood(
         self, hyperparameters: GPHyperparameters | None = None
@@ -692,17 +674,16 @@ class BatchedGPRegressor:
         if hyperparameters is None:
             return self.log_marginal_likelihood_value_.copy()
         theta = self._theta_from_hyperparameters(hyperparameters, self.n_features_in_, clip=False)
-        x_s = self._x_s
+        x_s = self._scale_x(self.X_train_)
         mask = self.mask_
         y = np.where(mask, self.Y_train_, 0.0) - np.asarray(hyperparameters.mean, float)
         y_s = np.where(mask, y / self._y_scale, 0.0)
-        sq_diff = (x_s[:, None, :] - x_s[None, :, :]) ** 2
+        design = self._design(x_s, y_s, mask)
         saved = self.mean
         try:
             self.mean = "zero"
-            nll, _, _ = self._nll_and_grad(
-                theta, y_s.T, mask.T, sq_diff, want_grad=False, allow_fail=False
-            )
+            with single_blas_thread():
+                nll, _, _ = self._evaluate(theta, design, want_grad=False, allow_fail=False)
         finally:
             self.mean = saved
         return -nll - mask.sum(axis=0) * np.log(self._y_scale)
