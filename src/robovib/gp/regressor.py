@@ -49,6 +49,9 @@ _LOG_NOISE_BOUNDS = (np.log(1e-4), np.log(1e1))
 _JITTER_STEPS = _likelihood._JITTER_STEPS
 # Random restarts are chosen as the best of this many screened candidates each.
 _SCREEN_PER_START = 8
+# Relative function-change stop of the optimiser: that of SciPy's L-BFGS-B (factr=1e7), which
+# scikit-learn uses.
+_FTOL = 1e7 * np.finfo(float).eps
 
 
 class GPNumericalError(np.linalg.LinAlgError):
@@ -361,9 +364,9 @@ class BatchedGPRegressor:
             )
             n_random = 2 if self.n_restarts is None else int(self.n_restarts)
             if n_random > 0 and self.optimizer is not None:
-                return [base], self._candidates(
-                    n_out, n_features, rng, _SCREEN_PER_START * n_random
-                )
+                # The default start plus n_random starts chosen by screening candidates.
+                n_cand = _SCREEN_PER_START * n_random
+                return [base], self._candidates(n_out, n_features, rng, n_cand)
         starts = [base]
         for _ in range(n_random):
             draw = np.column_stack(
@@ -378,13 +381,14 @@ class BatchedGPRegressor:
 
     def _candidates(self, n_out, n_features, rng, n_cand):
         """(n_cand, n_out, p) Latin-hypercube starting points in a wide box (scaled space)."""
-        from scipy.stats import qmc
-
         n_len = self._n_length(n_features)
         lo = np.array([np.log(0.1), *[np.log(0.03)] * n_len, *[np.log(1e-3)] * self._n_groups])
         hi = np.array([np.log(10.0), *[np.log(30.0)] * n_len, *[np.log(1.0)] * self._n_groups])
-        sampler = qmc.LatinHypercube(d=lo.size, seed=rng)
-        u = sampler.random(n_cand * n_out).reshape(n_cand, n_out, lo.size)
+        # Latin hypercube per output: one point in each of n_cand strata of every parameter.
+        strata = rng.permuted(
+            np.broadcast_to(np.arange(n_cand)[:, None, None], (n_cand, n_out, lo.size)), axis=0
+        )
+        u = (strata + rng.uniform(size=strata.shape)) / n_cand
         return lo + u * (hi - lo)
 
     def _screen(self, design, candidates, n_keep):
@@ -398,8 +402,16 @@ class BatchedGPRegressor:
         owner = np.tile(np.arange(n_out), n_cand)
         nll, _, _ = self._evaluate(flat, design.take(owner), want_grad=False)
         nll = np.where(np.isfinite(nll), nll, np.inf).reshape(n_cand, n_out)
-        order = np.argsort(nll, axis=0, kind="stable")[:n_keep]  # (n_keep, n_out)
-        return [candidates[order[j], np.arange(n_out)] for j in range(n_keep)]
+        # Keep the best candidate of each of n_keep strata of the (mean log) length scale, so
+        # that short- and long-length-scale modes are both explored.
+        log_l = candidates[:, :, 1 : -self._n_groups].mean(axis=2)  # (n_cand, n_out)
+        rank = np.argsort(np.argsort(log_l, axis=0, kind="stable"), axis=0, kind="stable")
+        stratum = rank * n_keep // n_cand
+        cols = np.arange(n_out)
+        return [
+            candidates[np.argmin(np.where(stratum == j, nll, np.inf), axis=0), cols]
+            for j in range(n_keep)
+        ]
 
     def _optimize(self, x_s, y_s, mask, theta_starts, candidates=None):
         n_out, n_features = y_s.shape[1], x_s.shape[1]
@@ -423,7 +435,13 @@ class BatchedGPRegressor:
                 return nll, grad
 
             res = batched_bfgs(
-                fun, theta0, lower=lower, upper=upper, max_iter=self.max_iter, gtol=self.gtol
+                fun,
+                theta0,
+                lower=lower,
+                upper=upper,
+                max_iter=self.max_iter,
+                gtol=self.gtol,
+                ftol=_FTOL,
             )
             theta_opt, nll, n_iter, converged = res.x, res.fun, res.n_iter, res.converged
         else:
@@ -532,6 +550,9 @@ class BatchedGPRegressor:
         # The posterior given replicates equals that given their means: keep the unique inputs.
         self._x_s, self._chol_inv, self._alpha, self._m_s = design.x, chol_inv, alpha, m
         self._obs_u = design.obs  # (B, u) outputs observed at each unique input
+        # Unobserved entries are decoupled (unit diagonal) and alpha is zero there; zeroing the
+        # columns of L^-1 makes k* of those entries drop out without a mask at prediction time.
+        self._chol_inv *= design.obs[:, None, :]
         log_sf, log_l, log_sn = self._split(self._theta)
         self._sf2 = np.exp(2.0 * log_sf)
         self._inv_l2 = np.broadcast_to(
@@ -631,7 +652,7 @@ class BatchedGPRegressor:
         sq = (xq[:, None, :] - self._x_s[None, :, :]) ** 2  # (m, n, d)
         m_q, n_tr = sq.shape[:2]
         dist = (self._inv_l2 @ sq.reshape(m_q * n_tr, -1).T).reshape(-1, m_q, n_tr)
-        k_star = self._sf2[:, None, None] * np.exp(-0.5 * dist) * self._obs_u[:, None, :]
+        k_star = self._sf2[:, None, None] * np.exp(-0.5 * dist)
         mean_s = self._m_s[:, None] + np.matmul(k_star, self._alpha[:, :, None])[:, :, 0]
         mean = (mean_s * self._y_scale[:, None] + self._y_loc[:, None]).T
         if not return_std:
@@ -657,7 +678,6 @@ class BatchedGPRegressor:
             raise ValueError(f"x must have shape ({self.n_features_in_},), got {xs.shape}")
         d2 = (self._x_s - xs) ** 2  # (n, d)
         k = self._sf2[:, None] * np.exp(-0.5 * (self._inv_l2 @ d2.T))  # (B, n)
-        k *= self._obs_u
         mean = (self._m_s + np.einsum("bn,bn->b", k, self._alpha)) * self._y_scale + self._y_loc
         v = np.matmul(self._chol_inv, k[:, :, None])[:, :, 0]
         var = self._sf2 - np.sum(v * v, axis=1)
