@@ -57,6 +57,11 @@ class Design:
     extra: np.ndarray
     half_log_count: np.ndarray
     index: np.ndarray
+    sq_sum: np.ndarray | None = None  #: (u*u,) summed over inputs (isotropic kernel)
+
+    def __post_init__(self):
+        if self.sq_sum is None:
+            self.sq_sum = self.sq_flat.sum(axis=1)
 
     @property
     def n_unique(self) -> int:
@@ -79,6 +84,7 @@ class Design:
             self.extra[rows],
             self.half_log_count[rows],
             self.index,
+            self.sq_sum,
         )
 
 
@@ -148,10 +154,19 @@ def collapse_replicates(
     )
 
 
-def _factor_and_invert(buf: np.ndarray, logdet_half: np.ndarray, jitter: np.ndarray) -> None:
-    """In place: buf[b] (symmetric PD) -> K^-1 (full), log|K|/2 and jitter per matrix.
+def _factor_and_invert(
+    buf: np.ndarray,
+    logdet_half: np.ndarray,
+    jitter: np.ndarray,
+    rhs: np.ndarray | None = None,
+    full: bool = True,
+) -> None:
+    """In place: buf[b] (symmetric PD) -> K^-1, log|K|/2 and jitter per matrix.
 
-    A matrix that stays indefinite after jitter escalation gets ``jitter = inf``.
+    ``rhs`` (k, n, r), if given, is overwritten by ``K^-1 rhs`` (from the factor, before the
+    inverse). With ``full=False`` only the upper triangle (C order) of ``K^-1`` is written; the
+    strict lower triangle keeps ``K``. A matrix that stays indefinite after jitter escalation gets
+    ``jitter = inf`` (and an identity in ``buf``).
     """
     n = buf.shape[-1]
     diag = np.diagonal(buf, axis1=1, axis2=2).copy()  # potrf overwrites it on failure
@@ -165,10 +180,13 @@ def _factor_and_invert(buf: np.ndarray, logdet_half: np.ndarray, jitter: np.ndar
                 buf[b] = np.eye(n)
                 continue
         logdet_half[b] = np.sum(np.log(np.diagonal(c)))
-        _, info = lapack.dpotri(c, lower=1, overwrite_c=1)
-    # In C order the valid triangle is the upper one; mirror it.
-    iu, ju = np.triu_indices(n, 1)
-    buf[:, ju, iu] = buf[:, iu, ju]
+        if rhs is not None:
+            rhs[b], _ = lapack.dpotrs(c, rhs[b], lower=1)
+        lapack.dpotri(c, lower=1, overwrite_c=1)
+    if full:
+        # In C order the valid triangle is the upper one; mirror it.
+        iu, ju = np.triu_indices(n, 1)
+        buf[:, ju, iu] = buf[:, iu, ju]
 
 
 def _factor_and_solve(buf, rhs, logdet_half, jitter) -> None:
@@ -183,6 +201,19 @@ def _factor_and_solve(buf, rhs, logdet_half, jitter) -> None:
                 continue
         logdet_half[b] = np.sum(np.log(np.diagonal(c)))
         rhs[b], _ = lapack.dpotrs(c, rhs[b], lower=1)
+
+
+_TRIANGLE_WEIGHTS: dict[int, np.ndarray] = {}
+
+
+def _triangle_weights(n: int) -> np.ndarray:
+    w = _TRIANGLE_WEIGHTS.get(n)
+    if w is None:
+        w = np.triu(np.full((n, n), 2.0), 1) + np.eye(n)
+        if len(_TRIANGLE_WEIGHTS) > 16:
+            _TRIANGLE_WEIGHTS.clear()
+        _TRIANGLE_WEIGHTS[n] = w
+    return w
 
 
 def _jittered(buf, b, diag):
@@ -253,7 +284,7 @@ def evaluate(
         inv_l2 = np.exp(-2.0 * log_l)  # (c, 1 or d)
         kf = kf_buf[:c]
         if inv_l2.shape[1] == 1:
-            np.multiply(design.sq_flat.sum(axis=1)[None, :], inv_l2, out=kf)
+            np.multiply(design.sq_sum[None, :], inv_l2, out=kf)
         else:
             np.matmul(inv_l2, design.sq_flat.T, out=kf)
         kf *= -0.5
@@ -271,15 +302,14 @@ def evaluate(
         logdet_half = np.empty(c)
         jitter = np.zeros(c)
         ones = obs.astype(float)
-        if want_grad or want_state:
-            _factor_and_invert(kinv, logdet_half, jitter)
-            kinv_1 = np.matmul(kinv, ones[:, :, None])[:, :, 0]
-            kinv_y = np.matmul(kinv, y[:, :, None])[:, :, 0]
+        rhs = np.stack([ones, y], axis=2)  # (c, n, 2) -> K^-1 [1, y]
+        if want_grad:
+            # Upper triangle of K^-1 only: the traces below weight it (2 off-diagonal, 1 diagonal).
+            _factor_and_invert(kinv, logdet_half, jitter, rhs, full=False)
         else:
-            # Value only (screening, line-search probes): two triangular solves, no inverse.
-            rhs = np.stack([ones, y], axis=2)  # (c, n, 2)
+            # Value only (screening, state): two triangular solves, no inverse.
             _factor_and_solve(kinv, rhs, logdet_half, jitter)
-            kinv_1, kinv_y = rhs[:, :, 0], rhs[:, :, 1]
+        kinv_1, kinv_y = rhs[:, :, 0], rhs[:, :, 1]
         failed = ~np.isfinite(logdet_half)
         if constant_mean:
             m = np.sum(kinv_1 * y, axis=1) / np.sum(kinv_1 * ones, axis=1)
@@ -310,12 +340,15 @@ def evaluate(
         # dNLL/dtheta_j = 1/2 tr((K^-1 - alpha alpha^T) dK/dtheta_j)   (kinv becomes that - aa^T)
         kinv -= alpha[:, :, None] * alpha[:, None, :]
         kinv_diag = np.diagonal(kinv, axis1=1, axis2=2).copy()
-        kinv *= kf3  # elementwise with the noise-free kernel
+        # Elementwise with the noise-free kernel; both symmetric, so sum the upper triangle with
+        # weight 2 off the diagonal (the strict lower triangle of kinv is not K^-1: weight 0).
+        kf3 *= _triangle_weights(n)
+        kinv *= kf3
         wk = kinv.reshape(c, n * n)
         g = grad[sl]
         g[:, 0] = np.sum(wk, axis=1)  # dK/dlog sf = 2 K_f
         if inv_l2.shape[1] == 1:
-            g[:, 1] = 0.5 * (wk @ design.sq_flat.sum(axis=1)) * inv_l2[:, 0]
+            g[:, 1] = 0.5 * (wk @ design.sq_sum) * inv_l2[:, 0]
         else:
             g[:, 1 : 1 + inv_l2.shape[1]] = 0.5 * (wk @ design.sq_flat) * inv_l2
         w_noise = np.where(obs, kinv_diag / count, 0.0)
