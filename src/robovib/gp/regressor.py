@@ -48,7 +48,7 @@ _LOG_LENGTH_BOUNDS = (np.log(1e-2), np.log(1e3))
 _LOG_NOISE_BOUNDS = (np.log(1e-4), np.log(1e1))
 _JITTER_STEPS = _likelihood._JITTER_STEPS
 # Random restarts are chosen as the best of this many screened candidates each.
-_SCREEN_PER_START = 8
+_SCREEN_PER_START = 4
 # Relative function-change stop of the optimiser: that of SciPy's L-BFGS-B (factr=1e7), which
 # scikit-learn uses.
 _FTOL = 1e7 * np.finfo(float).eps
@@ -91,6 +91,14 @@ class GPHyperparameters:
             noise_std=self.noise_std[index],
             mean=self.mean[index],
         )
+
+
+def _vecdot_einsum(a, b):
+    return np.einsum("...i,...i->...", a, b)
+
+
+#: Row-wise dot product (NumPy >= 2 has a ufunc for it).
+_vecdot = getattr(np, "vecdot", _vecdot_einsum)
 
 
 def _as_2d_float(name: str, value, ndim_hint: str) -> np.ndarray:
@@ -402,10 +410,15 @@ class BatchedGPRegressor:
         owner = np.tile(np.arange(n_out), n_cand)
         nll, _, _ = self._evaluate(flat, design.take(owner), want_grad=False)
         nll = np.where(np.isfinite(nll), nll, np.inf).reshape(n_cand, n_out)
-        # Keep the best candidate of each of n_keep strata of the (mean log) length scale, so
-        # that short- and long-length-scale modes are both explored.
-        log_l = candidates[:, :, 1 : -self._n_groups].mean(axis=2)  # (n_cand, n_out)
-        rank = np.argsort(np.argsort(log_l, axis=0, kind="stable"), axis=0, kind="stable")
+        # Keep the best candidate of each of n_keep strata of log(length scale x noise / signal):
+        # the two usual modes (short length scale and little noise: "interpolating"; long length
+        # scale and more noise: "smoothing") lie at either end, so both get a start.
+        coord = (
+            candidates[:, :, 1 : -self._n_groups].mean(axis=2)
+            + candidates[:, :, -self._n_groups :].mean(axis=2)
+            - candidates[:, :, 0]
+        )
+        rank = np.argsort(np.argsort(coord, axis=0, kind="stable"), axis=0, kind="stable")
         stratum = rank * n_keep // n_cand
         cols = np.arange(n_out)
         return [
@@ -442,6 +455,7 @@ class BatchedGPRegressor:
                 max_iter=self.max_iter,
                 gtol=self.gtol,
                 ftol=_FTOL,
+                same_problem=owner,
             )
             theta_opt, nll, n_iter, converged = res.x, res.fun, res.n_iter, res.converged
         else:
@@ -558,6 +572,12 @@ class BatchedGPRegressor:
         self._inv_l2 = np.broadcast_to(
             np.exp(-2.0 * log_l), (self._theta.shape[0], x_s.shape[1])
         ).copy()
+        # predict_one's precomputed arrays (data units; see there).
+        self._p1_x = design.x * self._x_scale + self._x_loc
+        self._p1_neg_half_inv_l2 = -0.5 * self._inv_l2 / self._x_scale**2
+        self._p1_log_k0 = (np.log(self._sf2) + np.log(self._y_scale))[:, None]
+        self._p1_offset = m * self._y_scale + self._y_loc
+        self._p1_var0 = self._sf2 * self._y_scale**2
         # Eq. 33 in data units: the Jacobian of the target scaling shifts the log density.
         self.log_marginal_likelihood_value_ = -nll - mask.sum(axis=0) * np.log(self._y_scale)
         n_features = X.shape[1]
@@ -673,15 +693,17 @@ class BatchedGPRegressor:
         ``x`` is a single input of shape (n_features,); returns two (n_outputs,) arrays. No
         input validation beyond the shape, to stay well under 100 µs for hundreds of outputs.
         """
-        xs = (np.asarray(x, dtype=float) - self._x_loc) / self._x_scale
-        if xs.shape != (self.n_features_in_,):
-            raise ValueError(f"x must have shape ({self.n_features_in_},), got {xs.shape}")
-        d2 = (self._x_s - xs) ** 2  # (n, d)
-        k = self._sf2[:, None] * np.exp(-0.5 * (self._inv_l2 @ d2.T))  # (B, n)
-        mean = (self._m_s + np.einsum("bn,bn->b", k, self._alpha)) * self._y_scale + self._y_loc
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.n_features_in_,):
+            raise ValueError(f"x must have shape ({self.n_features_in_},), got {x.shape}")
+        # Scalings folded into precomputed arrays (_set_training_data): the kernel row is in
+        # data units times y_scale, so mean and variance come out in data units.
+        d2 = (self._p1_x - x) ** 2  # (n, d)
+        k = np.exp(self._p1_neg_half_inv_l2 @ d2.T + self._p1_log_k0)  # (B, n)
+        mean = self._p1_offset + _vecdot(k, self._alpha)
         v = np.matmul(self._chol_inv, k[:, :, None])[:, :, 0]
-        var = self._sf2 - np.sum(v * v, axis=1)
-        return mean, np.sqrt(np.maximum(var, 0.0)) * self._y_scale
+        var = self._p1_var0 - _vecdot(v, v)
+        return mean, np.sqrt(np.maximum(var, 0.0, out=var), out=var)
 
     def log_marginal_likelihood(
         self, hyperparameters: GPHyperparameters | None = None
