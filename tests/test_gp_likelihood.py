@@ -117,12 +117,28 @@ def test_chunked_evaluation_equals_one_chunk(monkeypatch):
     design = lik.collapse_replicates(x, y, mask, group, 2)
     theta = rng.normal(scale=0.3, size=(7, 5)) - np.array([0, 0, 0, 1.5, 1.5])
     rows = np.arange(7) % 3
-    ref = lik.evaluate(theta, design.take(rows), n_groups=2, constant_mean=True, want_state=True)
+    kw = {"n_groups": 2, "constant_mean": True}
+    ref = lik.evaluate(theta, design.take(rows), **kw)
+    ref_state = lik.evaluate(theta, design.take(rows), want_grad=False, want_state=True, **kw)
     monkeypatch.setattr(lik, "WORK_BYTES", 1)  # one row per chunk
-    out = lik.evaluate(theta, design.take(rows), n_groups=2, constant_mean=True, want_state=True)
+    out = lik.evaluate(theta, design.take(rows), **kw)
+    out_state = lik.evaluate(theta, design.take(rows), want_grad=False, want_state=True, **kw)
     np.testing.assert_allclose(out[0], ref[0], rtol=1e-12)
     np.testing.assert_allclose(out[1], ref[1], rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(out[2]["chol_inv"], ref[2]["chol_inv"], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(out_state[0], ref[0], rtol=1e-12)
+    chol_inv = out_state[2]["chol_inv"]
+    np.testing.assert_allclose(chol_inv, ref_state[2]["chol_inv"], rtol=1e-10, atol=1e-12)
+    # L^-1 is the inverse of NumPy's Cholesky factor of K (independent reference), per row.
+    sq = design.sq_flat.reshape(design.n_unique, design.n_unique, -1)
+    for i, b in enumerate(rows):
+        obs = design.obs[b]
+        kf = np.exp(2 * theta[i, 0] - 0.5 * (sq * np.exp(-2 * theta[i, 1:3])).sum(-1))
+        k = np.where(np.outer(obs, obs), kf, 0.0) + np.diag(
+            np.where(obs, np.exp(2 * theta[i, 3:])[design.group] / design.count[b], 1.0)
+        )
+        np.testing.assert_allclose(
+            chol_inv[i], np.linalg.inv(np.linalg.cholesky(k)), rtol=1e-8, atol=1e-10
+        )
 
 
 @pytest.mark.parametrize(("n", "d", "seed"), [(20, 1, 0), (40, 3, 1), (60, 2, 2)])

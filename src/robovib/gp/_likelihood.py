@@ -189,8 +189,11 @@ def _factor_and_invert(
         buf[:, ju, iu] = buf[:, iu, ju]
 
 
-def _factor_and_solve(buf, rhs, logdet_half, jitter) -> None:
-    """In place: rhs[b] <- K_b^-1 rhs[b] via potrf + potrs (value only: no inverse needed)."""
+def _factor_and_solve(buf, rhs, logdet_half, jitter, chol_inv=None) -> None:
+    """In place: rhs[b] <- K_b^-1 rhs[b] via potrf + potrs (value only: no inverse needed).
+
+    With ``chol_inv`` (k, n, n), also write the inverse Cholesky factor L^-1 there (trtri).
+    """
     diag = np.diagonal(buf, axis1=1, axis2=2).copy()
     for b in range(buf.shape[0]):
         c, info = lapack.dpotrf(buf[b].T, lower=1, overwrite_a=1, clean=0)
@@ -198,9 +201,14 @@ def _factor_and_solve(buf, rhs, logdet_half, jitter) -> None:
             c, jitter[b] = _jittered(buf, b, diag[b])
             if c is None:
                 logdet_half[b] = np.inf
+                if chol_inv is not None:
+                    chol_inv[b] = np.eye(buf.shape[-1])
                 continue
         logdet_half[b] = np.sum(np.log(np.diagonal(c)))
         rhs[b], _ = lapack.dpotrs(c, rhs[b], lower=1)
+        if chol_inv is not None:
+            c, _ = lapack.dtrtri(c, lower=1, overwrite_c=1)
+            chol_inv[b] = np.tril(c)
 
 
 _TRIANGLE_WEIGHTS: dict[int, np.ndarray] = {}
@@ -264,13 +272,16 @@ def evaluate(
     grad = np.empty((k, p)) if want_grad else None
     state = None
     if want_state:
+        if want_grad:
+            raise ValueError("want_state needs want_grad=False")
         state = {
             "chol_inv": np.empty((k, n, n)),
             "alpha": np.empty((k, n)),
             "mean": np.empty(k),
             "jitter": np.empty(k),
         }
-    chunk = max(1, min(k, WORK_BYTES // (3 * 8 * n * n)))
+    # Work arrays: K_f and K^-1 buffers plus two n x n temporaries per row.
+    chunk = max(1, min(k, WORK_BYTES // (4 * 8 * n * n)))
     kf_buf = np.empty((chunk, n * n))
     inv_buf = np.empty((chunk, n, n))
     all_obs = bool(design.obs.all())
@@ -307,8 +318,9 @@ def evaluate(
             # Upper triangle of K^-1 only: the traces below weight it (2 off-diagonal, 1 diagonal).
             _factor_and_invert(kinv, logdet_half, jitter, rhs, full=False)
         else:
-            # Value only (screening, state): two triangular solves, no inverse.
-            _factor_and_solve(kinv, rhs, logdet_half, jitter)
+            # Value only (screening; and L^-1 for the fitted state): triangular solves.
+            out = state["chol_inv"][sl] if want_state else None
+            _factor_and_solve(kinv, rhs, logdet_half, jitter, out)
         kinv_1, kinv_y = rhs[:, :, 0], rhs[:, :, 1]
         failed = ~np.isfinite(logdet_half)
         if constant_mean:
@@ -330,11 +342,6 @@ def evaluate(
             state["alpha"][sl] = alpha
             state["mean"][sl] = m
             state["jitter"][sl] = jitter
-            # L^-1 for the predictive variance (once per fit, not in the optimiser loop).
-            k_y = kf3.copy()
-            k_y[:, diag_idx, diag_idx] += diag + np.where(failed, 0.0, jitter)[:, None]
-            k_y[failed] = np.eye(n)
-            state["chol_inv"][sl] = np.linalg.inv(np.linalg.cholesky(k_y))
         if not want_grad:
             continue
         # dNLL/dtheta_j = 1/2 tr((K^-1 - alpha alpha^T) dK/dtheta_j)   (kinv becomes that - aa^T)
