@@ -25,6 +25,15 @@ optimised in that scaled space and reported in the data's units.
 Missing targets are supported through ``mask`` (``True`` = observed): a missing entry is
 decoupled from the others (unit diagonal, zero covariance, zero residual), which leaves the
 likelihood and the posterior of the observed entries exactly as if it were absent.
+
+Speed and memory (``robovib.gp._likelihood``, ``benchmarks/bench_gp.py``): replicated inputs
+(identical rows in one noise group, e.g. Table A1's 3 hammer tests per pose) are collapsed
+exactly to their means before anything else; ``K^-1`` for the gradient comes from LAPACK
+``potrf``/``potri`` in place; work arrays are chunked over outputs (a bounded working set, plus
+the fitted ``L^-1`` of 8 B x outputs x n_unique^2); random restarts start from the best of
+screened candidates and starts that meet in one basin are merged. ``fit``/``predict`` run with
+one BLAS thread (:func:`robovib._threads.single_blas_thread`): many small matrices gain
+nothing from BLAS threads and lose much on a shared machine.
 """
 
 from __future__ import annotations
