@@ -317,12 +317,16 @@ class BatchedGPRegressor:
         groups = self._groups_for(x_s.shape[0]) if groups is None else groups
         return _likelihood.collapse_replicates(x_s, y_s.T, mask.T, groups, self._n_groups)
 
-    def _evaluate(self, theta, design, *, want_grad=True, allow_fail=True, want_state=False):
+    def _evaluate(
+        self, theta, design, *, want_grad=True, allow_fail=True, want_state=False, mean=None
+    ):
+        """Eq. 33 on a design; ``mean``: "constant" (profiled) or "zero" (default: self.mean)."""
+        mean = self.mean if mean is None else mean
         nll, grad, state = _likelihood.evaluate(
             theta,
             design,
             n_groups=self._n_groups,
-            constant_mean=self.mean == "constant",
+            constant_mean=mean == "constant",
             want_grad=want_grad,
             want_state=want_state,
         )
@@ -730,11 +734,9 @@ class BatchedGPRegressor:
         y = np.where(mask, self.Y_train_, 0.0) - np.asarray(hyperparameters.mean, float)
         y_s = np.where(mask, y / self._y_scale, 0.0)
         design = self._design(x_s, y_s, mask)
-        saved = self.mean
-        try:
-            self.mean = "zero"
-            with single_blas_thread():
-                nll, _, _ = self._evaluate(theta, design, want_grad=False, allow_fail=False)
-        finally:
-            self.mean = saved
+        with single_blas_thread():
+            # The mean is given (subtracted above), not re-estimated.
+            nll, _, _ = self._evaluate(
+                theta, design, want_grad=False, allow_fail=False, mean="zero"
+            )
         return -nll - mask.sum(axis=0) * np.log(self._y_scale)
