@@ -172,3 +172,22 @@ def test_single_blas_thread_limits_and_restores():
     after = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
     assert inside and all(t == 1 for t in inside)
     assert after == before
+
+
+def test_fit_memory_is_bounded(monkeypatch):
+    """Peak memory of a fit: the work arrays (WORK_BYTES) plus L^-1 per output (8 B x B x n^2),
+    far below the ~190 B x B x n^2 of holding every intermediate for all outputs at once."""
+    import tracemalloc
+
+    monkeypatch.setattr(lik, "WORK_BYTES", 4 * 2**20)
+    rng = np.random.default_rng(14)
+    n, n_out = 120, 30
+    X = rng.uniform(-1, 1, (n, 3))
+    Y = np.sin(X @ rng.normal(size=(3, n_out))) + 0.05 * rng.normal(size=(n, n_out))
+    tracemalloc.start()
+    BatchedGPRegressor(kernel="ard", max_iter=2, rng=0).fit(X, Y)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    state = 8 * n_out * n**2
+    assert peak < 2 * 4 * 2**20 + 2 * state
+    assert peak < 190 * n_out * n**2 / 5
