@@ -16,7 +16,8 @@ hyperparameters) with the same number of random restarts, one BLAS thread each
 (threadpoolctl), in this process, one after the other. Printed per cell:
 
 * ``robovib s`` / ``sklearn s``: CPU seconds of the fit (``time.process_time``; with one thread
-  it is the wall time on an idle machine and far less noisy on a shared one). Where running all
+  it is the wall time on an idle machine and far less noisy on a shared one); fits under a
+  second are repeated, best of up to 5 per side. Where running all
   outputs would exceed ``--budget-s`` an evenly spaced subset is fitted and the time scaled
   linearly to all outputs (marked ``~``; the GPs are independent, so the scikit-learn loop is
   exactly linear; the batched fit is at most linear, so its extrapolation is pessimistic).
@@ -147,12 +148,25 @@ def run_cell(X, Y, mask, args, label):
     sk_idx_in_ours = _subset(ours_idx.size, math.floor(args.budget_s / sk_per))
     sk_idx = ours_idx[sk_idx_in_ours]
 
-    t0 = time.process_time()
-    ours = BatchedGPRegressor(**kw).fit(X, Y[:, ours_idx], mask=mask[:, ours_idx])
-    t_ours = (time.process_time() - t0) * n_out / ours_idx.size
-    t0 = time.process_time()
-    lml_sk = sklearn_loop(X, Y[:, sk_idx], mask[:, sk_idx], args.kernel, args.restarts, args.seed)
-    t_sk = (time.process_time() - t0) * n_out / sk_idx.size
+    def fit_ours():
+        return BatchedGPRegressor(**kw).fit(X, Y[:, ours_idx], mask=mask[:, ours_idx])
+
+    def fit_sk():
+        return sklearn_loop(X, Y[:, sk_idx], mask[:, sk_idx], args.kernel, args.restarts, args.seed)
+
+    # Short fits are repeated (best of up to 5, alternating sides) to tame timer noise.
+    t_ours = t_sk = np.inf
+    for _ in range(5):
+        t0 = time.process_time()
+        ours = fit_ours()
+        t_ours = min(t_ours, time.process_time() - t0)
+        t0 = time.process_time()
+        lml_sk = fit_sk()
+        t_sk = min(t_sk, time.process_time() - t0)
+        if t_ours + t_sk > 1.0:
+            break
+    t_ours *= n_out / ours_idx.size
+    t_sk *= n_out / sk_idx.size
     dlml = ours.log_marginal_likelihood_value_[sk_idx_in_ours] - lml_sk
 
     # Memory: the optimiser's working set (two iterations: buffers are the same every
