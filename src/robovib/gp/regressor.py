@@ -44,6 +44,8 @@ from typing import Literal
 
 import numpy as np
 from scipy import optimize
+from sklearn.base import BaseEstimator
+from sklearn.exceptions import NotFittedError
 
 from .._threads import single_blas_thread
 from . import _likelihood
@@ -119,7 +121,7 @@ def _as_2d_float(name: str, value, ndim_hint: str) -> np.ndarray:
     return arr
 
 
-class BatchedGPRegressor:
+class BatchedGPRegressor(BaseEstimator):
     """Independent exact GPs for every output column, fitted and evaluated in one batch.
 
     Parameters
@@ -149,6 +151,14 @@ class BatchedGPRegressor:
         hyperparameters are then (B, G) and ``noise_std`` has that shape.
     rng
         Seed or :class:`numpy.random.Generator` for the restarts.
+
+    Notes
+    -----
+    A scikit-learn estimator (:class:`sklearn.base.BaseEstimator`): the constructor stores its
+    arguments unchanged, so :func:`sklearn.base.clone`, ``get_params``/``set_params`` and the
+    repr work; using an unfitted model raises :class:`sklearn.exceptions.NotFittedError`.
+    Vocabulary shared by every robovib pose model: *noise groups* are given per sample as
+    ``groups`` (``n_noise_groups`` of them), and new data are added with :meth:`update`.
 
     Attributes
     ----------
@@ -187,6 +197,50 @@ class BatchedGPRegressor:
         self.initial_hyperparameters = initial_hyperparameters
         self.n_noise_groups = n_noise_groups
         self.rng = rng
+
+    def update(
+        self,
+        X_new,
+        Y_new,
+        mask=None,
+        groups=None,
+        *,
+        mode: Literal["posterior", "warm"] = "posterior",
+    ) -> BatchedGPRegressor:
+        """Bayesian update of a fitted model with new observations (thesis §5.2.4).
+
+        The one name for updating a robovib pose model (also :meth:`FRFPoseModel.update
+        <robovib.hybrid.FRFPoseModel.update>`).
+
+        Parameters
+        ----------
+        X_new
+            (m, n_features) new inputs.
+        Y_new
+            (m, n_outputs) new targets (or (m,) for a model fitted on a 1-D ``Y``).
+        mask
+            Optional boolean array like ``Y_new``: ``True`` where the target is observed.
+        groups
+            Optional (m,) int noise group of each new sample (needed when ``n_noise_groups > 1``).
+        mode
+            ``"posterior"``: keep the hyperparameters and recompute the posterior with the
+            enlarged data (Eq. 9-10); ``"warm"``: re-optimise the hyperparameters starting from
+            the current ones.
+
+        Returns
+        -------
+        self
+
+        Raises
+        ------
+        NotFittedError
+            If the model is not fitted.
+        ValueError
+            On an unknown ``mode`` or new data of the wrong shape.
+        """
+        if mode not in ("posterior", "warm"):
+            raise ValueError(f"unknown update mode {mode!r}; expected 'posterior' or 'warm'")
+        return self.add_observations(X_new, Y_new, mask, reoptimize=(mode == "warm"), groups=groups)
 
     # ------------------------------------------------------------------ validation
     def _check_params(self) -> None:
@@ -650,7 +704,7 @@ class BatchedGPRegressor:
     # ------------------------------------------------------------------ prediction
     def _require_fitted(self):
         if not hasattr(self, "_theta"):
-            raise RuntimeError("this BatchedGPRegressor is not fitted yet; call fit() first")
+            raise NotFittedError("this BatchedGPRegressor is not fitted yet; call fit() first")
 
     def predict(self, X, return_std: bool = False, include_noise: bool = False):
         """Posterior mean (Eq. 9) and, optionally, standard deviation (Eq. 10).
@@ -723,7 +777,23 @@ class BatchedGPRegressor:
     ) -> np.ndarray:
         """Eq. 33 for each output, in data units, at the fitted or the given hyperparameters.
 
-        With given hyperparameters the constant mean is taken from them (not re-estimated).
+        Parameters
+        ----------
+        hyperparameters
+            Hyperparameters in data units; their ``mean`` is the constant mean used (passed in,
+            not re-estimated). ``None``: the value at the fitted optimum.
+
+        Returns
+        -------
+        ndarray (n_outputs,)
+            log p(y | X, hyperparameters) of the observed targets of each output.
+
+        Raises
+        ------
+        NotFittedError
+            If the model is not fitted.
+        GPNumericalError
+            If a covariance matrix is not positive definite at the given hyperparameters.
         """
         self._require_fitted()
         if hyperparameters is None:

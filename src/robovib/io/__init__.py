@@ -3,6 +3,7 @@
 Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
+from .cuts import MeasuredCuts, read_cuts_csv
 from .frf_files import (
     read_frfs,
     read_frfs_hdf5,
@@ -32,9 +33,11 @@ from .units import apply_sensitivity, si_factor
 
 __all__ = [
     "HammerRecording",
+    "MeasuredCuts",
     "Sensitivity",
     "apply_sensitivity",
     "read_compliance_tests_csv",
+    "read_cuts_csv",
     "read_force_csv",
     "read_frfs",
     "read_frfs_hdf5",

@@ -15,6 +15,7 @@ from .experiments import (
     simulate_offset_mass,
 )
 from .plant import run_closed_loop
+from .regenerative import RegenerativeCut, simulate_regenerative_cut, simulated_stability_limit
 from .truth import (
     PATH_LENGTH_M,
     POSITION_1_S_M,
@@ -35,6 +36,7 @@ __all__ = [
     "ModeSet",
     "MotionRecord",
     "PathTruth",
+    "RegenerativeCut",
     "VirtualRobot",
     "WorkspaceTruth",
     "affine_scan",
@@ -45,5 +47,7 @@ __all__ = [
     "simulate_hammer_test",
     "simulate_milling",
     "simulate_offset_mass",
+    "simulate_regenerative_cut",
+    "simulated_stability_limit",
     "zoh_transition",
 ]
