@@ -22,6 +22,7 @@ __all__ = [
     "JsonFlag",
     "KernelOpt",
     "ModeSwitchOpt",
+    "ModelOpt",
     "OutOpt",
     "SeedOpt",
     "Table",
@@ -34,6 +35,7 @@ __all__ = [
     "new_app",
     "save_figure",
     "use_agg",
+    "workspace_model",
 ]
 
 JsonFlag = Annotated[
@@ -54,6 +56,26 @@ ModeSwitchOpt = Annotated[
     ),
 ]
 OutOpt = Annotated[Path, typer.Option("-o", "--output", help="File to write.")]
+ModelOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--model",
+        help="Your pose model (.h5 from 'robovib model fit', inputs x_mm,y_mm,rz_deg); "
+        "default: the thesis' chapter-3 model.",
+    ),
+]
+
+
+def workspace_model(path: Path | None, seed: int = 0):
+    """The pose model to predict with: the user's file or the shipped chapter-3 model."""
+    if path is None:
+        from ..gp import get_chapter3_model
+
+        return get_chapter3_model(rng=seed)
+    from ..campaign import load_pose_model
+
+    return load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg"))
+
 
 #: Library errors reported as one line ``error: ...`` with exit code 1.
 EXPECTED_ERRORS = (ValueError, OSError, RuntimeError, KeyError, ImportError)
@@ -71,7 +93,12 @@ class ErrorHandlingGroup(TyperGroup):
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
-        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+        except (
+            click.exceptions.ClickException,
+            click.exceptions.Exit,
+            click.exceptions.Abort,
+            typer.Exit,  # a RuntimeError subclass in recent Typer: --help must exit 0, not "error: 0"
+        ):
             raise
         except EXPECTED_ERRORS as exc:
             if _STATE["debug"]:

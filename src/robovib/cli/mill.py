@@ -10,6 +10,7 @@ import typer
 
 from ._common import (
     JsonFlag,
+    ModelOpt,
     SeedOpt,
     Table,
     console,
@@ -19,6 +20,7 @@ from ._common import (
     new_app,
     save_figure,
     use_agg,
+    workspace_model,
 )
 
 app = new_app("Milling vibration and chatter stability at a pose (thesis §3.5).")
@@ -59,10 +61,10 @@ def predict(
         int, typer.Option(help="Monte-Carlo draws of the GP prediction for the band.")
     ] = 50,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..gp import get_chapter3_model
     from ..io import read_force_csv
     from ..milling import CuttingConditions
     from ..milling.prediction import resample_force
@@ -71,7 +73,7 @@ def predict(
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
     f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
     res = predict_at_pose(
-        get_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
+        workspace_model(model_path, seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
@@ -205,6 +207,7 @@ def lobes(
     steps: StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Stability lobes (envelope) from explicit modes, a measured FRF or the pose model's modes."""
@@ -225,9 +228,7 @@ def lobes(
     if not parsed and frf is None:
         if x is None or y is None or rz is None:
             raise ValueError("give --x --y --rz (pose model), --mode ... or --frf FILE")
-        from ..gp import get_chapter3_model
-
-        model, pose = get_chapter3_model(rng=seed), (x, y, rz)
+        model, pose = workspace_model(model_path, seed), (x, y, rz)
         pose_label = f"X {x:g} mm, Y {y:g} mm, Rz {rz:g}°, feed {feed}"
     chart = lobes_chart(
         tool=tool, conditions=cond, coefficients=coef, spindle_rpm=parse_rpm_range(rpm_range),
@@ -307,12 +308,12 @@ def lobe_map(
     ] = None,
     plot: Annotated[Path | None, typer.Option(help="PNG map over X-Y at --rpm.")] = None,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Critical axial depth over the workspace × spindle speeds (Dask): where and how fast to mill."""
     from rich.progress import Progress
 
-    from ..gp import get_chapter3_model
     from ..milling.chart import parse_rpm_range
     from ..milling.maps import plot_lobe_map, save_lobe_map, workspace_lobe_map
 
@@ -320,7 +321,7 @@ def lobe_map(
                                 radial_immersion, milling)  # fmt: skip
     speeds = np.array([rpm]) if rpm_range is None else np.union1d(parse_rpm_range(rpm_range), [rpm])
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
-    model = get_chapter3_model(rng=seed)
+    model = workspace_model(model_path, seed)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task(f"{method.upper()} lobes over the workspace", total=None)
         ds = workspace_lobe_map(

@@ -3,6 +3,7 @@
 Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
+from .atomic import atomic_path
 from .cuts import MeasuredCuts, read_cuts_csv
 from .frf_files import (
     read_frfs,
@@ -12,12 +13,17 @@ from .frf_files import (
     write_frfs_hdf5,
     write_frfs_uff,
 )
+from .poses import read_pose_table
 from .recording import (
     HammerRecording,
+    ReadReport,
     Sensitivity,
     read_recording,
+    read_recording_channels,
     read_recording_csv,
     read_recording_uff,
+    sample_rate_from_time,
+    select_channel,
     write_recording_uff,
 )
 from .tables import (
@@ -29,13 +35,17 @@ from .tables import (
     write_recording,
     write_recording_csv,
 )
+from .uff58 import Record58, write_uff58
 from .units import apply_sensitivity, si_factor
 
 __all__ = [
     "HammerRecording",
     "MeasuredCuts",
+    "ReadReport",
+    "Record58",
     "Sensitivity",
     "apply_sensitivity",
+    "atomic_path",
     "read_compliance_tests_csv",
     "read_cuts_csv",
     "read_force_csv",
@@ -44,9 +54,13 @@ __all__ = [
     "read_frfs_uff",
     "read_milling_record_csv",
     "read_path_modes_csv",
+    "read_pose_table",
     "read_recording",
+    "read_recording_channels",
     "read_recording_csv",
     "read_recording_uff",
+    "sample_rate_from_time",
+    "select_channel",
     "si_factor",
     "write_frfs",
     "write_frfs_hdf5",
@@ -55,4 +69,5 @@ __all__ = [
     "write_recording",
     "write_recording_csv",
     "write_recording_uff",
+    "write_uff58",
 ]

@@ -4,6 +4,7 @@ See :mod:`robovib.sim.truth` for exactly how the ground truth is built (a plausi
 robot fitted to the thesis' data, not a claim about the real one).
 """
 
+from .campaign import LAYOUTS, SimulatedCampaign, simulate_campaign, truth_table
 from .dynamics import affine_scan, modal_response, zoh_transition
 from .experiments import (
     LinearMove,
@@ -14,7 +15,7 @@ from .experiments import (
     simulate_milling,
     simulate_offset_mass,
 )
-from .plant import run_closed_loop
+from .plant import PURE_DELAY, CommandChannel, ConstantModesRobot, run_closed_loop
 from .regenerative import RegenerativeCut, simulate_regenerative_cut, simulated_stability_limit
 from .truth import (
     PATH_LENGTH_M,
@@ -28,15 +29,20 @@ from .truth import (
 )
 
 __all__ = [
+    "LAYOUTS",
     "PATH_LENGTH_M",
     "POSITION_1_S_M",
     "POSITION_2_S_M",
+    "PURE_DELAY",
     "WORKSPACE_BOUNDS",
+    "CommandChannel",
+    "ConstantModesRobot",
     "LinearMove",
     "ModeSet",
     "MotionRecord",
     "PathTruth",
     "RegenerativeCut",
+    "SimulatedCampaign",
     "VirtualRobot",
     "WorkspaceTruth",
     "affine_scan",
@@ -44,10 +50,12 @@ __all__ = [
     "modal_response",
     "offset_mass_force",
     "run_closed_loop",
+    "simulate_campaign",
     "simulate_hammer_test",
     "simulate_milling",
     "simulate_offset_mass",
     "simulate_regenerative_cut",
     "simulated_stability_limit",
+    "truth_table",
     "zoh_transition",
 ]

@@ -1,0 +1,448 @@
+"""Pose model of a user's robot from the campaign's modal table, and where to hammer next.
+
+* :func:`fit_pose_model_from_table` — reads ``modal.csv`` (:func:`process_campaign`), builds
+  one training row per pose (and replicate) with ``[fn_hz, stiffness_n_per_m,
+  damping_ns_per_m]`` per direction (missing cells masked), fits the pose model
+  (:class:`robovib.gp.PoseModalModel`: mode switches detected and modelled) and
+  cross-validates it grouped by pose (all replicates of a pose left out together, thesis
+  §3.3.2).
+* :func:`next_poses` — greedy choice of the candidate poses whose measurement reduces the
+  integrated posterior variance over all candidates the most (thesis Eq. 10: the GP variance
+  does not depend on the measured values, so the reduction is known before measuring):
+  ``sum_j Sigma[j, c]^2 / (Sigma[c, c] + sigma_n^2)``, summed over outputs each normalised by
+  its prior variance, followed by the rank-one update of ``Sigma``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..gp.regressor import BatchedGPRegressor
+
+__all__ = [
+    "NextPoses",
+    "PoseModelFit",
+    "PosePrediction",
+    "fit_pose_model_from_table",
+    "load_pose_model",
+    "mode_switches_found",
+    "next_poses",
+    "predict_at",
+    "save_pose_model",
+]
+
+_OUTPUTS = ("fn_hz", "stiffness_n_per_m", "damping_ns_per_m")
+_OUTPUT_UNITS = ("Hz", "N/m", "N*s/m")
+_FIT_FLAGS = ("band edge", "residual", "coherence")
+
+
+def _pose_model_class():
+    from ..gp import PoseModalModel
+
+    return PoseModalModel
+
+
+@dataclass(frozen=True)
+class PoseModelFit:
+    """A fitted pose model with its grouped-by-pose cross-validation.
+
+    Attributes
+    ----------
+    model
+        The fitted model (``PoseModalModel`` interface).
+    cv_table
+        DataFrame, one row per output: ``output``, ``unit``, ``n``, ``rmse`` (in ``unit``),
+        ``relative_rmse_pct`` (of the mean), ``r2``, ``mean_std_ratio`` (mean |error|/std).
+    X, Y, groups
+        Training data (SI outputs) and pose group of each row.
+    excluded
+        ``(modal.csv row, reason)`` of rows left out (fit flags).
+    """
+
+    model: object
+    cv_table: object
+    X: np.ndarray
+    Y: np.ndarray
+    groups: np.ndarray
+    excluded: tuple = field(default=())
+
+
+def _training_table(table, inputs, directions, use_flagged):
+    excluded = []
+    if not use_flagged and "flags" in table.columns:
+        flags = table["flags"].astype("string").fillna("")
+        bad = flags.apply(lambda s: any(f in s for f in _FIT_FLAGS))
+        for _, r in table[bad].iterrows():
+            excluded.append((int(r.get("row", -1)), str(r["flags"])))
+        table = table[~bad]
+    rep = table["replicate"] if "replicate" in table.columns else 0
+    table = table.assign(_rep=rep)
+    key = [*inputs, "_rep"]
+    rows = []
+    for vals, grp in table.groupby(key, sort=True):
+        y = np.full(3 * len(directions), np.nan)
+        for j, d in enumerate(directions):
+            sel = grp[grp["direction"] == d]
+            if len(sel):
+                y[3 * j : 3 * j + 3] = sel[list(_OUTPUTS)].mean().to_numpy(float)
+        rows.append((np.asarray(vals[:-1], float), y))
+    X = np.array([r[0] for r in rows])
+    Y = np.array([r[1] for r in rows])
+    _, groups = np.unique(np.round(X, 9), axis=0, return_inverse=True)
+    return X, Y, np.ravel(groups), tuple(excluded)
+
+
+def _cv(model_cls, params, X, Y, groups, n_folds):
+    import pandas as pd
+
+    n_groups = np.unique(groups).size
+    k = min(n_folds, n_groups)
+    if k < 2:
+        raise ValueError(f"cross-validation needs at least 2 poses, got {n_groups}")
+    order = np.random.default_rng(0).permutation(np.unique(groups))
+    fold_of_group = {g: i % k for i, g in enumerate(order)}
+    fold = np.array([fold_of_group[g] for g in groups])
+    pred = np.full_like(Y, np.nan)
+    std = np.full_like(Y, np.nan)
+    import warnings
+
+    for f in range(k):
+        tr, te = fold != f, fold == f
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # the final fit warns once
+            m = model_cls(**params).fit(X[tr], Y[tr])
+        pred[te], std[te] = m.predict(X[te], return_std=True)
+    names = [f"{d}_{o}" for d in params["directions"] for o in _OUTPUTS]
+    rows = []
+    for j in range(Y.shape[1]):
+        ok = np.isfinite(Y[:, j]) & np.isfinite(pred[:, j])
+        y, p, s = Y[ok, j], pred[ok, j], std[ok, j]
+        err = p - y
+        ss = np.sum((y - y.mean()) ** 2)
+        rows.append({
+            "output": names[j], "unit": _OUTPUT_UNITS[j % 3], "n": int(ok.sum()),
+            "rmse": float(np.sqrt(np.mean(err**2))) if ok.any() else np.nan,
+            "relative_rmse_pct": float(100 * np.sqrt(np.mean(err**2)) / np.mean(y)) if ok.any() else np.nan,
+            "r2": float(1 - np.sum(err**2) / ss) if ss > 0 else np.nan,
+            "mean_abs_error_over_std": float(np.mean(np.abs(err) / np.maximum(s, 1e-300))) if ok.any() else np.nan,
+        })  # fmt: skip
+    return pd.DataFrame(rows), k
+
+
+def fit_pose_model_from_table(
+    modal_csv,
+    inputs=("x_mm", "y_mm", "rz_deg"),
+    kernel: str = "ard",
+    *,
+    directions=None,
+    mode_switch="auto",
+    n_folds: int = 5,
+    use_flagged: bool = False,
+    rng=0,
+) -> PoseModelFit:
+    """Fit the pose model of every output of a campaign's ``modal.csv``.
+
+    Parameters
+    ----------
+    modal_csv
+        Path to ``modal.csv`` or a DataFrame with its columns.
+    inputs
+        Pose columns used as model inputs (units in the names).
+    kernel
+        ``"ard"`` or ``"isotropic"``.
+    directions
+        Directions modelled (default: those in the table, x/y/z order).
+    mode_switch
+        Passed to the pose model.
+    n_folds
+        Folds of the grouped-by-pose cross-validation.
+    use_flagged
+        Also use rows whose fit is flagged (band edge, residual, coherence).
+
+    Returns
+    -------
+    PoseModelFit
+
+    Raises
+    ------
+    ValueError
+        Missing columns, unknown inputs, fewer than 2 poses.
+    """
+    import pandas as pd
+
+    table = modal_csv if isinstance(modal_csv, pd.DataFrame) else pd.read_csv(modal_csv)
+    inputs = tuple(inputs)
+    missing = [c for c in (*inputs, "direction", *_OUTPUTS) if c not in table.columns]
+    if missing:
+        raise ValueError(f"modal table lacks column(s) {', '.join(missing)}")
+    if not inputs:
+        raise ValueError("give at least one input column")
+    if directions is None:
+        directions = tuple(d for d in ("x", "y", "z") if d in set(table["direction"]))
+    X, Y, groups, excluded = _training_table(table, inputs, tuple(directions), use_flagged)
+    cls = _pose_model_class()
+    params = dict(input_names=inputs, directions=tuple(directions), kernel=kernel,
+                  mode_switch=mode_switch, rng=rng)  # fmt: skip
+    cv_table, k = _cv(cls, params, X, Y, groups, n_folds)
+    model = cls(**params).fit(X, Y)  # groups of fit() are noise groups, not poses
+    model.cv_table_ = cv_table
+    model.cv_ = {
+        c: cv_table[c].to_numpy(float) for c in cv_table.columns if c not in ("output", "unit")
+    }
+    model.provenance_ = {
+        "source": str(modal_csv) if not isinstance(modal_csv, pd.DataFrame) else "DataFrame",
+        "n_rows": len(table),
+        "n_training_rows": len(X),
+        "n_poses": int(np.unique(groups).size),
+        "cv_folds": int(k),
+        "cv": "k-fold grouped by pose (replicates left out together)",
+        "excluded_rows": [list(e) for e in excluded],
+        "mode_switch_found": mode_switches_found(model),
+    }
+    return PoseModelFit(model, cv_table, X, Y, groups, excluded)
+
+
+def mode_switches_found(model) -> dict[str, bool]:
+    """Direction -> whether the fitted model found a mode switch there (either model class)."""
+    if hasattr(model, "mode_switches_"):  # PoseModalModel: ModeSwitchDetection per direction
+        return {d: bool(det.found) for d, det in model.mode_switches_.items()}
+    return {d: bool(f) for d, f in getattr(model, "mode_switch_found_", {}).items()}
+
+
+def _flat_provenance(prov: dict) -> dict:
+    return {
+        k: v if isinstance(v, str | int | float | bool) else json.dumps(v) for k, v in prov.items()
+    }
+
+
+def save_pose_model(fit: PoseModelFit, path) -> Path:
+    """Save the model (``PoseModalModel.save``: HDF5, format tag, no pickle, atomic) with the
+    grouped CV figures and the provenance of the fit."""
+    cv = fit.cv_table
+    cv_arrays = {c: cv[c].to_numpy(float) for c in cv.columns if c not in ("output", "unit")}
+    return fit.model.save(path, cv=cv_arrays, provenance=_flat_provenance(fit.model.provenance_))
+
+
+@dataclass(frozen=True)
+class NextPoses:
+    """Chosen poses and what each pick removes.
+
+    Attributes
+    ----------
+    poses
+        (k, n_inputs) chosen candidates, in pick order.
+    indices
+        (k,) their rows in the candidate set.
+    variance_reduction
+        (k,) integrated normalised variance removed by each pick.
+    total_variance_before
+        Integrated normalised variance over the candidates before any pick.
+    """
+
+    poses: np.ndarray
+    indices: np.ndarray
+    variance_reduction: np.ndarray
+    total_variance_before: float
+
+
+def _gps_of(model) -> list[BatchedGPRegressor]:
+    """The BatchedGPRegressors of a fitted pose model (``PoseModalModel.estimators_``; the
+    per-mode GPs of a mode-switching direction included)."""
+    out = []
+    for est in getattr(model, "estimators_", []) or []:
+        if isinstance(est, BatchedGPRegressor):
+            out.append(est)
+        else:
+            out += [v for v in vars(est).values() if isinstance(v, BatchedGPRegressor)]
+    if not out:
+        raise ValueError("next_poses needs a fitted pose model (no GPs found in estimators_)")
+    return out
+
+
+def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
+    """Posterior covariance (B, m, m) at Xc, noise and prior variances (B,), in target units.
+
+    Computed from the fitted hyperparameters (data units, squared-exponential kernel,
+    thesis Eq. 6-10), independently of the regressor's internals.
+    """
+    hp = gp.hyperparameters_
+    X, mask = gp.X_train_, gp.mask_
+    noise = np.asarray(hp.noise_std, float)
+    if noise.ndim == 2:  # noise groups: the first (reference) group
+        noise = noise[:, 0]
+    out = []
+    for b in range(hp.signal_std.size):
+        sf2 = float(hp.signal_std[b]) ** 2
+        ls = np.asarray(hp.length_scales[b], float)
+
+        def k(a, c, sf2=sf2, ls=ls):
+            d = (a[:, None, :] - c[None, :, :]) / ls
+            return sf2 * np.exp(-0.5 * np.sum(d * d, axis=-1))
+
+        Xb = X[mask[:, b]]
+        kxx = k(Xb, Xb) + (float(noise[b]) ** 2 + 1e-10 * sf2) * np.eye(len(Xb))
+        kcx = k(Xc, Xb)
+        sol = np.linalg.solve(kxx, kcx.T)
+        out.append(k(Xc, Xc) - kcx @ sol)
+    return np.array(out), noise**2, np.asarray(hp.signal_std, float) ** 2
+
+
+def next_poses(model, candidates, k: int = 5) -> NextPoses:
+    """The ``k`` candidate poses whose measurement most reduces the integrated variance.
+
+    Parameters
+    ----------
+    model
+        A fitted :class:`robovib.gp.PoseModalModel` (all its GPs count, the per-mode GPs of a
+        switching direction included).
+    candidates
+        (m, n_inputs) array, or a DataFrame / CSV path with the model's input columns.
+    k
+        Poses to choose (1 <= k <= m).
+
+    Returns
+    -------
+    NextPoses
+
+    Raises
+    ------
+    ValueError
+        Missing input columns, bad ``k``, an unfitted model.
+    """
+    names = tuple(model.input_names)
+    if isinstance(candidates, str | Path):
+        from ..io import read_pose_table
+
+        candidates = read_pose_table(candidates, names)
+    if hasattr(candidates, "columns"):
+        missing = [c for c in names if c not in candidates.columns]
+        if missing:
+            raise ValueError(f"candidates lack the model's input column(s) {', '.join(missing)}")
+        candidates = candidates[list(names)].to_numpy(float)
+    C = np.atleast_2d(np.asarray(candidates, float))
+    if C.ndim != 2 or C.shape[1] != len(names):
+        raise ValueError(f"candidates must be (m, {len(names)}) = {names}, got {C.shape}")
+    if not np.all(np.isfinite(C)):
+        raise ValueError("candidates contain NaN or inf")
+    if not 1 <= int(k) <= len(C):
+        raise ValueError(f"k must be in [1, {len(C)}], got {k}")
+    parts = [_posterior_cov(gp, C) for gp in _gps_of(model)]
+    cov = np.concatenate([c / p[:, None, None] for c, _, p in parts])
+    noise = np.concatenate([n / p for _, n, p in parts])
+    before = float(np.sum(np.trace(cov, axis1=1, axis2=2)))
+    chosen, gains = [], []
+    for _ in range(int(k)):
+        diag = np.diagonal(cov, axis1=1, axis2=2)  # (B, m)
+        score = np.sum(np.sum(cov**2, axis=1) / (diag + noise[:, None]), axis=0)
+        score[chosen] = -np.inf
+        c = int(np.argmax(score))
+        chosen.append(c)
+        gains.append(float(score[c]))
+        col = cov[:, :, c]  # (B, m)
+        cov = cov - col[:, :, None] * col[:, None, :] / (diag[:, c] + noise)[:, None, None]
+    idx = np.array(chosen)
+    return NextPoses(C[idx], idx, np.array(gains), before)
+
+
+def load_pose_model(path, require_inputs=None):
+    """Load a pose model file (``robovib.gp.PoseModalModel``), optionally checking its inputs.
+
+    Parameters
+    ----------
+    path
+        The model's HDF5 file.
+    require_inputs
+        If given, the input names the caller needs (e.g. ``("x_mm", "y_mm", "rz_deg")``).
+
+    Raises
+    ------
+    ValueError
+        Not a readable HDF5 file, not a robovib pose model, or other inputs than required.
+    """
+    model = _load_pose_model(path)
+    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
+        raise ValueError(
+            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
+            f"the model has {', '.join(model.input_names)}"
+        )
+    return model
+
+
+def _load_pose_model(path):
+    return _pose_model_class().load(path)
+
+
+@dataclass(frozen=True)
+class PosePrediction:
+    """Prediction of every output of a pose model at one pose.
+
+    Attributes
+    ----------
+    pose
+        Input name -> value, in the model's units.
+    outputs
+        One dict per output: ``output`` (name with unit), ``mean``, ``std``, ``lower_2sigma``,
+        ``upper_2sigma`` (SI).
+    extrapolating
+        The pose lies outside the training inputs' hull.
+    outside_inputs
+        Inputs outside their training range.
+    """
+
+    pose: dict
+    outputs: tuple
+    extrapolating: bool
+    outside_inputs: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        return {
+            "pose": dict(self.pose),
+            "extrapolating": self.extrapolating,
+            "outside_inputs": list(self.outside_inputs),
+            "predictions": [dict(o) for o in self.outputs],
+        }
+
+
+def predict_at(model, pose) -> PosePrediction:
+    """Predict every output at one pose given by input name (the model's ``input_names``).
+
+    Raises
+    ------
+    ValueError
+        A missing or unknown input name, or a non-finite value.
+    """
+    names = tuple(model.input_names)
+    given = dict(pose)
+    missing = [n for n in names if n not in given]
+    unknown = [n for n in given if n not in names]
+    if missing or unknown:
+        options = ", ".join("--" + n.rsplit("_", 1)[0] for n in names)
+        raise ValueError(
+            f"the model takes inputs {', '.join(names)} (options {options})"
+            + (f"; missing {', '.join(missing)}" if missing else "")
+            + (f"; not an input: {', '.join(unknown)}" if unknown else "")
+        )
+    x = np.array([[float(given[n]) for n in names]])
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"pose values must be finite, got {given}")
+    mean, std = model.predict(x, return_std=True)
+    outs = tuple(
+        {
+            "output": name,
+            "mean": float(m),
+            "std": float(s),
+            "lower_2sigma": float(m - 2 * s),
+            "upper_2sigma": float(m + 2 * s),
+        }
+        for name, m, s in zip(model.output_names_, mean[0], std[0], strict=True)
+    )
+    X = np.asarray(model.X_train_, float)
+    lo, hi = X.min(axis=0), X.max(axis=0)
+    outside = tuple(n for n, v, a, b in zip(names, x[0], lo, hi, strict=True) if v < a or v > b)
+    return PosePrediction(
+        {n: float(given[n]) for n in names}, outs, bool(model.extrapolating(x)[0]), outside
+    )
