@@ -48,7 +48,10 @@ def files(tmp_path_factory):
 def test_version_and_help_units():
     result = runner.invoke(app, ["--version"])
     assert result.exit_code == 0 and result.stdout.startswith("robovib ")
-    assert "[mm]" in runner.invoke(app, ["sim", "hammer", "--help"]).stdout
+    hammer_help = runner.invoke(app, ["sim", "hammer", "--help"])
+    assert hammer_help.exit_code == 0, hammer_help.output
+    assert "error" not in hammer_help.output
+    assert "[mm]" in hammer_help.stdout
     assert "[w1, w2]" in runner.invoke(app, ["control", "gains", "--help"]).stdout
     assert "[dB]" in runner.invoke(app, ["sim", "hammer", "--help"]).stdout
 

@@ -93,7 +93,12 @@ class ErrorHandlingGroup(TyperGroup):
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
-        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+        except (
+            click.exceptions.ClickException,
+            click.exceptions.Exit,
+            click.exceptions.Abort,
+            typer.Exit,  # a RuntimeError subclass in recent Typer: --help must exit 0, not "error: 0"
+        ):
             raise
         except EXPECTED_ERRORS as exc:
             if _STATE["debug"]:
