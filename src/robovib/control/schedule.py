@@ -65,7 +65,9 @@ class GainSchedule:
             ax.legend(fontsize=8)
         fig.tight_layout()
         if path is not None:
-            fig.savefig(path, dpi=120)
+            from ..io.safe_write import save_figure
+
+            save_figure(fig, path)
             plt.close(fig)
         return fig
 

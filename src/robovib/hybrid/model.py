@@ -178,13 +178,19 @@ class FRFPoseModel:
         return cand[chosen]
 
     # ------------------------------------------------------------------ persistence (no pickle)
-    def save(self, path) -> None:
-        """HDF5: training data, hyperparameters and scalers, with a format tag and version."""
+    def save(self, path, *, inputs=(), force: bool = False) -> None:
+        """HDF5: training data, hyperparameters and scalers, with a format tag and version.
+
+        Written atomically (:func:`robovib.io.atomic_output`); ``path`` must not be one of
+        ``inputs`` unless ``force``.
+        """
         import h5py
+
+        from ..io.safe_write import atomic_output
 
         self._require_fitted()
         gp = self.gp_
-        with h5py.File(path, "w") as h5:
+        with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
             h5.attrs["format"] = _FORMAT
             h5.attrs["version"] = 1
             h5.attrs["kernel"] = self.kernel

@@ -17,23 +17,30 @@ from .recording import (
     read_recording,
     read_recording_csv,
     read_recording_uff,
+    write_recording_csv,
     write_recording_uff,
 )
+from .safe_write import OutputPathError, atomic_output, check_output_path, save_figure
 from .units import apply_sensitivity, si_factor
 
 __all__ = [
     "HammerRecording",
+    "OutputPathError",
     "Sensitivity",
     "apply_sensitivity",
+    "atomic_output",
+    "check_output_path",
     "read_frfs",
     "read_frfs_hdf5",
     "read_frfs_uff",
     "read_recording",
     "read_recording_csv",
     "read_recording_uff",
+    "save_figure",
     "si_factor",
     "write_frfs",
     "write_frfs_hdf5",
     "write_frfs_uff",
+    "write_recording_csv",
     "write_recording_uff",
 ]

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..frf.core import FRF
+from .safe_write import atomic_output
 
 __all__ = [
     "read_frfs",
@@ -41,10 +42,30 @@ _QUANTITY_LABEL = {"compliance": "m/N", "mobility": "m/s/N", "accelerance": "m/s
 _DIR_CODE = {"x": 1, "y": 2, "z": 3}
 
 
-def write_frfs_hdf5(path: str | Path, frfs: Sequence[FRF]) -> None:
+def write_frfs_hdf5(
+    path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
+) -> None:
+    """Write FRFs to a robovib HDF5 file, atomically (see :func:`robovib.io.atomic_output`).
+
+    Parameters
+    ----------
+    path : path-like
+        Output ``.h5`` file; replaced only after a complete write.
+    frfs : sequence of FRF
+    inputs : sequence of path-like, optional
+        Files the FRFs come from; ``path`` must not be one of them unless ``force``.
+    force : bool, default False
+
+    Raises
+    ------
+    OutputPathError
+        Missing / read-only output folder, or output = input without ``force``.
+    ValueError
+        Metadata that cannot be stored.
+    """
     import h5py
 
-    with h5py.File(path, "w") as h5:
+    with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
         h5.attrs["format"] = _FORMAT
         h5.attrs["version"] = 1
         grp = h5.create_group("frf")
@@ -120,12 +141,20 @@ def read_frfs_hdf5(path: str | Path) -> list[FRF]:
         return out
 
 
-def write_frfs_uff(path: str | Path, frfs: Sequence[FRF]) -> None:
+def write_frfs_uff(
+    path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
+) -> None:
+    """Write FRFs as UFF datasets 58 (function type 4), atomically.
+
+    Raises
+    ------
+    OutputPathError
+        Missing / read-only output folder, or output = input without ``force``.
+    ValueError
+        Uneven frequency axis.
+    """
     import pyuff
 
-    path = Path(path)
-    if path.exists():
-        path.unlink()
     sets = []
     for i, frf in enumerate(frfs):
         df = np.diff(frf.frequency_hz)
@@ -157,7 +186,8 @@ def write_frfs_uff(path: str | Path, frfs: Sequence[FRF]) -> None:
                 x=frf.frequency_hz,
             )
         )
-    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+    with atomic_output(path, inputs=inputs, force=force) as tmp:
+        pyuff.UFF(str(tmp)).write_sets(sets, mode="add")
 
 
 def read_frfs_uff(path: str | Path) -> list[FRF]:
@@ -210,13 +240,15 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
     return out
 
 
-def write_frfs(path: str | Path, frfs: Sequence[FRF]) -> None:
-    """Write FRFs by file extension: .h5/.hdf5 or .uff/.unv."""
+def write_frfs(
+    path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
+) -> None:
+    """Write FRFs by file extension: .h5/.hdf5 or .uff/.unv (atomic; output != input)."""
     suffix = Path(path).suffix.lower()
     if suffix in (".h5", ".hdf5"):
-        return write_frfs_hdf5(path, frfs)
+        return write_frfs_hdf5(path, frfs, inputs=inputs, force=force)
     if suffix in (".uff", ".unv"):
-        return write_frfs_uff(path, frfs)
+        return write_frfs_uff(path, frfs, inputs=inputs, force=force)
     raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff or .unv")
 
 

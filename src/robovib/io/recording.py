@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .safe_write import atomic_output
 from .units import si_factor
 
 __all__ = [
@@ -38,6 +39,7 @@ __all__ = [
     "read_recording",
     "read_recording_csv",
     "read_recording_uff",
+    "write_recording_csv",
     "write_recording_uff",
 ]
 
@@ -250,14 +252,16 @@ def read_recording_uff(
     )
 
 
-def write_recording_uff(path: str | Path, recording: HammerRecording) -> None:
-    """Write a recording as UFF datasets 58 (time responses): per hit one force, one response record."""
+def write_recording_uff(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
+    """Write a recording as UFF datasets 58 (time responses): per hit one force, one response record.
+
+    Atomic (see :func:`robovib.io.atomic_output`): a failed or interrupted write leaves any
+    previous file untouched; ``path`` must not be one of ``inputs`` unless ``force``.
+    """
     import pyuff
 
-    path = Path(path)
-    if path.exists():
-        path.unlink()
-    uff = pyuff.UFF(str(path))
     n = recording.forces.shape[1]
     x = np.arange(n) / recording.sample_rate_hz
     dcode = _DIR_CODE.get(recording.direction or "x", 1)
@@ -288,7 +292,29 @@ def write_recording_uff(path: str | Path, recording: HammerRecording) -> None:
                     x=x,
                 )
             )
-    uff.write_sets(sets, mode="add")
+    with atomic_output(path, inputs=inputs, force=force) as tmp:
+        pyuff.UFF(str(tmp)).write_sets(sets, mode="add")
+
+
+def write_recording_csv(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
+    """Write a recording as CSV ``hit,time_s,force_n,<quantity>_<SI unit>`` (atomic).
+
+    The layout is the one :func:`read_recording_csv` reads (long format, one row per sample).
+    """
+    unit = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displacement": "m"}[
+        recording.response_quantity
+    ]
+    n = recording.forces.shape[1]
+    t = np.arange(n) / recording.sample_rate_hz
+    with atomic_output(path, inputs=inputs, force=force) as tmp, open(tmp, "w") as fh:
+        fh.write(f"hit,time_s,force_n,{recording.response_quantity}_{unit}\n")
+        for h in range(recording.n_hits):
+            for i in range(n):
+                fh.write(
+                    f"{h},{t[i]:.9g},{recording.forces[h, i]:.9g},{recording.responses[h, i]:.9g}\n"
+                )
 
 
 def read_recording(
