@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._checks import check_choice, check_increasing, check_int, check_number
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool, milling_forces
 from .prediction import convolve_force, summarise_vibration
@@ -25,16 +26,19 @@ from .stability import StabilityLobes, stability_lobes
 __all__ = [
     "DirectionPrediction",
     "base_frame_forces",
+    "pose_extrapolation",
     "pose_modes",
     "predict_at_pose",
     "workspace_lobe_map",
 ]
 
 DIRECTIONS = ("x", "y", "z")
+FEED_DIRECTIONS = ("x", "y")  #: feed along base +X or +Y (tool axis along Z)
 
 
 def base_frame_forces(local: np.ndarray, feed_direction: str) -> np.ndarray:
     """Tool-frame (feed, normal, axial) forces -> base X, Y, Z for feed along +X or +Y."""
+    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
     if feed_direction == "x":
         return np.column_stack([local[:, 0], local[:, 1], local[:, 2]])
     if feed_direction == "y":
@@ -50,9 +54,25 @@ def _to_modes(row: np.ndarray) -> dict[str, ModalParameters]:
 
 
 def pose_modes(model, x_mm: float, y_mm: float, rz_deg: float):
-    """Dominant modes per direction at a pose, with the predictive mean and std (thesis units)."""
+    """Dominant modes per direction at a pose, with the predictive mean and std (thesis units).
+
+    Use :func:`pose_extrapolation` to know whether the pose is outside the training data.
+    """
+    for name, v, unit in (("x_mm", x_mm, "mm"), ("y_mm", y_mm, "mm"), ("rz_deg", rz_deg, "deg")):
+        check_number(name, v, unit)
     mean, std = model.predict(np.array([[x_mm, y_mm, rz_deg]]), return_std=True)
     return _to_modes(mean[0]), mean[0], std[0]
+
+
+def pose_extrapolation(model, x_mm: float, y_mm: float, rz_deg: float) -> tuple[str, ...]:
+    """Inputs (``"x_mm"``, ``"y_mm"``, ``"rz_deg"``) of a pose outside the model's training range.
+
+    Empty when the pose is inside; otherwise every prediction there is a GP extrapolation
+    (towards the prior mean) and must be flagged as such.
+    """
+    from ..gp.extrapolation import outside_inputs
+
+    return outside_inputs(model, [x_mm, y_mm, rz_deg], ("x_mm", "y_mm", "rz_deg"))
 
 
 @dataclass(frozen=True)
@@ -63,6 +83,14 @@ class DirectionPrediction:
     mean_deflection_band_m: tuple[float, float]
     peak_to_valley_band_m: tuple[float, float]
     mode: ModalParameters
+    #: inputs of the pose outside the training range (empty: interpolation)
+    extrapolation: tuple[str, ...] = ()
+    #: modal-parameter draws used for the bands (bands are NaN when 0)
+    n_draws_used: int = 0
+
+    @property
+    def extrapolating(self) -> bool:
+        return bool(self.extrapolation)
 
 
 def predict_at_pose(
@@ -89,6 +117,11 @@ def predict_at_pose(
     mechanistic model simulates ``duration_s`` of cutting with ``tool`` and ``coefficients``.
     The first ``skip_s`` (start-up transient from rest) is left out of the summaries.
     """
+    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
+    n_samples = check_int("n_samples", n_samples, lo=1, hi=100_000)
+    sample_rate_hz = check_number("sample_rate_hz", sample_rate_hz, "Hz", lo=0.0, lo_open=True)
+    duration_s = check_number("duration_s", duration_s, "s", lo=0.0, lo_open=True)
+    skip_s = check_number("skip_s", skip_s, "s", lo=0.0)
     tool = tool or MillingTool()
     if forces_n is None:
         if coefficients is None:
@@ -100,7 +133,10 @@ def predict_at_pose(
     forces_n = np.asarray(forces_n, float)
     if forces_n.ndim != 2 or forces_n.shape[1] != 3:
         raise ValueError(f"forces_n must be (n, 3) base-frame forces, got {forces_n.shape}")
+    if not np.all(np.isfinite(forces_n)):
+        raise ValueError("forces_n contains NaN or inf")
     modes, mean, std = pose_modes(model, x_mm, y_mm, rz_deg)
+    outside = pose_extrapolation(model, x_mm, y_mm, rz_deg)
     gen = np.random.default_rng(rng)
     out = []
     for i, d in enumerate(DIRECTIONS):
@@ -143,7 +179,14 @@ def predict_at_pose(
 
         out.append(
             DirectionPrediction(
-                d, central.mean_deflection_m, central.peak_to_valley_m, band(md), band(pv), modes[d]
+                d,
+                central.mean_deflection_m,
+                central.peak_to_valley_m,
+                band(md),
+                band(pv),
+                modes[d],
+                outside,
+                len(pv),
             )
         )
     return out
@@ -169,6 +212,10 @@ def workspace_lobe_map(
     """
     xs = np.linspace(2100, 2700, 13) if x_mm is None else np.asarray(x_mm, float)
     ys = np.linspace(-300, 600, 10) if y_mm is None else np.asarray(y_mm, float)
+    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
+    xs = check_increasing("x_mm grid", xs, "mm", min_size=2)
+    ys = check_increasing("y_mm grid", ys, "mm", min_size=2)
+    check_number("rz_deg", rz_deg, "deg")
     grid = np.array([[x, y, rz_deg] for y in ys for x in xs])
     mean = model.predict(grid)
     out = np.empty(len(grid))
