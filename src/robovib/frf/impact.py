@@ -205,6 +205,8 @@ def impact_frf(
         "double_hit_level", double_hit_level, "(fraction of the peak)", lo=0.0, hi=1.0, lo_open=True
     )
     check_int("clip_run", clip_run, lo=1)
+    if f_max_hz is not None:
+        f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
     pre = round(pretrigger_s * fs)
     reports, aligned = [], []
     for i in range(n_hits):

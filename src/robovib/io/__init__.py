@@ -11,6 +11,8 @@ from .frf_files import (
     write_frfs_hdf5,
     write_frfs_uff,
 )
+from .json_safe import dumps as json_dumps
+from .json_safe import json_safe
 from .recording import (
     HammerRecording,
     Sensitivity,
@@ -30,6 +32,8 @@ __all__ = [
     "apply_sensitivity",
     "atomic_output",
     "check_output_path",
+    "json_dumps",
+    "json_safe",
     "read_frfs",
     "read_frfs_hdf5",
     "read_frfs_uff",
