@@ -120,14 +120,20 @@ def test_frf_writer_failure_keeps_previous_file(tmp_path, suffix, monkeypatch):
         write_frfs(out, [_frf(), bad])
     assert _digest(out) == digest
     # Ctrl-C in the middle of the write
+    import pathlib
+
     import h5py
-    import pyuff
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
+    def half_then_interrupted(self, text, *a, **k):
+        with open(self, "w") as fh:
+            fh.write(text[: len(text) // 2])
+        raise KeyboardInterrupt
+
     if suffix == ".uff":
-        monkeypatch.setattr(pyuff.UFF, "write_sets", interrupted)
+        monkeypatch.setattr(pathlib.Path, "write_text", half_then_interrupted)
     else:
         monkeypatch.setattr(h5py.Group, "create_group", interrupted)
     with pytest.raises(KeyboardInterrupt):

@@ -40,6 +40,7 @@ _QUANTITY_SPEC = {"compliance": 8, "mobility": 11, "accelerance": 12}
 _SPEC_QUANTITY = {v: k for k, v in _QUANTITY_SPEC.items()}
 _QUANTITY_LABEL = {"compliance": "m/N", "mobility": "m/s/N", "accelerance": "m/s^2/N"}
 _DIR_CODE = {"x": 1, "y": 2, "z": 3}
+_CODE_DIR = {v: k for k, v in _DIR_CODE.items()}
 
 
 def write_frfs_hdf5(
@@ -144,7 +145,10 @@ def read_frfs_hdf5(path: str | Path) -> list[FRF]:
 def write_frfs_uff(
     path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
 ) -> None:
-    """Write FRFs as UFF datasets 58 (function type 4), atomically.
+    """Write FRFs as UFF datasets 58 (function type 4) in one pass, atomically.
+
+    The reference (force) direction is ``meta["reference_direction"]`` when set (a cross
+    FRF), otherwise the response direction.
 
     Raises
     ------
@@ -153,41 +157,46 @@ def write_frfs_uff(
     ValueError
         Uneven frequency axis.
     """
-    import pyuff
+    from .uff58 import Record58, write_uff58
 
-    sets = []
+    records = []
     for i, frf in enumerate(frfs):
         df = np.diff(frf.frequency_hz)
-        if frf.frequency_hz.size > 2 and np.ptp(df) > 1e-9 * np.mean(df):
+        if frf.frequency_hz.size < 2 or (
+            frf.frequency_hz.size > 2 and np.ptp(df) > 1e-9 * np.mean(df)
+        ):
             raise ValueError(f"FRF {i}: UFF dataset 58 needs an evenly spaced frequency axis")
         dcode = _DIR_CODE.get(frf.direction or "", 0)
+        ref = str(frf.meta.get("reference_direction", "") or "")
+        rcode = _DIR_CODE.get(ref, dcode)
         pose = "" if frf.pose is None else "pose=" + ",".join(f"{p:.9g}" for p in frf.pose)
-        sets.append(
-            pyuff.prepare_58(
-                binary=0,
-                id1=f"robovib FRF {frf.source} {frf.estimator}",
-                id2=pose or "NONE",
-                id3=f"direction={frf.direction or ''}",
-                id4=f"n_averages={frf.n_averages}",
+        records.append(
+            Record58(
+                data=np.asarray(frf.values, complex),
+                x0=float(frf.frequency_hz[0]),
+                dx=float(np.mean(df)),
                 func_type=4,
+                ordinate_spec=_QUANTITY_SPEC[frf.quantity],
+                ordinate_label=_QUANTITY_LABEL[frf.quantity],
+                abscissa_spec=18,
+                abscissa_label="Hz",
                 load_case_id=i,
                 rsp_node=1,
                 rsp_dir=dcode,
                 ref_node=1,
-                ref_dir=dcode,
-                abscissa_spec_data_type=18,
-                abscissa_spacing=1,
-                abscissa_axis_units_lab="Hz",
-                ordinate_spec_data_type=_QUANTITY_SPEC[frf.quantity],
-                ordinate_axis_units_lab=_QUANTITY_LABEL[frf.quantity],
-                orddenom_spec_data_type=13,
-                orddenom_axis_units_lab="N",
-                data=frf.values,
-                x=frf.frequency_hz,
+                ref_dir=rcode,
+                denominator_spec=13,
+                denominator_label="N",
+                ids=(
+                    f"robovib FRF {frf.source} {frf.estimator}",
+                    pose or "NONE",
+                    f"direction={frf.direction or ''}",
+                    f"n_averages={frf.n_averages}",
+                    "NONE",
+                ),
             )
         )
-    with atomic_output(path, inputs=inputs, force=force) as tmp:
-        pyuff.UFF(str(tmp)).write_sets(sets, mode="add")
+    write_uff58(path, records, inputs=inputs, force=force)
 
 
 def read_frfs_uff(path: str | Path) -> list[FRF]:
@@ -225,14 +234,27 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
         id2 = str(s.get("id2", ""))
         if id2.startswith("pose="):
             pose = tuple(float(p) for p in id2[5:].split(","))
-        code = abs(int(s.get("rsp_dir", 0)))
+        code, ref = int(s.get("rsp_dir", 0)), int(s.get("ref_dir", 0))
+        if abs(code) > 3 or abs(ref) > 3:
+            raise ValueError(
+                f"{path}: FRF record {len(out)} has a rotational DOF (rsp_dir {code}, "
+                f"ref_dir {ref}); only translations (±1-3) are supported"
+            )
+        # A DOF along -X is the X one with opposite sign: H(+x, +x) = sign * H(file).
+        sign = (-1.0 if code < 0 else 1.0) * (-1.0 if ref < 0 else 1.0)
+        direction = _CODE_DIR.get(abs(code))
+        meta = {}
+        if ref and abs(ref) != abs(code):
+            # A cross FRF: response along one axis, force along another.
+            meta["reference_direction"] = _CODE_DIR[abs(ref)]
         out.append(
             FRF(
                 frequency_hz=np.asarray(s["x"], float),
-                values=np.asarray(s["data"], complex) * num / den,
+                values=sign * np.asarray(s["data"], complex) * num / den,
                 quantity=quantity,
-                direction={1: "x", 2: "y", 3: "z"}.get(code),
+                direction=direction,
                 pose=pose,
+                meta=meta,
             )
         )
     if not out:

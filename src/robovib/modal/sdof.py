@@ -132,7 +132,19 @@ def fit_dominant_mode(
         Weight residuals by the coherence (ignored if the FRF has none).
     correct_exp_window
         Remove the damping added by an exponential window recorded on the FRF.
+
+    Raises
+    ------
+    ValueError
+        For a cross FRF (``meta["reference_direction"]`` differs from ``direction``), too few
+        bins in the band.
     """
+    ref = frf.meta.get("reference_direction")
+    if ref and frf.direction and ref != frf.direction:
+        raise ValueError(
+            f"cross FRF (response {frf.direction}, force {ref}): a dominant-mode fit gives a "
+            "direct (driving-point) stiffness only; use the direct FRF"
+        )
     h = frf.to_compliance(min_frequency_hz)
     f_all, v_all = h.frequency_hz, h.values
     guess = half_power_estimate(f_all, v_all)
