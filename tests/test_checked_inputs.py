@@ -293,3 +293,22 @@ def test_json_never_contains_nan_or_infinity():
     assert back["band_m"] == [None, None] and back["x"] == [1.0, None] and back["n"] == 3
     assert set(back["null_reasons"]) == {"band_m[0]", "band_m[1]", "x[1]"}
     assert "NaN" in back["null_reasons"]["band_m[0]"]
+
+
+def test_lobes_at_pose_checked_and_flagged():
+    from robovib.milling import ALUMINIUM_7075 as coef
+    from robovib.milling.workflow import lobes_at_pose
+
+    model = _ConstantModel()
+    with pytest.raises(ValueError, match="unknown feed_direction 'z'"):
+        lobes_at_pose(model, 2400, 0, 0, coef, feed_direction="z")
+    with pytest.raises(ValueError, match=r"min < max, got 3000-100 rpm"):
+        lobes_at_pose(model, 2400, 0, 0, coef, rpm_range=(3000, 100))
+    with pytest.raises(ValueError, match=r"rpm_range\[1\] must be a finite number in rpm"):
+        lobes_at_pose(model, 2400, 0, 0, coef, rpm_range=(100, float("inf")))
+    with pytest.raises(ValueError, match="radial_depth_m must be > 0 m"):
+        lobes_at_pose(model, 2400, 0, 0, coef, radial_depth_m=0.0)
+    inside = lobes_at_pose(model, 2400, 0, 0, coef, n_speeds=20)
+    outside = lobes_at_pose(model, 99999, 0, 0, coef, n_speeds=20)
+    assert not inside.extrapolating and outside.extrapolation == ("x_mm",)
+    assert inside.spindle_rpm.shape == inside.critical_depth_m.shape == (20,)

@@ -25,7 +25,9 @@ from .stability import StabilityLobes, stability_lobes
 
 __all__ = [
     "DirectionPrediction",
+    "PoseLobes",
     "base_frame_forces",
+    "lobes_at_pose",
     "pose_extrapolation",
     "pose_modes",
     "predict_at_pose",
@@ -231,3 +233,71 @@ def workspace_lobe_map(
         if progress is not None:
             progress(j + 1, len(grid))
     return out.reshape(len(ys), len(xs))
+
+
+@dataclass(frozen=True)
+class PoseLobes:
+    """Stability lobes at a pose, sampled over a speed range, with the extrapolation flag."""
+
+    lobes: StabilityLobes
+    spindle_rpm: np.ndarray  #: (n,) speeds [rpm]
+    critical_depth_m: np.ndarray  #: (n,) lowest critical depth [m] (inf: no lobe there)
+    feed_direction: str
+    #: inputs of the pose outside the model's training range (empty: interpolation)
+    extrapolation: tuple[str, ...] = ()
+
+    @property
+    def extrapolating(self) -> bool:
+        return bool(self.extrapolation)
+
+
+def lobes_at_pose(
+    model,
+    x_mm: float,
+    y_mm: float,
+    rz_deg: float,
+    coefficients: CuttingCoefficients,
+    *,
+    radial_depth_m: float = 6e-3,
+    tool: MillingTool | None = None,
+    feed_direction: str = "x",
+    rpm_range: tuple[float, float] = (100.0, 3000.0),
+    n_speeds: int = 200,
+    n_lobes: int = 40,
+) -> PoseLobes:
+    """Zero-order stability lobes from the pose model's X/Y modes, checked at the door.
+
+    The feed direction picks which predicted mode is along the feed (x: X feed, Y normal;
+    y: Y feed, X normal). The result says whether the pose is outside the training data.
+
+    Raises
+    ------
+    ValueError
+        Unknown feed direction, non-finite pose, radial depth <= 0 m or beyond the tool
+        diameter, speed range not 0 < min < max (rpm), ``n_speeds`` < 2, ``n_lobes`` < 1.
+    """
+    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
+    lo = check_number("rpm_range[0]", rpm_range[0], "rpm", lo=0.0, lo_open=True)
+    hi = check_number("rpm_range[1]", rpm_range[1], "rpm", lo=0.0, lo_open=True)
+    if lo >= hi:
+        raise ValueError(f"speed range must have min < max, got {lo:g}-{hi:g} rpm")
+    n_speeds = check_int("n_speeds", n_speeds, lo=2, hi=100_000)
+    n_lobes = check_int("n_lobes", n_lobes, lo=1, hi=1000)
+    tool = tool or MillingTool()
+    radial_depth_m = check_number(
+        "radial_depth_m", radial_depth_m, "m", lo=0.0, lo_open=True, hi=tool.diameter_m
+    )
+    modes, _, _ = pose_modes(model, x_mm, y_mm, rz_deg)
+    normal = "y" if feed_direction == "x" else "x"
+    cond = CuttingConditions(1000.0, 1e-4, 1e-3, radial_depth_m)
+    lobes = stability_lobes(
+        [modes[feed_direction]], [modes[normal]], tool, cond, coefficients, n_lobes=n_lobes
+    )
+    speeds = np.linspace(lo, hi, n_speeds)
+    return PoseLobes(
+        lobes,
+        speeds,
+        lobes.critical_depth(speeds),
+        feed_direction,
+        pose_extrapolation(model, x_mm, y_mm, rz_deg),
+    )
