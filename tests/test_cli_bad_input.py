@@ -95,21 +95,29 @@ def _csv(path: Path, cols: dict) -> None:
 
 
 def _cache_chapter3_model():
-    """Fit the chapter-3 model once for the whole matrix (the CLI refits it per call)."""
+    """Fit the chapter-3 model once for the whole matrix (the CLI refits it per call).
+
+    Returns the original function, to restore.
+    """
     import functools
 
     import robovib.gp.study as study
 
-    if not hasattr(study.fit_chapter3_model, "cache_info"):
-        study.fit_chapter3_model = functools.lru_cache(maxsize=4)(study.fit_chapter3_model)
+    original = study.fit_chapter3_model
+    if not hasattr(original, "cache_info"):
+        study.fit_chapter3_model = functools.lru_cache(maxsize=4)(original)
+    return original
 
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
-    _cache_chapter3_model()
+    import robovib.gp.study as study
+
+    original = _cache_chapter3_model()
     folder = tmp_path_factory.mktemp("inputs")
     _make_inputs(folder)
-    return folder
+    yield folder
+    study.fit_chapter3_model = original
 
 
 # ----------------------------------------------------------------------------- the matrix
@@ -265,8 +273,60 @@ bad_options("hybrid-next-poses", "hybrid next-poses", {
 })  # fmt: skip
 bad_outputs("hybrid-next-poses-plot", "hybrid next-poses --plot {OUT}", ".png", None)
 
-#: cases the CLI on this branch still gets wrong (see module docstring); filled from a run
-KNOWN_GAPS: set[str] = set()
+#: cases the CLI still gets wrong (see module docstring), by kind; all need CLI changes (the
+#: library side is in place: writers take ``inputs=``/``force=``, checked library calls)
+KNOWN_GAPS: set[str] = {
+    # usage error printed as a rich panel, not one "error:" line
+    "control-table9-unknown-option",
+    "demo-kernel=bogus-range",
+    "gpr-predict-kernel=bogus-range",
+    "gpr-predict-x=nan",
+    "gpr-predict-y=inf",
+    "robot-fk-joints-count",
+    "robot-fk-joints-nan",
+    # data loss: output = input overwritten (CLI passes no inputs= to the writer)
+    "frf-compute-output-is-input",
+    "hybrid-fit-output-is-input",
+    "hybrid-update-output-is-input",
+    "hybrid-update-output-is-oma",
+    # silent wrong result: accepted with exit 0 (CLI maps/ignores the option or calls the unchecked path)
+    "frf-compute-exp-window-tau-ms=-1-range",
+    "frf-compute-exp-window-tau-ms=nan-nan",
+    "frf-compute-force-window-ms=-1-range",
+    "frf-compute-force-window-ms=nan-nan",
+    "hybrid-next-poses-ema=0.5,0.5-range",
+    "hybrid-next-poses-plot-output-folder-readonly",
+    "hybrid-predict-plot-output-folder-readonly",
+    "hybrid-update-direction-mismatch",
+    "hybrid-update-ema-as-oma",
+    "mill-lobes-feed=z-range",
+    "mill-lobes-rpm-max=inf-inf",
+    "mill-lobes-rpm-reversed",
+    "mill-map-plot-output-folder-readonly",
+    # traceback: exception not caught by the CLI (plots outside try, OSError, arange before checks)
+    "control-schedule-input-missing",
+    "control-schedule-plot-output-folder-missing",
+    "control-schedule-plot-output-folder-readonly",
+    "control-schedule-plot-output-is-input",
+    "hybrid-fit-df=0-range",
+    "hybrid-fit-df=nan-nan",
+    "hybrid-fit-fmax=inf-inf",
+    "hybrid-fit-fmin=nan-nan",
+    "hybrid-next-poses-plot-output-folder-missing",
+    "hybrid-predict-plot-output-folder-missing",
+    "hybrid-predict-plot-output-is-input",
+    "hybrid-study-background=-1-range",
+    "hybrid-study-background=nan-nan",
+    "mill-lobes-plot-output-folder-missing",
+    "mill-lobes-plot-output-folder-readonly",
+    "mill-map-nx=-3-range",
+    "mill-map-plot-output-folder-missing",
+    "modal-fit-plot-output-folder-missing",
+    "modal-fit-plot-output-folder-readonly",
+    "modal-fit-plot-output-is-input",
+    "robot-compare-plot-output-folder-missing",
+    "robot-compare-plot-output-folder-readonly",
+}
 
 
 # ----------------------------------------------------------------------------- running
