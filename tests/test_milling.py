@@ -143,4 +143,4 @@ def test_mill_cli(tmp_path):
     res = runner.invoke(
         app, ["mill", "predict", "--x", "2400", "--y", "0", "--rz", "0", "--material", "wood"]
     )
-    assert res.exit_code == 2
+    assert res.exit_code == 1

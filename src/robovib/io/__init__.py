@@ -24,10 +24,18 @@ from .recording import (
     read_recording_uff,
     sample_rate_from_time,
     select_channel,
-    write_recording_csv,
     write_recording_uff,
 )
 from .safe_write import OutputPathError, atomic_output, check_output_path, save_figure
+from .tables import (
+    read_compliance_tests_csv,
+    read_force_csv,
+    read_milling_record_csv,
+    read_path_modes_csv,
+    write_path_modes_csv,
+    write_recording,
+    write_recording_csv,
+)
 from .uff58 import Record58, write_uff58
 from .units import apply_sensitivity, si_factor
 
@@ -43,9 +51,13 @@ __all__ = [
     "check_output_path",
     "json_dumps",
     "json_safe",
+    "read_compliance_tests_csv",
+    "read_force_csv",
     "read_frfs",
     "read_frfs_hdf5",
     "read_frfs_uff",
+    "read_milling_record_csv",
+    "read_path_modes_csv",
     "read_recording",
     "read_recording_channels",
     "read_recording_csv",
@@ -57,6 +69,8 @@ __all__ = [
     "write_frfs",
     "write_frfs_hdf5",
     "write_frfs_uff",
+    "write_path_modes_csv",
+    "write_recording",
     "write_recording_csv",
     "write_recording_uff",
     "write_uff58",

@@ -301,3 +301,58 @@ def lobes_at_pose(
         feed_direction,
         pose_extrapolation(model, x_mm, y_mm, rz_deg),
     )
+
+
+def plot_lobe_map(x_mm, y_mm, critical_depth_m, *, title: str | None = None, ax=None):
+    """Heat map of the critical axial depth over the workspace (from :func:`workspace_lobe_map`).
+
+    Parameters
+    ----------
+    x_mm, y_mm
+        (n_x,), (n_y,) grid coordinates [mm].
+    critical_depth_m
+        (n_y, n_x) critical axial depth [m]; shown in mm, clipped for the colour scale at 10x
+        the shallowest depth so that near-unconditionally stable poses do not wash it out.
+    title
+        Axes title.
+    ax
+        Matplotlib axes to draw into; a new figure if None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    grid = np.asarray(critical_depth_m, float)
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7, 5))
+    else:
+        fig = ax.figure
+    im = ax.pcolormesh(
+        x_mm, y_mm, np.minimum(grid, 10 * np.nanmin(grid)) * 1e3, shading="auto", cmap="viridis"
+    )
+    fig.colorbar(im, ax=ax, label="critical axial depth [mm]")
+    ax.set_xlabel("X [mm]")
+    ax.set_ylabel("Y [mm]")
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def best_pose(x_mm, y_mm, critical_depth_m) -> dict:
+    """Deepest and shallowest critical depth of a :func:`workspace_lobe_map` grid.
+
+    Returns
+    -------
+    dict
+        ``best_pose_mm`` [x, y], ``best_depth_mm``, ``shallowest_depth_mm``.
+    """
+    grid = np.asarray(critical_depth_m, float)
+    i, j = np.unravel_index(np.argmax(grid), grid.shape)
+    return {
+        "best_pose_mm": [float(x_mm[j]), float(y_mm[i])],
+        "best_depth_mm": 1e3 * float(grid[i, j]),
+        "shallowest_depth_mm": 1e3 * float(np.min(grid)),
+    }

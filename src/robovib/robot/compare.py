@@ -67,12 +67,28 @@ def compare_with_table_a1(
     return pd.DataFrame(rows)
 
 
+def comparison_summary(table: pd.DataFrame) -> dict[str, dict[str, float]]:
+    """Mean, min and max relative error per quantity and direction of :func:`compare_with_table_a1`.
+
+    Returns
+    -------
+    dict
+        ``{"fn_x": {"mean_rel_error", "min", "max"}, "stiffness_x": ..., ...}`` (fractions).
+    """
+    summary = {}
+    for d in "xyz":
+        for q in ("fn", "stiffness"):
+            e = table[f"{q}_{d}_rel_error"]
+            summary[f"{q}_{d}"] = {
+                "mean_rel_error": float(e.mean()),
+                "min": float(e.min()),
+                "max": float(e.max()),
+            }
+    return summary
+
+
 def plot_comparison(table: pd.DataFrame, path=None):
     """Relative errors (analytical / measured - 1) vs arm extension, like thesis Fig. 11."""
-    import matplotlib
-
-    if path is not None:
-        matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
