@@ -24,7 +24,7 @@ from typer.testing import CliRunner
 from robovib.cli import app
 
 # ----------------------------------------------------------------------------- inputs
-SUFFIX = {"rec": ".uff", "frf": ".h5", "ema": ".h5", "model": ".h5", "oma": ".h5", "omay": ".h5",
+SUFFIX = {"rec": ".uff", "frf": ".h5", "inverted": ".h5", "ema": ".h5", "model": ".h5", "oma": ".h5", "omay": ".h5",
           "cut": ".csv", "forces": ".csv", "sched": ".csv", "tests": ".csv"}  # fmt: skip
 
 
@@ -58,6 +58,8 @@ def _make_inputs(folder: Path) -> None:
 
     ema = path_frfs("x", "EMA", np.linspace(0.3, 1.2, 5))
     write_frfs(folder / "frf.h5", ema[:1])
+    flipped = FRF(f, -ModalParameters(16.5, 2e6, 0.04).compliance(f), direction="x")
+    write_frfs(folder / "inverted.h5", [flipped])  # hammer polarity reversed: fit flagged
     write_frfs(folder / "ema.h5", ema)
     FRFPoseModel(f, rng=0).fit_frfs(ema).save(folder / "model.h5")
     write_frfs(folder / "oma.h5", path_frfs("x", "OMA", [0.5, 0.8]))
@@ -176,6 +178,7 @@ MODAL_T = "modal fit {IN}"
 bad_inputs("modal-fit", MODAL_T, ".h5")
 bad_outputs("modal-fit-plot", "modal fit {frf} --plot {OUT}", ".png", "frf")
 bad_options("modal-fit", "modal fit {frf} --modes", {"--max-order": ["1000", "0"]})
+case("modal-fit-flagged-fit", "modal fit {inverted}")
 case("modal-fit-band-reversed", "modal fit {frf} --band 30 10")
 case("modal-fit-band-nan", "modal fit {frf} --band nan 10")
 case("modal-fit-band-inf", "modal fit {frf} --band 10 inf")
@@ -231,8 +234,8 @@ bad_options("control-gains", "control gains --x 2400 --y 0 --rz 0", {
     "--r": ["0", "-1", "nan"], "--direction": ["q"],
 })  # fmt: skip
 case("control-gains-x=nan", "control gains --x nan --y 0 --rz 0")
-bad_inputs("control-schedule", "control schedule --path {IN}", ".csv")
-bad_outputs("control-schedule-plot", "control schedule --path {sched} --plot {OUT}", ".png",
+bad_inputs("control-schedule", "control schedule --path-file {IN}", ".csv")
+bad_outputs("control-schedule-plot", "control schedule --path-file {sched} --plot {OUT}", ".png",
             "sched")  # fmt: skip
 case("control-schedule-direction", "control schedule --direction q")
 case("control-table9-unknown-option", "control table9 --bogus")
@@ -263,70 +266,20 @@ case("hybrid-update-output-is-oma", "hybrid update {model} {oma} -o {oma}")
 case("hybrid-update-mode", "hybrid update {model} {oma} -o {out:.h5} --mode bogus")
 case("hybrid-update-direction-mismatch", "hybrid update {model} {omay} -o {out:.h5}")
 case("hybrid-update-ema-as-oma", "hybrid update {model} {ema} -o {out:.h5}")
-bad_inputs("hybrid-predict", "hybrid predict {IN} --s 0.5", ".h5")
-case("hybrid-predict-s=nan", "hybrid predict {model} --s nan")
-case("hybrid-predict-s=inf", "hybrid predict {model} --s inf")
-bad_inputs("hybrid-predict-measured", "hybrid predict {model} --s 0.5 --measured {IN}", ".h5")
-bad_outputs("hybrid-predict-plot", "hybrid predict {model} --s 0.5 --plot {OUT}", ".png", "model")
+bad_inputs("hybrid-predict", "hybrid predict {IN} --path-s 0.5", ".h5")
+case("hybrid-predict-s=nan", "hybrid predict {model} --path-s nan")
+case("hybrid-predict-s=inf", "hybrid predict {model} --path-s inf")
+bad_inputs("hybrid-predict-measured", "hybrid predict {model} --path-s 0.5 --measured {IN}", ".h5")
+bad_outputs(
+    "hybrid-predict-plot", "hybrid predict {model} --path-s 0.5 --plot {OUT}", ".png", "model"
+)
 bad_options("hybrid-next-poses", "hybrid next-poses", {
-    "--k": ["0", "1000"], "--ema": ["a,b", "nan,0.5", "0.5,0.5"], "--direction": ["q"],
+    "--k": ["0", "1000"], "--path-s": ["a", "nan", "inf"], "--direction": ["q"],
 })  # fmt: skip
 bad_outputs("hybrid-next-poses-plot", "hybrid next-poses --plot {OUT}", ".png", None)
 
-#: cases the CLI still gets wrong (see module docstring), by kind; all need CLI changes (the
-#: library side is in place: writers take ``inputs=``/``force=``, checked library calls)
-KNOWN_GAPS: set[str] = {
-    # usage error printed as a rich panel, not one "error:" line
-    "control-table9-unknown-option",
-    "demo-kernel=bogus-range",
-    "gpr-predict-kernel=bogus-range",
-    "gpr-predict-x=nan",
-    "gpr-predict-y=inf",
-    "robot-fk-joints-count",
-    "robot-fk-joints-nan",
-    # data loss: output = input overwritten (CLI passes no inputs= to the writer)
-    "frf-compute-output-is-input",
-    "hybrid-fit-output-is-input",
-    "hybrid-update-output-is-input",
-    "hybrid-update-output-is-oma",
-    # silent wrong result: accepted with exit 0 (CLI maps/ignores the option or calls the unchecked path)
-    "frf-compute-exp-window-tau-ms=-1-range",
-    "frf-compute-exp-window-tau-ms=nan-nan",
-    "frf-compute-force-window-ms=-1-range",
-    "frf-compute-force-window-ms=nan-nan",
-    "hybrid-next-poses-ema=0.5,0.5-range",
-    "hybrid-next-poses-plot-output-folder-readonly",
-    "hybrid-predict-plot-output-folder-readonly",
-    "hybrid-update-direction-mismatch",
-    "hybrid-update-ema-as-oma",
-    "mill-lobes-feed=z-range",
-    "mill-lobes-rpm-max=inf-inf",
-    "mill-lobes-rpm-reversed",
-    "mill-map-plot-output-folder-readonly",
-    # traceback: exception not caught by the CLI (plots outside try, OSError, arange before checks)
-    "control-schedule-input-missing",
-    "control-schedule-plot-output-folder-missing",
-    "control-schedule-plot-output-folder-readonly",
-    "control-schedule-plot-output-is-input",
-    "hybrid-fit-df=0-range",
-    "hybrid-fit-df=nan-nan",
-    "hybrid-fit-fmax=inf-inf",
-    "hybrid-fit-fmin=nan-nan",
-    "hybrid-next-poses-plot-output-folder-missing",
-    "hybrid-predict-plot-output-folder-missing",
-    "hybrid-predict-plot-output-is-input",
-    "hybrid-study-background=-1-range",
-    "hybrid-study-background=nan-nan",
-    "mill-lobes-plot-output-folder-missing",
-    "mill-lobes-plot-output-folder-readonly",
-    "mill-map-nx=-3-range",
-    "mill-map-plot-output-folder-missing",
-    "modal-fit-plot-output-folder-missing",
-    "modal-fit-plot-output-folder-readonly",
-    "modal-fit-plot-output-is-input",
-    "robot-compare-plot-output-folder-missing",
-    "robot-compare-plot-output-folder-readonly",
-}
+#: cases the CLI still gets wrong (see module docstring); strict xfail, so the set only shrinks
+KNOWN_GAPS: set[str] = set()
 
 
 # ----------------------------------------------------------------------------- running

@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import json
 import math
-import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -19,13 +16,16 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 __all__ = [
+    "ForceOpt",
     "JsonFlag",
+    "KeepFlaggedFitsOpt",
     "KernelOpt",
     "ModeSwitchOpt",
     "OutOpt",
     "SeedOpt",
     "Table",
     "check_kernel",
+    "check_output",
     "console",
     "emit_json",
     "escape",
@@ -54,6 +54,19 @@ ModeSwitchOpt = Annotated[
     ),
 ]
 OutOpt = Annotated[Path, typer.Option("-o", "--output", help="File to write.")]
+ForceOpt = Annotated[
+    bool,
+    typer.Option(
+        "--force", help="Allow the output to replace one of the input files (the input is lost)."
+    ),
+]
+KeepFlaggedFitsOpt = Annotated[
+    bool,
+    typer.Option(
+        "--keep-flagged",
+        help="Exit 0 even when a fit is flagged (at a bound, large residual, inverted sign).",
+    ),
+]
 
 #: Library errors reported as one line ``error: ...`` with exit code 1.
 EXPECTED_ERRORS = (ValueError, OSError, RuntimeError, KeyError, ImportError)
@@ -71,7 +84,13 @@ class ErrorHandlingGroup(TyperGroup):
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
-        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+        except (
+            click.exceptions.ClickException,
+            click.exceptions.Exit,
+            click.exceptions.Abort,
+            typer.Exit,  # typer's own Exit is a RuntimeError, not click's: never "error: Exit"
+            typer.Abort,
+        ):
             raise
         except EXPECTED_ERRORS as exc:
             if _STATE["debug"]:
@@ -130,8 +149,19 @@ def _plain(obj: Any) -> Any:
 
 
 def emit_json(doc: dict) -> None:
-    """Print ``doc`` as one JSON document (strict: NaN and inf become null)."""
-    typer.echo(json.dumps(_plain(doc), indent=2, allow_nan=False))
+    """Print ``doc`` as one JSON document (strict: NaN and inf become null, with the reason
+    listed under ``null_reasons``; see :func:`robovib.io.json_dumps`)."""
+    from ..io import json_dumps
+
+    typer.echo(json_dumps(doc, indent=2))
+
+
+def check_output(path: Path | None, inputs=(), force: bool = False) -> None:
+    """Refuse an output before any work: missing/read-only folder, or one of the inputs."""
+    if path is not None:
+        from ..io import check_output_path
+
+        check_output_path(path, inputs=inputs, force=force)
 
 
 def materials() -> dict:
@@ -154,18 +184,13 @@ def use_agg() -> None:
     matplotlib.use("Agg")
 
 
-def save_figure(fig, path: Path, dpi: int = 120) -> None:
-    """Save a figure atomically (temporary file in the target folder, then rename) and close it."""
+def save_figure(fig, path: Path, dpi: int = 120, inputs=(), force: bool = False) -> None:
+    """Save a figure atomically (:func:`robovib.io.save_figure`) and close it."""
     import matplotlib.pyplot as plt
 
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
-    os.close(fd)
+    from ..io import save_figure as _save
+
     try:
-        fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".") or "png")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        _save(fig, path, dpi=dpi, inputs=inputs, force=force)
     finally:
         plt.close(fig)

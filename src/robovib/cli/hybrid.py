@@ -9,10 +9,12 @@ import numpy as np
 import typer
 
 from ._common import (
+    ForceOpt,
     JsonFlag,
     OutOpt,
     SeedOpt,
     Table,
+    check_output,
     console,
     emit_json,
     new_app,
@@ -82,17 +84,19 @@ def oma(
     rpm: Annotated[
         float | None, typer.Option(help="Spindle speed [rpm]: flags its harmonics.")
     ] = None,
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
     """OMA compliance FRFs per path segment from a milling record (flagged bins stored)."""
     from ..hybrid import oma_frfs_with_path
     from ..io import read_milling_record_csv, write_frfs
 
+    check_output(output, [record], force)
     frfs = oma_frfs_with_path(
         read_milling_record_csv(record), direction=direction, segment_length_m=segment_mm / 1e3,
         nperseg=nperseg, f_min_hz=fmin, f_max_hz=fmax, spindle_rpm=rpm,
     )  # fmt: skip
-    write_frfs(output, frfs)
+    write_frfs(output, frfs, inputs=[record], force=force)
     flagged = [np.asarray(f.meta["flagged"], bool) for f in frfs]
     doc = {"output": str(output), "segments": len(frfs), "s_mid_m": [f.meta["path_s_m"] for f in frfs],
            "flagged_fraction": float(np.mean([fl.mean() for fl in flagged]))}  # fmt: skip
@@ -116,18 +120,22 @@ def fit(
     df_hz: Annotated[
         float, typer.Option("--df", help="Model grid step [Hz] (match the OMA resolution).")
     ] = 1.953125,
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
-    """Initial per-bin GP model of the compliance over the path from EMA FRFs."""
-    from ..hybrid import FRFPoseModel, frfs_on_path_grid
+    """Initial per-bin GP model of the compliance over the path from EMA FRFs (one direction)."""
+    from ..hybrid import FRFPoseModel, frequency_grid
     from ..io import read_frfs
 
-    grid = np.arange(fmin, fmax + 1e-9, df_hz)
-    h, s, m = frfs_on_path_grid([f for path in ema for f in read_frfs(path)], grid)
-    model = FRFPoseModel(grid).fit(s, h, mask=m)
-    model.save(output)
+    check_output(output, ema, force)
+    grid = frequency_grid(fmin, fmax, df_hz)
+    frfs = [f for path in ema for f in read_frfs(path)]
+    model = FRFPoseModel(grid).fit_frfs(frfs)
+    model.save(output, inputs=ema, force=force)
+    s = frfs
     doc = {
         "output": str(output),
+        "direction": model.direction_,
         "n_frfs": len(s),
         "n_bins": int(grid.size),
         "iterations_mean": model.last_report_.iterations_mean_per_gp,
@@ -146,16 +154,21 @@ def update(
     mode: Annotated[
         str, typer.Option(help="warm (re-optimise from the current hyperparameters) or posterior.")
     ] = "warm",
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
-    """Bayesian update of the model with OMA FRFs (separate noise level for OMA)."""
-    from ..hybrid import FRFPoseModel, frfs_on_path_grid
+    """Bayesian update of the model with OMA FRFs (separate noise level for OMA).
+
+    The FRFs must be OMA FRFs of the model's direction (checked, never mixed).
+    """
+    from ..hybrid import FRFPoseModel
     from ..io import read_frfs
 
+    check_output(output, [model_file, oma_file], force)
     model = FRFPoseModel.load(model_file)
-    h, s, m = frfs_on_path_grid(read_frfs(oma_file), model.frequency_hz, partial=True)
-    rep = model.update(s, h, mask=m, mode=mode)
-    model.save(output)
+    s = read_frfs(oma_file)
+    rep = model.update_frfs(s, mode=mode)
+    model.save(output, inputs=[model_file, oma_file], force=force)
     doc = {"output": str(output), "n_oma": len(s), "mode": mode,
            "iterations_mean": rep.iterations_mean_per_gp, "wall_time_s": rep.wall_time_s}  # fmt: skip
     if json_out:
@@ -182,13 +195,14 @@ def predict(
     from ..hybrid import FRFPoseModel, plot_frf_prediction, predict_frf_at
     from ..io import read_frfs
 
+    check_output(plot, [model_file, measured])
     model = FRFPoseModel.load(model_file)
     meas = read_frfs(measured)[0] if measured is not None else None
     pred = predict_frf_at(model, path_s, meas)
     doc = pred.to_dict()
     if plot is not None:
         use_agg()
-        save_figure(plot_frf_prediction(pred), plot)
+        save_figure(plot_frf_prediction(pred), plot, inputs=[model_file, measured])
     if json_out:
         emit_json(doc)
         return
@@ -225,6 +239,7 @@ def next_poses(
     """Where to hammer next along the chapter-4 path: largest integrated predictive variance."""
     from ..hybrid.study import plot_next_poses, propose_next_poses
 
+    check_output(plot)
     tested = path_s if path_s else [0.0, 0.585, 1.235]
     res = propose_next_poses(tested, k=k, direction=direction, rng=seed)
     if plot is not None:

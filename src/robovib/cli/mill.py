@@ -12,9 +12,11 @@ from ._common import (
     JsonFlag,
     SeedOpt,
     Table,
+    check_output,
     console,
     emit_json,
     escape,
+    fail,
     material,
     new_app,
     save_figure,
@@ -82,8 +84,10 @@ def predict(
          "mode": r.mode.to_dict()}
         for r in res
     ]  # fmt: skip
+    outside = list(res[0].extrapolation)
     if json_out:
-        emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm, "predictions": rows})
+        emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm,
+                   "extrapolation": outside, "predictions": rows})  # fmt: skip
         return
     con = console()
     t = Table(
@@ -99,6 +103,10 @@ def predict(
             f"{r['peak_to_valley_mm']:.4f}", escape(f"[{r['peak_to_valley_band_mm'][0]:.4f}, {r['peak_to_valley_band_mm'][1]:.4f}]"),
         )  # fmt: skip
     con.print(t)
+    if outside:
+        con.print(
+            f"[yellow]warning:[/] {', '.join(outside)} outside the calibrated workspace: extrapolation"
+        )
 
 
 @app.command("lobes")
@@ -117,19 +125,14 @@ def lobes(
 ) -> None:
     """Stability lobes (zero-order method) from the pose's predicted X/Y modes."""
     from ..gp.study import fit_chapter3_model
-    from ..milling import CuttingConditions, MillingTool
-    from ..milling.stability import stability_lobes
-    from ..milling.workflow import pose_modes
+    from ..milling.workflow import lobes_at_pose
 
-    modes, _, _ = pose_modes(fit_chapter3_model(rng=seed), x, y, rz)
-    cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae / 1e3)
-    feed_dir, normal = ("x", "y") if feed == "x" else ("y", "x")
-    result = stability_lobes(
-        [modes[feed_dir]], [modes[normal]], MillingTool(), cond, material(material_name),
-        n_lobes=40,
+    check_output(plot)
+    res = lobes_at_pose(
+        fit_chapter3_model(rng=seed), x, y, rz, material(material_name), radial_depth_m=ae / 1e3,
+        feed_direction=feed, rpm_range=(rpm_min, rpm_max),
     )  # fmt: skip
-    speeds = np.linspace(rpm_min, rpm_max, 200)
-    crit = result.critical_depth(speeds)
+    result, speeds, crit = res.lobes, res.spindle_rpm, res.critical_depth_m
     if plot is not None:
         use_agg()
         result.plot(path=plot, rpm_range=(rpm_min, rpm_max))
@@ -137,6 +140,7 @@ def lobes(
         "minimum_critical_depth_mm": 1e3 * result.minimum_depth_m,
         "spindle_rpm": speeds,
         "critical_depth_mm": 1e3 * crit,
+        "extrapolation": list(res.extrapolation),
     }
     if json_out:
         emit_json(doc)
@@ -150,6 +154,10 @@ def lobes(
     )
     if plot is not None:
         typer.echo(f"wrote {plot}")
+    if res.extrapolating:
+        typer.echo(
+            f"warning: {', '.join(res.extrapolation)} outside the calibrated workspace: extrapolation"
+        )
 
 
 @app.command("map")
@@ -172,6 +180,10 @@ def lobe_map(
     from ..milling import CuttingConditions, MillingTool
     from ..milling.workflow import best_pose, plot_lobe_map, workspace_lobe_map
 
+    check_output(plot)
+    for name, n in (("--nx", nx), ("--ny", ny)):
+        if n < 2:
+            fail(f"{name} must be at least 2 grid points, got {n}")
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
     model = fit_chapter3_model(rng=seed)
     cond = CuttingConditions(rpm, 1e-4, 1e-3, ae / 1e3)

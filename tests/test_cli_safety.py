@@ -1,0 +1,108 @@
+"""CLI safety behaviours that are not errors: --force, --keep-flagged, extrapolation flags, JSON."""
+
+import hashlib
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from robovib.cli import app
+from robovib.frf import FRF
+from robovib.io import read_frfs, write_frfs
+from robovib.modal import ModalParameters
+
+MODE = ModalParameters(16.5, 2e6, 0.04)
+
+
+def _strict_json(text):
+    def refuse(token):
+        raise AssertionError(f"non-JSON token {token}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+@pytest.fixture(scope="module")
+def cached_model():
+    """The chapter-3 model fitted once for this module (the CLI refits it per call)."""
+    import functools
+
+    import robovib.gp.study as study
+
+    original = study.fit_chapter3_model
+    study.fit_chapter3_model = functools.lru_cache(maxsize=4)(original)
+    yield
+    study.fit_chapter3_model = original
+
+
+def test_force_allows_replacing_the_input(tmp_path):
+    from synthetic import hammer_hits
+
+    from robovib.io import HammerRecording, write_recording_uff
+
+    forces, responses = hammer_hits([(16.5, 2e6, 0.04)], fs=1024.0, duration_s=1.0, n_hits=2,
+                                    width_s=4e-3)  # fmt: skip
+    rec = tmp_path / "hits.uff"
+    write_recording_uff(rec, HammerRecording(forces, responses, 1024.0, "acceleration", "x"))
+    digest = hashlib.sha256(rec.read_bytes()).hexdigest()
+    refused = CliRunner().invoke(app, ["frf", "compute", str(rec), "-o", str(rec)])
+    assert refused.exit_code == 1 and "is the input file" in refused.output
+    assert hashlib.sha256(rec.read_bytes()).hexdigest() == digest
+    # an .uff output next to a .uff input: --force replaces the recording by the FRF
+    res = CliRunner().invoke(app, ["frf", "compute", str(rec), "-o", str(rec), "--force"])
+    assert res.exit_code == 0, res.output
+    (frf,) = read_frfs(rec)
+    assert frf.quantity == "compliance" and frf.direction == "x"
+
+
+def test_flagged_fit_fails_unless_kept(tmp_path):
+    f = np.arange(2.0, 60.0, 0.25)
+    path = tmp_path / "inverted.h5"
+    write_frfs(path, [FRF(f, -MODE.compliance(f), direction="x")])
+    res = CliRunner().invoke(app, ["modal", "fit", str(path), "--json"])
+    assert res.exit_code == 1
+    errors = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1 and "flagged" in errors[0] and "--keep-flagged" in errors[0]
+    kept = CliRunner().invoke(app, ["modal", "fit", str(path), "--json", "--keep-flagged"])
+    assert kept.exit_code == 0
+    doc = _strict_json(kept.stdout)
+    dom = doc["frfs"][0]["dominant_mode"]
+    assert dom["flagged"] is True and any("inverted sign" in x for x in dom["flags"])
+    # a clean FRF is not flagged and exits 0
+    write_frfs(path, [FRF(f, MODE.compliance(f), direction="x")], force=True)
+    ok = CliRunner().invoke(app, ["modal", "fit", str(path), "--json"])
+    assert ok.exit_code == 0
+    assert _strict_json(ok.stdout)["frfs"][0]["dominant_mode"]["flags"] == []
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["mill", "predict", "--x", "99999", "--y", "0", "--rz", "0", "--samples", "2", "--json"],
+        ["mill", "lobes", "--x", "99999", "--y", "0", "--rz", "0", "--json"],
+        ["control", "gains", "--x", "99999", "--y", "0", "--rz", "0", "--json"],
+    ],
+    ids=["mill-predict", "mill-lobes", "control-gains"],
+)
+def test_predictions_outside_the_workspace_are_flagged(argv, cached_model):
+    res = CliRunner().invoke(app, argv)
+    assert res.exit_code == 0, res.output
+    doc = _strict_json(res.stdout)
+    assert doc["extrapolation"] == ["x_mm"]
+    inside = CliRunner().invoke(app, [a if a != "99999" else "2400" for a in argv])
+    assert _strict_json(inside.stdout)["extrapolation"] == []
+
+
+def test_json_infinite_depth_is_null_with_reason(cached_model):
+    """Speeds no lobe covers have an infinite critical depth: null plus a reason, not Infinity."""
+    res = CliRunner().invoke(
+        app, ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "0", "--rpm-min", "1",
+              "--rpm-max", "20", "--json"],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "Infinity" not in res.stdout and "NaN" not in res.stdout
+    doc = _strict_json(res.stdout)
+    nulls = [i for i, v in enumerate(doc["critical_depth_mm"]) if v is None]
+    assert nulls  # below the lowest lobe there is no finite critical depth
+    assert {f"critical_depth_mm[{i}]" for i in nulls} <= set(doc["null_reasons"])
+    assert "infinity" in doc["null_reasons"][f"critical_depth_mm[{nulls[0]}]"]
