@@ -132,18 +132,17 @@ def fit(
     frfs = [f for path in ema for f in read_frfs(path)]
     model = FRFPoseModel(grid).fit_frfs(frfs)
     model.save(output, inputs=ema, force=force)
-    s = frfs
     doc = {
         "output": str(output),
         "direction": model.direction_,
-        "n_frfs": len(s),
+        "n_frfs": len(frfs),
         "n_bins": int(grid.size),
         "iterations_mean": model.last_report_.iterations_mean_per_gp,
     }
     if json_out:
         emit_json(doc)
     else:
-        typer.echo(f"wrote {output}: {len(s)} EMA FRFs, {grid.size} bins")
+        typer.echo(f"wrote {output}: {len(frfs)} EMA FRFs ({model.direction_}), {grid.size} bins")
 
 
 @app.command("update")
