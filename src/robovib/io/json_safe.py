@@ -20,7 +20,7 @@ __all__ = ["dumps", "json_safe"]
 
 def _reason(x: float) -> str:
     if math.isnan(x):
-        return "not a number (NaN): no value could be computed"
+        return "not a number: no value could be computed"
     return f"{'+' if x > 0 else '-'}infinity: no finite value (unbounded)"
 
 
