@@ -96,30 +96,11 @@ def _csv(path: Path, cols: dict) -> None:
             fh.write(",".join(f"{v:.9g}" for v in r) + "\n")
 
 
-def _cache_chapter3_model():
-    """Fit the chapter-3 model once for the whole matrix (the CLI refits it per call).
-
-    Returns the original function, to restore.
-    """
-    import functools
-
-    import robovib.gp.study as study
-
-    original = study.fit_chapter3_model
-    if not hasattr(original, "cache_info"):
-        study.fit_chapter3_model = functools.lru_cache(maxsize=4)(original)
-    return original
-
-
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
-    import robovib.gp.study as study
-
-    original = _cache_chapter3_model()
     folder = tmp_path_factory.mktemp("inputs")
     _make_inputs(folder)
-    yield folder
-    study.fit_chapter3_model = original
+    return folder
 
 
 # ----------------------------------------------------------------------------- the matrix
@@ -391,7 +372,6 @@ if __name__ == "__main__":  # pragma: no cover - counts for the issue's closing 
     import sys
     import tempfile
 
-    _cache_chapter3_model()
     with tempfile.TemporaryDirectory() as d:
         base = Path(d)
         inp = base / "inputs"

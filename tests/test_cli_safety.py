@@ -22,19 +22,6 @@ def _strict_json(text):
     return json.loads(text, parse_constant=refuse)
 
 
-@pytest.fixture(scope="module")
-def cached_model():
-    """The chapter-3 model fitted once for this module (the CLI refits it per call)."""
-    import functools
-
-    import robovib.gp.study as study
-
-    original = study.fit_chapter3_model
-    study.fit_chapter3_model = functools.lru_cache(maxsize=4)(original)
-    yield
-    study.fit_chapter3_model = original
-
-
 def test_force_allows_replacing_the_input(tmp_path):
     from synthetic import hammer_hits
 
@@ -84,7 +71,7 @@ def test_flagged_fit_fails_unless_kept(tmp_path):
     ],
     ids=["mill-predict", "mill-lobes", "control-gains"],
 )
-def test_predictions_outside_the_workspace_are_flagged(argv, cached_model):
+def test_predictions_outside_the_workspace_are_flagged(argv):
     res = CliRunner().invoke(app, argv)
     assert res.exit_code == 0, res.output
     doc = _strict_json(res.stdout)
@@ -93,7 +80,7 @@ def test_predictions_outside_the_workspace_are_flagged(argv, cached_model):
     assert _strict_json(inside.stdout)["extrapolation"] == []
 
 
-def test_json_infinite_depth_is_null_with_reason(cached_model):
+def test_json_infinite_depth_is_null_with_reason():
     """Speeds no lobe covers have an infinite critical depth: null plus a reason, not Infinity."""
     res = CliRunner().invoke(
         app, ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "0", "--rpm-min", "1",

@@ -17,9 +17,10 @@ runner = CliRunner()
 
 
 @pytest.fixture(scope="module", autouse=True)
-def _memoised_chapter3(chapter3_factory):
+def _memoised_chapter3(chapter3_factory, chapter3_regressor_factory):
     mp = pytest.MonkeyPatch()
-    mp.setattr("robovib.gp.study.fit_chapter3_model", chapter3_factory)
+    mp.setattr("robovib.gp.fit_chapter3_model", chapter3_factory)
+    mp.setattr("robovib.studies.chapter3.fit_chapter3_regressor", chapter3_regressor_factory)
     yield
     mp.undo()
 
@@ -60,7 +61,7 @@ def test_library_error_is_one_line_exit_1(tmp_path):
     assert result.exit_code == 1 and "unknown output format" in result.stderr
 
 
-def test_gpr_predict(chapter3_model):
+def test_gpr_predict():
     doc = run_json("gpr", "predict", "--x", "2400", "--y", "0", "--rz", "45")
     assert len(doc["predictions"]) == 9 and doc["extrapolation"] == []
 

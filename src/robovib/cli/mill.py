@@ -64,7 +64,7 @@ def predict(
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..io import read_force_csv
     from ..milling import CuttingConditions
     from ..milling.prediction import resample_force
@@ -73,7 +73,7 @@ def predict(
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
     f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
     res = predict_at_pose(
-        fit_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
+        get_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
@@ -124,12 +124,12 @@ def lobes(
     json_out: JsonFlag = False,
 ) -> None:
     """Stability lobes (zero-order method) from the pose's predicted X/Y modes."""
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..milling.workflow import lobes_at_pose
 
     check_output(plot)
     res = lobes_at_pose(
-        fit_chapter3_model(rng=seed), x, y, rz, material(material_name), radial_depth_m=ae / 1e3,
+        get_chapter3_model(rng=seed), x, y, rz, material(material_name), radial_depth_m=ae / 1e3,
         feed_direction=feed, rpm_range=(rpm_min, rpm_max),
     )  # fmt: skip
     result, speeds, crit = res.lobes, res.spindle_rpm, res.critical_depth_m
@@ -176,7 +176,7 @@ def lobe_map(
     """Critical axial depth at a spindle speed over the workspace: where to mill."""
     from rich.progress import Progress
 
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..milling import CuttingConditions, MillingTool
     from ..milling.workflow import best_pose, plot_lobe_map, workspace_lobe_map
 
@@ -185,7 +185,7 @@ def lobe_map(
         if n < 2:
             fail(f"{name} must be at least 2 grid points, got {n}")
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
-    model = fit_chapter3_model(rng=seed)
+    model = get_chapter3_model(rng=seed)
     cond = CuttingConditions(rpm, 1e-4, 1e-3, ae / 1e3)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task("lobes over the workspace", total=nx * ny)
