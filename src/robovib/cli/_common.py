@@ -21,6 +21,7 @@ __all__ = [
     "KeepFlaggedFitsOpt",
     "KernelOpt",
     "ModeSwitchOpt",
+    "ModelOpt",
     "OutOpt",
     "SeedOpt",
     "Table",
@@ -34,6 +35,7 @@ __all__ = [
     "new_app",
     "save_figure",
     "use_agg",
+    "workspace_model",
 ]
 
 JsonFlag = Annotated[
@@ -67,6 +69,26 @@ KeepFlaggedFitsOpt = Annotated[
         help="Exit 0 even when a fit is flagged (at a bound, large residual, inverted sign).",
     ),
 ]
+ModelOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--model",
+        help="Your pose model (.h5 from 'robovib model fit', inputs x_mm,y_mm,rz_deg); "
+        "default: the thesis' chapter-3 model.",
+    ),
+]
+
+
+def workspace_model(path: Path | None, seed: int = 0):
+    """The pose model to predict with: the user's file or the shipped chapter-3 model."""
+    if path is None:
+        from ..gp import get_chapter3_model
+
+        return get_chapter3_model(rng=seed)
+    from ..campaign import load_pose_model
+
+    return load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg"))
+
 
 #: Library errors reported as one line ``error: ...`` with exit code 1.
 EXPECTED_ERRORS = (ValueError, OSError, RuntimeError, KeyError, ImportError)

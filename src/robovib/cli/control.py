@@ -9,6 +9,7 @@ import typer
 
 from ._common import (
     JsonFlag,
+    ModelOpt,
     SeedOpt,
     Table,
     check_output,
@@ -19,6 +20,7 @@ from ._common import (
     new_app,
     save_figure,
     use_agg,
+    workspace_model,
 )
 
 app = new_app("Pose-dependent LQR vibration control (thesis ch. 4).")
@@ -33,6 +35,7 @@ def gains(
     period_ms: Annotated[float, typer.Option(help="Command period [ms] (RSI: 4 ms).")] = 4.0,
     delay_ms: Annotated[float, typer.Option(help="Actuator delay [ms] (KRC4: 32 ms).")] = 32.0,
     r: Annotated[float, typer.Option("--r", help="Input weight R (Q = diag(1, 0.001)).")] = 0.001,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """LQR gains W = [w1, w2] at a pose from the GP's predicted mode, with the delay analysis."""
@@ -43,12 +46,11 @@ def gains(
         loop_margins,
         tune_r_for_delay,
     )
-    from ..gp import get_chapter3_model
     from ..milling.workflow import pose_extrapolation, pose_modes
 
     if direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}")
-    model = get_chapter3_model()
+    model = workspace_model(model_path)
     modes = {d: m.parameters for d, m in pose_modes(model, (x, y, rz)).items()}
     outside = list(pose_extrapolation(model, (x, y, rz)))
     mode = modes[direction]

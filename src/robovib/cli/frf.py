@@ -128,6 +128,7 @@ def compute(
         "df_hz": frf.df_hz,
         "mean_coherence": float(np.mean(frf.coherence)),
         "hits": hits,
+        "reader": rec.report.to_dict() if rec.report is not None else None,
     }
     if json_out:
         emit_json(summary)
@@ -147,6 +148,14 @@ def compute(
             escape("; ".join(h["reasons"])),
         )
     con.print(t)
+    if rec.report is not None:
+        rep = rec.report
+        con.print(
+            f"read {rep.records_read} records ({rep.layout}): {rep.hits_formed} hits formed, "
+            f"{len(rep.hits_rejected)} rejected"
+            + "".join(f"\n  rejected {escape(h)}: {escape(r)}" for h, r in rep.hits_rejected)
+            + "".join(f"\n  note: {escape(n)}" for n in rep.notes)
+        )
     con.print(
         f"wrote {output}: compliance FRF, {frf.frequency_hz[0]:g}-{frf.frequency_hz[-1]:g} Hz, "
         f"df = {frf.df_hz:.3g} Hz, {frf.n_averages} hits averaged, mean coherence {summary['mean_coherence']:.3f}"

@@ -10,6 +10,7 @@ import typer
 
 from ._common import (
     JsonFlag,
+    ModelOpt,
     SeedOpt,
     Table,
     check_output,
@@ -21,6 +22,7 @@ from ._common import (
     new_app,
     save_figure,
     use_agg,
+    workspace_model,
 )
 
 app = new_app("Milling vibration and chatter stability at a pose (thesis §3.5).")
@@ -61,10 +63,10 @@ def predict(
         int, typer.Option(help="Monte-Carlo draws of the GP prediction for the band.")
     ] = 50,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..gp import get_chapter3_model
     from ..io import read_force_csv
     from ..milling import CuttingConditions
     from ..milling.prediction import resample_force
@@ -73,7 +75,7 @@ def predict(
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
     f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
     res = predict_at_pose(
-        get_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
+        workspace_model(model_path, seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
@@ -121,16 +123,16 @@ def lobes(
     rpm_max: Annotated[float, typer.Option(help="Highest speed of the plot [rpm].")] = 3000.0,
     plot: Annotated[Path | None, typer.Option(help="PNG of the lobes.")] = None,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Stability lobes (zero-order method) from the pose's predicted X/Y modes."""
-    from ..gp import get_chapter3_model
     from ..milling.workflow import lobes_at_pose
 
-    check_output(plot)
+    check_output(plot, [model_path])
     res = lobes_at_pose(
-        get_chapter3_model(rng=seed), x, y, rz, material(material_name), radial_depth_m=ae / 1e3,
-        feed_direction=feed, rpm_range=(rpm_min, rpm_max),
+        workspace_model(model_path, seed), x, y, rz, material(material_name),
+        radial_depth_m=ae / 1e3, feed_direction=feed, rpm_range=(rpm_min, rpm_max),
     )  # fmt: skip
     result, speeds, crit = res.lobes, res.spindle_rpm, res.critical_depth_m
     if plot is not None:
@@ -171,21 +173,21 @@ def lobe_map(
     ny: Annotated[int, typer.Option(help="Grid points in Y.")] = 10,
     plot: Annotated[Path | None, typer.Option(help="PNG heat map over X-Y.")] = None,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Critical axial depth at a spindle speed over the workspace: where to mill."""
     from rich.progress import Progress
 
-    from ..gp import get_chapter3_model
     from ..milling import CuttingConditions, MillingTool
     from ..milling.workflow import best_pose, plot_lobe_map, workspace_lobe_map
 
-    check_output(plot)
+    check_output(plot, [model_path])
     for name, n in (("--nx", nx), ("--ny", ny)):
         if n < 2:
             fail(f"{name} must be at least 2 grid points, got {n}")
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
-    model = get_chapter3_model(rng=seed)
+    model = workspace_model(model_path, seed)
     cond = CuttingConditions(rpm, 1e-4, 1e-3, ae / 1e3)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task("lobes over the workspace", total=nx * ny)

@@ -14,6 +14,7 @@ from .frf_files import (
 )
 from .json_safe import dumps as json_dumps
 from .json_safe import json_safe
+from .poses import read_pose_table
 from .recording import (
     HammerRecording,
     ReadReport,
@@ -58,6 +59,7 @@ __all__ = [
     "read_frfs_uff",
     "read_milling_record_csv",
     "read_path_modes_csv",
+    "read_pose_table",
     "read_recording",
     "read_recording_channels",
     "read_recording_csv",
