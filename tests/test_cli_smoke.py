@@ -48,7 +48,10 @@ def files(tmp_path_factory):
 def test_version_and_help_units():
     result = runner.invoke(app, ["--version"])
     assert result.exit_code == 0 and result.stdout.startswith("robovib ")
-    assert "[mm]" in runner.invoke(app, ["sim", "hammer", "--help"]).stdout
+    hammer_help = runner.invoke(app, ["sim", "hammer", "--help"])
+    assert hammer_help.exit_code == 0, hammer_help.output
+    assert "error" not in hammer_help.output
+    assert "[mm]" in hammer_help.stdout
     assert "[w1, w2]" in runner.invoke(app, ["control", "gains", "--help"]).stdout
     assert "[dB]" in runner.invoke(app, ["sim", "hammer", "--help"]).stdout
 
@@ -138,9 +141,9 @@ def test_mill_commands(tmp_path):
     doc = run_json("mill", "predict", "--x", "2700", "--y", "0", "--rz", "0", "--samples", "5")
     assert [r["direction"] for r in doc["predictions"]] == ["x", "y", "z"]
     doc = run_json("mill", "lobes", "--x", "2400", "--y", "0", "--rz", "45")
-    assert doc["minimum_critical_depth_mm"] > 0 and len(doc["spindle_rpm"]) == 200
+    assert doc["minimum_depth_m"] > 0 and len(doc["rpm"]) == len(doc["a_lim_m"]) == 200
     doc = run_json("mill", "map", "--nx", "3", "--ny", "2", "--plot", str(tmp_path / "map.png"))
-    assert np.shape(doc["critical_depth_mm"]) == (2, 3) and (tmp_path / "map.png").stat().st_size
+    assert np.shape(doc["critical_depth_m"]) == (2, 3) and (tmp_path / "map.png").stat().st_size
 
 
 def test_control_gains_table9_and_schedule_file(tmp_path):

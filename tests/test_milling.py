@@ -139,7 +139,7 @@ def test_mill_cli(tmp_path):
     assert [r["direction"] for r in rows] == ["x", "y", "z"]
     assert all(r["peak_to_valley_band_mm"][0] <= r["peak_to_valley_band_mm"][1] for r in rows)
     res = runner.invoke(app, ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "45", "--json"])
-    assert res.exit_code == 0 and json.loads(res.output)["minimum_critical_depth_mm"] > 0
+    assert res.exit_code == 0 and json.loads(res.output)["minimum_depth_m"] > 0
     res = runner.invoke(
         app, ["mill", "predict", "--x", "2400", "--y", "0", "--rz", "0", "--material", "wood"]
     )

@@ -110,7 +110,7 @@ class ErrorHandlingGroup(TyperGroup):
             click.exceptions.ClickException,
             click.exceptions.Exit,
             click.exceptions.Abort,
-            typer.Exit,  # typer's own Exit is a RuntimeError, not click's: never "error: Exit"
+            typer.Exit,  # a RuntimeError subclass in recent Typer: --help must exit 0, not "error: 0"
             typer.Abort,
         ):
             raise

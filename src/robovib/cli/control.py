@@ -121,7 +121,7 @@ def schedule(
 
         s, modes = read_path_modes_csv(path_file)
     else:
-        from ..control.studies import virtual_path_modes
+        from ..studies.control_closed_loop import virtual_path_modes
 
         s, modes = virtual_path_modes(direction=direction, rng=seed)
     sched = schedule_gains(s, modes, warn=warnings_seen.append)
@@ -165,46 +165,56 @@ def table9(json_out: JsonFlag = False) -> None:
 
 @app.command("simulate")
 def simulate(
-    experiment: Annotated[str, typer.Argument(help="offset-mass or milling.")],
+    experiment: Annotated[str, typer.Argument(help="offset-mass (Table 7) or milling (Table 10).")],
+    controller: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--controller",
+            help="Controller(s), repeatable: thesis, constant-start, constant-end, tuned, lqg, "
+            "robust, feedforward, feedforward+robust, repetitive. Default: all.",
+        ),
+    ] = None,
+    actuator: Annotated[
+        str, typer.Option(help="Command channel: pure-delay (32 ms) or calibrated.")
+    ] = "pure-delay",
     plot: Annotated[
         Path | None,
-        typer.Option(help="PNG of the X vibration per controller (offset-mass, first speed)."),
+        typer.Option(
+            help="PNG: offset-mass X vibration envelope per controller (first speed); milling "
+            "RMS per cut and controller (X and Z figures: NAME_x.png, NAME_z.png)."
+        ),
     ] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
-    """Closed-loop runs on the virtual robot: Table 7 (offset mass) or Table 10 (milling) analogue."""
+    """Closed-loop runs on the virtual robot, controllers designed from the path model only."""
     check_output(plot)
     from rich.progress import Progress
 
-    from ..control.studies import (
-        milling_study,
-        offset_mass_study,
-        path_modal_model,
-        plot_offset_mass,
-        split_traces,
-    )
-    from ..sim import VirtualRobot
+    from ..studies.control_closed_loop import simulate_control
 
-    if experiment not in ("offset-mass", "milling"):
-        fail(f"unknown experiment {experiment!r}; use offset-mass or milling")
-    robot = VirtualRobot()
     with Progress(transient=True, disable=json_out) as bar:
-        task = bar.add_task("virtual EMA along the path + closed-loop runs", total=None)
-        model = path_modal_model(robot, rng=seed)
-        rows = (
-            offset_mass_study(robot, model, rng=seed, keep_traces=plot is not None)
-            if experiment == "offset-mass"
-            else milling_study(robot, model, rng=seed)
-        )
+        task = bar.add_task("virtual EMA along the path, designs, closed-loop runs", total=None)
+        try:
+            result = simulate_control(experiment, controller or None, actuator=actuator,
+                                      keep_traces=plot is not None, rng=seed)  # fmt: skip
+        except ValueError as exc:
+            fail(str(exc))
         bar.update(task, completed=1)
-    if plot is not None and experiment == "offset-mass":
-        use_agg()
-        save_figure(plot_offset_mass(rows), plot)
-    rows, _ = split_traces(rows)
+    frame = result.to_frame()
     if json_out:
-        emit_json({"experiment": experiment, "rows": rows})
-        return
-    import pandas as pd
-
-    console().print(escape(pd.DataFrame(rows).round(3).to_string(index=False)))
+        emit_json(result.to_dict())
+    else:
+        console().print(escape(frame.round(3).to_string(index=False)))
+    if plot is not None:
+        use_agg()
+        if experiment == "offset-mass":
+            save_figure(result.plot(), plot)
+            written = [plot]
+        else:
+            written = [plot.with_name(f"{plot.stem}_{d}{plot.suffix}") for d in ("x", "z")]
+            for d, path in zip(("x", "z"), written, strict=True):
+                save_figure(result.plot(d), path)
+        if not json_out:
+            for path in written:
+                typer.echo(f"wrote {path}")

@@ -4,6 +4,7 @@ Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
 from .atomic import atomic_path
+from .cuts import MeasuredCuts, read_cuts_csv
 from .frf_files import (
     read_frfs,
     read_frfs_hdf5,
@@ -42,6 +43,7 @@ from .units import apply_sensitivity, si_factor
 
 __all__ = [
     "HammerRecording",
+    "MeasuredCuts",
     "OutputPathError",
     "ReadReport",
     "Record58",
@@ -53,6 +55,7 @@ __all__ = [
     "json_dumps",
     "json_safe",
     "read_compliance_tests_csv",
+    "read_cuts_csv",
     "read_force_csv",
     "read_frfs",
     "read_frfs_hdf5",

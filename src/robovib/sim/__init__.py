@@ -15,7 +15,8 @@ from .experiments import (
     simulate_milling,
     simulate_offset_mass,
 )
-from .plant import run_closed_loop
+from .plant import PURE_DELAY, CommandChannel, ConstantModesRobot, run_closed_loop
+from .regenerative import RegenerativeCut, simulate_regenerative_cut, simulated_stability_limit
 from .truth import (
     PATH_LENGTH_M,
     POSITION_1_S_M,
@@ -32,11 +33,15 @@ __all__ = [
     "PATH_LENGTH_M",
     "POSITION_1_S_M",
     "POSITION_2_S_M",
+    "PURE_DELAY",
     "WORKSPACE_BOUNDS",
+    "CommandChannel",
+    "ConstantModesRobot",
     "LinearMove",
     "ModeSet",
     "MotionRecord",
     "PathTruth",
+    "RegenerativeCut",
     "SimulatedCampaign",
     "VirtualRobot",
     "WorkspaceTruth",
@@ -49,6 +54,8 @@ __all__ = [
     "simulate_hammer_test",
     "simulate_milling",
     "simulate_offset_mass",
+    "simulate_regenerative_cut",
+    "simulated_stability_limit",
     "truth_table",
     "zoh_transition",
 ]
