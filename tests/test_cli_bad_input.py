@@ -176,14 +176,16 @@ bad_options("sim-mill", "sim mill -o {out:.csv} --x1 2110", {
     "--rpm": ["0", "nan"], "--fz": ["-1"], "--ap": ["nan"], "--material": ["unobtainium"],
     "--background": ["-1", "inf"],
 })  # fmt: skip
-bad_outputs("sim-offset-mass", "sim offset-mass -o {OUT} --s-start 0.5 --s-end 0.45", ".csv", None)
-bad_options("sim-offset-mass", "sim offset-mass -o {out:.csv} --s-start 0.5 --s-end 0.45", {
+OFFSET = "--path-s-from 0.5 --path-s-to 0.45"
+bad_outputs("sim-offset-mass", f"sim offset-mass -o {{OUT}} {OFFSET}", ".csv", None)
+bad_options("sim-offset-mass", f"sim offset-mass -o {{out:.csv}} {OFFSET}", {
     "--rpm": ["nan", "-480"], "--speed": ["0", "inf"],
 })  # fmt: skip
 
 # robot
-case("robot-fk-joints-count", "robot fk --joints 1,2")
-case("robot-fk-joints-nan", "robot fk --joints nan,0,0,0,0,0")
+case("robot-fk-joints-count", "robot fk --joints 1 2")
+case("robot-fk-joints-nan", "robot fk --joints nan 0 0 0 0 0")
+case("robot-fk-joints-inf", "robot fk --joints 0 inf 0 0 0 0")
 case("robot-ik-x=nan", "robot ik --x nan --y 0")
 case("robot-ik-unreachable", "robot ik --x 99999 --y 0")
 case("robot-stiffness-x=nan", "robot stiffness --x nan --y 0")
@@ -199,9 +201,10 @@ bad_options("mill-predict", MILL_P, {
 })  # fmt: skip
 case("mill-predict-x=nan", "mill predict --x nan --y 0 --rz 0")
 bad_options("mill-lobes", "mill lobes --x 2400 --y 0 --rz 0", {
-    "--feed": ["z"], "--ae": ["0", "nan"], "--rpm-max": ["inf"],
+    "--feed": ["z"], "--ae": ["0", "nan"], "--rpm-range": ["100:inf:20", "100:3000:0"],
+    "--method": ["bogus"], "--steps": ["0"],
 })  # fmt: skip
-case("mill-lobes-rpm-reversed", "mill lobes --x 2400 --y 0 --rz 0 --rpm-min 3000 --rpm-max 100")
+case("mill-lobes-rpm-reversed", "mill lobes --x 2400 --y 0 --rz 0 --rpm-range 3000:100:20")
 case("mill-lobes-x=nan", "mill lobes --x nan --y 0 --rz 0")
 bad_outputs("mill-lobes-plot", "mill lobes --x 2400 --y 0 --rz 0 --plot {OUT}", ".png", None)
 bad_options("mill-map", "mill map", {

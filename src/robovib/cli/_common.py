@@ -100,19 +100,31 @@ def new_app(help: str, **kwargs) -> typer.Typer:
     return typer.Typer(help=help, rich_markup_mode=None, no_args_is_help=True, **kwargs)
 
 
+def _click_passthrough() -> tuple[type, ...]:
+    """Click's own exceptions (usage errors, --help exits), also those of the click copy that
+    recent Typer vendors as ``typer._click``: click reports them itself, never as "unexpected"."""
+    kinds: list[type] = [
+        click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort,
+        typer.Exit, typer.Abort,
+    ]  # fmt: skip
+    try:
+        from typer._click import exceptions as vendored
+    except ImportError:  # older Typer: plain click only
+        return tuple(kinds)
+    names = ("ClickException", "Exit", "Abort")
+    return (*kinds, *(getattr(vendored, n) for n in names if hasattr(vendored, n)))
+
+
+_PASSTHROUGH = _click_passthrough()
+
+
 class ErrorHandlingGroup(TyperGroup):
     """Root group: library errors become one line on stderr and exit code 1."""
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
-        except (
-            click.exceptions.ClickException,
-            click.exceptions.Exit,
-            click.exceptions.Abort,
-            typer.Exit,  # a RuntimeError subclass in recent Typer: --help must exit 0, not "error: 0"
-            typer.Abort,
-        ):
+        except _PASSTHROUGH:  # typer.Exit is a RuntimeError in recent Typer: --help exits 0
             raise
         except EXPECTED_ERRORS as exc:
             if _STATE["debug"]:

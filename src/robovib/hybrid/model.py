@@ -285,6 +285,7 @@ class FRFPoseModel(BaseEstimator):
             x, h, mask=m, groups=groups, mode=mode, noise_std=err, reoptimize=reoptimize
         )
 
+    @staticmethod
     def _groups(groups, sources, default: int, n: int) -> np.ndarray:
         if sources is not None:
             warnings.warn(
