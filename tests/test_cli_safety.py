@@ -80,16 +80,14 @@ def test_predictions_outside_the_workspace_are_flagged(argv):
     assert _strict_json(inside.stdout)["extrapolation"] == []
 
 
-def test_json_infinite_depth_is_null_with_reason():
-    """Speeds no lobe covers have an infinite critical depth: null plus a reason, not Infinity."""
-    res = CliRunner().invoke(
-        app, ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "0", "--rpm-min", "1",
-              "--rpm-max", "20", "--json"],
-    )  # fmt: skip
-    assert res.exit_code == 0, res.output
-    assert "Infinity" not in res.stdout and "NaN" not in res.stdout
-    doc = _strict_json(res.stdout)
-    nulls = [i for i, v in enumerate(doc["critical_depth_mm"]) if v is None]
-    assert nulls  # below the lowest lobe there is no finite critical depth
-    assert {f"critical_depth_mm[{i}]" for i in nulls} <= set(doc["null_reasons"])
-    assert "infinity" in doc["null_reasons"][f"critical_depth_mm[{nulls[0]}]"]
+def test_cli_json_never_writes_nan_or_infinity(capsys):
+    """Every --json document goes through emit_json: non-finite numbers become null + reason."""
+    from robovib.cli._common import emit_json
+
+    emit_json({"depth_m": [0.002, float("inf")], "band_mm": (float("nan"), 1.0), "n": np.int64(2)})
+    text = capsys.readouterr().out
+    assert "Infinity" not in text and "NaN" not in text
+    doc = _strict_json(text)
+    assert doc["depth_m"] == [0.002, None] and doc["band_mm"] == [None, 1.0] and doc["n"] == 2
+    assert set(doc["null_reasons"]) == {"depth_m[1]", "band_mm[0]"}
+    assert "infinity" in doc["null_reasons"]["depth_m[1]"]
