@@ -13,10 +13,10 @@ from robovib.control import (
     design_delay_aware_lqr,
     design_lqr,
     discretize,
-    table_9_comparison,
 )
 from robovib.control.schedule import schedule_gains
 from robovib.modal import ModalParameters
+from robovib.studies.table9 import table_9_comparison
 
 MODE = ModalParameters(8.5, 0.775e6, 0.179)  # §4.3.2 offset-mass pose, Y direction
 
@@ -44,7 +44,7 @@ def test_riccati_solution_and_python_control():
 def test_table_9_trends_with_displacement_input():
     rows = [
         r
-        for r in table_9_comparison()
+        for r in table_9_comparison().rows
         if r["formulation"] == "physical" and r["input"] == "displacement"
     ]
     g = {(r["position"], r["direction"]): (r["w1"], r["w2"]) for r in rows}
@@ -138,14 +138,14 @@ def test_schedule_cli_from_a_path_file(tmp_path):
     ]
     csv = tmp_path / "path.csv"
     csv.write_text("\n".join(lines))
-    res = CliRunner().invoke(app, ["control", "schedule", "--path", str(csv), "--json"])
+    res = CliRunner().invoke(app, ["control", "schedule", "--path-file", str(csv), "--json"])
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     assert len(doc["w1"]) == 8 and all(doc["stable_with_delay"])
     bad = tmp_path / "bad.csv"
     bad.write_text("s_m,fn_hz\n0,10\n")
-    res = CliRunner().invoke(app, ["control", "schedule", "--path", str(bad)])
-    assert res.exit_code == 2 and "missing columns" in res.output
+    res = CliRunner().invoke(app, ["control", "schedule", "--path-file", str(bad)])
+    assert res.exit_code == 1 and "missing columns" in res.output
 
 
 @pytest.mark.parametrize(("r", "delay"), [(100.0, 8), (1.0, 0), (1.0, 8)])

@@ -161,7 +161,7 @@ def test_cli_frf_compute_and_modal_fit(tmp_path, recording):
     assert mode["stiffness_n_per_m"] == pytest.approx(MODE[1], rel=0.03)
     assert png.stat().st_size > 1000
     res = runner.invoke(app, ["modal", "fit", str(tmp_path / "missing.h5")])
-    assert res.exit_code == 2 and "error" in res.output
+    assert res.exit_code == 1 and "error" in res.output
 
 
 def test_voltage_channels_need_and_use_sensitivities(tmp_path):
@@ -188,3 +188,88 @@ def test_voltage_channels_need_and_use_sensitivities(tmp_path):
             force_sensitivity=Sensitivity(2.25, "g"),
             response_sensitivity=Sensitivity(10.0, "g"),
         )
+
+
+# --- CSV tables moved out of the CLI (robovib.io.tables) ---
+
+
+def test_recording_csv_round_trip(tmp_path, recording):
+    from robovib.io import write_recording
+
+    write_recording(tmp_path / "hits.csv", recording)
+    back = read_recording_csv(tmp_path / "hits.csv")
+    assert back.n_hits == 3 and back.response_quantity == "acceleration"
+    assert back.sample_rate_hz == pytest.approx(2048.0, rel=1e-9)
+    np.testing.assert_allclose(back.forces, recording.forces, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(back.responses, recording.responses, rtol=1e-8, atol=1e-15)
+    with pytest.raises(ValueError, match="unknown output format"):
+        write_recording(tmp_path / "hits.txt", recording)
+
+
+def test_path_modes_csv_round_trip_and_missing_column(tmp_path):
+    from robovib.io import read_path_modes_csv, write_path_modes_csv
+    from robovib.modal import ModalParameters
+
+    s = np.array([0.3, 0.7, 1.2])
+    modes = [ModalParameters(15.0 + i, 2e6 * (i + 1), 0.03) for i in range(3)]
+    write_path_modes_csv(tmp_path / "m.csv", s, modes)
+    s2, modes2 = read_path_modes_csv(tmp_path / "m.csv")
+    np.testing.assert_allclose(s2, s)
+    assert modes2 == modes
+    (tmp_path / "bad.csv").write_text("s_m,fn_hz\n0.1,15\n")
+    with pytest.raises(ValueError, match="missing columns"):
+        read_path_modes_csv(tmp_path / "bad.csv")
+
+
+def test_force_and_milling_record_csv_read_pandas_written_files(tmp_path):
+    import pandas as pd
+
+    from robovib.io import read_force_csv, read_milling_record_csv
+
+    rng = np.random.default_rng(0)
+    t = np.arange(50) / 1000.0
+    f, d = rng.normal(size=(50, 3)), rng.normal(size=(50, 3)) * 1e-5
+    cols = {"time_s": t} | {f"force_{a}_n": f[:, i] for i, a in enumerate("xyz")}
+    pd.DataFrame(cols).to_csv(tmp_path / "f.csv", index=False)
+    t2, f2 = read_force_csv(tmp_path / "f.csv")
+    np.testing.assert_allclose(t2, t)
+    np.testing.assert_allclose(f2, f)
+    cols |= {f"displacement_{a}_m": d[:, i] for i, a in enumerate("xyz")}
+    cols["path_s_m"] = np.linspace(0.6, 0.7, 50)
+    pd.DataFrame(cols).to_csv(tmp_path / "r.csv", index=False)
+    rec = read_milling_record_csv(tmp_path / "r.csv")
+    np.testing.assert_allclose(rec["displacement_m"], d)
+    np.testing.assert_allclose(rec["path_s_m"], cols["path_s_m"])
+    cols["force_x_n"] = np.where(t > 0.01, np.nan, f[:, 0])
+    pd.DataFrame(cols).to_csv(tmp_path / "nan.csv", index=False)
+    with pytest.raises(ValueError, match="NaN"):
+        read_force_csv(tmp_path / "nan.csv")
+
+
+def test_compliance_tests_csv_with_and_without_rotations(tmp_path):
+    from robovib.io import read_compliance_tests_csv
+
+    names = [f"a{i}_deg" for i in range(1, 7)] + ["fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"]
+    names += ["dx_m", "dy_m", "dz_m"]
+    data = np.arange(2 * 15, dtype=float).reshape(2, 15)
+    np.savetxt(tmp_path / "t.csv", data, delimiter=",", header=",".join(names), comments="")
+    q, _w, d = read_compliance_tests_csv(tmp_path / "t.csv")
+    np.testing.assert_array_equal(q, data[:, :6])
+    assert d.shape == (2, 3)
+    data6 = np.arange(2 * 18, dtype=float).reshape(2, 18)
+    np.savetxt(tmp_path / "r.csv", data6, delimiter=",", comments="",
+               header=",".join([*names, "rx_rad", "ry_rad", "rz_rad"]))  # fmt: skip
+    assert read_compliance_tests_csv(tmp_path / "r.csv")[2].shape == (2, 6)
+
+
+def test_frf_interpolate_is_exact_on_linear_frf_and_checks_range():
+    f = np.linspace(1.0, 10.0, 10)
+    frf = FRF(f, (2 + 3j) * f - 1j, coherence=np.full(10, 0.9))
+    grid = np.array([1.5, 4.25, 9.9])
+    out = frf.interpolate(grid)
+    np.testing.assert_allclose(out.values, (2 + 3j) * grid - 1j)
+    np.testing.assert_allclose(out.coherence, 0.9)
+    with pytest.raises(ValueError, match="covers 1-10 Hz"):
+        frf.interpolate([0.5, 5.0])
+    held = frf.interpolate([0.5, 12.0], outside="hold")
+    np.testing.assert_allclose(held.values, frf.values[[0, -1]])

@@ -44,10 +44,6 @@ class GainSchedule:
         raise ValueError(f"unknown method {method!r}; expected 'interp' or 'poly'")
 
     def plot(self, path=None):
-        import matplotlib
-
-        if path is not None:
-            matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
         fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))

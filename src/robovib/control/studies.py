@@ -263,3 +263,72 @@ def milling_study(
                 )
             rows.append(result)
     return rows
+
+
+def split_traces(rows: list[dict]) -> tuple[list[dict], list[np.ndarray]]:
+    """Rows of :func:`offset_mass_study` without their ``trace_x_m`` records, and the records.
+
+    Returns
+    -------
+    rows
+        Copies of the rows without the trace (JSON/table friendly).
+    traces
+        (n,) X displacement [m] at 1 kHz, one per row that had one (stable runs).
+    """
+    out, traces = [], []
+    for r in rows:
+        r = dict(r)
+        if "trace_x_m" in r:
+            traces.append(np.asarray(r.pop("trace_x_m")))
+        out.append(r)
+    return out, traces
+
+
+def plot_offset_mass(rows: list[dict], ax=None):
+    """X vibration per controller at the first spindle speed (thesis Fig. 24 analogue).
+
+    Parameters
+    ----------
+    rows
+        Rows of :func:`offset_mass_study` run with ``keep_traces=True``.
+    ax
+        Matplotlib axes; a new figure if None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(9, 4))
+    else:
+        fig = ax.figure
+    first = rows[0]["speed_rpm"]
+    for r in rows:
+        if r["speed_rpm"] == first and "trace_x_m" in r:
+            x = np.asarray(r["trace_x_m"])
+            ax.plot(np.arange(x.size) / 1000.0, 1e3 * x, lw=0.7, label=r["controller"])
+    ax.set_xlabel("time [s] (robot moving from the extended end toward the base)")
+    ax.set_ylabel("X vibration [mm]")
+    ax.set_title(f"offset mass at {first:g} rpm on the virtual robot")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def virtual_path_modes(
+    robot: VirtualRobot | None = None, direction: str = "x", n_points: int = 20, rng=0
+) -> tuple[np.ndarray, list[ModalParameters]]:
+    """Dominant modes along the chapter-4 path from a virtual EMA (:func:`path_modal_model`).
+
+    Returns
+    -------
+    s_m
+        (n_points,) path coordinates [m], 0.335-1.235 m.
+    modes
+        One :class:`ModalParameters` per coordinate in ``direction``.
+    """
+    model = path_modal_model(robot or VirtualRobot(), directions=(direction,), rng=rng)
+    s = np.linspace(0.335, 1.235, n_points)
+    return s, [model.mode(si, direction) for si in s]

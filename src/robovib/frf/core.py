@@ -135,6 +135,48 @@ class FRF:
         coh = None if self.coherence is None else self.coherence[keep]
         return replace(self, frequency_hz=f, values=v, coherence=coh, quantity="compliance")
 
+    def interpolate(
+        self, grid_hz, *, outside: Literal["raise", "hold"] = "raise", tolerance_hz: float = 1e-3
+    ) -> FRF:
+        """This FRF linearly interpolated (real and imaginary parts) on another frequency grid.
+
+        Parameters
+        ----------
+        grid_hz
+            (n_g,) strictly increasing frequencies [Hz].
+        outside
+            ``"raise"``: a grid point more than ``tolerance_hz`` outside this FRF's range is an
+            error; ``"hold"``: such points take the value of the nearest end bin (callers mask
+            them).
+        tolerance_hz
+            Slack [Hz] at both ends of the range before a point counts as outside.
+
+        Returns
+        -------
+        FRF
+            Same metadata, ``frequency_hz = grid_hz``; coherence interpolated too.
+
+        Raises
+        ------
+        ValueError
+            Grid not 1-D, not finite or not increasing; or (``outside="raise"``) outside the
+            range; unknown ``outside``.
+        """
+        g = np.asarray(grid_hz, float)
+        if g.ndim != 1 or g.size == 0 or not np.all(np.isfinite(g)):
+            raise ValueError("grid_hz must be a non-empty 1-D array of finite frequencies [Hz]")
+        if outside not in ("raise", "hold"):
+            raise ValueError(f"unknown outside={outside!r}; expected 'raise' or 'hold'")
+        f = self.frequency_hz
+        beyond = (g < f[0] - tolerance_hz) | (g > f[-1] + tolerance_hz)
+        if outside == "raise" and np.any(beyond):
+            raise ValueError(
+                f"FRF covers {f[0]:g}-{f[-1]:g} Hz, not the grid {g[0]:g}-{g[-1]:g} Hz"
+            )
+        v = np.interp(g, f, self.values.real) + 1j * np.interp(g, f, self.values.imag)
+        coh = None if self.coherence is None else np.interp(g, f, self.coherence)
+        return replace(self, frequency_hz=g, values=v, coherence=coh)
+
     def band(self, f_min_hz: float, f_max_hz: float) -> FRF:
         """The bins with ``f_min_hz <= f <= f_max_hz``."""
         if f_min_hz >= f_max_hz:

@@ -2,5 +2,22 @@
 
 from .model import FRFPoseModel, UpdateReport
 from .oma import OMASegment, oma_frfs
+from .workflow import (
+    FRFPrediction,
+    frfs_on_path_grid,
+    oma_frfs_with_path,
+    plot_frf_prediction,
+    predict_frf_at,
+)
 
-__all__ = ["FRFPoseModel", "OMASegment", "UpdateReport", "oma_frfs"]
+__all__ = [
+    "FRFPoseModel",
+    "FRFPrediction",
+    "OMASegment",
+    "UpdateReport",
+    "frfs_on_path_grid",
+    "oma_frfs",
+    "oma_frfs_with_path",
+    "plot_frf_prediction",
+    "predict_frf_at",
+]

@@ -20,10 +20,13 @@ Flagged OMA bins (harmonics, low coherence) enter as missing targets of those bi
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.exceptions import NotFittedError
 
 from ..gp.regressor import BatchedGPRegressor
 
@@ -40,7 +43,7 @@ class UpdateReport:
     wall_time_s: float
 
 
-class FRFPoseModel:
+class FRFPoseModel(BaseEstimator):
     """Per-bin GP model of the compliance over the pose (``fit`` / ``update`` / ``predict``).
 
     Parameters
@@ -49,21 +52,39 @@ class FRFPoseModel:
         The common frequency grid (n_f,): all FRFs must be given on it.
     kernel, n_restarts, rng
         Passed to :class:`~robovib.gp.BatchedGPRegressor` (2 n_f outputs, 2 noise groups).
+
+    Notes
+    -----
+    A scikit-learn estimator (parameters stored unchanged, clone-able). Noise groups are given
+    per sample as ``groups`` (0 = EMA, 1 = OMA); new data enter through :meth:`update` (the
+    same names as :class:`~robovib.gp.BatchedGPRegressor`). ``sources=`` is a deprecated alias
+    of ``groups=``.
     """
 
     def __init__(
         self, frequency_hz, kernel: str = "isotropic", n_restarts: int | None = 0, rng=0
     ) -> None:
-        self.frequency_hz = np.asarray(frequency_hz, float)
+        self.frequency_hz = frequency_hz
         self.kernel = kernel
         self.n_restarts = n_restarts
         self.rng = rng
 
+    @staticmethod
+    def _groups(groups, sources, default: int, n: int) -> np.ndarray:
+        if sources is not None:
+            warnings.warn(
+                "sources= is deprecated; pass the noise groups as groups=",
+                DeprecationWarning,
+                stacklevel=3,
+            )
+            groups = sources if groups is None else groups
+        return np.full(n, default, int) if groups is None else np.asarray(groups, int)
+
     def _targets(self, frfs, mask):
         h = np.asarray(frfs, complex)
-        if h.ndim != 2 or h.shape[1] != self.frequency_hz.size:
+        if h.ndim != 2 or h.shape[1] != self.frequency_hz_.size:
             raise ValueError(
-                f"FRFs must be (n_poses, {self.frequency_hz.size}) on the model's frequency grid, got {h.shape}"
+                f"FRFs must be (n_poses, {self.frequency_hz_.size}) on the model's frequency grid, got {h.shape}"
             )
         m = np.ones(h.shape, bool) if mask is None else np.asarray(mask, bool)
         if m.shape != h.shape:
@@ -79,11 +100,15 @@ class FRFPoseModel:
         p = np.asarray(poses, float)
         return p[:, None] if p.ndim == 1 else p
 
-    def fit(self, poses, frfs, mask=None, sources=None) -> FRFPoseModel:
-        """Fit from scratch; ``sources`` (n,) ints: 0 = EMA, 1 = OMA (default all EMA)."""
+    def fit(self, poses, frfs, mask=None, groups=None, sources=None) -> FRFPoseModel:
+        """Fit from scratch; ``groups`` (n,) ints: 0 = EMA, 1 = OMA (default all EMA)."""
+        grid = np.asarray(self.frequency_hz, float)
+        if grid.ndim != 1 or grid.size == 0 or not np.all(np.isfinite(grid)):
+            raise ValueError("frequency_hz must be a non-empty 1-D array of finite values [Hz]")
+        self.frequency_hz_ = grid
         x = self._poses(poses)
         y, m = self._targets(frfs, mask)
-        groups = np.zeros(x.shape[0], int) if sources is None else np.asarray(sources, int)
+        groups = self._groups(groups, sources, 0, x.shape[0])
         t0 = time.perf_counter()
         self.gp_ = BatchedGPRegressor(
             kernel=self.kernel, n_restarts=self.n_restarts, n_noise_groups=2, rng=self.rng
@@ -98,20 +123,22 @@ class FRFPoseModel:
         self.pose_range_ = (x.min(axis=0), x.max(axis=0))
         return self
 
-    def update(self, poses, frfs, mask=None, sources=None, *, mode: str = "warm") -> UpdateReport:
+    def update(
+        self, poses, frfs, mask=None, groups=None, sources=None, *, mode: str = "warm"
+    ) -> UpdateReport:
         """Bayesian update with new FRFs: ``mode="posterior"`` or ``"warm"`` (see module docs)."""
         if mode not in ("posterior", "warm"):
             raise ValueError(f"unknown update mode {mode!r}; expected 'posterior' or 'warm'")
         self._require_fitted()
         x = self._poses(poses)
         y, m = self._targets(frfs, mask)
-        groups = np.ones(x.shape[0], int) if sources is None else np.asarray(sources, int)
+        groups = self._groups(groups, sources, 1, x.shape[0])
         # The OMA noise is not identifiable from EMA data alone: start it at the EMA noise
         # (kept there by "posterior", re-optimised by "warm").
         if not np.any(self.gp_._active_groups == 1):
             self.gp_._theta[:, -1] = self.gp_._theta[:, -2]
         t0 = time.perf_counter()
-        self.gp_.add_observations(x, y, mask=m, reoptimize=(mode == "warm"), groups=groups)
+        self.gp_.update(x, y, mask=m, groups=groups, mode=mode)
         self.last_report_ = UpdateReport(
             mode,
             int(self.gp_.n_iter_.sum()),
@@ -126,7 +153,7 @@ class FRFPoseModel:
 
     def _require_fitted(self):
         if not hasattr(self, "gp_"):
-            raise RuntimeError("this FRFPoseModel is not fitted yet; call fit() first")
+            raise NotFittedError("this FRFPoseModel is not fitted yet; call fit() first")
 
     def extrapolating(self, poses) -> np.ndarray:
         """(n,) bool: poses outside the calibrated range (per coordinate)."""
@@ -142,7 +169,7 @@ class FRFPoseModel:
         if not np.all(np.isfinite(x)):
             raise ValueError("poses contain NaN or inf")
         mean, std = self.gp_.predict(x, return_std=True)
-        n_f = self.frequency_hz.size
+        n_f = self.frequency_hz_.size
         h = (mean[:, :n_f] + 1j * mean[:, n_f:]) / 1e6
         if not return_std:
             return h
@@ -174,7 +201,7 @@ class FRFPoseModel:
             i = int(np.argmax(score))
             chosen.append(i)
             mean = gp.predict(cand[i : i + 1])
-            gp.add_observations(cand[i : i + 1], mean, groups=np.zeros(1, int))
+            gp.update(cand[i : i + 1], mean, groups=np.zeros(1, int))
         return cand[chosen]
 
     # ------------------------------------------------------------------ persistence (no pickle)
@@ -189,7 +216,7 @@ class FRFPoseModel:
             h5.attrs["version"] = 1
             h5.attrs["kernel"] = self.kernel
             for name, value in {
-                "frequency_hz": self.frequency_hz, "X_train": gp.X_train_, "Y_train": np.nan_to_num(gp.Y_train_),
+                "frequency_hz": self.frequency_hz_, "X_train": gp.X_train_, "Y_train": np.nan_to_num(gp.Y_train_),
                 "mask": gp.mask_, "groups": gp._active_groups, "theta": gp._theta, "x_loc": gp._x_loc,
                 "x_scale": gp._x_scale, "y_loc": gp._y_loc, "y_scale": gp._y_scale,
                 "pose_lo": self.pose_range_[0], "pose_hi": self.pose_range_[1],
@@ -224,5 +251,6 @@ class FRFPoseModel:
         gp.n_iter_ = np.zeros(gp._theta.shape[0], int)
         gp._set_training_data(d["X_train"], d["Y_train"], d["mask"].astype(bool))
         model.gp_ = gp
+        model.frequency_hz_ = np.asarray(d["frequency_hz"], float)
         model.pose_range_ = (d["pose_lo"], d["pose_hi"])
         return model

@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -44,9 +45,7 @@ def ema_frf_on_grid(
     frf = impact_frf(
         rec.forces, rec.responses, rec.sample_rate_hz, f_max_hz=float(grid_hz[-1]) + 5
     ).frf.to_compliance(1.0)
-    return np.interp(grid_hz, frf.frequency_hz, frf.values.real) + 1j * np.interp(
-        grid_hz, frf.frequency_hz, frf.values.imag
-    )
+    return frf.interpolate(grid_hz).values
 
 
 def hybrid_study(
@@ -117,3 +116,67 @@ def hybrid_study(
                           "wall_time_s": time.perf_counter() - t0}  # fmt: skip
         results[d] = row
     return results
+
+
+@dataclass(frozen=True)
+class NextPoses:
+    """Proposed hammer-test path coordinates from a virtual EMA at the tested ones."""
+
+    tested_s_m: np.ndarray  #: (n,) [m]
+    next_s_m: np.ndarray  #: (k,) [m]
+    candidates_s_m: np.ndarray  #: (m,) [m] fine grid along the path
+    integrated_variance: np.ndarray  #: (m,) [(um/N)^2] of the model before the picks
+
+
+def propose_next_poses(tested_s_m, k: int = 3, direction: str = "x", rng=0) -> NextPoses:
+    """Where to hammer next along the chapter-4 path: largest integrated predictive variance.
+
+    Virtual EMA FRFs (2-40 Hz, 1 Hz grid) at ``tested_s_m`` [m] train an
+    :class:`FRFPoseModel`; :meth:`FRFPoseModel.next_poses` picks ``k`` of 50 candidates.
+
+    Raises
+    ------
+    ValueError
+        Bad direction, ``k`` or path coordinates.
+    """
+    from ..sim import PATH_LENGTH_M
+
+    tested = np.asarray(tested_s_m, float).ravel()
+    robot = VirtualRobot()
+    grid = np.arange(2.0, 40.0, 1.0)
+    gen = np.random.default_rng(rng)
+    frfs = np.array([ema_frf_on_grid(robot, s, direction, grid, gen) for s in tested])
+    model = FRFPoseModel(grid, rng=rng).fit(tested, frfs)
+    picks = model.next_poses(np.linspace(0, PATH_LENGTH_M, 50), k=k)[:, 0]
+    cand = np.linspace(0, PATH_LENGTH_M, 200)
+    return NextPoses(tested, picks, cand, model.integrated_variance(cand))
+
+
+def plot_next_poses(result: NextPoses, ax=None):
+    """Integrated predictive variance along the path with tested and proposed poses.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7, 3.5))
+    else:
+        fig = ax.figure
+    ax.plot(
+        result.candidates_s_m * 1e3,
+        result.integrated_variance,
+        color="C0",
+        label="integrated predictive variance",
+    )
+    for i, s_t in enumerate(result.tested_s_m):
+        ax.axvline(s_t * 1e3, color="k", lw=1, label="tested" if i == 0 else None)
+    for i, s_p in enumerate(result.next_s_m):
+        ax.axvline(s_p * 1e3, color="C3", ls="--", lw=1, label="proposed" if i == 0 else None)
+    ax.set_xlabel("distance along the path [mm]")
+    ax.set_ylabel("sum over bins of var [(um/N)^2]")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig

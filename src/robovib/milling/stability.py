@@ -77,10 +77,6 @@ class StabilityLobes:
         return float(min(np.min(d) for d in self.depth_m))
 
     def plot(self, ax=None, path=None, rpm_range=None):
-        import matplotlib
-
-        if path is not None:
-            matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
         if ax is None:

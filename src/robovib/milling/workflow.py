@@ -1,8 +1,9 @@
 """Milling at a pose: forces -> pose-model dynamics -> vibration with a band; lobes; workspace map.
 
-The pose model is any fitted model with ``predict(X, return_std=True)`` over chapter-3 poses
-``(X [mm], Y [mm], Rz [deg])`` returning the 9 outputs in thesis units and Table-2 order
-(fn [Hz], k [MN/m], c [kN·s/m] for X, Y, Z) — e.g. :func:`robovib.gp.study.fit_chapter3_model`.
+The pose model is a fitted :class:`robovib.gp.PoseModalModel` over chapter-3 poses
+``(x_mm, y_mm, rz_deg)`` with directions x, y, z (SI), e.g.
+:func:`robovib.gp.load_chapter3_model`; the modes are read through ``model.modes``, by
+direction name, not by column order.
 
 Uncertainty: Monte-Carlo sampling of the GP's predictive normals (each output independently,
 which ignores correlations between outputs), draws with non-physical values (k, fn, c <= 0 or
@@ -42,17 +43,12 @@ def base_frame_forces(local: np.ndarray, feed_direction: str) -> np.ndarray:
     raise ValueError(f"feed_direction must be 'x' or 'y', got {feed_direction!r}")
 
 
-def _to_modes(row: np.ndarray) -> dict[str, ModalParameters]:
-    return {
-        d: ModalParameters.from_fn_k_c(row[3 * i], row[3 * i + 1] * 1e6, row[3 * i + 2] * 1e3)
-        for i, d in enumerate(DIRECTIONS)
-    }
+def pose_modes(model, pose) -> dict:
+    """Dominant mode per direction at one pose: ``{direction: PoseMode}`` (SI, with std).
 
-
-def pose_modes(model, x_mm: float, y_mm: float, rz_deg: float):
-    """Dominant modes per direction at a pose, with the predictive mean and std (thesis units)."""
-    mean, std = model.predict(np.array([[x_mm, y_mm, rz_deg]]), return_std=True)
-    return _to_modes(mean[0]), mean[0], std[0]
+    ``pose`` is one input row in the units of ``model.input_names`` (e.g. (x_mm, y_mm, rz_deg)).
+    """
+    return model.modes(np.asarray(pose, float)[None, :])[0]
 
 
 @dataclass(frozen=True)
@@ -100,7 +96,8 @@ def predict_at_pose(
     forces_n = np.asarray(forces_n, float)
     if forces_n.ndim != 2 or forces_n.shape[1] != 3:
         raise ValueError(f"forces_n must be (n, 3) base-frame forces, got {forces_n.shape}")
-    modes, mean, std = pose_modes(model, x_mm, y_mm, rz_deg)
+    pose = pose_modes(model, (x_mm, y_mm, rz_deg))
+    modes = {d: pose[d].parameters for d in DIRECTIONS}
     gen = np.random.default_rng(rng)
     out = []
     for i, d in enumerate(DIRECTIONS):
@@ -111,7 +108,9 @@ def predict_at_pose(
             conditions.spindle_rpm,
             skip_s,
         )
-        mu, sd = mean[3 * i : 3 * i + 3], std[3 * i : 3 * i + 3]
+        p = pose[d]
+        mu = [modes[d].natural_frequency_hz, modes[d].stiffness_n_per_m, modes[d].damping_ns_per_m]
+        sd = [p.fn_std_hz, p.stiffness_std_n_per_m, p.damping_std_ns_per_m]
         pv, md = [], []
         draws = 0
         while len(pv) < n_samples and draws < 20 * n_samples:
@@ -120,7 +119,7 @@ def predict_at_pose(
             if np.any(s <= 0):
                 continue
             try:
-                m = ModalParameters.from_fn_k_c(s[0], s[1] * 1e6, s[2] * 1e3)
+                m = ModalParameters.from_fn_k_c(s[0], s[1], s[2])
             except ValueError:
                 continue
             if m.damping_ratio >= 1:
@@ -170,10 +169,9 @@ def workspace_lobe_map(
     xs = np.linspace(2100, 2700, 13) if x_mm is None else np.asarray(x_mm, float)
     ys = np.linspace(-300, 600, 10) if y_mm is None else np.asarray(y_mm, float)
     grid = np.array([[x, y, rz_deg] for y in ys for x in xs])
-    mean = model.predict(grid)
     out = np.empty(len(grid))
-    for j, row in enumerate(mean):
-        modes = _to_modes(row)
+    for j, pose in enumerate(model.modes(grid)):
+        modes = {d: m.parameters for d, m in pose.items()}
         feed, normal = ("x", "y") if feed_direction == "x" else ("y", "x")
         lobes: StabilityLobes = stability_lobes(
             [modes[feed]], [modes[normal]], tool, conditions, coefficients
@@ -184,3 +182,58 @@ def workspace_lobe_map(
         if progress is not None:
             progress(j + 1, len(grid))
     return out.reshape(len(ys), len(xs))
+
+
+def plot_lobe_map(x_mm, y_mm, critical_depth_m, *, title: str | None = None, ax=None):
+    """Heat map of the critical axial depth over the workspace (from :func:`workspace_lobe_map`).
+
+    Parameters
+    ----------
+    x_mm, y_mm
+        (n_x,), (n_y,) grid coordinates [mm].
+    critical_depth_m
+        (n_y, n_x) critical axial depth [m]; shown in mm, clipped for the colour scale at 10x
+        the shallowest depth so that near-unconditionally stable poses do not wash it out.
+    title
+        Axes title.
+    ax
+        Matplotlib axes to draw into; a new figure if None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    grid = np.asarray(critical_depth_m, float)
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7, 5))
+    else:
+        fig = ax.figure
+    im = ax.pcolormesh(
+        x_mm, y_mm, np.minimum(grid, 10 * np.nanmin(grid)) * 1e3, shading="auto", cmap="viridis"
+    )
+    fig.colorbar(im, ax=ax, label="critical axial depth [mm]")
+    ax.set_xlabel("X [mm]")
+    ax.set_ylabel("Y [mm]")
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def best_pose(x_mm, y_mm, critical_depth_m) -> dict:
+    """Deepest and shallowest critical depth of a :func:`workspace_lobe_map` grid.
+
+    Returns
+    -------
+    dict
+        ``best_pose_mm`` [x, y], ``best_depth_mm``, ``shallowest_depth_mm``.
+    """
+    grid = np.asarray(critical_depth_m, float)
+    i, j = np.unravel_index(np.argmax(grid), grid.shape)
+    return {
+        "best_pose_mm": [float(x_mm[j]), float(y_mm[i])],
+        "best_depth_mm": 1e3 * float(grid[i, j]),
+        "shallowest_depth_mm": 1e3 * float(np.min(grid)),
+    }

@@ -22,13 +22,9 @@ def plot_frf_fit(
 ):
     """Magnitude, phase and coherence of a compliance FRF with the fitted modes' curve."""
     try:
-        import matplotlib
+        import matplotlib.pyplot as plt
     except ImportError:
         raise ImportError("plots need matplotlib: pip install 'robovib[plot]'") from None
-
-    if path is not None:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     n_rows = 3 if frf.coherence is not None else 2
     fig, axes = plt.subplots(n_rows, 1, sharex=True, figsize=(7, 2.2 * n_rows + 0.6))

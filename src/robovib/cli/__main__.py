@@ -1,0 +1,5 @@
+"""``python -m robovib.cli``."""
+
+from . import main
+
+main()

@@ -1,0 +1,197 @@
+"""``robovib control``: pose-dependent LQR vibration control (thesis ch. 4)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ._common import (
+    JsonFlag,
+    SeedOpt,
+    Table,
+    console,
+    emit_json,
+    escape,
+    fail,
+    new_app,
+    save_figure,
+    use_agg,
+)
+
+app = new_app("Pose-dependent LQR vibration control (thesis ch. 4).")
+
+
+@app.command("gains")
+def gains(
+    x: Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")],
+    y: Annotated[float, typer.Option("--y", help="Tool-tip Y [mm].")],
+    rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")],
+    direction: Annotated[str, typer.Option(help="x, y or z.")] = "x",
+    period_ms: Annotated[float, typer.Option(help="Command period [ms] (RSI: 4 ms).")] = 4.0,
+    delay_ms: Annotated[float, typer.Option(help="Actuator delay [ms] (KRC4: 32 ms).")] = 32.0,
+    r: Annotated[float, typer.Option("--r", help="Input weight R (Q = diag(1, 0.001)).")] = 0.001,
+    json_out: JsonFlag = False,
+) -> None:
+    """LQR gains W = [w1, w2] at a pose from the GP's predicted mode, with the delay analysis."""
+    from ..control import (
+        delay_analysis,
+        design_delay_aware_lqr,
+        design_lqr,
+        loop_margins,
+        tune_r_for_delay,
+    )
+    from ..gp import get_chapter3_model
+    from ..milling.workflow import pose_modes
+
+    if direction not in ("x", "y", "z"):
+        fail(f"unknown direction {direction!r}")
+    modes = {d: m.parameters for d, m in pose_modes(get_chapter3_model(), (x, y, rz)).items()}
+    mode = modes[direction]
+    d = design_lqr(mode, period_ms / 1e3, r=[[r]])
+    da = delay_analysis(d, delay_ms / 1e3)
+    tuned, r_tuned = tune_r_for_delay(mode, period_ms / 1e3, delay_ms / 1e3)
+    aware = design_delay_aware_lqr(mode, period_ms / 1e3, delay_ms / 1e3, r=[[1.0]])
+    margins = loop_margins(d, round(delay_ms / period_ms))
+    doc = {
+        "mode": mode.to_dict(), "w1": d.gains[0], "w2": d.gains[1], "spectral_radius_no_delay": d.spectral_radius,
+        "stable_with_delay": da.stable, "spectral_radius_with_delay": da.spectral_radius,
+        "max_stable_delay_ms": 1e3 * da.max_stable_delay_s,
+        "delay_tuned": {"r": r_tuned, "w1": tuned.gains[0], "w2": tuned.gains[1]},
+        "delay_aware": {"gains": aware.gains, "spectral_radius": aware.spectral_radius},
+        "margins_with_delay": {"gain_margins": margins.gain_margins, "phase_crossovers_hz": margins.phase_crossovers_hz,
+                               "phase_margins_deg": margins.phase_margins_deg, "gain_crossovers_hz": margins.gain_crossovers_hz},
+    }  # fmt: skip
+    if json_out:
+        emit_json(doc)
+        return
+    typer.echo(
+        f"mode: fn {mode.natural_frequency_hz:.2f} Hz, k {mode.stiffness_n_per_m / 1e6:.3f} MN/m, zeta {mode.damping_ratio:.3f}"
+    )
+    typer.echo(f"W = [{d.gains[0]:.4g}, {d.gains[1]:.4g}] (R = {r:g}); with {delay_ms:g} ms delay: "
+               f"{'stable' if da.stable else 'UNSTABLE'} (spectral radius {da.spectral_radius:.3f}, largest stable delay {1e3 * da.max_stable_delay_s:g} ms)")  # fmt: skip
+    if not da.stable:
+        typer.echo(
+            f"best-damped R with the delay: {r_tuned:.3g} -> W = [{tuned.gains[0]:.4g}, {tuned.gains[1]:.4g}]"
+        )
+    if margins.gain_margins.size:
+        typer.echo(
+            f"gain margin with the delay: {margins.gain_margins[0]:.3g} at {margins.phase_crossovers_hz[0]:.2f} Hz"
+        )
+    typer.echo(f"delay-aware LQR (R = 1): spectral radius {aware.spectral_radius:.3f}")
+
+
+@app.command("schedule")
+def schedule(
+    path_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--path-file",
+            help="CSV of modes along a path: s_m, fn_hz, stiffness_n_per_m, damping_ratio. Default: virtual-robot EMA along the chapter-4 path.",
+        ),
+    ] = None,
+    direction: Annotated[
+        str, typer.Option(help="Direction of the virtual-robot path model (x, y, z).")
+    ] = "x",
+    plot: Annotated[
+        Path | None, typer.Option(help="PNG of w1, w2 vs path distance (thesis Fig. 23).")
+    ] = None,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Gains along a path (R tuned for the 32 ms delay), with the Eq. 28-29 polynomial fits."""
+    from ..control.schedule import schedule_gains
+
+    warnings_seen: list[str] = []
+    if path_file is not None:
+        from ..io import read_path_modes_csv
+
+        s, modes = read_path_modes_csv(path_file)
+    else:
+        from ..control.studies import virtual_path_modes
+
+        s, modes = virtual_path_modes(direction=direction, rng=seed)
+    sched = schedule_gains(s, modes, warn=warnings_seen.append)
+    if plot is not None:
+        use_agg()
+        sched.plot(plot)
+    doc = {"s_m": sched.s_m, "w1": sched.w1, "w2": sched.w2, "r": sched.r, "stable_with_delay": sched.stable_with_delay,
+           "w1_poly_high_to_low": sched.w1_poly, "w2_poly_high_to_low": sched.w2_poly, "warnings": warnings_seen}  # fmt: skip
+    if json_out:
+        emit_json(doc)
+        return
+    for si, w1, w2 in zip(sched.s_m, sched.w1, sched.w2, strict=True):
+        typer.echo(f"s = {si * 1e3:7.1f} mm   w1 = {w1:9.5f}   w2 = {w2:9.5f}")
+    for w in warnings_seen:
+        typer.echo(f"warning: {w}")
+    if plot is not None:
+        typer.echo(f"wrote {plot}")
+
+
+@app.command("table9")
+def table9(json_out: JsonFlag = False) -> None:
+    """Gains from the thesis' Table 8 inputs under each plant formulation, beside Table 9."""
+    from ..studies.table9 import table_9_comparison
+
+    rows = table_9_comparison().to_dict()["rows"]
+    if json_out:
+        emit_json({"rows": rows})
+        return
+    t = Table(
+        title="LQR gains from Table 8 predictions (T = 4 ms, Q = diag(1, 0.001), R = 0.001) vs Table 9"
+    )
+    for col in ("formulation", "input", "pos", "dir", "w1", "thesis w1", "w2", "thesis w2"):
+        t.add_column(col, justify="right")
+    for r in rows:
+        t.add_row(
+            r["formulation"], r["input"], str(r["position"]), r["direction"], f"{r['w1']:.4g}",
+            f"{r['thesis_w1']:.3g}", f"{r['w2']:.4g}", f"{r['thesis_w2']:.3g}",
+        )  # fmt: skip
+    console().print(t)
+
+
+@app.command("simulate")
+def simulate(
+    experiment: Annotated[str, typer.Argument(help="offset-mass or milling.")],
+    plot: Annotated[
+        Path | None,
+        typer.Option(help="PNG of the X vibration per controller (offset-mass, first speed)."),
+    ] = None,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Closed-loop runs on the virtual robot: Table 7 (offset mass) or Table 10 (milling) analogue."""
+    from rich.progress import Progress
+
+    from ..control.studies import (
+        milling_study,
+        offset_mass_study,
+        path_modal_model,
+        plot_offset_mass,
+        split_traces,
+    )
+    from ..sim import VirtualRobot
+
+    if experiment not in ("offset-mass", "milling"):
+        fail(f"unknown experiment {experiment!r}; use offset-mass or milling")
+    robot = VirtualRobot()
+    with Progress(transient=True, disable=json_out) as bar:
+        task = bar.add_task("virtual EMA along the path + closed-loop runs", total=None)
+        model = path_modal_model(robot, rng=seed)
+        rows = (
+            offset_mass_study(robot, model, rng=seed, keep_traces=plot is not None)
+            if experiment == "offset-mass"
+            else milling_study(robot, model, rng=seed)
+        )
+        bar.update(task, completed=1)
+    if plot is not None and experiment == "offset-mass":
+        use_agg()
+        save_figure(plot_offset_mass(rows), plot)
+    rows, _ = split_traces(rows)
+    if json_out:
+        emit_json({"experiment": experiment, "rows": rows})
+        return
+    import pandas as pd
+
+    console().print(escape(pd.DataFrame(rows).round(3).to_string(index=False)))

@@ -1,0 +1,141 @@
+"""``robovib frf``: FRFs from impact-hammer recordings (thesis §3.2.1)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ._common import JsonFlag, Table, console, emit_json, escape, fail, new_app
+
+app = new_app("FRFs from impact-hammer recordings (thesis §3.2.1).")
+
+
+@app.command("compute")
+def compute(
+    recording: Annotated[
+        Path, typer.Argument(help="Hammer recording: .csv or .uff/.unv (dataset 58 time records).")
+    ],
+    output: Annotated[Path, typer.Option("-o", "--output", help="FRF file to write: .h5 or .uff.")],
+    direction: Annotated[
+        str | None, typer.Option(help="Excitation/response direction x, y or z (robot base frame).")
+    ] = None,
+    estimator: Annotated[
+        str, typer.Option(help="H1 (noise on the response) or H2 (noise on the force).")
+    ] = "H1",
+    pretrigger_ms: Annotated[
+        float, typer.Option(help="Pre-trigger kept before each hit [ms].")
+    ] = 10.0,
+    force_window_ms: Annotated[
+        float, typer.Option(help="Force window after the trigger [ms]; 0 = none.")
+    ] = 10.0,
+    exp_window_tau_ms: Annotated[
+        float,
+        typer.Option(help="Exponential window time constant [ms] on both channels; 0 = none."),
+    ] = 0.0,
+    f_max_hz: Annotated[
+        float, typer.Option("--fmax", help="Highest frequency kept [Hz] (<= Nyquist).")
+    ] = 200.0,
+    f_min_hz: Annotated[
+        float,
+        typer.Option(
+            "--fmin",
+            help="Lowest frequency kept [Hz] (compliance = accelerance / -w^2 blows up at 0).",
+        ),
+    ] = 2.0,
+    keep_flagged: Annotated[
+        bool, typer.Option(help="Keep hits flagged for double hits or overload (default: reject).")
+    ] = False,
+    path_s: Annotated[
+        float | None,
+        typer.Option(
+            "--path-s",
+            help="Pose as distance along a tool path [m], stored with the FRF (hybrid model).",
+        ),
+    ] = None,
+    force_sensitivity: Annotated[
+        float | None, typer.Option(help="Hammer sensitivity [mV/N] for a force channel in V or mV.")
+    ] = None,
+    response_sensitivity: Annotated[
+        float | None,
+        typer.Option(
+            help="Response sensor sensitivity [mV per --response-unit] for a channel in V or mV."
+        ),
+    ] = None,
+    response_unit: Annotated[
+        str, typer.Option(help="Unit of the response sensitivity (g, m/s^2, m/s, m).")
+    ] = "g",
+    json_out: JsonFlag = False,
+) -> None:
+    """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
+    from dataclasses import replace
+
+    from ..frf import impact_frf
+    from ..io import Sensitivity, read_recording, write_frfs
+
+    if direction is not None and direction not in ("x", "y", "z"):
+        fail(f"unknown direction {direction!r}; use x, y or z")
+    rec = read_recording(
+        recording, direction,
+        Sensitivity(force_sensitivity, "N") if force_sensitivity else None,
+        Sensitivity(response_sensitivity, response_unit) if response_sensitivity else None,
+    )  # fmt: skip
+    result = impact_frf(
+        rec.forces, rec.responses, rec.sample_rate_hz,
+        response_quantity=rec.response_quantity, estimator=estimator,
+        pretrigger_s=pretrigger_ms / 1e3,
+        force_window_s=force_window_ms / 1e3 if force_window_ms > 0 else None,
+        exp_window_tau_s=exp_window_tau_ms / 1e3 if exp_window_tau_ms > 0 else None,
+        reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
+    )  # fmt: skip
+    frf = result.frf.to_compliance(f_min_hz)
+    if path_s is not None:
+        frf = replace(frf, meta={**frf.meta, "path_s_m": float(path_s)})
+    write_frfs(output, [frf])
+    hits = [
+        {
+            "hit": h.index,
+            "accepted": h.accepted,
+            "peak_force_n": h.peak_force_n,
+            "pulse_width_ms": 1e3 * h.pulse_width_s,
+            "reasons": list(h.reasons),
+        }
+        for h in result.hits
+    ]
+    summary = {
+        "recording": str(recording),
+        "output": str(output),
+        "sample_rate_hz": rec.sample_rate_hz,
+        "response_quantity": rec.response_quantity,
+        "direction": frf.direction,
+        "n_hits": rec.n_hits,
+        "n_averaged": frf.n_averages,
+        "frequency_range_hz": [float(frf.frequency_hz[0]), float(frf.frequency_hz[-1])],
+        "df_hz": frf.df_hz,
+        "mean_coherence": float(np.mean(frf.coherence)),
+        "hits": hits,
+    }
+    if json_out:
+        emit_json(summary)
+        return
+    con = console()
+    t = Table(
+        title=f"Hits of {recording.name} ({rec.sample_rate_hz:g} Hz, {rec.response_quantity})"
+    )
+    for col in ("hit", "accepted", "peak force [N]", "pulse [ms]", "flags"):
+        t.add_column(escape(col), justify="right")
+    for h in hits:
+        t.add_row(
+            str(h["hit"]),
+            "yes" if h["accepted"] else "[red]no[/]",
+            f"{h['peak_force_n']:.1f}",
+            f"{h['pulse_width_ms']:.2f}",
+            escape("; ".join(h["reasons"])),
+        )
+    con.print(t)
+    con.print(
+        f"wrote {output}: compliance FRF, {frf.frequency_hz[0]:g}-{frf.frequency_hz[-1]:g} Hz, "
+        f"df = {frf.df_hz:.3g} Hz, {frf.n_averages} hits averaged, mean coherence {summary['mean_coherence']:.3f}"
+    )

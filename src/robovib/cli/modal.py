@@ -1,0 +1,105 @@
+"""``robovib modal``: modal parameters from FRFs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ._common import JsonFlag, Table, console, emit_json, escape, fail, new_app, use_agg
+
+app = new_app("Modal parameters from FRFs.")
+
+
+@app.command("fit")
+def fit(
+    frf_file: Annotated[Path, typer.Argument(help="FRF file (.h5 or .uff).")],
+    band: Annotated[
+        tuple[float, float] | None,
+        typer.Option(help="Fit band LO HI [Hz]; default: around the dominant peak."),
+    ] = None,
+    modes: Annotated[
+        bool, typer.Option("--modes", help="Also identify all modes in the band (LSCF + LSFD).")
+    ] = False,
+    max_order: Annotated[int, typer.Option(help="Highest LSCF model order for --modes.")] = 30,
+    plot: Annotated[
+        Path | None,
+        typer.Option(help="PNG of magnitude, phase and coherence with the fitted curve."),
+    ] = None,
+    json_out: JsonFlag = False,
+) -> None:
+    """Dominant-mode fit (fn, k, c, zeta with standard errors) of every FRF in a file."""
+    from ..io import read_frfs
+    from ..modal import fit_dominant_mode, fit_modes
+
+    frfs = read_frfs(frf_file)
+    results = []
+    for i, frf in enumerate(frfs):
+        try:
+            dom = fit_dominant_mode(frf, band)
+            multi = fit_modes(frf, band, max_order=max_order) if modes else None
+        except (ValueError, RuntimeError) as exc:
+            fail(f"FRF {i}: {exc}")
+        results.append((frf, dom, multi))
+    if plot is not None:
+        use_agg()
+        from ..modal.plot import plot_frf_fit
+
+        frf, dom, multi = results[0]
+        shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
+        fitted = multi.modes if multi is not None else (dom.parameters,)
+        plot_frf_fit(
+            shown,
+            fitted,
+            plot,
+            residual=0j if multi else dom.residual_compliance,
+            title=f"{frf_file.name}, FRF 0",
+        )
+    docs = []
+    for i, (frf, dom, multi) in enumerate(results):
+        doc = {
+            "index": i,
+            "direction": frf.direction,
+            "pose": frf.pose,
+            "dominant_mode": dom.to_dict(),
+        }
+        if multi is not None:
+            doc["modes"] = [m.to_dict() for m in multi.modes]
+        docs.append(doc)
+    if json_out:
+        emit_json({"file": str(frf_file), "frfs": docs})
+        return
+    con = console()
+    t = Table(title=f"Dominant mode of each FRF in {frf_file.name}")
+    for col in ("FRF", "dir", "fn [Hz]", "k [MN/m]", "c [kN·s/m]", "zeta [%]", "band [Hz]"):
+        t.add_column(escape(col), justify="right")
+    for i, (frf, dom, _) in enumerate(results):
+        p, sd = dom.parameters, dom.std
+        t.add_row(
+            str(i), frf.direction or "-",
+            f"{p.natural_frequency_hz:.3f} ± {sd['natural_frequency_hz']:.3f}",
+            f"{p.stiffness_n_per_m / 1e6:.4f} ± {sd['stiffness_n_per_m'] / 1e6:.4f}",
+            f"{p.damping_ns_per_m / 1e3:.3f} ± {sd['damping_ns_per_m'] / 1e3:.3f}",
+            f"{100 * p.damping_ratio:.2f} ± {100 * sd['damping_ratio']:.2f}",
+            f"{dom.band_hz[0]:.1f}-{dom.band_hz[1]:.1f}",
+        )  # fmt: skip
+    con.print(t)
+    for i, (_, _, multi) in enumerate(results):
+        if multi is None:
+            continue
+        t = Table(
+            title=f"FRF {i}: modes in {multi.band_hz[0]:.1f}-{multi.band_hz[1]:.1f} Hz (LSCF + LSFD)"
+        )
+        for col in ("mode", "fn [Hz]", "k [MN/m]", "zeta [%]"):
+            t.add_column(escape(col), justify="right")
+        for j, m in enumerate(multi.modes):
+            t.add_row(
+                str(j + 1),
+                f"{m.natural_frequency_hz:.3f}",
+                f"{m.stiffness_n_per_m / 1e6:.4f}",
+                f"{100 * m.damping_ratio:.2f}",
+            )
+        con.print(t)
+    if plot is not None:
+        con.print(f"wrote {plot}")

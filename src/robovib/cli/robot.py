@@ -1,0 +1,199 @@
+"""``robovib robot``: analytical KR500-3 model (kinematics, stiffness, eigenfrequencies, §3.4)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ._common import JsonFlag, Table, console, emit_json, escape, new_app, use_agg
+
+app = new_app(
+    "Analytical KR500-3 model: kinematics, stiffness, mass, eigenfrequencies (thesis §3.4)."
+)
+XOpt = Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")]
+YOpt = Annotated[float, typer.Option("--y", help="Tool-tip Y [mm].")]
+ZOpt = Annotated[float, typer.Option("--z", help="Tool-tip Z [mm].")]
+
+
+@app.command("fk")
+def fk(
+    joints: Annotated[
+        tuple[float, float, float, float, float, float],
+        typer.Option(help="KUKA joint angles A1..A6 [deg]."),
+    ],
+    json_out: JsonFlag = False,
+) -> None:
+    """Tool-tip and flange position [mm] and orientation of given joint angles."""
+    from ..robot import KR500
+
+    robot = KR500()
+    tip, flange = robot.fk(joints), robot.fk(joints, flange=True)
+    cond = robot.condition_number(joints)
+    doc = {"joints_deg": list(joints), "tool_tip_mm": tip[:3, 3] * 1e3, "flange_mm": flange[:3, 3] * 1e3,
+           "rotation": tip[:3, :3], "jacobian_condition_number": cond}  # fmt: skip
+    if json_out:
+        emit_json(doc)
+    else:
+        typer.echo(
+            f"tool tip [mm]: {np.round(doc['tool_tip_mm'], 2).tolist()}   flange [mm]: {np.round(doc['flange_mm'], 2).tolist()}"
+        )
+        typer.echo(f"Jacobian condition number: {cond:.3g}")
+
+
+def _workspace_pose(x, y, z, rz):
+    from ..robot import KR500, tool_down_orientation
+
+    robot = KR500()
+    return robot, robot.ik(np.array([x, y, z]) / 1e3, tool_down_orientation(rz))
+
+
+@app.command("ik")
+def ik(
+    x: XOpt,
+    y: YOpt,
+    z: ZOpt = 325.0,
+    rz: Annotated[
+        float, typer.Option("--rz", help="Rotation about the (downward) tool axis [deg].")
+    ] = 0.0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Joint angles for a tool-tip pose with the tool axis pointing down (chapter-3 convention)."""
+    robot, q = _workspace_pose(x, y, z, rz)
+    doc = {"joints_deg": q, "jacobian_condition_number": robot.condition_number(q)}
+    if json_out:
+        emit_json(doc)
+    else:
+        typer.echo(
+            f"A1..A6 [deg]: {np.round(q, 3).tolist()}   (condition number {doc['jacobian_condition_number']:.3g})"
+        )
+
+
+@app.command("stiffness")
+def stiffness(
+    x: XOpt,
+    y: YOpt,
+    z: ZOpt = 325.0,
+    rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")] = 0.0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Analytical stiffness (Table 4 joint stiffness), principal directions and eigenfrequencies."""
+    from ..robot.dynamics import cartesian_modes, cartesian_stiffness
+
+    robot, q = _workspace_pose(x, y, z, rz)
+    k = cartesian_stiffness(robot, q)
+    modes = cartesian_modes(robot, q)
+    kt_vals, kt_vecs = np.linalg.eigh(modes.stiffness_n_per_m)
+    doc = {
+        "joints_deg": q,
+        "directional_stiffness_n_per_m": dict(
+            zip("xyz", modes.directional_stiffness(), strict=True)
+        ),
+        "translational_principal_stiffness_n_per_m": kt_vals,
+        "principal_directions": kt_vecs,
+        "natural_frequencies_hz": modes.natural_frequencies_hz,
+        "mode_directions": modes.directions,
+        "cartesian_stiffness_6x6": k,
+    }
+    if json_out:
+        emit_json(doc)
+        return
+    typer.echo(
+        "directional stiffness [MN/m]: "
+        + ", ".join(
+            f"{d.upper()} {v / 1e6:.3f}" for d, v in doc["directional_stiffness_n_per_m"].items()
+        )
+    )
+    for f, u in zip(modes.natural_frequencies_hz, modes.directions.T, strict=True):
+        typer.echo(f"mode {f:7.2f} Hz  direction {np.round(u, 3).tolist()}")
+
+
+@app.command("identify")
+def identify(
+    tests: Annotated[
+        Path,
+        typer.Argument(
+            help="CSV: a1_deg..a6_deg, fx_n, fy_n, fz_n, mx_nm, my_nm, mz_nm, dx_m, dy_m, dz_m[, rx_rad, ry_rad, rz_rad]."
+        ),
+    ],
+    json_out: JsonFlag = False,
+) -> None:
+    """Joint stiffnesses from compliance tests (thesis Eq. 12, Table 3/4 procedure)."""
+    from ..io import read_compliance_tests_csv
+    from ..robot import KR500
+    from ..robot.dynamics import TABLE_4_JOINT_STIFFNESS, identify_joint_stiffness
+
+    joints, wrench, disp = read_compliance_tests_csv(tests)
+    k = identify_joint_stiffness(KR500(), joints, wrench, disp)
+    doc = {
+        "joint_stiffness_n_m_per_rad": k,
+        "table_4_n_m_per_rad": TABLE_4_JOINT_STIFFNESS,
+        "n_tests": len(joints),
+    }
+    if json_out:
+        emit_json(doc)
+    else:
+        for i, (ki, ti) in enumerate(zip(k, TABLE_4_JOINT_STIFFNESS, strict=True)):
+            typer.echo(f"A{i + 1}: {ki / 1e6:.3f} x 1e6 N m/rad   (thesis Table 4: {ti / 1e6:.2f})")
+
+
+@app.command("compare")
+def compare(
+    plot: Annotated[
+        Path | None, typer.Option(help="PNG of relative errors vs arm extension (thesis Fig. 11).")
+    ] = None,
+    gp_inputs: Annotated[
+        bool,
+        typer.Option(
+            "--gp-inputs", help="Also compare GP inputs: Cartesian vs joint angles on Table A2."
+        ),
+    ] = False,
+    json_out: JsonFlag = False,
+) -> None:
+    """Analytical model vs Table A1 measurements: relative errors of fn and stiffness per direction."""
+    from ..studies.analytical import (
+        compare_with_table_a1,
+        comparison_summary,
+        gp_input_comparison,
+        plot_comparison,
+    )
+
+    table = compare_with_table_a1().to_frame()
+    summary = comparison_summary(table)
+    gp = gp_input_comparison().to_frame() if gp_inputs else None
+    if plot is not None:
+        use_agg()
+        plot_comparison(table, plot)
+    if json_out:
+        doc = {"summary": summary, "poses": table.to_dict(orient="records")}
+        if gp is not None:
+            doc["gp_inputs"] = gp.to_dict(orient="records")
+        emit_json(doc)
+        return
+    con = console()
+    t = Table(
+        title="Analytical (Table 4 joint stiffness, solid links) vs measured (Table A1 means)"
+    )
+    for col in ("quantity", "mean error", "min", "max"):
+        t.add_column(col, justify="right")
+    for key, v in summary.items():
+        t.add_row(
+            key,
+            f"{100 * v['mean_rel_error']:+.0f} %",
+            f"{100 * v['min']:+.0f} %",
+            f"{100 * v['max']:+.0f} %",
+        )
+    con.print(t)
+    if gp is not None:
+        piv = gp.pivot(index="output", columns="inputs", values="mean_relative_error")
+        t = Table(title="GP external validation on Table A2: mean relative error by input set")
+        t.add_column("output")
+        for c in piv.columns:
+            t.add_column(escape(c), justify="right")
+        for out, row in piv.iterrows():
+            t.add_row(escape(out), *[f"{100 * v:.1f} %" for v in row])
+        con.print(t)
+    if plot is not None:
+        con.print(f"wrote {plot}")

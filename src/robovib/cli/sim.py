@@ -1,0 +1,169 @@
+"""``robovib sim``: the virtual robot (synthetic hammer tests, milling passes, offset-mass runs)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from ._common import JsonFlag, OutOpt, SeedOpt, emit_json, material, new_app
+
+app = new_app("The virtual robot: synthetic hammer tests, milling passes and offset-mass runs.")
+
+PathFromOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--path-s-from",
+        help="Run along the chapter-4 path instead: start distance [m] (0 = retracted, 1.235 = extended).",
+    ),
+]
+PathToOpt = Annotated[
+    float | None, typer.Option("--path-s-to", help="End distance along the chapter-4 path [m].")
+]
+
+
+@app.command("hammer")
+def hammer(
+    output: OutOpt,
+    x: Annotated[
+        float, typer.Option("--x", help="Tool-tip X [mm] (workspace 2100-2700).")
+    ] = 2400.0,
+    y: Annotated[float, typer.Option("--y", help="Tool-tip Y [mm] (workspace -300-600).")] = 0.0,
+    rz: Annotated[
+        float, typer.Option("--rz", help="Rotation about the tool axis [deg] (0-180).")
+    ] = 45.0,
+    direction: Annotated[str, typer.Option(help="Hit and response direction x, y or z.")] = "x",
+    hits: Annotated[int, typer.Option(help="Number of hits.")] = 5,
+    sample_rate_hz: Annotated[
+        float, typer.Option(help="Accelerometer/hammer sample rate [Hz].")
+    ] = 17066.0,
+    duration_s: Annotated[float, typer.Option(help="Record length per hit [s].")] = 4.0,
+    snr_db: Annotated[float, typer.Option(help="Response signal-to-noise ratio [dB].")] = 40.0,
+    path_s: Annotated[
+        float | None,
+        typer.Option(
+            "--path-s",
+            help="Test on the chapter-4 path instead: distance from its start [m] (0-1.235).",
+        ),
+    ] = None,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Impact-hammer test of the virtual robot at a workspace pose (or a path point), UFF 58 or CSV."""
+    from ..io import write_recording
+    from ..sim import VirtualRobot, simulate_hammer_test
+
+    where, domain = ((x / 1e3, y / 1e3, rz), "workspace") if path_s is None else (path_s, "path")
+    rec = simulate_hammer_test(
+        VirtualRobot(), where, direction, domain=domain, n_hits=hits,
+        sample_rate_hz=sample_rate_hz, duration_s=duration_s, snr_db=snr_db, rng=seed,
+    )  # fmt: skip
+    write_recording(output, rec)
+    doc = {"output": str(output), "pose_mm_deg": [x, y, 325.0, 0.0, 0.0, rz], "direction": direction,
+           "hits": rec.n_hits, "sample_rate_hz": rec.sample_rate_hz, "samples_per_hit": int(rec.forces.shape[1])}  # fmt: skip
+    if json_out:
+        emit_json(doc)
+    else:
+        typer.echo(
+            f"wrote {output}: {rec.n_hits} hits, {rec.forces.shape[1]} samples at {rec.sample_rate_hz:g} Hz, direction {direction}"
+        )
+
+
+@app.command("mill")
+def mill(
+    output: OutOpt,
+    x0: Annotated[float, typer.Option(help="Start X [mm].")] = 2100.0,
+    y0: Annotated[float, typer.Option(help="Start Y [mm].")] = 0.0,
+    x1: Annotated[float, typer.Option(help="End X [mm].")] = 2700.0,
+    y1: Annotated[float, typer.Option(help="End Y [mm].")] = 0.0,
+    rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")] = 0.0,
+    rpm: Annotated[float, typer.Option(help="Spindle speed [rpm].")] = 1750.0,
+    fz_mm: Annotated[float, typer.Option("--fz", help="Feed per tooth [mm].")] = 0.058,
+    ap_mm: Annotated[float, typer.Option("--ap", help="Axial depth of cut [mm].")] = 3.0,
+    ae_mm: Annotated[
+        float, typer.Option("--ae", help="Radial depth of cut [mm] (25.4 = slotting).")
+    ] = 25.4,
+    material_name: Annotated[
+        str, typer.Option("--material", help="Cutting-coefficient preset: al7075 or acetal.")
+    ] = "al7075",
+    path_s_from: PathFromOpt = None,
+    path_s_to: PathToOpt = None,
+    background: Annotated[
+        float, typer.Option(help="Broadband force content (x spread of the periodic force).")
+    ] = 0.15,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Milling pass on the virtual robot (thesis §3.5: 25.4 mm 2-flute 30° helix tool); CSV out."""
+    from ..milling import CuttingConditions, MillingTool
+    from ..sim import LinearMove, VirtualRobot, simulate_milling
+
+    coefficients = material(material_name)
+    if (path_s_from is None) != (path_s_to is None):
+        raise typer.BadParameter("give both --path-s-from and --path-s-to [m], or neither")
+    cond = CuttingConditions(rpm, fz_mm / 1e3, ap_mm / 1e3, ae_mm / 1e3)
+    if path_s_from is None:
+        move = LinearMove("workspace", (x0 / 1e3, y0 / 1e3, rz), (x1 / 1e3, y1 / 1e3, rz))
+    else:
+        move = LinearMove("path", (path_s_from,), (path_s_to,))
+    run = simulate_milling(
+        VirtualRobot(), move, MillingTool(), cond, coefficients,
+        background_noise_rel=background, rng=seed,
+    )  # fmt: skip
+    run.to_csv(output)
+    doc = {
+        "output": str(output), "samples": int(run.time_s.size), "duration_s": float(run.time_s[-1]),
+        "mean_force_n": run.force_n.mean(axis=0), "mean_deflection_mm": 1e3 * run.true_displacement_m.mean(axis=0),
+        **run.meta,
+    }  # fmt: skip
+    if json_out:
+        emit_json(doc)
+    else:
+        typer.echo(
+            f"wrote {output}: {run.time_s.size} samples over {run.time_s[-1]:.1f} s; mean deflection "
+            f"X/Y/Z = {', '.join(f'{v:.3f}' for v in doc['mean_deflection_mm'])} mm"
+        )
+
+
+@app.command("offset-mass")
+def offset_mass(
+    output: OutOpt,
+    rpm: Annotated[
+        float, typer.Option(help="Spindle speed [rpm] (thesis: 480, 960, 1440).")
+    ] = 480.0,
+    path_s_from: Annotated[
+        float,
+        typer.Option(
+            "--path-s-from",
+            help="Start on the chapter-4 path [m] (0 = retracted, 1.235 = extended).",
+        ),
+    ] = 1.235,
+    path_s_to: Annotated[
+        float, typer.Option("--path-s-to", help="End on the chapter-4 path [m].")
+    ] = 0.335,
+    speed_mm_s: Annotated[
+        float, typer.Option("--speed", help="Robot speed along the path [mm/s].")
+    ] = 84.0,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Rotating offset-mass run (1 kg at 50.8 mm, thesis §4.3.3) along the chapter-4 path; CSV out."""
+    from ..sim import LinearMove, VirtualRobot, simulate_offset_mass
+
+    run = simulate_offset_mass(
+        VirtualRobot(),
+        LinearMove("path", (path_s_from,), (path_s_to,)),
+        rpm,
+        speed_m_per_s=speed_mm_s / 1e3,
+        rng=seed,
+    )
+    run.to_csv(output)
+    amp = 1e3 * np.abs(run.true_displacement_m).max(axis=0)
+    doc = {"output": str(output), "samples": int(run.time_s.size), "peak_vibration_mm": amp}
+    if json_out:
+        emit_json(doc)
+    else:
+        typer.echo(
+            f"wrote {output}: {run.time_s.size} samples; peak vibration X/Y = {amp[0]:.3f}/{amp[1]:.3f} mm"
+        )

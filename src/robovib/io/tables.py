@@ -1,0 +1,221 @@
+"""CSV tables read and written by the command line: recordings, forces, path modes, milling
+records and compliance tests. Column names carry their SI unit; everything returned is SI.
+
+Writers go through a temporary file in the target folder renamed at the end (atomic).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..modal.parameters import ModalParameters
+from .recording import HammerRecording, write_recording_uff
+
+__all__ = [
+    "FORCE_COLUMNS",
+    "MILLING_RECORD_COLUMNS",
+    "PATH_MODE_COLUMNS",
+    "read_compliance_tests_csv",
+    "read_force_csv",
+    "read_milling_record_csv",
+    "read_path_modes_csv",
+    "write_path_modes_csv",
+    "write_recording",
+    "write_recording_csv",
+]
+
+FORCE_COLUMNS = ("time_s", "force_x_n", "force_y_n", "force_z_n")
+PATH_MODE_COLUMNS = ("s_m", "fn_hz", "stiffness_n_per_m", "damping_ratio")
+MILLING_RECORD_COLUMNS = (
+    "time_s",
+    "force_x_n",
+    "force_y_n",
+    "force_z_n",
+    "displacement_x_m",
+    "displacement_y_m",
+    "displacement_z_m",
+    "path_s_m",
+)
+_RESPONSE_UNIT = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displacement": "m"}
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _read_table(path, columns: Sequence[str]):
+    import pandas as pd
+
+    path = Path(path)
+    df = pd.read_csv(path)
+    missing = [c for c in columns if c not in df]
+    if missing:
+        raise ValueError(f"{path}: missing columns {missing} (need {', '.join(columns)})")
+    data = df[list(columns)].to_numpy(dtype=float)
+    if not np.all(np.isfinite(data)):
+        raise ValueError(f"{path}: columns {', '.join(columns)} contain NaN or inf")
+    return df, data
+
+
+def write_recording_csv(path: str | Path, recording: HammerRecording) -> None:
+    """Write a hammer recording as CSV (``hit, time_s, force_n, <quantity>_<SI unit>``).
+
+    The layout is the one :func:`robovib.io.read_recording_csv` reads.
+
+    Raises
+    ------
+    ValueError
+        Unknown response quantity.
+    """
+    rec = recording
+    if rec.response_quantity not in _RESPONSE_UNIT:
+        raise ValueError(f"unknown response quantity {rec.response_quantity!r}")
+    n = rec.forces.shape[1]
+    t = np.arange(n) / rec.sample_rate_hz
+    lines = [f"hit,time_s,force_n,{rec.response_quantity}_{_RESPONSE_UNIT[rec.response_quantity]}"]
+    for h in range(rec.n_hits):
+        lines.extend(
+            f"{h},{t[i]:.15g},{rec.forces[h, i]:.9g},{rec.responses[h, i]:.9g}" for i in range(n)
+        )
+    _atomic_write_text(Path(path), "\n".join(lines) + "\n")
+
+
+def write_recording(path: str | Path, recording: HammerRecording) -> None:
+    """Write a hammer recording as UFF 58 (``.uff``/``.unv``) or CSV (``.csv``).
+
+    Raises
+    ------
+    ValueError
+        Unknown file suffix.
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix in (".uff", ".unv"):
+        write_recording_uff(path, recording)
+    elif suffix == ".csv":
+        write_recording_csv(path, recording)
+    else:
+        raise ValueError(f"unknown output format {suffix!r}; use .uff or .csv")
+
+
+def read_force_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """Measured cutting forces: columns ``time_s, force_x_n, force_y_n, force_z_n``.
+
+    Returns
+    -------
+    time_s
+        (n,) sample times [s].
+    force_n
+        (n, 3) forces in the base frame [N].
+
+    Raises
+    ------
+    ValueError
+        Missing column, NaN or inf.
+    """
+    _, data = _read_table(path, FORCE_COLUMNS)
+    return data[:, 0], data[:, 1:]
+
+
+def read_path_modes_csv(path: str | Path) -> tuple[np.ndarray, list[ModalParameters]]:
+    """Dominant modes along a path: columns ``s_m, fn_hz, stiffness_n_per_m, damping_ratio``.
+
+    Returns
+    -------
+    s_m
+        (n,) path coordinates [m].
+    modes
+        One :class:`~robovib.modal.ModalParameters` per row.
+
+    Raises
+    ------
+    ValueError
+        Missing column, NaN/inf, or a non-physical mode.
+    """
+    _, data = _read_table(path, PATH_MODE_COLUMNS)
+    return data[:, 0], [ModalParameters(fn, k, z) for _, fn, k, z in data]
+
+
+def write_path_modes_csv(path: str | Path, s_m, modes: Sequence[ModalParameters]) -> None:
+    """Write the table :func:`read_path_modes_csv` reads.
+
+    Raises
+    ------
+    ValueError
+        ``s_m`` and ``modes`` of different lengths.
+    """
+    s = np.asarray(s_m, float).ravel()
+    if s.size != len(modes):
+        raise ValueError(f"{s.size} path coordinates but {len(modes)} modes")
+    lines = [",".join(PATH_MODE_COLUMNS)]
+    lines.extend(
+        f"{si:.12g},{m.natural_frequency_hz:.12g},{m.stiffness_n_per_m:.12g},{m.damping_ratio:.12g}"
+        for si, m in zip(s, modes, strict=True)
+    )
+    _atomic_write_text(Path(path), "\n".join(lines) + "\n")
+
+
+def read_milling_record_csv(path: str | Path) -> dict[str, np.ndarray]:
+    """Synchronised milling record along a path (e.g. ``robovib sim mill --path-s-from ...``).
+
+    Columns ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m, path_s_m``.
+
+    Returns
+    -------
+    dict
+        ``time_s`` (n,), ``force_n`` (n, 3) [N], ``displacement_m`` (n, 3) [m], ``path_s_m``
+        (n,) [m].
+
+    Raises
+    ------
+    ValueError
+        Missing column, NaN or inf.
+    """
+    _, d = _read_table(path, MILLING_RECORD_COLUMNS)
+    return {
+        "time_s": d[:, 0],
+        "force_n": d[:, 1:4],
+        "displacement_m": d[:, 4:7],
+        "path_s_m": d[:, 7],
+    }
+
+
+def read_compliance_tests_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Static compliance tests: ``a1_deg..a6_deg, fx_n, fy_n, fz_n, mx_nm, my_nm, mz_nm,
+    dx_m, dy_m, dz_m`` and optionally ``rx_rad, ry_rad, rz_rad``.
+
+    Returns
+    -------
+    joints_deg
+        (n, 6) joint angles [deg].
+    wrench
+        (n, 6) applied force [N] and moment [N m].
+    displacement
+        (n, 3) or (n, 6) measured translation [m] (and rotation [rad]).
+
+    Raises
+    ------
+    ValueError
+        Missing column, NaN or inf.
+    """
+    import pandas as pd
+
+    cols = [f"a{i}_deg" for i in range(1, 7)] + ["fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"]
+    cols += ["dx_m", "dy_m", "dz_m"]
+    header = pd.read_csv(path, nrows=0).columns
+    if "rx_rad" in header:
+        cols += ["rx_rad", "ry_rad", "rz_rad"]
+    _, d = _read_table(path, cols)
+    return d[:, :6], d[:, 6:12], d[:, 12:]
