@@ -165,7 +165,17 @@ def test_hybrid_fit_update_predict_next_poses(files, tmp_path):
     ema = [str(files / f"e{s}.h5") for s in ("0", "1.235")]
     doc = run_json("hybrid", "fit", *ema, "--fmax", "30", "-o", str(tmp_path / "m.h5"))
     assert doc["n_frfs"] == 2
-    doc = run_json("hybrid", "update", str(tmp_path / "m.h5"), str(files / "e0.585.h5"),
+    # an EMA file is refused as OMA data (issue 18); relabel a copy as an OMA measurement
+    from dataclasses import replace
+
+    from robovib.io import read_frfs, write_frfs
+
+    err = CliRunner().invoke(app, ["hybrid", "update", str(tmp_path / "m.h5"),
+                                   str(files / "e0.585.h5"), "-o", str(tmp_path / "m2.h5")])  # fmt: skip
+    assert err.exit_code != 0 and "expects OMA" in err.output
+    oma = tmp_path / "o0.585.h5"
+    write_frfs(oma, [replace(f, source="OMA") for f in read_frfs(files / "e0.585.h5")])
+    doc = run_json("hybrid", "update", str(tmp_path / "m.h5"), str(oma),
                    "--mode", "posterior", "-o", str(tmp_path / "m2.h5"))  # fmt: skip
     assert doc["n_oma"] == 1
     doc = run_json("hybrid", "predict", str(tmp_path / "m2.h5"), "--path-s", "0.585",

@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import json
 import math
-import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -19,7 +16,9 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 __all__ = [
+    "ForceOpt",
     "JsonFlag",
+    "KeepFlaggedFitsOpt",
     "KernelOpt",
     "ModeSwitchOpt",
     "ModelOpt",
@@ -27,6 +26,7 @@ __all__ = [
     "SeedOpt",
     "Table",
     "check_kernel",
+    "check_output",
     "console",
     "emit_json",
     "escape",
@@ -56,6 +56,19 @@ ModeSwitchOpt = Annotated[
     ),
 ]
 OutOpt = Annotated[Path, typer.Option("-o", "--output", help="File to write.")]
+ForceOpt = Annotated[
+    bool,
+    typer.Option(
+        "--force", help="Allow the output to replace one of the input files (the input is lost)."
+    ),
+]
+KeepFlaggedFitsOpt = Annotated[
+    bool,
+    typer.Option(
+        "--keep-flagged",
+        help="Exit 0 even when a fit is flagged (at a bound, large residual, inverted sign).",
+    ),
+]
 ModelOpt = Annotated[
     Path | None,
     typer.Option(
@@ -87,18 +100,31 @@ def new_app(help: str, **kwargs) -> typer.Typer:
     return typer.Typer(help=help, rich_markup_mode=None, no_args_is_help=True, **kwargs)
 
 
+def _click_passthrough() -> tuple[type, ...]:
+    """Click's own exceptions (usage errors, --help exits), also those of the click copy that
+    recent Typer vendors as ``typer._click``: click reports them itself, never as "unexpected"."""
+    kinds: list[type] = [
+        click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort,
+        typer.Exit, typer.Abort,
+    ]  # fmt: skip
+    try:
+        from typer._click import exceptions as vendored
+    except ImportError:  # older Typer: plain click only
+        return tuple(kinds)
+    names = ("ClickException", "Exit", "Abort")
+    return (*kinds, *(getattr(vendored, n) for n in names if hasattr(vendored, n)))
+
+
+_PASSTHROUGH = _click_passthrough()
+
+
 class ErrorHandlingGroup(TyperGroup):
     """Root group: library errors become one line on stderr and exit code 1."""
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
-        except (
-            click.exceptions.ClickException,
-            click.exceptions.Exit,
-            click.exceptions.Abort,
-            typer.Exit,  # a RuntimeError subclass in recent Typer: --help must exit 0, not "error: 0"
-        ):
+        except _PASSTHROUGH:  # typer.Exit is a RuntimeError in recent Typer: --help exits 0
             raise
         except EXPECTED_ERRORS as exc:
             if _STATE["debug"]:
@@ -157,8 +183,19 @@ def _plain(obj: Any) -> Any:
 
 
 def emit_json(doc: dict) -> None:
-    """Print ``doc`` as one JSON document (strict: NaN and inf become null)."""
-    typer.echo(json.dumps(_plain(doc), indent=2, allow_nan=False))
+    """Print ``doc`` as one JSON document (strict: NaN and inf become null, with the reason
+    listed under ``null_reasons``; see :func:`robovib.io.json_dumps`)."""
+    from ..io import json_dumps
+
+    typer.echo(json_dumps(doc, indent=2))
+
+
+def check_output(path: Path | None, inputs=(), force: bool = False) -> None:
+    """Refuse an output before any work: missing/read-only folder, or one of the inputs."""
+    if path is not None:
+        from ..io import check_output_path
+
+        check_output_path(path, inputs=inputs, force=force)
 
 
 def materials() -> dict:
@@ -181,18 +218,13 @@ def use_agg() -> None:
     matplotlib.use("Agg")
 
 
-def save_figure(fig, path: Path, dpi: int = 120) -> None:
-    """Save a figure atomically (temporary file in the target folder, then rename) and close it."""
+def save_figure(fig, path: Path, dpi: int = 120, inputs=(), force: bool = False) -> None:
+    """Save a figure atomically (:func:`robovib.io.save_figure`) and close it."""
     import matplotlib.pyplot as plt
 
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
-    os.close(fd)
+    from ..io import save_figure as _save
+
     try:
-        fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".") or "png")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        _save(fig, path, dpi=dpi, inputs=inputs, force=force)
     finally:
         plt.close(fig)

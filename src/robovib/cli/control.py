@@ -12,6 +12,7 @@ from ._common import (
     ModelOpt,
     SeedOpt,
     Table,
+    check_output,
     console,
     emit_json,
     escape,
@@ -45,13 +46,13 @@ def gains(
         loop_margins,
         tune_r_for_delay,
     )
-    from ..milling.workflow import pose_modes
+    from ..milling.workflow import pose_extrapolation, pose_modes
 
     if direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}")
-    modes = {
-        d: m.parameters for d, m in pose_modes(workspace_model(model_path), (x, y, rz)).items()
-    }
+    model = workspace_model(model_path)
+    modes = {d: m.parameters for d, m in pose_modes(model, (x, y, rz)).items()}
+    outside = list(pose_extrapolation(model, (x, y, rz)))
     mode = modes[direction]
     d = design_lqr(mode, period_ms / 1e3, r=[[r]])
     da = delay_analysis(d, delay_ms / 1e3)
@@ -59,6 +60,7 @@ def gains(
     aware = design_delay_aware_lqr(mode, period_ms / 1e3, delay_ms / 1e3, r=[[1.0]])
     margins = loop_margins(d, round(delay_ms / period_ms))
     doc = {
+        "extrapolation": outside,
         "mode": mode.to_dict(), "w1": d.gains[0], "w2": d.gains[1], "spectral_radius_no_delay": d.spectral_radius,
         "stable_with_delay": da.stable, "spectral_radius_with_delay": da.spectral_radius,
         "max_stable_delay_ms": 1e3 * da.max_stable_delay_s,
@@ -84,6 +86,11 @@ def gains(
             f"gain margin with the delay: {margins.gain_margins[0]:.3g} at {margins.phase_crossovers_hz[0]:.2f} Hz"
         )
     typer.echo(f"delay-aware LQR (R = 1): spectral radius {aware.spectral_radius:.3f}")
+    if outside:
+        typer.echo(
+            f"warning: {', '.join(outside)} outside the calibrated workspace: the mode is a GP "
+            "extrapolation"
+        )
 
 
 @app.command("schedule")
@@ -107,6 +114,7 @@ def schedule(
     """Gains along a path (R tuned for the 32 ms delay), with the Eq. 28-29 polynomial fits."""
     from ..control.schedule import schedule_gains
 
+    check_output(plot, [path_file])
     warnings_seen: list[str] = []
     if path_file is not None:
         from ..io import read_path_modes_csv
@@ -180,6 +188,7 @@ def simulate(
     json_out: JsonFlag = False,
 ) -> None:
     """Closed-loop runs on the virtual robot, controllers designed from the path model only."""
+    check_output(plot)
     from rich.progress import Progress
 
     from ..studies.control_closed_loop import simulate_control

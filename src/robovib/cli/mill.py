@@ -13,9 +13,11 @@ from ._common import (
     ModelOpt,
     SeedOpt,
     Table,
+    check_output,
     console,
     emit_json,
     escape,
+    fail,
     material,
     new_app,
     save_figure,
@@ -84,8 +86,10 @@ def predict(
          "mode": r.mode.to_dict()}
         for r in res
     ]  # fmt: skip
+    outside = list(res[0].extrapolation)
     if json_out:
-        emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm, "predictions": rows})
+        emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm,
+                   "extrapolation": outside, "predictions": rows})  # fmt: skip
         return
     con = console()
     t = Table(
@@ -101,6 +105,10 @@ def predict(
             f"{r['peak_to_valley_mm']:.4f}", escape(f"[{r['peak_to_valley_band_mm'][0]:.4f}, {r['peak_to_valley_band_mm'][1]:.4f}]"),
         )  # fmt: skip
     con.print(t)
+    if outside:
+        con.print(
+            f"[yellow]warning:[/] {', '.join(outside)} outside the calibrated workspace: extrapolation"
+        )
 
 
 TeethOpt = Annotated[int, typer.Option("--teeth", help="Number of teeth (flutes) of the tool.")]
@@ -219,6 +227,7 @@ def lobes(
         plot_lobes_chart,
     )
 
+    check_output(plot, [model_path, frf, cuts])
     tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     parsed = [parse_mode_spec(m) for m in (mode or [])]
@@ -242,11 +251,20 @@ def lobes(
         use_agg()
         save_figure(plot_lobes_chart(chart), plot)
     doc = chart.to_dict()
+    from ..milling.workflow import pose_extrapolation
+
+    outside = list(pose_extrapolation(model, pose)) if model is not None else []
     if json_out:
-        emit_json({"command": "mill lobes", "pose_mm_deg": pose, "material": material_name, **doc})
+        emit_json({"command": "mill lobes", "pose_mm_deg": pose, "material": material_name,
+                   "extrapolation": outside, **doc})  # fmt: skip
         return
     env = chart.envelope
     typer.echo(f"{chart.title.splitlines()[0]}")
+    if outside:
+        typer.echo(
+            f"warning: {', '.join(outside)} outside the calibrated workspace: the modes are a GP "
+            "extrapolation"
+        )
     if doc["minimum_depth_m"] is not None:
         typer.echo(
             f"depth stable at every speed ({method.upper()}): {1e3 * doc['minimum_depth_m']:.3f} mm"
@@ -317,6 +335,10 @@ def lobe_map(
     from ..milling.chart import parse_rpm_range
     from ..milling.maps import plot_lobe_map, save_lobe_map, workspace_lobe_map
 
+    check_output(plot, [model_path])
+    for name, n in (("--nx", nx), ("--ny", ny)):
+        if n < 2:
+            fail(f"{name} must be at least 2 grid points, got {n}")
     tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     speeds = np.array([rpm]) if rpm_range is None else np.union1d(parse_rpm_range(rpm_range), [rpm])

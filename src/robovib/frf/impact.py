@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._checks import check_choice, check_int, check_number
 from .core import FRF, RESPONSE_TO_QUANTITY
 from .estimate import SpectralDensities, _frf_from_densities, spectral_densities
 
@@ -190,6 +191,29 @@ def impact_frf(
     if not np.isfinite(fs) or fs <= 0:
         raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz!r}")
     n_hits, n = forces.shape
+    # Checked at the door: a negative window must not silently mean "none".
+    estimator = check_choice("estimator", estimator, ("H1", "H2"), case_insensitive=True)
+    record_s = n / fs
+    pretrigger_s = check_number(
+        "pretrigger_s", pretrigger_s, "s", lo=0.0, hi=record_s, hi_open=True
+    )
+    if force_window_s is not None:
+        force_window_s = check_number(
+            "force_window_s", force_window_s, "s", lo=0.0, lo_open=True, hi=record_s
+        )
+    if exp_window_tau_s is not None:
+        exp_window_tau_s = check_number(
+            "exp_window_tau_s", exp_window_tau_s, "s", lo=0.0, lo_open=True
+        )
+    check_number(
+        "trigger_level", trigger_level, "(fraction of the peak)", lo=0.0, hi=1.0, lo_open=True
+    )
+    check_number(
+        "double_hit_level", double_hit_level, "(fraction of the peak)", lo=0.0, hi=1.0, lo_open=True
+    )
+    check_int("clip_run", clip_run, lo=1)
+    if f_max_hz is not None:
+        f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
     pre = round(pretrigger_s * fs)
     reports, aligned = [], []
     for i in range(n_hits):

@@ -13,6 +13,8 @@ from .frf_files import (
     write_frfs_hdf5,
     write_frfs_uff,
 )
+from .json_safe import dumps as json_dumps
+from .json_safe import json_safe
 from .poses import read_pose_table
 from .recording import (
     HammerRecording,
@@ -26,6 +28,7 @@ from .recording import (
     select_channel,
     write_recording_uff,
 )
+from .safe_write import OutputPathError, atomic_output, check_output_path, save_figure
 from .tables import (
     read_compliance_tests_csv,
     read_force_csv,
@@ -41,11 +44,16 @@ from .units import apply_sensitivity, si_factor
 __all__ = [
     "HammerRecording",
     "MeasuredCuts",
+    "OutputPathError",
     "ReadReport",
     "Record58",
     "Sensitivity",
     "apply_sensitivity",
+    "atomic_output",
     "atomic_path",
+    "check_output_path",
+    "json_dumps",
+    "json_safe",
     "read_compliance_tests_csv",
     "read_cuts_csv",
     "read_force_csv",
@@ -60,6 +68,7 @@ __all__ = [
     "read_recording_csv",
     "read_recording_uff",
     "sample_rate_from_time",
+    "save_figure",
     "select_channel",
     "si_factor",
     "write_frfs",

@@ -719,11 +719,15 @@ def _time_records(recording: HammerRecording) -> list:
     return out
 
 
-def write_recording_uff(path: str | Path, recording: HammerRecording) -> None:
+def write_recording_uff(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
     """Write a recording as UFF datasets 58 (per hit one force, one response record).
 
-    One pass over the hits (linear in their number), written to a temporary file and renamed.
+    One pass over the hits (linear in their number), atomic (:func:`robovib.io.atomic_output`):
+    a failed or interrupted write leaves any previous file untouched; ``path`` must not be one
+    of ``inputs`` unless ``force``.
     """
     from .uff58 import write_uff58
 
-    write_uff58(path, _time_records(recording))
+    write_uff58(path, _time_records(recording), inputs=inputs, force=force)

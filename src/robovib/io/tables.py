@@ -6,8 +6,6 @@ Writers go through a temporary file in the target folder renamed at the end (ato
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -44,16 +42,12 @@ MILLING_RECORD_COLUMNS = (
 _RESPONSE_UNIT = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displacement": "m"}
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+def _atomic_write_text(path: Path, text: str, *, inputs=(), force: bool = False) -> None:
+    """Atomic text output (:func:`robovib.io.atomic_output`): never output = input unless forced."""
+    from .safe_write import atomic_output
+
+    with atomic_output(path, inputs=inputs, force=force) as tmp:
+        tmp.write_text(text)
 
 
 def _read_table(path, columns: Sequence[str]):
@@ -70,7 +64,9 @@ def _read_table(path, columns: Sequence[str]):
     return df, data
 
 
-def write_recording_csv(path: str | Path, recording: HammerRecording) -> None:
+def write_recording_csv(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
     """Write a hammer recording as CSV (``hit, time_s, force_n, <quantity>_<SI unit>``).
 
     The layout is the one :func:`robovib.io.read_recording_csv` reads.
@@ -90,10 +86,12 @@ def write_recording_csv(path: str | Path, recording: HammerRecording) -> None:
         lines.extend(
             f"{h},{t[i]:.15g},{rec.forces[h, i]:.9g},{rec.responses[h, i]:.9g}" for i in range(n)
         )
-    _atomic_write_text(Path(path), "\n".join(lines) + "\n")
+    _atomic_write_text(Path(path), "\n".join(lines) + "\n", inputs=inputs, force=force)
 
 
-def write_recording(path: str | Path, recording: HammerRecording) -> None:
+def write_recording(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
     """Write a hammer recording as UFF 58 (``.uff``/``.unv``) or CSV (``.csv``).
 
     Raises
@@ -103,9 +101,9 @@ def write_recording(path: str | Path, recording: HammerRecording) -> None:
     """
     suffix = Path(path).suffix.lower()
     if suffix in (".uff", ".unv"):
-        write_recording_uff(path, recording)
+        write_recording_uff(path, recording, inputs=inputs, force=force)
     elif suffix == ".csv":
-        write_recording_csv(path, recording)
+        write_recording_csv(path, recording, inputs=inputs, force=force)
     else:
         raise ValueError(f"unknown output format {suffix!r}; use .uff or .csv")
 
@@ -148,7 +146,9 @@ def read_path_modes_csv(path: str | Path) -> tuple[np.ndarray, list[ModalParamet
     return data[:, 0], [ModalParameters(fn, k, z) for _, fn, k, z in data]
 
 
-def write_path_modes_csv(path: str | Path, s_m, modes: Sequence[ModalParameters]) -> None:
+def write_path_modes_csv(
+    path: str | Path, s_m, modes: Sequence[ModalParameters], *, inputs=(), force: bool = False
+) -> None:
     """Write the table :func:`read_path_modes_csv` reads.
 
     Raises
@@ -164,7 +164,7 @@ def write_path_modes_csv(path: str | Path, s_m, modes: Sequence[ModalParameters]
         f"{si:.12g},{m.natural_frequency_hz:.12g},{m.stiffness_n_per_m:.12g},{m.damping_ratio:.12g}"
         for si, m in zip(s, modes, strict=True)
     )
-    _atomic_write_text(Path(path), "\n".join(lines) + "\n")
+    _atomic_write_text(Path(path), "\n".join(lines) + "\n", inputs=inputs, force=force)
 
 
 def read_milling_record_csv(path: str | Path) -> dict[str, np.ndarray]:
