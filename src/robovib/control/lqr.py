@@ -180,6 +180,32 @@ class DelayAnalysis:
     max_stable_delay_s: float
 
 
+MAX_DELAY_S = 1.0  #: largest transport delay accepted (the KRC4's is 0.032 s)
+MAX_DELAY_STEPS = 500  #: largest delay in command periods (state augmentation size)
+
+
+def _delay_steps(delay_s, period_s, rounding) -> int:
+    """Delay in whole command periods, checked: finite, 0 <= delay <= 1 s, known rounding."""
+    from .._checks import check_choice, check_number
+
+    check_choice("rounding", rounding, ("reject", "round"))
+    delay_s = check_number("delay_s", delay_s, "s", lo=0.0, hi=MAX_DELAY_S)
+    period_s = check_number("period_s", period_s, "s", lo=0.0, lo_open=True)
+    steps_f = delay_s / period_s
+    if abs(steps_f - round(steps_f)) > 1e-9 and rounding == "reject":
+        raise ValueError(
+            f"delay {delay_s} s is not a multiple of the command period {period_s} s "
+            "(pass rounding='round' to round it)"
+        )
+    steps = round(steps_f)
+    if steps > MAX_DELAY_STEPS:
+        raise ValueError(
+            f"delay {delay_s} s is {steps} command periods of {period_s} s; at most "
+            f"{MAX_DELAY_STEPS} are supported"
+        )
+    return steps
+
+
 def delay_analysis(
     design: LQRDesign,
     delay_s: float = 0.032,
@@ -193,14 +219,10 @@ def delay_analysis(
     raises otherwise, ``"round"`` rounds to the nearest period. The largest stable delay is
     searched up to ``max_search_steps`` periods (reported as that bound if all are stable).
     """
-    steps_f = delay_s / design.period_s
-    if abs(steps_f - round(steps_f)) > 1e-9:
-        if rounding == "reject":
-            raise ValueError(
-                f"delay {delay_s} s is not a multiple of the command period {design.period_s} s "
-                "(pass rounding='round' to round it)"
-            )
-    steps = round(steps_f)
+    steps = _delay_steps(delay_s, design.period_s, rounding)
+    from .._checks import check_int
+
+    max_search_steps = check_int("max_search_steps", max_search_steps, lo=0, hi=MAX_DELAY_STEPS)
     rho = float(np.max(np.abs(np.linalg.eigvals(closed_loop_with_delay(design, steps)))))
     max_ok = -1
     for d in range(0, int(max_search_steps) + 1):
@@ -258,10 +280,12 @@ def tune_r_for_delay(
     loop and amplify disturbances near it. Raises ``ValueError`` if no R is stable.
     """
     grid = np.logspace(-3, 4, 57) if r_grid is None else np.asarray(r_grid, float)
+    if grid.ndim != 1 or grid.size == 0 or not np.all(np.isfinite(grid) & (grid > 0)):
+        raise ValueError("r_grid must be a non-empty 1-D array of finite positive weights")
+    steps = _delay_steps(delay_s, period_s, "round")
     best = None
     for r in grid:
         design = design_lqr(mode, period_s, q, [[r]], input=input)
-        steps = round(delay_s / period_s)
         rho = float(np.max(np.abs(np.linalg.eigvals(closed_loop_with_delay(design, steps)))))
         if rho < 1 and (best is None or rho < best[0]):
             best = (rho, design, float(r))
@@ -305,10 +329,7 @@ def design_delay_aware_lqr(
     option: the thesis' controller is :func:`design_lqr`.
     """
     q, r = _check_weights(q, r)
-    steps_f = delay_s / period_s
-    if abs(steps_f - round(steps_f)) > 1e-9 and rounding == "reject":
-        raise ValueError(f"delay {delay_s} s is not a multiple of the command period {period_s} s")
-    d = round(steps_f)
+    d = _delay_steps(delay_s, period_s, rounding)
     a, b = continuous_model(mode, input=input)
     big_a, big_b = _delay_augmented(*discretize(a, b, period_s), d)
     n = big_a.shape[0]

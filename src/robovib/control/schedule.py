@@ -61,7 +61,9 @@ class GainSchedule:
             ax.legend(fontsize=8)
         fig.tight_layout()
         if path is not None:
-            fig.savefig(path, dpi=120)
+            from ..io.safe_write import save_figure
+
+            save_figure(fig, path)
             plt.close(fig)
         return fig
 
@@ -82,9 +84,13 @@ def schedule_gains(
     a number: that R everywhere (points whose delayed loop is unstable are flagged, and
     reported through ``warn``).
     """
+    from .._checks import check_increasing
+
     s = np.asarray(s_m, float)
     if s.ndim != 1 or s.size != len(modes) or s.size < 5:
         raise ValueError("need at least 5 path points with one mode each")
+    # unsorted or repeated points would make the interpolated gains silently wrong
+    s = check_increasing("path distances s_m", s, "m", min_size=5)
     w1, w2, rs, ok = [], [], [], []
     for si, mode in zip(s, modes, strict=True):
         if r is None:

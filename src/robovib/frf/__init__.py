@@ -3,16 +3,19 @@
 from .core import FRF, RESPONSE_TO_QUANTITY, to_compliance
 from .estimate import SpectralDensities, estimate_frf, spectral_densities
 from .impact import HitReport, ImpactResult, check_hit, impact_frf
+from .segment import HitSegmentation, segment_hits
 
 __all__ = [
     "FRF",
     "RESPONSE_TO_QUANTITY",
     "HitReport",
+    "HitSegmentation",
     "ImpactResult",
     "SpectralDensities",
     "check_hit",
     "estimate_frf",
     "impact_frf",
+    "segment_hits",
     "spectral_densities",
     "to_compliance",
 ]

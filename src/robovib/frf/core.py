@@ -18,6 +18,7 @@ RESPONSE_TO_QUANTITY: dict[str, FRFQuantity] = {
 }
 _DIRECTIONS = ("x", "y", "z")
 _SOURCES = ("EMA", "OMA", "model")
+_ESTIMATORS = ("H1", "H2", "model")
 
 
 def to_compliance(
@@ -37,7 +38,17 @@ def to_compliance(
             f"unknown FRF quantity {quantity!r}; expected compliance, mobility or accelerance"
         )
     f = np.asarray(frequency_hz, float)
-    keep = f >= float(min_frequency_hz)
+    min_frequency_hz = float(min_frequency_hz)
+    if not np.isfinite(min_frequency_hz) or min_frequency_hz < 0:
+        raise ValueError(
+            f"min_frequency_hz must be a finite number >= 0 Hz, got {min_frequency_hz}"
+        )
+    keep = f >= min_frequency_hz
+    if f.size and keep.sum() < 2:
+        raise ValueError(
+            f"min_frequency_hz={min_frequency_hz:g} Hz leaves fewer than 2 bins of the measured "
+            f"band {f[0]:.3g}-{f[-1]:.3g} Hz (fmin must be below fmax)"
+        )
     if quantity != "compliance" and not np.all(f[keep] > 0):
         raise ValueError(
             "min_frequency_hz must be > 0 to convert mobility or accelerance to compliance"
@@ -113,6 +124,14 @@ class FRF:
             raise ValueError(f"unknown direction {self.direction!r}; expected one of {_DIRECTIONS}")
         if self.source not in _SOURCES:
             raise ValueError(f"unknown source {self.source!r}; expected one of {_SOURCES}")
+        if self.estimator not in _ESTIMATORS:
+            raise ValueError(f"unknown estimator {self.estimator!r}; expected one of {_ESTIMATORS}")
+        if self.exp_window_tau_s is not None and not (
+            np.isfinite(self.exp_window_tau_s) and self.exp_window_tau_s > 0
+        ):
+            raise ValueError(
+                f"exp_window_tau_s must be a positive time in s or None, got {self.exp_window_tau_s}"
+            )
         if self.pose is not None and len(self.pose) != 6:
             raise ValueError("pose must be (X, Y, Z [m], Rx, Ry, Rz [deg])")
         object.__setattr__(self, "frequency_hz", f)
@@ -179,8 +198,10 @@ class FRF:
 
     def band(self, f_min_hz: float, f_max_hz: float) -> FRF:
         """The bins with ``f_min_hz <= f <= f_max_hz``."""
+        if not (np.isfinite(f_min_hz) and np.isfinite(f_max_hz)):
+            raise ValueError(f"band limits must be finite (Hz), got {f_min_hz}-{f_max_hz}")
         if f_min_hz >= f_max_hz:
-            raise ValueError(f"empty band: f_min_hz={f_min_hz} >= f_max_hz={f_max_hz}")
+            raise ValueError(f"empty band: f_min_hz={f_min_hz} Hz >= f_max_hz={f_max_hz} Hz")
         keep = (self.frequency_hz >= f_min_hz) & (self.frequency_hz <= f_max_hz)
         if keep.sum() < 2:
             raise ValueError(

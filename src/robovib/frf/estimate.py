@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
+from .._checks import check_choice, check_number
 from .core import FRF, RESPONSE_TO_QUANTITY
 
 __all__ = ["SpectralDensities", "estimate_frf", "spectral_densities"]
@@ -121,8 +122,7 @@ def estimate_frf(
         raise ValueError(
             f"unknown response quantity {response_quantity!r}; expected one of {list(RESPONSE_TO_QUANTITY)}"
         )
-    if estimator not in ("H1", "H2"):
-        raise ValueError(f"unknown estimator {estimator!r}; expected 'H1' or 'H2'")
+    estimator = check_choice("estimator", estimator, ("H1", "H2"), case_insensitive=True)
     sd = spectral_densities(
         force, response, sample_rate_hz, nperseg=nperseg, window=window, noverlap=noverlap
     )
@@ -134,9 +134,20 @@ def estimate_frf(
 def _frf_from_densities(
     sd, sample_rate_hz, response_quantity, estimator, f_max_hz, direction, pose, source, **extra
 ):
+    # The name is checked here too (every path to an FRF passes here): "h1" must not become H2.
+    estimator = check_choice("estimator", estimator, ("H1", "H2"), case_insensitive=True)
     nyquist = sample_rate_hz / 2
-    if f_max_hz is not None and f_max_hz > nyquist:
-        raise ValueError(f"f_max_hz={f_max_hz} is beyond the Nyquist frequency {nyquist:g} Hz")
+    if f_max_hz is not None:
+        f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
+        if f_max_hz > nyquist:
+            raise ValueError(
+                f"f_max_hz={f_max_hz:g} Hz is beyond the Nyquist frequency {nyquist:g} Hz"
+            )
+        df = sd.frequency_hz[1] - sd.frequency_hz[0] if sd.frequency_hz.size > 1 else np.inf
+        if f_max_hz < 2 * df:
+            raise ValueError(
+                f"f_max_hz={f_max_hz:g} Hz keeps fewer than 2 bins (resolution {df:.3g} Hz)"
+            )
     keep = sd.frequency_hz > 0
     if f_max_hz is not None:
         keep &= sd.frequency_hz <= f_max_hz
@@ -144,7 +155,7 @@ def _frf_from_densities(
         raise ValueError(
             "the force spectrum is zero in part of the band: no excitation there, no FRF"
         )
-    h = sd.h1 if estimator == "H1" else sd.h2
+    h = {"H1": sd.h1, "H2": sd.h2}[estimator]
     return FRF(
         frequency_hz=sd.frequency_hz[keep],
         values=h[keep],

@@ -5,8 +5,8 @@ For each hit (one force and one response record, equally sampled):
 1. **Trigger**: the first sample where |force| reaches ``trigger_level`` x its peak; the record
    is aligned so that ``pretrigger_s`` of signal precede it (the record must hold that much).
 2. **Quality control**, per hit, reported in a :class:`HitReport`:
-   *double hit* — after the main pulse has decayed below the trigger level, the force rises
-   again above ``double_hit_level`` x peak; *overload* — a run of ``clip_run`` or more samples
+   *double hit* — outside the main (largest) pulse, before it or after it has decayed below
+   the trigger level, the force reaches ``double_hit_level`` x peak; *overload* — a run of ``clip_run`` or more samples
    at the channel's extreme value (a clipped ADC), or beyond a given full-scale range;
    flagged hits are rejected (default) or only reported (``reject=False``).
 3. **Windows**: a *force window* keeps the pulse (``force_window_s`` after the trigger, with a
@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._checks import check_choice, check_int, check_number
 from .core import FRF, RESPONSE_TO_QUANTITY
 from .estimate import SpectralDensities, _frf_from_densities, spectral_densities
 
@@ -107,8 +108,15 @@ def check_hit(
     below = np.flatnonzero(~above[i_peak:])
     end = i_peak + (int(below[0]) if below.size else force.size - i_peak)
     width = (end - trigger) / sample_rate_hz
-    if end < force.size and np.max(np.abs(force[end:])) >= double_hit_level * peak:
-        t2 = (end + int(np.argmax(np.abs(force[end:]) >= double_hit_level * peak))) / sample_rate_hz
+    # Start of the main pulse: first sample of the run above the trigger level holding the peak.
+    before = np.flatnonzero(~above[:i_peak])
+    start = int(before[-1]) + 1 if before.size else 0
+    second = double_hit_level * peak
+    if start > 0 and np.max(np.abs(force[:start])) >= second:
+        t2 = int(np.flatnonzero(np.abs(force[:start]) >= second)[-1]) / sample_rate_hz
+        reasons.append(f"double hit: another force pulse at {t2:.4g} s, before the largest one")
+    if end < force.size and np.max(np.abs(force[end:])) >= second:
+        t2 = (end + int(np.argmax(np.abs(force[end:]) >= second))) / sample_rate_hz
         reasons.append(f"double hit: second force pulse at {t2:.4g} s")
     if _clipped(force, clip_run, force_full_scale):
         reasons.append("force channel overload (clipped samples)")
@@ -183,6 +191,29 @@ def impact_frf(
     if not np.isfinite(fs) or fs <= 0:
         raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz!r}")
     n_hits, n = forces.shape
+    # Checked at the door: a negative window must not silently mean "none".
+    estimator = check_choice("estimator", estimator, ("H1", "H2"), case_insensitive=True)
+    record_s = n / fs
+    pretrigger_s = check_number(
+        "pretrigger_s", pretrigger_s, "s", lo=0.0, hi=record_s, hi_open=True
+    )
+    if force_window_s is not None:
+        force_window_s = check_number(
+            "force_window_s", force_window_s, "s", lo=0.0, lo_open=True, hi=record_s
+        )
+    if exp_window_tau_s is not None:
+        exp_window_tau_s = check_number(
+            "exp_window_tau_s", exp_window_tau_s, "s", lo=0.0, lo_open=True
+        )
+    check_number(
+        "trigger_level", trigger_level, "(fraction of the peak)", lo=0.0, hi=1.0, lo_open=True
+    )
+    check_number(
+        "double_hit_level", double_hit_level, "(fraction of the peak)", lo=0.0, hi=1.0, lo_open=True
+    )
+    check_int("clip_run", clip_run, lo=1)
+    if f_max_hz is not None:
+        f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
     pre = round(pretrigger_s * fs)
     reports, aligned = [], []
     for i in range(n_hits):

@@ -1,6 +1,6 @@
 """Hybrid EMA + OMA statistical model of the robot FRF with Bayesian updating (thesis ch. 5)."""
 
-from .model import FRFPoseModel, UpdateReport
+from .model import FRFPoseModel, UpdateReport, frfs_on_grid
 from .oma import OMASegment, oma_frfs
 from .workflow import (
     FRFPrediction,
@@ -15,6 +15,7 @@ __all__ = [
     "FRFPrediction",
     "OMASegment",
     "UpdateReport",
+    "frfs_on_grid",
     "frfs_on_path_grid",
     "oma_frfs",
     "oma_frfs_with_path",

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..gp.regressor import BatchedGPRegressor
 
-__all__ = ["FRFPoseModel", "UpdateReport"]
+__all__ = ["FRFPoseModel", "UpdateReport", "frfs_on_grid"]
 
 _FORMAT = "robovib-frf-pose-model"
 
@@ -58,6 +58,54 @@ class FRFPoseModel:
         self.kernel = kernel
         self.n_restarts = n_restarts
         self.rng = rng
+
+    # ------------------------------------------------------------------ FRF objects, checked
+    def fit_frfs(self, frfs) -> FRFPoseModel:
+        """Fit from FRF objects (path coordinate in ``meta["path_s_m"]``), checked at the door.
+
+        All FRFs must be compliances of one direction (stored as ``direction_``) from EMA or OMA
+        (source sets the noise group); bins outside an FRF's range are an error.
+
+        Raises
+        ------
+        ValueError
+            Mixed directions, model-source FRFs, missing path coordinate, other quantity, or an
+            FRF that does not cover the model's frequency grid.
+        """
+        frfs = list(frfs)
+        direction = _common_direction(frfs, None, "fit")
+        h, s, m, groups = frfs_on_grid(frfs, self.frequency_hz)
+        self.fit(s, h, mask=m, sources=groups)
+        self.direction_ = direction
+        return self
+
+    def update_frfs(
+        self, frfs, *, mode: str = "warm", expect_source: str | None = "OMA"
+    ) -> UpdateReport:
+        """Bayesian update from FRF objects, checked against the model.
+
+        Each FRF's direction must be the model's (``hybrid update model_x.h5 oma_y.h5`` fails)
+        and, with ``expect_source`` (default ``"OMA"``), its source must be that one (EMA FRFs
+        given as OMA are refused rather than fitted with the OMA noise level). Grid bins
+        outside an FRF's range are treated as missing.
+
+        Raises
+        ------
+        ValueError
+            Direction or source mismatch, or see :func:`frfs_on_grid`.
+        """
+        self._require_fitted()
+        frfs = list(frfs)
+        if expect_source is not None:
+            for i, f in enumerate(frfs):
+                if f.source != expect_source:
+                    raise ValueError(
+                        f"FRF {i} is a {f.source} FRF; this update expects {expect_source} FRFs "
+                        f"(e.g. from `hybrid oma`)"
+                    )
+        _common_direction(frfs, getattr(self, "direction_", None), "update")
+        h, s, m, groups = frfs_on_grid(frfs, self.frequency_hz, partial=True)
+        return self.update(s, h, mask=m, sources=groups, mode=mode)
 
     def _targets(self, frfs, mask):
         h = np.asarray(frfs, complex)
@@ -178,16 +226,28 @@ class FRFPoseModel:
         return cand[chosen]
 
     # ------------------------------------------------------------------ persistence (no pickle)
-    def save(self, path) -> None:
-        """HDF5: training data, hyperparameters and scalers, with a format tag and version."""
+    def save(self, path, *, inputs=(), force: bool = False) -> None:
+        """HDF5: training data, hyperparameters and scalers, with a format tag and version.
+
+        Written atomically (:func:`robovib.io.atomic_output`); ``path`` must not be one of
+        ``inputs`` unless ``force``.
+        """
         import h5py
+
+        from ..io.safe_write import atomic_output
 
         self._require_fitted()
         gp = self.gp_
-        with h5py.File(path, "w") as h5:
+        with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
             h5.attrs["format"] = _FORMAT
             h5.attrs["version"] = 1
             h5.attrs["kernel"] = self.kernel
+            h5.attrs["direction"] = getattr(self, "direction_", None) or ""
+            h5.attrs["frequency_unit"] = "Hz"
+            h5.attrs["compliance_unit"] = "um/N (Re, Im stacked)"
+            from .. import __version__
+
+            h5.attrs["robovib_version"] = __version__
             for name, value in {
                 "frequency_hz": self.frequency_hz, "X_train": gp.X_train_, "Y_train": np.nan_to_num(gp.Y_train_),
                 "mask": gp.mask_, "groups": gp._active_groups, "theta": gp._theta, "x_loc": gp._x_loc,
@@ -210,6 +270,7 @@ class FRFPoseModel:
                 raise ValueError(f"{path}: not a robovib FRF pose model (version 1)")
             d = {k: h5[k][()] for k in h5}
             kernel = str(h5.attrs["kernel"])
+            direction = str(h5.attrs.get("direction", "")) or None
         model = cls(d["frequency_hz"], kernel=kernel)
         gp = BatchedGPRegressor(kernel=kernel, n_noise_groups=2)
         gp._x_loc, gp._x_scale, gp._y_loc, gp._y_scale = (
@@ -225,4 +286,80 @@ class FRFPoseModel:
         gp._set_training_data(d["X_train"], d["Y_train"], d["mask"].astype(bool))
         model.gp_ = gp
         model.pose_range_ = (d["pose_lo"], d["pose_hi"])
+        model.direction_ = direction
         return model
+
+
+_GROUP = {"EMA": 0, "OMA": 1}
+
+
+def _common_direction(frfs, model_direction, what):
+    dirs = {f.direction for f in frfs} - {None}
+    if len(dirs) > 1:
+        raise ValueError(f"cannot {what} one model with FRFs of several directions {sorted(dirs)}")
+    direction = dirs.pop() if dirs else None
+    if model_direction is not None and direction is not None and direction != model_direction:
+        raise ValueError(
+            f"the model is of direction {model_direction!r} but the FRFs are {direction!r}: "
+            "a model must be updated with FRFs of its own direction"
+        )
+    return direction
+
+
+def frfs_on_grid(frfs, grid, partial: bool = False):
+    """FRFs interpolated on a frequency grid, with path coordinates, bin masks and noise groups.
+
+    Parameters
+    ----------
+    frfs : sequence of FRF
+        Compliances with ``meta["path_s_m"]`` [m]; OMA bins flagged in ``meta["flagged"]``
+        become missing targets.
+    grid : (n_f,) array [Hz]
+    partial : bool
+        True: grid bins outside an FRF's range are masked (missing), not an error.
+
+    Returns
+    -------
+    values : (n, n_f) complex [m/N]
+    s_m : (n,) path coordinates [m]
+    mask : (n, n_f) bool, True = usable bin
+    groups : (n,) int, 0 = EMA, 1 = OMA
+
+    Raises
+    ------
+    ValueError
+        No FRFs, a missing path coordinate, a non-compliance FRF, a model-source FRF, or
+        (``partial=False``) an FRF not covering the grid.
+    """
+    grid = np.asarray(grid, float)
+    if len(frfs) == 0:
+        raise ValueError("no FRFs given")
+    vals, s, masks, groups = [], [], [], []
+    for i, f in enumerate(frfs):
+        if "path_s_m" not in f.meta:
+            raise ValueError(
+                f"FRF {i} has no path coordinate (write it with --path-s / from `hybrid oma`)"
+            )
+        if f.quantity != "compliance":
+            raise ValueError(f"FRF {i} is {f.quantity}, expected compliance")
+        if f.source not in _GROUP:
+            raise ValueError(f"FRF {i} has source {f.source!r}; expected measured EMA or OMA")
+        s_i = float(f.meta["path_s_m"])
+        if not np.isfinite(s_i):
+            raise ValueError(f"FRF {i} has a non-finite path coordinate {s_i}")
+        outside = (grid < f.frequency_hz[0] - 1e-3) | (grid > f.frequency_hz[-1] + 1e-3)
+        if np.any(outside) and not partial:
+            raise ValueError(
+                f"FRF {i} covers {f.frequency_hz[0]:g}-{f.frequency_hz[-1]:g} Hz, not the model "
+                f"grid {grid[0]:g}-{grid[-1]:g} Hz"
+            )
+        vals.append(
+            np.interp(grid, f.frequency_hz, f.values.real)
+            + 1j * np.interp(grid, f.frequency_hz, f.values.imag)
+        )
+        flagged = np.asarray(f.meta.get("flagged", np.zeros(f.frequency_hz.size, bool)), bool)
+        nearest = np.clip(np.searchsorted(f.frequency_hz, grid), 0, f.frequency_hz.size - 1)
+        masks.append(~flagged[nearest] & ~outside)
+        s.append(s_i)
+        groups.append(_GROUP[f.source])
+    return np.array(vals), np.array(s), np.array(masks), np.array(groups, int)

@@ -3,6 +3,7 @@
 Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
+from .atomic import atomic_path
 from .frf_files import (
     read_frfs,
     read_frfs_hdf5,
@@ -11,14 +12,22 @@ from .frf_files import (
     write_frfs_hdf5,
     write_frfs_uff,
 )
+from .json_safe import dumps as json_dumps
+from .json_safe import json_safe
 from .recording import (
     HammerRecording,
+    ReadReport,
     Sensitivity,
     read_recording,
+    read_recording_channels,
     read_recording_csv,
     read_recording_uff,
+    sample_rate_from_time,
+    select_channel,
+    write_recording_csv,
     write_recording_uff,
 )
+from .safe_write import OutputPathError, atomic_output, check_output_path, save_figure
 from .tables import (
     read_compliance_tests_csv,
     read_force_csv,
@@ -26,14 +35,22 @@ from .tables import (
     read_path_modes_csv,
     write_path_modes_csv,
     write_recording,
-    write_recording_csv,
 )
+from .uff58 import Record58, write_uff58
 from .units import apply_sensitivity, si_factor
 
 __all__ = [
     "HammerRecording",
+    "OutputPathError",
+    "ReadReport",
+    "Record58",
     "Sensitivity",
     "apply_sensitivity",
+    "atomic_output",
+    "atomic_path",
+    "check_output_path",
+    "json_dumps",
+    "json_safe",
     "read_compliance_tests_csv",
     "read_force_csv",
     "read_frfs",
@@ -42,8 +59,12 @@ __all__ = [
     "read_milling_record_csv",
     "read_path_modes_csv",
     "read_recording",
+    "read_recording_channels",
     "read_recording_csv",
     "read_recording_uff",
+    "sample_rate_from_time",
+    "save_figure",
+    "select_channel",
     "si_factor",
     "write_frfs",
     "write_frfs_hdf5",
@@ -52,4 +73,5 @@ __all__ = [
     "write_recording",
     "write_recording_csv",
     "write_recording_uff",
+    "write_uff58",
 ]

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..frf.core import FRF
+from .safe_write import atomic_output
 
 __all__ = [
     "read_frfs",
@@ -39,12 +40,33 @@ _QUANTITY_SPEC = {"compliance": 8, "mobility": 11, "accelerance": 12}
 _SPEC_QUANTITY = {v: k for k, v in _QUANTITY_SPEC.items()}
 _QUANTITY_LABEL = {"compliance": "m/N", "mobility": "m/s/N", "accelerance": "m/s^2/N"}
 _DIR_CODE = {"x": 1, "y": 2, "z": 3}
+_CODE_DIR = {v: k for k, v in _DIR_CODE.items()}
 
 
-def write_frfs_hdf5(path: str | Path, frfs: Sequence[FRF]) -> None:
+def write_frfs_hdf5(
+    path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
+) -> None:
+    """Write FRFs to a robovib HDF5 file, atomically (see :func:`robovib.io.atomic_output`).
+
+    Parameters
+    ----------
+    path : path-like
+        Output ``.h5`` file; replaced only after a complete write.
+    frfs : sequence of FRF
+    inputs : sequence of path-like, optional
+        Files the FRFs come from; ``path`` must not be one of them unless ``force``.
+    force : bool, default False
+
+    Raises
+    ------
+    OutputPathError
+        Missing / read-only output folder, or output = input without ``force``.
+    ValueError
+        Metadata that cannot be stored.
+    """
     import h5py
 
-    with h5py.File(path, "w") as h5:
+    with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
         h5.attrs["format"] = _FORMAT
         h5.attrs["version"] = 1
         grp = h5.create_group("frf")
@@ -120,44 +142,149 @@ def read_frfs_hdf5(path: str | Path) -> list[FRF]:
         return out
 
 
-def write_frfs_uff(path: str | Path, frfs: Sequence[FRF]) -> None:
-    import pyuff
+def _uff_scalar_meta(i: int, frf: FRF) -> str:
+    """ID line 5: the scalar metadata as compact JSON (``meta={...}``), checked to fit."""
+    import json
 
-    path = Path(path)
-    if path.exists():
-        path.unlink()
-    sets = []
+    scalars = {}
+    for key, value in frf.meta.items():
+        if key == "reference_direction" or isinstance(value, np.ndarray):
+            continue  # ref_dir field / companion record
+        if isinstance(value, np.generic):
+            value = value.item()
+        if not isinstance(value, int | float | str | bool):
+            raise ValueError(
+                f"FRF {i}: meta {key!r} of type {type(value).__name__} cannot be stored in UFF; "
+                "write .h5 instead"
+            )
+        if isinstance(value, float) and not np.isfinite(value):
+            raise ValueError(f"FRF {i}: meta {key!r} = {value} cannot be stored in UFF")
+        scalars[key] = value
+    if not scalars:
+        return "NONE"
+    line = "meta=" + json.dumps(scalars, separators=(",", ":"))
+    if len(line) > 80:
+        raise ValueError(
+            f"FRF {i}: its scalar metadata ({', '.join(scalars)}) needs {len(line)} characters, "
+            "more than UFF's 80-character ID line; write .h5 instead"
+        )
+    return line
+
+
+def write_frfs_uff(
+    path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
+) -> None:
+    """Write FRFs as UFF datasets 58 in one pass, atomically, keeping every field.
+
+    Per FRF: one record of function type 4 (the FRF), and companion records with the same
+    load case: the coherence (function type 6) and each array metadata (e.g. the OMA
+    ``flagged`` bins; function type 0, ID line 1 ``robovib FRF meta <key>``). The ID lines
+    hold source and estimator (1), pose (2), direction (3), number of averages and the
+    exponential-window time constant (4) and the scalar metadata as JSON (5). The reference
+    (force) direction is ``meta["reference_direction"]`` when set (a cross FRF), otherwise the
+    response direction. What cannot be stored (metadata too long for an 80-character ID line,
+    a frequency axis not representable in the 13-character abscissa fields) is refused, never
+    dropped; ordinates keep 12 significant digits (UFF's E20.11).
+
+    Raises
+    ------
+    OutputPathError
+        Missing / read-only output folder, or output = input without ``force``.
+    ValueError
+        Uneven frequency axis, or a field that does not fit (write .h5 instead).
+    """
+    from .uff58 import Record58, _e13, write_uff58
+
+    records = []
     for i, frf in enumerate(frfs):
-        df = np.diff(frf.frequency_hz)
-        if frf.frequency_hz.size > 2 and np.ptp(df) > 1e-9 * np.mean(df):
+        f = frf.frequency_hz
+        df = np.diff(f)
+        if f.size < 2 or (f.size > 2 and np.ptp(df) > 1e-9 * np.mean(df)):
             raise ValueError(f"FRF {i}: UFF dataset 58 needs an evenly spaced frequency axis")
+        x0, dx = float(f[0]), float(np.mean(df))
+        x0_w, dx_w = float(_e13(x0)), float(_e13(dx))
+        back = x0_w + dx_w * np.arange(f.size)
+        if np.max(np.abs(back - f)) > 1e-9 * dx:
+            raise ValueError(
+                f"FRF {i}: its frequency axis (start {x0!r} Hz, step {dx!r} Hz) cannot be written "
+                "exactly in UFF's 13-character abscissa fields; write .h5 instead"
+            )
         dcode = _DIR_CODE.get(frf.direction or "", 0)
-        pose = "" if frf.pose is None else "pose=" + ",".join(f"{p:.9g}" for p in frf.pose)
-        sets.append(
-            pyuff.prepare_58(
-                binary=0,
-                id1=f"robovib FRF {frf.source} {frf.estimator}",
-                id2=pose or "NONE",
-                id3=f"direction={frf.direction or ''}",
-                id4=f"n_averages={frf.n_averages}",
+        ref = str(frf.meta.get("reference_direction", "") or "")
+        rcode = _DIR_CODE.get(ref, dcode)
+        # pose: X, Y, Z [m] in ID line 2, Rx, Ry, Rz [deg] in ID line 3, exact (shortest repr)
+        pose = rot = "NONE"
+        if frf.pose is not None:
+            pose = "pose=" + ",".join(repr(float(p)) for p in frf.pose[:3])
+            rot = "rot=" + ",".join(repr(float(p)) for p in frf.pose[3:])
+        tau = "" if frf.exp_window_tau_s is None else f";exp_window_tau_s={frf.exp_window_tau_s!r}"
+        common = dict(
+            x0=x0, dx=dx, abscissa_spec=18, abscissa_label="Hz", load_case_id=i, rsp_node=1,
+            rsp_dir=dcode, ref_node=1, ref_dir=rcode,
+        )  # fmt: skip
+        records.append(
+            Record58(
+                data=np.asarray(frf.values, complex),
                 func_type=4,
-                load_case_id=i,
-                rsp_node=1,
-                rsp_dir=dcode,
-                ref_node=1,
-                ref_dir=dcode,
-                abscissa_spec_data_type=18,
-                abscissa_spacing=1,
-                abscissa_axis_units_lab="Hz",
-                ordinate_spec_data_type=_QUANTITY_SPEC[frf.quantity],
-                ordinate_axis_units_lab=_QUANTITY_LABEL[frf.quantity],
-                orddenom_spec_data_type=13,
-                orddenom_axis_units_lab="N",
-                data=frf.values,
-                x=frf.frequency_hz,
+                ordinate_spec=_QUANTITY_SPEC[frf.quantity],
+                ordinate_label=_QUANTITY_LABEL[frf.quantity],
+                denominator_spec=13,
+                denominator_label="N",
+                ids=(
+                    f"robovib FRF {frf.source} {frf.estimator}",
+                    pose,
+                    rot,
+                    f"n_averages={frf.n_averages}{tau}",
+                    _uff_scalar_meta(i, frf),
+                ),
+                **common,
             )
         )
-    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+        if frf.coherence is not None:
+            records.append(
+                Record58(
+                    data=np.asarray(frf.coherence, float),
+                    func_type=6,
+                    ordinate_spec=0,
+                    ordinate_label="NONE",
+                    ids=("robovib FRF coherence", "NONE", "NONE", "NONE", "NONE"),
+                    **common,
+                )
+            )
+        for key, value in frf.meta.items():
+            if not isinstance(value, np.ndarray):
+                continue
+            if value.ndim != 1 or value.dtype.kind not in "biufc":
+                raise ValueError(
+                    f"FRF {i}: meta {key!r} ({value.dtype}, shape {value.shape}) cannot be stored "
+                    "in UFF (1-D numeric arrays only); write .h5 instead"
+                )
+            if value.size == 0:
+                raise ValueError(f"FRF {i}: empty meta array {key!r} cannot be stored in UFF")
+            if value.dtype.kind in "iu" and np.any(np.abs(value) >= 10**11):
+                raise ValueError(f"FRF {i}: meta {key!r} has integers too large for UFF")
+            ident = f"robovib FRF meta {key}"
+            if len(ident) > 80 or " " in key:
+                raise ValueError(f"FRF {i}: meta key {key!r} cannot be stored in UFF")
+            records.append(
+                Record58(
+                    data=value.astype(complex if value.dtype.kind == "c" else float),
+                    func_type=0,
+                    ordinate_spec=0,
+                    ordinate_label="NONE",
+                    ids=(ident, f"dtype={value.dtype.str}", "NONE", "NONE", "NONE"),
+                    x0=0.0,
+                    dx=1.0,
+                    abscissa_spec=0,
+                    abscissa_label="index",
+                    load_case_id=i,
+                    rsp_node=1,
+                    rsp_dir=dcode,
+                    ref_node=1,
+                    ref_dir=rcode,
+                )
+            )
+    write_uff58(path, records, inputs=inputs, force=force)
 
 
 def read_frfs_uff(path: str | Path) -> list[FRF]:
@@ -173,7 +300,16 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
         raise ValueError(f"{path}: not a readable UFF file ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
     out = []
+    lc_index: dict[int, int] = {}  # load case -> FRF index, for robovib's companion records
+    companions = []
     for s in sets:
+        if (
+            s.get("type") == 58
+            and str(s.get("id1", "")).startswith("robovib FRF ")
+            and s.get("func_type") in (0, 6)
+        ):
+            companions.append(s)
+            continue
         if s.get("type") != 58 or s.get("func_type") != 4:
             continue
         spec = int(s.get("ordinate_spec_data_type", 0))
@@ -193,30 +329,125 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
         _, den = si_factor(den_label, "force")
         pose = None
         id2 = str(s.get("id2", ""))
-        if id2.startswith("pose="):
-            pose = tuple(float(p) for p in id2[5:].split(","))
-        code = abs(int(s.get("rsp_dir", 0)))
+        id3 = str(s.get("id3", "")).strip()
+        try:
+            if id2.startswith("pose="):
+                pose = tuple(float(p) for p in id2[5:].split(","))
+                if len(pose) == 3 and id3.startswith("rot="):
+                    pose = pose + tuple(float(p) for p in id3[4:].split(","))
+                if len(pose) != 6:
+                    raise ValueError
+        except ValueError:
+            raise ValueError(
+                f"{path}: FRF record {len(out)}: unreadable pose in ID lines 2-3 ({id2!r}, {id3!r})"
+            ) from None
+        code, ref = int(s.get("rsp_dir", 0)), int(s.get("ref_dir", 0))
+        if abs(code) > 3 or abs(ref) > 3:
+            raise ValueError(
+                f"{path}: FRF record {len(out)} has a rotational DOF (rsp_dir {code}, "
+                f"ref_dir {ref}); only translations (±1-3) are supported"
+            )
+        # A DOF along -X is the X one with opposite sign: H(+x, +x) = sign * H(file).
+        sign = (-1.0 if code < 0 else 1.0) * (-1.0 if ref < 0 else 1.0)
+        direction = _CODE_DIR.get(abs(code))
+        meta = {}
+        if ref and abs(ref) != abs(code):
+            # A cross FRF: response along one axis, force along another.
+            meta["reference_direction"] = _CODE_DIR[abs(ref)]
+        extra = _robovib_ids(s, path, len(out))
+        meta.update(extra.pop("meta", {}))
+        if extra:
+            lc = int(s.get("load_case_id", -1))
+            if lc in lc_index:
+                raise ValueError(f"{path}: two robovib FRF records share load case {lc}")
+            lc_index[lc] = len(out)
         out.append(
             FRF(
                 frequency_hz=np.asarray(s["x"], float),
-                values=np.asarray(s["data"], complex) * num / den,
+                values=sign * np.asarray(s["data"], complex) * num / den,
                 quantity=quantity,
-                direction={1: "x", 2: "y", 3: "z"}.get(code),
+                direction=direction,
                 pose=pose,
+                meta=meta,
+                **extra,
             )
         )
     if not out:
         raise ValueError(f"{path}: no dataset 58 FRF records (function type 4)")
+    return _attach_companions(out, companions, lc_index, path)
+
+
+def _robovib_ids(s: dict, path, index: int) -> dict:
+    """Fields written by robovib into the ID lines (empty for other writers' files)."""
+    import json
+
+    id1 = str(s.get("id1", "")).split()
+    if id1[:2] != ["robovib", "FRF"] or len(id1) != 4:
+        return {}
+    out: dict = {"source": id1[2], "estimator": id1[3]}
+    for item in str(s.get("id4", "")).strip().split(";"):
+        key, _, value = item.partition("=")
+        try:
+            if key == "n_averages":
+                out["n_averages"] = int(value)
+            elif key == "exp_window_tau_s":
+                out["exp_window_tau_s"] = float(value)
+        except ValueError:
+            raise ValueError(f"{path}: FRF record {index}: unreadable ID line 4 {item!r}") from None
+    id5 = str(s.get("id5", "")).strip()
+    if id5.startswith("meta="):
+        try:
+            meta = json.loads(id5[5:])
+        except json.JSONDecodeError:
+            raise ValueError(f"{path}: FRF record {index}: unreadable metadata {id5!r}") from None
+        if not isinstance(meta, dict):
+            raise ValueError(f"{path}: FRF record {index}: unreadable metadata {id5!r}")
+        out["meta"] = meta
     return out
 
 
-def write_frfs(path: str | Path, frfs: Sequence[FRF]) -> None:
-    """Write FRFs by file extension: .h5/.hdf5 or .uff/.unv."""
+def _attach_companions(frfs: list[FRF], companions, lc_index, path) -> list[FRF]:
+    """Coherence (function type 6) and array metadata records of robovib's FRFs."""
+    from dataclasses import replace
+
+    for s in companions:
+        lc = int(s.get("load_case_id", -1))
+        if lc not in lc_index:
+            raise ValueError(
+                f"{path}: {s.get('id1', '').strip()!r} record of unknown load case {lc}"
+            )
+        i = lc_index[lc]
+        frf = frfs[i]
+        data = np.asarray(s["data"])
+        if s["func_type"] == 6:
+            if data.shape != frf.frequency_hz.shape:
+                raise ValueError(
+                    f"{path}: FRF {i}: coherence has {data.size} bins, FRF {frf.frequency_hz.size}"
+                )
+            frfs[i] = replace(frf, coherence=np.asarray(data.real, float))
+            continue
+        key = str(s["id1"]).strip()[len("robovib FRF meta ") :]
+        dtype = str(s.get("id2", "")).strip().removeprefix("dtype=")
+        try:
+            dt = np.dtype(dtype)
+        except TypeError:
+            raise ValueError(f"{path}: FRF {i}: meta {key!r} has unknown dtype {dtype!r}") from None
+        value = np.asarray(data if dt.kind == "c" else data.real)
+        if dt.kind in "biu":
+            value = np.rint(value)
+        frfs[i] = replace(frf, meta={**frf.meta, key: value.astype(dt)})
+    return frfs
+
+
+def write_frfs(
+    path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
+) -> None:
+    """Write FRFs by file extension: .h5/.hdf5 or .uff/.unv (atomic; output != input)."""
     suffix = Path(path).suffix.lower()
     if suffix in (".h5", ".hdf5"):
-        return write_frfs_hdf5(path, frfs)
+        return write_frfs_hdf5(path, frfs, inputs=inputs, force=force)
     if suffix in (".uff", ".unv"):
-        return write_frfs_uff(path, frfs)
+        return write_frfs_uff(path, frfs, inputs=inputs, force=force)
     raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff or .unv")
 
 

@@ -1,43 +1,63 @@
 """Impact-hammer recordings: force and response time series of several hits, read from CSV or UFF.
 
+The readers never lose or invent a hit: every record is paired by its channel, hits are formed
+from paired records or cut out of continuous records, and what happened is reported in a
+:class:`ReadReport` (records read, hits formed, hits rejected and why) attached to the result.
+
 CSV layout (one header row, comma separated)::
 
     hit,time_s,force_n,acceleration_m_per_s2
     0,0.0,0.12,-0.003
     ...
 
-* ``hit`` (optional): hit number; without it the file holds one hit.
-* time: ``time_s`` or ``time_ms``; uniform sampling is required (checked).
-* force: ``force_n``, ``force_kn`` or ``force_lbf``.
+* ``hit`` (optional): hit number; without it the file is one continuous record, cut into hits
+  at the impacts (:func:`robovib.frf.segment_hits`).
+* time: ``time_s`` or ``time_ms``; the sample rate is the least-squares slope of time against
+  sample index; deviations up to the printed resolution of the time column (6 decimals: 1 µs)
+  are rounding, larger ones are gaps and rejected with the sample and time named.
+* force: ``force_n``, ``force_kn`` or ``force_lbf`` (optionally with a direction:
+  ``force_x_n``).
 * voltage channels: unit ``v`` or ``mv`` (``force_mv``, ``acceleration_v``) with a
   :class:`Sensitivity` passed to the reader;
-* exactly one response column ``<quantity>_<unit>`` with quantity ``acceleration``,
-  ``velocity`` or ``displacement`` and unit written with ``_per_`` for ``/`` and ``2`` for
-  squares: ``acceleration_g``, ``acceleration_m_per_s2``, ``velocity_mm_per_s``,
-  ``displacement_um``...
+* one or more response columns ``<quantity>[_<dir>]_<unit>`` with quantity ``acceleration``,
+  ``velocity`` or ``displacement``, optional direction ``x``/``y``/``z`` and unit written with
+  ``_per_`` for ``/`` and ``2`` for squares: ``acceleration_g``, ``acceleration_x_m_per_s2``,
+  ``velocity_mm_per_s``, ``displacement_um``...
 
 UFF: datasets 58 with function type 1 (time response). The force record has specific data type
-13 (excitation force), the response 8, 11 or 12 (displacement, velocity, acceleration); the
-hit number is the load-case id; units come from the ordinate unit labels (see
-:mod:`robovib.io.units`).
+13 (excitation force), responses 8, 11 or 12 (displacement, velocity, acceleration). A record's
+channel is (function type, specific data type, node, |direction|); a negative direction code
+(``rsp_dir = -1``: the sensor points along -X) is honoured by negating the record. Records are
+paired into hits by load-case id when every channel numbers its records uniquely with
+several ids, otherwise by order within each channel (the i-th force record and the i-th record
+of every response channel form hit i), so files that give every record load-case 0 keep all
+hits. A file with one record per channel is continuous and is cut into hits at the impacts.
+Units come from the ordinate unit labels (see :mod:`robovib.io.units`).
 """
 
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+import decimal
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .safe_write import atomic_output
 from .units import si_factor
 
 __all__ = [
     "HammerRecording",
+    "ReadReport",
     "Sensitivity",
     "read_recording",
+    "read_recording_channels",
     "read_recording_csv",
     "read_recording_uff",
+    "sample_rate_from_time",
+    "select_channel",
+    "write_recording_csv",
     "write_recording_uff",
 ]
 
@@ -45,11 +65,60 @@ _SPEC_TO_QUANTITY = {8: "displacement", 11: "velocity", 12: "acceleration"}
 _QUANTITY_TO_SPEC = {v: k for k, v in _SPEC_TO_QUANTITY.items()}
 _SI_LABEL = {"acceleration": "m/s^2", "velocity": "m/s", "displacement": "m"}
 _DIR_CODE = {"x": 1, "y": 2, "z": 3}
+_CODE_DIR = {1: "x", 2: "y", 3: "z"}
+_SEGMENT = ("auto", "always", "never")
+
+
+@dataclass(frozen=True)
+class ReadReport:
+    """What a reader did with a file.
+
+    Attributes
+    ----------
+    path
+        The file read.
+    layout
+        ``"paired"`` (one record per hit and channel) or ``"continuous"`` (cut at the impacts).
+    records_read
+        Data records (UFF datasets 58 or CSV hit blocks / channels) read.
+    hits_formed
+        Hits returned.
+    hits_rejected
+        ``(hit label, reason)`` of hits that were found but not formed.
+    channels
+        Response channels found, e.g. ``("acceleration x node 1", ...)``.
+    notes
+        Anything else changed on the way (negated records, truncations).
+    """
+
+    path: str
+    layout: str
+    records_read: int
+    hits_formed: int
+    hits_rejected: tuple[tuple[str, str], ...] = ()
+    channels: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict:
+        return {
+            "path": self.path,
+            "layout": self.layout,
+            "records_read": self.records_read,
+            "hits_formed": self.hits_formed,
+            "hits_rejected": [{"hit": h, "reason": r} for h, r in self.hits_rejected],
+            "channels": list(self.channels),
+            "notes": list(self.notes),
+        }
 
 
 @dataclass(frozen=True)
 class HammerRecording:
-    """Hits of one hammer test, SI units: forces [N], responses [m, m/s or m/s²]."""
+    """Hits of one hammer test, SI units: forces [N], responses [m, m/s or m/s²].
+
+    ``direction`` is the response direction, ``reference_direction`` the force direction
+    (None where the file does not say); a recording with both set and different is a cross
+    measurement. ``report`` says how the reader formed the hits.
+    """
 
     forces: np.ndarray  #: (n_hits, n_samples)
     responses: np.ndarray  #: (n_hits, n_samples)
@@ -57,6 +126,9 @@ class HammerRecording:
     response_quantity: str
     direction: str | None = None
     pose: tuple[float, ...] | None = None
+    reference_direction: str | None = None
+    response_node: int | None = None
+    report: ReadReport | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         f = np.atleast_2d(np.asarray(self.forces, float))
@@ -69,12 +141,25 @@ class HammerRecording:
             raise ValueError(f"sample_rate_hz must be positive, got {self.sample_rate_hz!r}")
         if self.response_quantity not in _QUANTITY_TO_SPEC:
             raise ValueError(f"unknown response quantity {self.response_quantity!r}")
+        for name in ("direction", "reference_direction"):
+            v = getattr(self, name)
+            if v is not None and v not in _DIR_CODE:
+                raise ValueError(f"unknown {name} {v!r}; expected x, y or z")
         object.__setattr__(self, "forces", f)
         object.__setattr__(self, "responses", r)
 
     @property
     def n_hits(self) -> int:
         return self.forces.shape[0]
+
+    @property
+    def is_cross(self) -> bool:
+        """True when the response and force directions are both known and differ."""
+        return (
+            self.direction is not None
+            and self.reference_direction is not None
+            and self.direction != self.reference_direction
+        )
 
 
 @dataclass(frozen=True)
@@ -112,13 +197,54 @@ def _channel_factor(
     return si_factor(label, expected)[1]
 
 
-def _sample_rate(time_s: np.ndarray, where: str) -> float:
-    if time_s.size < 2:
+def sample_rate_from_time(time_s: np.ndarray, resolution_s: float, where: str) -> float:
+    """Sample rate [Hz] of a printed time column, tolerating rounding up to its resolution.
+
+    The sample interval is the least-squares slope of time against sample index; each step must
+    match it within the printed resolution ``resolution_s`` (a rounded value is off by at most
+    half of it, a step by at most all of it). A larger deviation is a gap, named by sample and
+    time.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 2 samples, non-increasing time, or a gap.
+    """
+    t = np.asarray(time_s, float)
+    if t.size < 2:
         raise ValueError(f"{where}: fewer than 2 samples")
-    dt = np.diff(time_s)
-    if np.any(dt <= 0) or np.ptp(dt) > 1e-6 * np.mean(dt) + 1e-12:
-        raise ValueError(f"{where}: time column is not uniformly sampled")
-    return float(1.0 / np.mean(dt))
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        i = int(np.argmax(dt <= 0)) + 1
+        raise ValueError(
+            f"{where}: time column is not uniformly sampled: time does not increase at sample {i} "
+            f"(t = {t[i]:.9g} s)"
+        )
+    idx = np.arange(t.size, dtype=float)
+    slope, _ = np.polyfit(idx, t, 1)
+    # A step off by a quarter interval or more is never rounding (a missing sample is a whole one).
+    tol = min(1.001 * resolution_s + 1e-9 * slope + 1e-15, 0.25 * slope)
+    bad = np.abs(dt - slope) > tol
+    if np.any(bad):
+        i = int(np.argmax(bad)) + 1
+        raise ValueError(
+            f"{where}: time column is not uniformly sampled: step of {dt[i - 1]:.9g} s before "
+            f"sample {i} (t = {t[i]:.9g} s), expected {slope:.9g} s ± {resolution_s:.3g} s "
+            "(the printed resolution); a gap or a changed rate"
+        )
+    return float(1.0 / slope)
+
+
+def _printed_resolution(cells) -> float:
+    """The typical (median) last printed digit of numeric strings (e.g. '0.000195' -> 1e-6)."""
+    exps = []
+    for c in cells:
+        try:
+            exps.append(decimal.Decimal(c.strip()).as_tuple().exponent)
+        except (decimal.InvalidOperation, AttributeError):
+            continue
+    exps = [e for e in exps if isinstance(e, int)]
+    return float(10.0 ** np.median(exps)) if exps else 0.0
 
 
 def _unit_from_column(name: str) -> str:
@@ -126,14 +252,113 @@ def _unit_from_column(name: str) -> str:
     return unit.replace("_per_", "/").replace("s2", "s^2")
 
 
-def read_recording_csv(
-    path: str | Path,
-    direction: str | None = None,
-    force_sensitivity: Sensitivity | None = None,
-    response_sensitivity: Sensitivity | None = None,
-) -> HammerRecording:
-    """Read a hammer recording from CSV (layout in the module docstring)."""
-    path = Path(path)
+def _split_column(name: str) -> tuple[str, str | None, str]:
+    """``acceleration_x_m_per_s2`` -> ("acceleration", "x", "m/s^2")."""
+    quantity, rest = name.split("_", 1)
+    direction = None
+    head, _, tail = rest.partition("_")
+    if head in _DIR_CODE and tail:
+        direction, rest = head, tail
+    return quantity, direction, rest.replace("_per_", "/").replace("s2", "s^2")
+
+
+@dataclass
+class _Channels:
+    """Raw hits as read: force and each response channel, lists of 1-D arrays per hit."""
+
+    forces: list
+    responses: dict  # key -> list of arrays (same hit order as forces)
+    quantity: dict  # key -> quantity
+    direction: dict  # key -> direction or None
+    node: dict  # key -> node or None
+    force_direction: str | None
+    sample_rate_hz: float
+    labels: list  # hit labels
+    records_read: int
+    rejected: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+
+
+def _channel_name(key, ch: _Channels) -> str:
+    d = ch.direction[key]
+    node = ch.node[key]
+    return f"{ch.quantity[key]}{' ' + d if d else ''}{f' node {node}' if node is not None else ''}"
+
+
+def _cut_continuous(ch: _Channels, where: str, segment: str, seg_kw: dict) -> str:
+    """Cut single-record channels into hits at the impacts; returns the layout."""
+    from ..frf.segment import segment_hits
+
+    if segment == "never" or (segment == "auto" and len(ch.forces) != 1):
+        return "paired"
+    if len(ch.forces) != 1:
+        raise ValueError(
+            f"{where}: segment='always' needs one continuous record per channel, "
+            f"found {len(ch.forces)} hits"
+        )
+    seg = segment_hits(ch.forces[0], ch.sample_rate_hz, **seg_kw)
+    if seg.n_hits <= 1 and not seg.rejected:
+        return "paired" if segment == "auto" else "continuous"
+    fs = ch.sample_rate_hz
+    for onset, reason in seg.rejected:
+        ch.rejected.append((f"impact at {onset / fs:.4g} s", reason))
+    f0 = ch.forces[0]
+    ch.forces = [f0[s : s + seg.length] for s in seg.starts]
+    for key, rs in ch.responses.items():
+        ch.responses[key] = [rs[0][s : s + seg.length] for s in seg.starts]
+    ch.labels = [f"impact at {o / fs:.4g} s" for o in seg.onsets]
+    ch.notes.append(
+        f"continuous record of {f0.size / fs:.4g} s cut into {seg.n_hits} hits of "
+        f"{seg.length / fs:.4g} s"
+    )
+    return "continuous"
+
+
+def _equal_lengths(ch: _Channels) -> None:
+    lengths = {len(f) for f in ch.forces}
+    if len(lengths) > 1:
+        n = min(lengths)
+        ch.notes.append(f"hits of {sorted(lengths)} samples truncated to the shortest ({n})")
+        ch.forces = [f[:n] for f in ch.forces]
+        ch.responses = {k: [r[:n] for r in v] for k, v in ch.responses.items()}
+
+
+def _finish(ch: _Channels, path: Path, segment: str, seg_kw: dict) -> list[HammerRecording]:
+    if segment not in _SEGMENT:
+        raise ValueError(f"unknown segment mode {segment!r}; expected one of {_SEGMENT}")
+    if not ch.forces:
+        detail = "; ".join(f"{h}: {r}" for h, r in ch.rejected)
+        raise ValueError(f"{path}: no complete hit (force + response) found ({detail})")
+    layout = _cut_continuous(ch, str(path), segment, seg_kw)
+    _equal_lengths(ch)
+    names = tuple(_channel_name(k, ch) for k in ch.responses)
+    report = ReadReport(
+        str(path), layout, ch.records_read, len(ch.forces),
+        tuple(ch.rejected), names, tuple(ch.notes),
+    )  # fmt: skip
+    out = []
+    forces = np.array(ch.forces)
+    for key, rs in ch.responses.items():
+        out.append(
+            HammerRecording(
+                forces,
+                np.array(rs),
+                ch.sample_rate_hz,
+                ch.quantity[key],
+                direction=ch.direction[key],
+                reference_direction=ch.force_direction,
+                response_node=ch.node[key],
+                report=report,
+            )
+        )
+    return out
+
+
+def _csv_channels(
+    path: Path,
+    force_sensitivity: Sensitivity | None,
+    response_sensitivity: Sensitivity | None,
+) -> _Channels:
     with path.open(newline="") as fh:
         reader = csv.reader(fh)
         try:
@@ -141,55 +366,77 @@ def read_recording_csv(
         except StopIteration:
             raise ValueError(f"{path}: empty file") from None
         rows = [r for r in reader if r]
+    if not rows:
+        raise ValueError(f"{path}: no data rows")
+    if any(len(r) != len(header) for r in rows):
+        bad = next(i for i, r in enumerate(rows) if len(r) != len(header))
+        raise ValueError(
+            f"{path}: row {bad + 2} has {len(rows[bad])} cells, expected {len(header)}"
+        )
     try:
         data = np.array(rows, dtype=float)
     except ValueError as exc:
         raise ValueError(f"{path}: non-numeric cell ({exc})") from None
-    if data.ndim != 2 or data.shape[1] != len(header):
-        raise ValueError(f"{path}: rows do not all have {len(header)} cells")
     col = {h: i for i, h in enumerate(header)}
     time_cols = [h for h in header if h.startswith("time_")]
     force_cols = [h for h in header if h.startswith("force_")]
     resp_cols = [h for h in header if h.split("_", 1)[0] in _QUANTITY_TO_SPEC]
-    if len(time_cols) != 1 or len(force_cols) != 1 or len(resp_cols) != 1:
+    if len(time_cols) != 1 or len(force_cols) != 1 or not resp_cols:
         raise ValueError(
-            f"{path}: need exactly one time_*, one force_* and one acceleration_*/velocity_*/displacement_* "
-            f"column, got {header}"
+            f"{path}: need exactly one time_*, one force_* and at least one "
+            f"acceleration_*/velocity_*/displacement_* column, got {header}"
         )
+    if not np.all(np.isfinite(data)):
+        r, c = np.argwhere(~np.isfinite(data))[0]
+        raise ValueError(f"{path}: NaN or inf in row {r + 2}, column {header[c]!r}")
     _, t_factor = si_factor(_unit_from_column(time_cols[0]), "time")
-    f_factor = _channel_factor(
-        _unit_from_column(force_cols[0]), "force", force_sensitivity, str(path)
-    )
-    quantity = resp_cols[0].split("_", 1)[0]
-    r_factor = _channel_factor(
-        _unit_from_column(resp_cols[0]), quantity, response_sensitivity, str(path)
-    )
+    _, f_dir, f_unit = _split_column(force_cols[0])
+    f_factor = _channel_factor(f_unit, "force", force_sensitivity, str(path))
     hits = data[:, col["hit"]].astype(int) if "hit" in col else np.zeros(len(data), int)
-    forces, responses, rates = [], [], []
-    for h in np.unique(hits):
-        sel = hits == h
-        rates.append(_sample_rate(data[sel, col[time_cols[0]]] * t_factor, f"{path} hit {h}"))
-        forces.append(data[sel, col[force_cols[0]]] * f_factor)
-        responses.append(data[sel, col[resp_cols[0]]] * r_factor)
-    if len({len(f) for f in forces}) != 1:
-        raise ValueError(f"{path}: hits have different lengths")
-    if np.ptp(rates) > 1e-6 * rates[0]:
+    order = list(dict.fromkeys(hits.tolist()))  # hit numbers in file order
+    ti = col[time_cols[0]]
+    rates = []
+    for h in order:
+        sel = np.flatnonzero(hits == h)
+        res = _printed_resolution(rows[i][ti] for i in sel) * t_factor
+        where = f"{path} hit {h}" if "hit" in col else str(path)
+        rates.append(sample_rate_from_time(data[sel, ti] * t_factor, res, where))
+    if np.ptp(rates) > 1e-4 * rates[0]:
         raise ValueError(
-            f"{path}: hits have mismatched sampling rates {sorted(set(np.round(rates, 6)))}"
+            f"{path}: hits have mismatched sampling rates {sorted(set(np.round(rates, 3)))} Hz"
         )
-    return HammerRecording(np.array(forces), np.array(responses), rates[0], quantity, direction)
+    responses, quantity, direction, node = {}, {}, {}, {}
+    for c in resp_cols:
+        q, d, unit = _split_column(c)
+        factor = _channel_factor(unit, q, response_sensitivity, str(path))
+        responses[c] = [data[hits == h, col[c]] * factor for h in order]
+        quantity[c], direction[c], node[c] = q, d, None
+    return _Channels(
+        forces=[data[hits == h, col[force_cols[0]]] * f_factor for h in order],
+        responses=responses, quantity=quantity, direction=direction, node=node,
+        force_direction=f_dir, sample_rate_hz=float(np.mean(rates)),
+        labels=[f"hit {h}" for h in order], records_read=len(order) * (1 + len(resp_cols)),
+    )  # fmt: skip
 
 
-def read_recording_uff(
-    path: str | Path,
-    direction: str | None = None,
-    force_sensitivity: Sensitivity | None = None,
-    response_sensitivity: Sensitivity | None = None,
-) -> HammerRecording:
-    """Read force/response time records (UFF dataset 58, function type 1) of one or more hits."""
+def _uff_fs(s: dict, where: str) -> float:
+    if int(s.get("abscissa_spacing", 0)) == 1 and float(s.get("abscissa_inc", 0)) > 0:
+        # Even spacing is stored as min + increment (E13.5: 6 significant digits).
+        return 1.0 / float(s["abscissa_inc"])
+    x = np.asarray(s["x"], float)
+    # Uneven abscissae printed in E13.5 carry 6 significant digits.
+    top = float(np.max(np.abs(x))) if x.size else 0.0
+    res = 10.0 ** (np.floor(np.log10(top)) - 5) if top > 0 else 0.0
+    return sample_rate_from_time(x, res, where)
+
+
+def _uff_channels(
+    path: Path,
+    force_sensitivity: Sensitivity | None,
+    response_sensitivity: Sensitivity | None,
+) -> _Channels:
     import pyuff
 
-    path = Path(path)
     try:
         sets = pyuff.UFF(str(path)).read_sets()
     except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
@@ -198,97 +445,225 @@ def read_recording_uff(
     records = [s for s in sets if s.get("type") == 58 and s.get("func_type") == 1]
     if not records:
         raise ValueError(f"{path}: no dataset 58 time records (function type 1)")
-    by_hit: dict[int, dict[str, tuple]] = {}
-    quantity = None
-    found_dir = None
-    for s in records:
+    notes: list[str] = []
+    parsed = []  # (record index, channel key, load case, values, fs)
+    force_dirs = set()
+    ref_dirs = set()
+    for i, s in enumerate(records):
         spec = int(s.get("ordinate_spec_data_type", 0))
         label = str(s.get("ordinate_axis_units_lab", "")).strip()
-        hit = int(s.get("load_case_id", 0))
-        if int(s.get("abscissa_spacing", 0)) == 1 and float(s.get("abscissa_inc", 0)) > 0:
-            # Even spacing is stored as min + increment; x rebuilt from an ASCII increment
-            # carries rounding that a diff-based check would take for jitter.
-            fs = 1.0 / float(s["abscissa_inc"])
-        else:
-            fs = _sample_rate(np.asarray(s["x"], float), f"{path} hit {hit}")
-        values = np.asarray(s["data"], float)
+        code = int(s.get("rsp_dir", 0))
+        node = int(s.get("rsp_node", 0))
+        where = f"{path} record {i}"
         if spec == 13:
-            factor = _channel_factor(label, "force", force_sensitivity, str(path))
-            by_hit.setdefault(hit, {})["force"] = (values * factor, fs)
+            factor = _channel_factor(label, "force", force_sensitivity, where)
+            key = ("force", node, abs(code))
+            if code:
+                force_dirs.add(abs(code))
         elif spec in _SPEC_TO_QUANTITY:
             q = _SPEC_TO_QUANTITY[spec]
-            factor = _channel_factor(label, q, response_sensitivity, str(path))
-            if quantity not in (None, q):
-                raise ValueError(f"{path}: mixed response quantities {quantity} and {q}")
-            quantity = q
-            by_hit.setdefault(hit, {})["response"] = (values * factor, fs)
-            code = int(s.get("rsp_dir", 0))
-            found_dir = {1: "x", 2: "y", 3: "z"}.get(abs(code), found_dir)
+            factor = _channel_factor(label, q, response_sensitivity, where)
+            key = (q, node, abs(code))
+            if int(s.get("ref_dir", 0)):
+                ref_dirs.add(abs(int(s["ref_dir"])))
         else:
-            raise ValueError(f"{path}: record with unsupported ordinate specific data type {spec}")
-    forces, responses, rates = [], [], []
-    for hit in sorted(by_hit):
-        pair = by_hit[hit]
-        if set(pair) != {"force", "response"}:
+            raise ValueError(f"{where}: unsupported ordinate specific data type {spec}")
+        if abs(code) > 3:
             raise ValueError(
-                f"{path}: hit {hit} lacks a {'force' if 'force' not in pair else 'response'} record"
+                f"{where}: direction code {code} is a rotation; only translations (±1-3) are supported"
             )
-        (f, fs_f), (r, fs_r) = pair["force"], pair["response"]
-        if abs(fs_f - fs_r) > 1e-6 * fs_f:
-            raise ValueError(
-                f"{path}: hit {hit} has mismatched sampling rates: force {fs_f:g} Hz, response {fs_r:g} Hz"
+        values = np.asarray(s["data"], float) * factor
+        if code < 0:
+            values = -values
+            notes.append(
+                f"record {i} ({key[0]}, node {node}) points along -{_CODE_DIR[-code].upper()}: negated"
             )
-        if f.size != r.size:
-            raise ValueError(f"{path}: hit {hit} force and response lengths differ")
-        forces.append(f)
-        responses.append(r)
-        rates.append(fs_f)
-    if np.ptp(rates) > 1e-6 * rates[0]:
-        raise ValueError(f"{path}: hits have mismatched sampling rates")
-    return HammerRecording(
-        np.array(forces), np.array(responses), rates[0], quantity, direction or found_dir
+        parsed.append((i, key, int(s.get("load_case_id", 0)), values, _uff_fs(s, where)))
+    force_keys = {k for _, k, *_ in parsed if k[0] == "force"}
+    if not force_keys:
+        raise ValueError(f"{path}: no force record (specific data type 13)")
+    if len(force_keys) > 1:
+        raise ValueError(
+            f"{path}: {len(force_keys)} force channels {sorted(force_keys)}; one excitation per file"
+        )
+    if len(force_dirs) > 1:
+        raise ValueError(f"{path}: force records in several directions {sorted(force_dirs)}")
+    fdir = next(iter(force_dirs), None) or (next(iter(ref_dirs)) if len(ref_dirs) == 1 else None)
+    rates = [p[4] for p in parsed]
+    if np.ptp(rates) > 1e-5 * max(rates):
+        by = sorted({round(r, 3) for r in rates})
+        raise ValueError(f"{path}: records have mismatched sampling rates {by} Hz")
+    keys = list(dict.fromkeys(k for _, k, *_ in parsed))
+    per_key: dict = {k: [p for p in parsed if p[1] == k] for k in keys}
+    load_cases = {p[2] for p in parsed}
+    by_case = len(load_cases) > 1 and all(
+        len({p[2] for p in v}) == len(v) for v in per_key.values()
     )
-
-
-def write_recording_uff(path: str | Path, recording: HammerRecording) -> None:
-    """Write a recording as UFF datasets 58 (time responses): per hit one force, one response record."""
-    import pyuff
-
-    path = Path(path)
-    if path.exists():
-        path.unlink()
-    uff = pyuff.UFF(str(path))
-    n = recording.forces.shape[1]
-    x = np.arange(n) / recording.sample_rate_hz
-    dcode = _DIR_CODE.get(recording.direction or "x", 1)
-    sets = []
-    for hit in range(recording.n_hits):
-        for name, data, spec, label, node in (
-            ("force", recording.forces[hit], 13, "N", 1),
-            (recording.response_quantity, recording.responses[hit], _QUANTITY_TO_SPEC[recording.response_quantity], _SI_LABEL[recording.response_quantity], 1),
-        ):  # fmt: skip
-            sets.append(
-                pyuff.prepare_58(
-                    binary=0,
-                    id1=f"robovib hammer {name}",
-                    id2=f"hit {hit}",
-                    func_type=1,
-                    load_case_id=hit,
-                    rsp_node=node,
-                    rsp_dir=dcode,
-                    ref_node=1,
-                    ref_dir=dcode,
-                    abscissa_spec_data_type=17,
-                    abscissa_axis_units_lab="s",
-                    ordinate_spec_data_type=spec,
-                    ordinate_axis_units_lab=label,
-                    orddenom_spec_data_type=0,
-                    abscissa_spacing=1,
-                    data=np.asarray(data, float),
-                    x=x,
-                )
+    # hit label -> {key: values}
+    hits: dict = {}
+    if by_case:
+        for p in parsed:
+            hits.setdefault(p[2], {})[p[1]] = p[3]
+        labels = {lc: f"load case {lc}" for lc in hits}
+    else:
+        for v in per_key.values():
+            for j, p in enumerate(v):
+                hits.setdefault(j, {})[p[1]] = p[3]
+        labels = {j: f"hit {j}" for j in hits}
+    (fkey,) = force_keys
+    rkeys = [k for k in keys if k != fkey]
+    if not rkeys:
+        raise ValueError(f"{path}: no response record (specific data type 8, 11 or 12)")
+    forces, responses, kept_labels, rejected = [], {k: [] for k in rkeys}, [], []
+    for h in sorted(hits):
+        rec = hits[h]
+        missing = [k for k in [fkey, *rkeys] if k not in rec]
+        if missing:
+            names = ", ".join(f"{k[0]} node {k[1]} dir {k[2]}" for k in missing)
+            rejected.append((labels[h], f"no {names} record"))
+            continue
+        sizes = {rec[k].size for k in [fkey, *rkeys]}
+        if len(sizes) > 1:
+            rejected.append(
+                (labels[h], f"force and response records differ in length {sorted(sizes)}")
             )
-    uff.write_sets(sets, mode="add")
+            continue
+        forces.append(rec[fkey])
+        for k in rkeys:
+            responses[k].append(rec[k])
+        kept_labels.append(labels[h])
+    return _Channels(
+        forces=forces, responses=responses,
+        quantity={k: k[0] for k in rkeys},
+        direction={k: _CODE_DIR.get(k[2]) for k in rkeys},
+        node={k: k[1] for k in rkeys},
+        force_direction=_CODE_DIR.get(fdir) if fdir else None,
+        sample_rate_hz=float(np.mean(rates)), labels=kept_labels,
+        records_read=len(records), rejected=rejected, notes=notes,
+    )  # fmt: skip
+
+
+def read_recording_channels(
+    path: str | Path,
+    force_sensitivity: Sensitivity | None = None,
+    response_sensitivity: Sensitivity | None = None,
+    *,
+    segment: str = "auto",
+    threshold: float = 0.1,
+    pretrigger_s: float = 0.01,
+    hold_off_s: float = 0.5,
+    window_s: float | None = None,
+) -> list[HammerRecording]:
+    """Every response channel of a hammer recording (.csv, .uff/.unv), one recording each.
+
+    Parameters
+    ----------
+    path
+        Recording file (layouts in the module docstring).
+    force_sensitivity, response_sensitivity
+        Sensitivities of voltage channels (unit V or mV).
+    segment
+        ``"auto"``: cut a file holding one record per channel into hits at its impacts;
+        ``"always"``: require and cut such a record; ``"never"``: keep records as hits.
+    threshold, pretrigger_s, hold_off_s, window_s
+        Impact detection settings of :func:`robovib.frf.segment_hits` [fraction, s, s, s].
+
+    Returns
+    -------
+    list of HammerRecording
+        One per response channel, all with the same hits and the same ``report``.
+
+    Raises
+    ------
+    ValueError
+        Unreadable file, unknown units, mismatched sampling rates, time gaps, no complete hit.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        ch = _csv_channels(path, force_sensitivity, response_sensitivity)
+    elif suffix in (".uff", ".unv"):
+        ch = _uff_channels(path, force_sensitivity, response_sensitivity)
+    else:
+        raise ValueError(
+            f"{path}: unknown recording format {suffix!r}; expected .csv, .uff or .unv"
+        )
+    seg_kw = dict(threshold=threshold, pretrigger_s=pretrigger_s, hold_off_s=hold_off_s,
+                  window_s=window_s)  # fmt: skip
+    return _finish(ch, path, segment, seg_kw)
+
+
+def select_channel(
+    channels: list[HammerRecording], direction: str | None, where: str = "recording"
+) -> HammerRecording:
+    """The response channel for ``direction``; a direction that contradicts the file is an error.
+
+    With ``direction=None`` the only channel, or the direct one (response along the force),
+    is returned. A channel without a direction in the file takes ``direction``.
+
+    Raises
+    ------
+    ValueError
+        Unknown direction, a force along another direction, no such channel, or ambiguity.
+    """
+    from dataclasses import replace
+
+    if direction is not None and direction not in _DIR_CODE:
+        raise ValueError(f"unknown direction {direction!r}; expected x, y or z")
+    ref = channels[0].reference_direction
+    if direction is not None and ref is not None and ref != direction:
+        raise ValueError(
+            f"{where}: direction {direction!r} contradicts the file: the force is along {ref!r}"
+        )
+    known = [c for c in channels if c.direction is not None]
+    if direction is None:
+        if len(channels) == 1:
+            return channels[0]
+        direct = [c for c in known if c.direction == ref] if ref else []
+        if len(direct) == 1:
+            return direct[0]
+        dirs = ", ".join(c.direction or "?" for c in channels)
+        raise ValueError(f"{where}: {len(channels)} response channels ({dirs}); give the direction")
+    match = [c for c in channels if c.direction == direction]
+    if not match and len(channels) == 1 and channels[0].direction is None:
+        return replace(channels[0], direction=direction)
+    if not match:
+        dirs = ", ".join(sorted({c.direction or "none" for c in channels}))
+        raise ValueError(
+            f"{where}: direction {direction!r} contradicts the file: its responses are along {dirs}"
+        )
+    if len(match) > 1:
+        nodes = ", ".join(str(c.response_node) for c in match)
+        raise ValueError(f"{where}: several {direction} responses (nodes {nodes}); ambiguous")
+    return match[0]
+
+
+def read_recording_csv(
+    path: str | Path,
+    direction: str | None = None,
+    force_sensitivity: Sensitivity | None = None,
+    response_sensitivity: Sensitivity | None = None,
+    **segment_kw,
+) -> HammerRecording:
+    """Read a hammer recording from CSV (layout in the module docstring)."""
+    if Path(path).suffix.lower() != ".csv":
+        raise ValueError(f"{path}: expected a .csv file")
+    return read_recording(path, direction, force_sensitivity, response_sensitivity, **segment_kw)
+
+
+def read_recording_uff(
+    path: str | Path,
+    direction: str | None = None,
+    force_sensitivity: Sensitivity | None = None,
+    response_sensitivity: Sensitivity | None = None,
+    **segment_kw,
+) -> HammerRecording:
+    """Read force/response time records (UFF dataset 58, function type 1) of one or more hits."""
+    if Path(path).suffix.lower() not in (".uff", ".unv"):
+        raise ValueError(f"{path}: expected a .uff or .unv file")
+    return read_recording(path, direction, force_sensitivity, response_sensitivity, **segment_kw)
 
 
 def read_recording(
@@ -296,14 +671,86 @@ def read_recording(
     direction: str | None = None,
     force_sensitivity: Sensitivity | None = None,
     response_sensitivity: Sensitivity | None = None,
+    **segment_kw,
 ) -> HammerRecording:
-    """Read a hammer recording by file extension (.csv, .uff/.unv).
+    """Read a hammer recording by file extension (.csv, .uff/.unv): the channel of ``direction``.
 
-    Voltage channels (unit V or mV) are converted with the given sensitivities.
+    Voltage channels (unit V or mV) are converted with the given sensitivities; ``segment_kw``
+    go to :func:`read_recording_channels`. The result's ``report`` says how hits were formed.
+
+    Raises
+    ------
+    ValueError
+        As :func:`read_recording_channels`, or when ``direction`` contradicts the file.
     """
-    suffix = Path(path).suffix.lower()
-    if suffix == ".csv":
-        return read_recording_csv(path, direction, force_sensitivity, response_sensitivity)
-    if suffix in (".uff", ".unv"):
-        return read_recording_uff(path, direction, force_sensitivity, response_sensitivity)
-    raise ValueError(f"unknown recording format {suffix!r}; expected .csv, .uff or .unv")
+    channels = read_recording_channels(path, force_sensitivity, response_sensitivity, **segment_kw)
+    return select_channel(channels, direction, str(path))
+
+
+def _time_records(recording: HammerRecording) -> list:
+    from .uff58 import Record58
+
+    dcode = _DIR_CODE.get(recording.direction or "", 0)
+    fcode = _DIR_CODE.get(recording.reference_direction or recording.direction or "", 0)
+    spec = _QUANTITY_TO_SPEC[recording.response_quantity]
+    dt = 1.0 / recording.sample_rate_hz
+    out = []
+    for hit in range(recording.n_hits):
+        for name, data, sp, label, code in (
+            ("force", recording.forces[hit], 13, "N", fcode),
+            (recording.response_quantity, recording.responses[hit], spec, _SI_LABEL[recording.response_quantity], dcode),
+        ):  # fmt: skip
+            out.append(
+                Record58(
+                    data=np.asarray(data, float),
+                    x0=0.0,
+                    dx=dt,
+                    func_type=1,
+                    ordinate_spec=sp,
+                    ordinate_label=label,
+                    abscissa_spec=17,
+                    abscissa_label="s",
+                    load_case_id=hit,
+                    rsp_node=1,
+                    rsp_dir=code,
+                    ref_node=1,
+                    ref_dir=fcode,
+                    ids=(f"robovib hammer {name}", f"hit {hit}", "NONE", "NONE", "NONE"),
+                )
+            )
+    return out
+
+
+def write_recording_uff(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
+    """Write a recording as UFF datasets 58 (per hit one force, one response record).
+
+    One pass over the hits (linear in their number), atomic (:func:`robovib.io.atomic_output`):
+    a failed or interrupted write leaves any previous file untouched; ``path`` must not be one
+    of ``inputs`` unless ``force``.
+    """
+    from .uff58 import write_uff58
+
+    write_uff58(path, _time_records(recording), inputs=inputs, force=force)
+
+
+def write_recording_csv(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
+    """Write a recording as CSV ``hit,time_s,force_n,<quantity>_<SI unit>`` (atomic).
+
+    The layout is the one :func:`read_recording_csv` reads (long format, one row per sample).
+    """
+    unit = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displacement": "m"}[
+        recording.response_quantity
+    ]
+    n = recording.forces.shape[1]
+    t = np.arange(n) / recording.sample_rate_hz
+    with atomic_output(path, inputs=inputs, force=force) as tmp, open(tmp, "w") as fh:
+        fh.write(f"hit,time_s,force_n,{recording.response_quantity}_{unit}\n")
+        for h in range(recording.n_hits):
+            for i in range(n):
+                fh.write(
+                    f"{h},{t[i]:.9g},{recording.forces[h, i]:.9g},{recording.responses[h, i]:.9g}\n"
+                )

@@ -6,15 +6,14 @@ Writers go through a temporary file in the target folder renamed at the end (ato
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ..modal.parameters import ModalParameters
-from .recording import HammerRecording, write_recording_uff
+from .recording import HammerRecording, write_recording_csv, write_recording_uff
+from .safe_write import atomic_output
 
 __all__ = [
     "FORCE_COLUMNS",
@@ -26,7 +25,6 @@ __all__ = [
     "read_path_modes_csv",
     "write_path_modes_csv",
     "write_recording",
-    "write_recording_csv",
 ]
 
 FORCE_COLUMNS = ("time_s", "force_x_n", "force_y_n", "force_z_n")
@@ -41,19 +39,11 @@ MILLING_RECORD_COLUMNS = (
     "displacement_z_m",
     "path_s_m",
 )
-_RESPONSE_UNIT = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displacement": "m"}
 
 
 def _atomic_write_text(path: Path, text: str) -> None:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path) as tmp:
+        Path(tmp).write_text(text)
 
 
 def _read_table(path, columns: Sequence[str]):
@@ -68,29 +58,6 @@ def _read_table(path, columns: Sequence[str]):
     if not np.all(np.isfinite(data)):
         raise ValueError(f"{path}: columns {', '.join(columns)} contain NaN or inf")
     return df, data
-
-
-def write_recording_csv(path: str | Path, recording: HammerRecording) -> None:
-    """Write a hammer recording as CSV (``hit, time_s, force_n, <quantity>_<SI unit>``).
-
-    The layout is the one :func:`robovib.io.read_recording_csv` reads.
-
-    Raises
-    ------
-    ValueError
-        Unknown response quantity.
-    """
-    rec = recording
-    if rec.response_quantity not in _RESPONSE_UNIT:
-        raise ValueError(f"unknown response quantity {rec.response_quantity!r}")
-    n = rec.forces.shape[1]
-    t = np.arange(n) / rec.sample_rate_hz
-    lines = [f"hit,time_s,force_n,{rec.response_quantity}_{_RESPONSE_UNIT[rec.response_quantity]}"]
-    for h in range(rec.n_hits):
-        lines.extend(
-            f"{h},{t[i]:.15g},{rec.forces[h, i]:.9g},{rec.responses[h, i]:.9g}" for i in range(n)
-        )
-    _atomic_write_text(Path(path), "\n".join(lines) + "\n")
 
 
 def write_recording(path: str | Path, recording: HammerRecording) -> None:

@@ -91,7 +91,9 @@ class StabilityLobes:
         ax.set_title("stability lobes (zero-order method)")
         if path is not None:
             ax.figure.tight_layout()
-            ax.figure.savefig(path, dpi=120)
+            from ..io.safe_write import save_figure
+
+            save_figure(ax.figure, path)
             plt.close(ax.figure)
         return ax
 

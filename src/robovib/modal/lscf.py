@@ -24,6 +24,7 @@ import numpy as np
 
 from ..frf.core import FRF
 from .parameters import ModalParameters, remove_exponential_window_damping
+from .sdof import MAX_RELATIVE_RMS_ERROR
 
 __all__ = [
     "ModalFitWarning",
@@ -110,6 +111,9 @@ class StabilizationDiagram:
         return ax
 
 
+MAX_LSCF_ORDER = 200  #: highest LSCF model order accepted (a few seconds per diagram)
+
+
 def stabilization_diagram(
     frequency_hz,
     values,
@@ -120,8 +124,24 @@ def stabilization_diagram(
     dzeta_rel: float = 0.05,
     max_zeta: float = 0.5,
 ) -> StabilizationDiagram:
-    """LSCF poles for orders ``min_order..max_order`` with stability flags."""
+    """LSCF poles for orders ``min_order..max_order`` with stability flags.
+
+    Raises
+    ------
+    ValueError
+        ``max_order`` outside ``[min_order, MAX_LSCF_ORDER]`` or more than the band can carry
+        (an order-n LSCF has about 2n unknowns per bin pair; more is slow and meaningless).
+    """
+    from .._checks import check_int
+
     f = np.asarray(frequency_hz, float)
+    min_order = check_int("min_order", min_order, lo=1, hi=MAX_LSCF_ORDER)
+    max_order = check_int("max_order", max_order, lo=min_order, hi=MAX_LSCF_ORDER)
+    if max_order >= f.size:
+        raise ValueError(
+            f"max_order={max_order} needs more than {max_order} frequency bins; the band has "
+            f"{f.size} (lower max_order or widen the band)"
+        )
     orders, fns, zetas, stables = [], [], [], []
     prev_fn = prev_zeta = None
     for n in range(int(min_order), int(max_order) + 1):
@@ -222,6 +242,13 @@ class MultiModeFit:
     diagram: StabilizationDiagram
     band_hz: tuple[float, float]
     relative_rms_error: float
+    #: reasons not to trust the fit: modes left out (negative modal mass: inverted sign or not
+    #: a driving point), no mode kept, a mode at the band edge, a large residual
+    flags: tuple[str, ...] = ()
+
+    @property
+    def flagged(self) -> bool:
+        return bool(self.flags)
 
     def reconstruct(self, frequency_hz) -> np.ndarray:
         """Compliance of the fitted modes alone (no residual terms)."""
@@ -254,7 +281,7 @@ def fit_modes(
     wn = 2 * np.pi * fns
     poles = -zetas * wn + 1j * wn * np.sqrt(1 - zetas**2)
     residues, ur, lr = lsfd_residues(f, v, poles)
-    modes, kept = [], []
+    modes, kept, flags = [], [], []
     for r, (fn, zeta, p) in enumerate(zip(fns, zetas, poles, strict=True)):
         wd = p.imag
         a = residues[0, r]
@@ -264,7 +291,14 @@ def fit_modes(
                 ModalFitWarning,
                 stacklevel=2,
             )
+            flags.append(
+                f"mode at {fn:.4g} Hz left out: negative modal mass (inverted sign, or not a "
+                "driving-point FRF)"
+            )
             continue
+        df = float(f[1] - f[0])
+        if fn - f[0] <= 2 * df or f[-1] - fn <= 2 * df:
+            flags.append(f"mode at {fn:.4g} Hz at the edge of the band {f[0]:.4g}-{f[-1]:.4g} Hz")
         mass = -1.0 / (2 * wd * a.imag)
         mode = ModalParameters(float(fn), float(mass * wn[r] ** 2), float(zeta))
         if correct_exp_window and frf.exp_window_tau_s is not None:
@@ -281,4 +315,10 @@ def fit_modes(
         + lr[0] / s**2
     )
     rel = float(np.sqrt(np.mean(np.abs(synth - v) ** 2)) / np.max(np.abs(v)))
-    return MultiModeFit(tuple(modes), np.array(kept), diagram, (float(f[0]), float(f[-1])), rel)
+    if not modes:
+        flags.append("no physical mode kept")
+    if rel > MAX_RELATIVE_RMS_ERROR:
+        flags.append(f"large residual: relative RMS error {rel:.2f} > {MAX_RELATIVE_RMS_ERROR:g}")
+    return MultiModeFit(
+        tuple(modes), np.array(kept), diagram, (float(f[0]), float(f[-1])), rel, tuple(flags)
+    )

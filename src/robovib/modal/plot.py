@@ -48,6 +48,8 @@ def plot_frf_fit(
         axes[0].set_title(title)
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
+        from ..io.safe_write import save_figure
+
+        save_figure(fig, path)
         plt.close(fig)
     return fig

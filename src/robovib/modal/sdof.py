@@ -21,7 +21,12 @@ from scipy import optimize
 from ..frf.core import FRF
 from .parameters import ModalParameters, remove_exponential_window_damping
 
-__all__ = ["ModalFit", "fit_dominant_mode", "half_power_estimate"]
+__all__ = ["MAX_RELATIVE_RMS_ERROR", "ModalFit", "fit_dominant_mode", "half_power_estimate"]
+
+#: relative RMS misfit above which a fit is flagged (a clean single mode fits to ~1e-3 - 1e-2)
+MAX_RELATIVE_RMS_ERROR = 0.15
+#: damping ratio above which a robot's structural mode is implausible (thesis modes: 1-10 %)
+MAX_PLAUSIBLE_DAMPING_RATIO = 0.3
 
 
 @dataclass(frozen=True)
@@ -34,6 +39,13 @@ class ModalFit:
     residual_compliance: complex
     relative_rms_error: float
     exp_window_corrected: bool
+    #: reasons not to trust the fit (empty: none found): a parameter at its bound, a large
+    #: residual, an inverted sign (polarity), implausible damping
+    flags: tuple[str, ...] = ()
+
+    @property
+    def flagged(self) -> bool:
+        return bool(self.flags)
 
     def to_dict(self) -> dict:
         return {
@@ -42,7 +54,41 @@ class ModalFit:
             "band_hz": list(self.band_hz),
             "relative_rms_error": self.relative_rms_error,
             "exp_window_corrected": self.exp_window_corrected,
+            "flagged": self.flagged,
+            "flags": list(self.flags),
         }
+
+
+def _fit_flags(f, v, fn, zeta, k_rel, lower, upper, rel_err) -> tuple[str, ...]:
+    """Reasons a dominant-mode fit should not be trusted (see :class:`ModalFit`)."""
+    flags = []
+    df = float(np.min(np.diff(f))) if f.size > 1 else 0.0
+    if fn - lower[0] <= max(df, 1e-9 * fn) or upper[0] - fn <= max(df, 1e-9 * fn):
+        flags.append(
+            f"natural frequency {fn:.4g} Hz at the edge of the fit band {f[0]:.4g}-{f[-1]:.4g} Hz "
+            "(no resonance found inside it)"
+        )
+    if zeta >= 0.99 * upper[1] or zeta <= 10 * lower[1]:
+        flags.append(f"damping ratio {zeta:.3g} at its bound [{lower[1]:g}, {upper[1]:g}]")
+    elif zeta > MAX_PLAUSIBLE_DAMPING_RATIO:
+        flags.append(
+            f"damping ratio {100 * zeta:.0f} % is implausible for a structural mode "
+            f"(> {100 * MAX_PLAUSIBLE_DAMPING_RATIO:.0f} %)"
+        )
+    if k_rel <= 1.01 * lower[2] or k_rel >= 0.99 * upper[2]:
+        flags.append("stiffness at its bound (1e-3 or 1e3 x the peak-picking estimate)")
+    if rel_err > MAX_RELATIVE_RMS_ERROR:
+        flags.append(
+            f"large residual: relative RMS error {rel_err:.2f} > {MAX_RELATIVE_RMS_ERROR:g}"
+        )
+    # A driving-point compliance has Im H < 0 at resonance (H = 1/(k(1 - r^2 + 2 i zeta r))).
+    i = int(np.argmax(np.abs(v)))
+    if v[i].imag > 0.5 * abs(v[i]):
+        flags.append(
+            "inverted sign: Im H > 0 at the resonance (force or response polarity reversed, "
+            "or the FRF is not a driving point)"
+        )
+    return tuple(flags)
 
 
 def half_power_estimate(frequency_hz: np.ndarray, compliance: np.ndarray) -> ModalParameters:
@@ -86,7 +132,19 @@ def fit_dominant_mode(
         Weight residuals by the coherence (ignored if the FRF has none).
     correct_exp_window
         Remove the damping added by an exponential window recorded on the FRF.
+
+    Raises
+    ------
+    ValueError
+        For a cross FRF (``meta["reference_direction"]`` differs from ``direction``), too few
+        bins in the band.
     """
+    ref = frf.meta.get("reference_direction")
+    if ref and frf.direction and ref != frf.direction:
+        raise ValueError(
+            f"cross FRF (response {frf.direction}, force {ref}): a dominant-mode fit gives a "
+            "direct (driving-point) stiffness only; use the direct FRF"
+        )
     h = frf.to_compliance(min_frequency_hz)
     f_all, v_all = h.frequency_hz, h.values
     guess = half_power_estimate(f_all, v_all)
@@ -146,4 +204,5 @@ def fit_dominant_mode(
         corrected = True
     rel_err = float(np.sqrt(np.mean(np.abs(model(sol.x) - v) ** 2)) / scale)
     res_c = complex(sol.x[3] * scale, sol.x[4] * scale) if residual else 0j
-    return ModalFit(params, std, (float(f[0]), float(f[-1])), res_c, rel_err, corrected)
+    flags = _fit_flags(f, v, fn, zeta, sol.x[2], lower, upper, rel_err)
+    return ModalFit(params, std, (float(f[0]), float(f[-1])), res_c, rel_err, corrected, flags)

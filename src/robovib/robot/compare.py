@@ -116,7 +116,9 @@ def plot_comparison(table: pd.DataFrame, path=None):
         ax.legend()
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
+        from ..io.safe_write import save_figure
+
+        save_figure(fig, path)
         plt.close(fig)
     return fig
 

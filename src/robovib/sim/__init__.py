@@ -4,6 +4,7 @@ See :mod:`robovib.sim.truth` for exactly how the ground truth is built (a plausi
 robot fitted to the thesis' data, not a claim about the real one).
 """
 
+from .campaign import LAYOUTS, SimulatedCampaign, simulate_campaign, truth_table
 from .dynamics import affine_scan, modal_response, zoh_transition
 from .experiments import (
     LinearMove,
@@ -27,6 +28,7 @@ from .truth import (
 )
 
 __all__ = [
+    "LAYOUTS",
     "PATH_LENGTH_M",
     "POSITION_1_S_M",
     "POSITION_2_S_M",
@@ -35,6 +37,7 @@ __all__ = [
     "ModeSet",
     "MotionRecord",
     "PathTruth",
+    "SimulatedCampaign",
     "VirtualRobot",
     "WorkspaceTruth",
     "affine_scan",
@@ -42,8 +45,10 @@ __all__ = [
     "modal_response",
     "offset_mass_force",
     "run_closed_loop",
+    "simulate_campaign",
     "simulate_hammer_test",
     "simulate_milling",
     "simulate_offset_mass",
+    "truth_table",
     "zoh_transition",
 ]

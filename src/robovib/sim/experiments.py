@@ -92,7 +92,7 @@ class MotionRecord:
     true_force_n: np.ndarray  #: (n, 3) force acting on the tool (cutting + background)
     meta: dict = field(default_factory=dict)
 
-    def to_csv(self, path) -> None:
+    def to_csv(self, path, *, inputs=(), force: bool = False) -> None:
         """CSV with ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m`` and the pose columns."""
         import pandas as pd
 
@@ -105,7 +105,10 @@ class MotionRecord:
             cols["path_s_m"] = self.coords
         else:
             cols["x_m"], cols["y_m"], cols["rz_deg"] = self.coords.T
-        pd.DataFrame(cols).to_csv(path, index=False, float_format="%.9g")
+        from ..io.safe_write import atomic_output
+
+        with atomic_output(path, inputs=inputs, force=force) as tmp:
+            pd.DataFrame(cols).to_csv(tmp, index=False, float_format="%.9g")
 
 
 def _rng(rng) -> np.random.Generator:

@@ -1,0 +1,44 @@
+"""Model your own robot: hammer campaign -> FRFs -> modal table -> pose model -> next poses.
+
+* :func:`read_manifest` — the campaign manifest (one row per recording x direction, with pose);
+* :func:`process_campaign` — every row to FRFs and a dominant mode (process pool), written
+  atomically to ``frfs.h5``, ``modal.csv`` and ``campaign.json``;
+* :func:`fit_pose_model_from_table` — the pose model of every output from ``modal.csv``, with
+  a cross-validation table grouped by pose;
+* :func:`next_poses` — where to hammer next (largest integrated variance reduction).
+"""
+
+from .manifest import (
+    JOINT_COLUMNS,
+    OPTIONAL_POSE_COLUMNS,
+    POSE_COLUMNS,
+    CampaignRow,
+    read_manifest,
+)
+from .model import (
+    NextPoses,
+    PoseModelFit,
+    TablePoseModel,
+    fit_pose_model_from_table,
+    next_poses,
+    save_pose_model,
+)
+from .process import CampaignResult, ProcessingSettings, process_campaign, process_row
+
+__all__ = [
+    "JOINT_COLUMNS",
+    "OPTIONAL_POSE_COLUMNS",
+    "POSE_COLUMNS",
+    "CampaignResult",
+    "CampaignRow",
+    "NextPoses",
+    "PoseModelFit",
+    "ProcessingSettings",
+    "TablePoseModel",
+    "fit_pose_model_from_table",
+    "next_poses",
+    "process_campaign",
+    "process_row",
+    "read_manifest",
+    "save_pose_model",
+]

@@ -1,0 +1,332 @@
+"""Process a hammer campaign: every manifest row -> FRFs -> dominant mode, in a process pool.
+
+For each row (recording x direction): read every response channel
+(:func:`robovib.io.read_recording_channels`), keep the channel of the row's direction (the
+force must be along it too), average the hits with quality control
+(:func:`robovib.frf.impact_frf`, thesis Eq. 3-5), convert to compliance and fit the dominant
+mode (:func:`robovib.modal.fit_dominant_mode`, thesis Eq. 17). Cross channels (response along
+another axis) are stored as FRFs but never fitted.
+
+Outputs in ``out_dir`` (all written to temporary files and renamed only when every row
+succeeded, or with ``skip_bad=True``):
+
+* ``frfs.h5`` — every FRF (robovib-frf format) with its pose, row, file and channel;
+  root attributes hold the robovib version and the processing settings;
+* ``modal.csv`` — one row per manifest row: the pose columns, ``fn_hz``,
+  ``stiffness_n_per_m``, ``damping_ns_per_m``, ``damping_ratio``, their ``*_std_*`` standard
+  errors, ``n_hits_used``, ``n_hits_rejected``, ``mean_coherence``, ``flags``;
+* ``campaign.json`` — settings, version, per-row reader reports and skipped rows.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .manifest import CampaignRow, read_manifest
+
+__all__ = ["CampaignResult", "ProcessingSettings", "process_campaign", "process_row"]
+
+_FLAG_BAND_EDGE = "fn at the fit band edge"
+
+
+@dataclass(frozen=True)
+class ProcessingSettings:
+    """How each recording is turned into an FRF and a mode (SI units).
+
+    Attributes
+    ----------
+    estimator
+        ``"H1"`` or ``"H2"``.
+    pretrigger_s, force_window_s, exp_window_tau_s
+        Impact windows of :func:`robovib.frf.impact_frf` [s] (None: no window).
+    f_min_hz, f_max_hz
+        Band kept in the compliance FRF [Hz].
+    band_hz
+        Dominant-mode fit band [Hz]; None: around the peak.
+    keep_flagged
+        Keep hits flagged for double hits or overload.
+    threshold, hold_off_s
+        Impact detection in continuous records (fraction of the peak, [s]).
+    min_coherence
+        Mean coherence in the fit band below this is flagged.
+    """
+
+    estimator: str = "H1"
+    pretrigger_s: float = 0.01
+    force_window_s: float | None = 0.01
+    exp_window_tau_s: float | None = None
+    f_min_hz: float = 2.0
+    f_max_hz: float = 200.0
+    band_hz: tuple[float, float] | None = None
+    keep_flagged: bool = False
+    threshold: float = 0.1
+    hold_off_s: float = 0.5
+    min_coherence: float = 0.8
+
+    def __post_init__(self) -> None:
+        if self.estimator not in ("H1", "H2"):
+            raise ValueError(f"unknown estimator {self.estimator!r}; expected 'H1' or 'H2'")
+        if not (0 < self.f_min_hz < self.f_max_hz):
+            raise ValueError(
+                f"need 0 < f_min_hz < f_max_hz, got {self.f_min_hz} Hz and {self.f_max_hz} Hz"
+            )
+        for name in ("pretrigger_s", "hold_off_s"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0 s, got {v!r}")
+        for name in ("force_window_s", "exp_window_tau_s"):
+            v = getattr(self, name)
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be None or a positive number of seconds, got {v!r}")
+
+
+@dataclass(frozen=True)
+class RowResult:
+    """What one manifest row gave: a modal-table row, its FRFs, and the reader's report."""
+
+    row: int
+    modal: dict | None
+    frfs: tuple = ()
+    report: dict | None = None
+    error: str | None = None
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """The processed campaign.
+
+    Attributes
+    ----------
+    table
+        The modal table (a :class:`pandas.DataFrame`, columns as ``modal.csv``).
+    n_frfs
+        FRFs written to ``frfs.h5``.
+    skipped
+        ``(manifest line, reason)`` of the rows left out (``skip_bad=True``).
+    out_dir
+        Where the files were written.
+    reports
+        Reader report per processed row (dicts).
+    """
+
+    table: object
+    n_frfs: int
+    skipped: tuple[tuple[int, str], ...]
+    out_dir: Path
+    reports: tuple = field(default=(), repr=False)
+
+
+def _sens(row: CampaignRow):
+    from ..io import Sensitivity
+
+    f = Sensitivity(row.force_sensitivity_mv_per_n, "N") if row.force_sensitivity_mv_per_n else None
+    r = (
+        Sensitivity(row.response_sensitivity_mv_per_unit, row.response_unit)
+        if row.response_sensitivity_mv_per_unit
+        else None
+    )
+    return f, r
+
+
+def process_row(row: CampaignRow, settings: ProcessingSettings) -> RowResult:
+    """FRFs and the dominant mode of one manifest row (errors returned, not raised)."""
+    try:
+        return _process_row(row, settings)
+    except (ValueError, RuntimeError, OSError) as exc:
+        return RowResult(row.row, None, error=f"{row.file.name}: {exc}")
+
+
+def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
+    from ..frf import impact_frf
+    from ..io import read_recording_channels, select_channel
+    from ..modal import fit_dominant_mode
+
+    f_sens, r_sens = _sens(row)
+    channels = read_recording_channels(
+        row.file, f_sens, r_sens, threshold=s.threshold, pretrigger_s=s.pretrigger_s,
+        hold_off_s=s.hold_off_s,
+    )  # fmt: skip
+    direct = select_channel(channels, row.direction, str(row.file))
+    pose = row.pose_tuple_si()
+    frfs = []
+    fitted = None
+    for ch in channels:
+        is_direct = ch is direct or (ch.direction in (None, row.direction) and len(channels) == 1)
+        res = impact_frf(
+            ch.forces, ch.responses, ch.sample_rate_hz,
+            response_quantity=ch.response_quantity, estimator=s.estimator,
+            pretrigger_s=s.pretrigger_s, force_window_s=s.force_window_s,
+            exp_window_tau_s=s.exp_window_tau_s, reject=not s.keep_flagged,
+            f_max_hz=min(s.f_max_hz, ch.sample_rate_hz / 2), pose=pose,
+            direction=row.direction if is_direct else ch.direction,
+        )  # fmt: skip
+        frf = res.frf.to_compliance(s.f_min_hz)
+        meta = {
+            "row": row.row,
+            "file": str(row.file),
+            "replicate": row.replicate,
+            "reference_direction": row.direction,
+            "response_node": -1 if ch.response_node is None else ch.response_node,
+            "n_hits_rejected": res.n_rejected,
+            **{k: v for k, v in row.pose.items()},
+        }
+        frf = replace(frf, meta={**frf.meta, **meta})
+        frfs.append(frf)
+        if is_direct:
+            fitted = (frf, res)
+    frf, res = fitted
+    fit = fit_dominant_mode(frf, s.band_hz)
+    p, sd = fit.parameters, fit.std
+    lo, hi = fit.band_hz
+    band = frf.band(lo, hi)
+    coh = float(np.mean(band.coherence)) if band.coherence is not None else float("nan")
+    flags = []
+    width = hi - lo
+    if min(p.natural_frequency_hz - lo, hi - p.natural_frequency_hz) < 0.02 * width:
+        flags.append(_FLAG_BAND_EDGE)
+    if coh < s.min_coherence:
+        flags.append(f"mean coherence {coh:.2f} < {s.min_coherence:g}")
+    if fit.relative_rms_error > 0.2:
+        flags.append(f"relative fit residual {fit.relative_rms_error:.2f}")
+    if res.n_rejected:
+        reasons = sorted({r for h in res.hits for r in h.reasons})
+        flags.append(f"{res.n_rejected} hit(s) rejected: {'; '.join(reasons)}")
+    report = direct.report
+    if report is not None and report.hits_rejected:
+        flags.append(f"reader rejected {len(report.hits_rejected)} hit(s)")
+    modal = {
+        "row": row.row,
+        "file": str(row.file),
+        "direction": row.direction,
+        **row.pose,
+        "replicate": row.replicate,
+        "fn_hz": p.natural_frequency_hz,
+        "fn_std_hz": sd["natural_frequency_hz"],
+        "stiffness_n_per_m": p.stiffness_n_per_m,
+        "stiffness_std_n_per_m": sd["stiffness_n_per_m"],
+        "damping_ns_per_m": p.damping_ns_per_m,
+        "damping_std_ns_per_m": sd["damping_ns_per_m"],
+        "damping_ratio": p.damping_ratio,
+        "damping_ratio_std": sd["damping_ratio"],
+        "n_hits_used": frf.n_averages,
+        "n_hits_rejected": res.n_rejected + (len(report.hits_rejected) if report else 0),
+        "mean_coherence": coh,
+        "fit_band_lo_hz": lo,
+        "fit_band_hi_hz": hi,
+        "flags": "; ".join(flags),
+    }
+    return RowResult(row.row, modal, tuple(frfs), report.to_dict() if report else None)
+
+
+def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) -> tuple:
+    import h5py
+    import pandas as pd
+
+    from .. import __version__
+    from ..io import atomic_path, write_frfs_hdf5
+
+    good = [r for r in results if r.modal is not None]
+    table = pd.DataFrame([r.modal for r in good])
+    frfs = [f for r in good for f in r.frfs]
+    settings_json = json.dumps(asdict(settings))
+    doc = {
+        "robovib_version": __version__,
+        "manifest": str(manifest),
+        "settings": asdict(settings),
+        "units": "SI; pose columns as in the manifest (mm, deg)",
+        "rows_processed": len(good),
+        "skipped": [{"line": line, "reason": why} for line, why in skipped],
+        "reports": [{"line": r.row, **(r.report or {})} for r in good],
+    }
+    with (
+        atomic_path(out_dir / "frfs.h5") as t_h5,
+        atomic_path(out_dir / "modal.csv") as t_csv,
+        atomic_path(out_dir / "campaign.json") as t_json,
+    ):
+        write_frfs_hdf5(t_h5, frfs)
+        with h5py.File(t_h5, "a") as h5:
+            h5.attrs["robovib_version"] = __version__
+            h5.attrs["settings"] = settings_json
+            h5.attrs["manifest"] = str(manifest)
+            h5.attrs["units"] = "SI (frequency Hz, compliance m/N); pose (m, m, m, deg, deg, deg)"
+        table.to_csv(t_csv, index=False, float_format="%.9g")
+        t_json.write_text(json.dumps(doc, indent=2, default=float))
+    return table, len(frfs)
+
+
+def process_campaign(
+    manifest: str | Path,
+    out_dir: str | Path,
+    skip_bad: bool = False,
+    n_workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    settings: ProcessingSettings | None = None,
+) -> CampaignResult:
+    """Process every row of a campaign manifest (see the module docstring).
+
+    Parameters
+    ----------
+    manifest
+        Manifest CSV (:mod:`robovib.campaign.manifest`).
+    out_dir
+        Existing or new folder for ``frfs.h5``, ``modal.csv`` and ``campaign.json``.
+    skip_bad
+        Leave out rows that fail (reported in ``skipped``) instead of failing the campaign.
+    n_workers
+        Processes of the pool (None: CPU count; 1: in this process).
+    progress
+        Called as ``progress(done, total)`` after each row.
+    settings
+        :class:`ProcessingSettings` (default settings if None).
+
+    Returns
+    -------
+    CampaignResult
+
+    Raises
+    ------
+    ValueError
+        A bad manifest, or (without ``skip_bad``) any failing row — named by its manifest
+        line and reason; nothing is written then.
+    """
+    manifest = Path(manifest)
+    out_dir = Path(out_dir)
+    settings = settings or ProcessingSettings()
+    rows = read_manifest(manifest)
+    if n_workers is not None and int(n_workers) < 1:
+        raise ValueError(f"n_workers must be >= 1, got {n_workers}")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"{out_dir}: exists and is not a folder")
+    workers = min(int(n_workers or os.cpu_count() or 1), len(rows))
+    results: list[RowResult] = []
+    total = len(rows)
+    if workers == 1:
+        for row in rows:
+            results.append(process_row(row, settings))
+            if progress:
+                progress(len(results), total)
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = [pool.submit(process_row, row, settings) for row in rows]
+            for fut in futures:
+                results.append(fut.result())
+                if progress:
+                    progress(len(results), total)
+    bad = [(r.row, r.error) for r in results if r.error is not None]
+    if bad and not skip_bad:
+        detail = "; ".join(f"line {line}: {why}" for line, why in bad)
+        raise ValueError(f"{manifest}: {len(bad)} of {total} rows failed ({detail})")
+    if len(bad) == total:
+        raise ValueError(f"{manifest}: every row failed; nothing written")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    table, n_frfs = _write_outputs(out_dir, results, settings, manifest, bad)
+    return CampaignResult(
+        table, n_frfs, tuple(bad), out_dir, tuple(r.report for r in results if r.report)
+    )

@@ -1,0 +1,197 @@
+"""Safe, atomic output files: one place for every writer of robovib.
+
+Every file robovib writes goes through :func:`atomic_output`: the content is written to a
+temporary file with a unique name in the target folder (so two writers never share one), and
+only a complete write is moved over the target with :func:`os.replace` (atomic on POSIX and
+Windows when source and target are on one file system). If the write fails — an exception,
+``KeyboardInterrupt``, a full disk — the temporary file is removed and any previous file at the
+target is left exactly as it was.
+
+Before anything is written the target is checked: its folder must exist and be writable, it must
+not be a folder, and it must not be one of the command's input files (compared by resolved path
+and, when both exist, by :func:`os.path.samefile`, so links and ``./a/../a.h5`` are caught) unless
+``force=True``. Those problems raise :class:`OutputPathError` (a ``ValueError``) naming the file
+or folder.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+__all__ = ["OutputPathError", "atomic_output", "check_output_path", "save_figure"]
+
+
+class OutputPathError(ValueError):
+    """An output path that cannot or must not be written (missing folder, input file, ...)."""
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        if a.resolve() == b.resolve():
+            return True
+    except OSError:
+        pass
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _writable(p: Path) -> bool:
+    """Writable by us, and not marked read-only for everybody (root ignores permissions)."""
+    try:
+        mode = os.stat(p).st_mode
+    except OSError:
+        return False
+    return os.access(p, os.W_OK) and bool(mode & 0o222)
+
+
+def check_output_path(
+    path: str | os.PathLike,
+    *,
+    inputs: Iterable[str | os.PathLike | None] = (),
+    force: bool = False,
+) -> Path:
+    """Check that ``path`` may be written; return it as a :class:`~pathlib.Path`.
+
+    Parameters
+    ----------
+    path : path-like
+        The output file.
+    inputs : iterable of path-like, optional
+        The files the output is computed from (``None`` entries are ignored).
+    force : bool, default False
+        Allow the output to replace one of ``inputs`` (the input is then lost).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    OutputPathError
+        Output is a folder, its folder is missing, not a folder or not writable, or the output is
+        one of ``inputs`` and ``force`` is False.
+    """
+    path = Path(os.fspath(path))
+    if str(path) == "" or path.name in ("", ".", ".."):
+        raise OutputPathError(f"output {str(path)!r} is not a file name")
+    if path.is_dir():
+        raise OutputPathError(f"output {path} is a folder, not a file")
+    folder = path.parent if str(path.parent) != "" else Path(".")
+    if not folder.exists():
+        raise OutputPathError(f"output folder {folder} does not exist (writing {path.name})")
+    if not folder.is_dir():
+        raise OutputPathError(f"output folder {folder} is not a folder (writing {path.name})")
+    if not _writable(folder):
+        raise OutputPathError(f"output folder {folder} is not writable (writing {path.name})")
+    if path.exists() and not _writable(path):
+        raise OutputPathError(f"output {path} exists and is read-only")
+    if not force:
+        for inp in inputs:
+            if inp is None:
+                continue
+            inp = Path(os.fspath(inp))
+            if _same_file(path, inp):
+                raise OutputPathError(
+                    f"output {path} is the input file {inp}; writing it would destroy the "
+                    "input (choose another output, or use --force / force=True to replace it)"
+                )
+    return path
+
+
+def _create_unique(folder: Path, name: str) -> Path:
+    """Create an empty, unique temporary file ``.<name>.<random>.tmp<suffix>`` in ``folder``."""
+    suffix = Path(name).suffix
+    for _ in range(100):
+        tmp = folder / f".{name}.{secrets.token_hex(6)}.tmp{suffix}"
+        try:
+            fd = os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666)  # umask applies
+        except FileExistsError:
+            continue
+        except PermissionError:
+            raise OutputPathError(
+                f"output folder {folder} is not writable (writing {name})"
+            ) from None
+        os.close(fd)
+        return tmp
+    raise OutputPathError(f"could not create a temporary file in {folder}")  # pragma: no cover
+
+
+@contextlib.contextmanager
+def atomic_output(
+    path: str | os.PathLike,
+    *,
+    inputs: Iterable[str | os.PathLike | None] = (),
+    force: bool = False,
+) -> Iterator[Path]:
+    """Context manager yielding a temporary path to write; renamed onto ``path`` on success.
+
+    The temporary file exists (empty) when the block starts, in the same folder as ``path`` and
+    with the same suffix (so format detection by extension works). On any exception, including
+    ``KeyboardInterrupt``, the temporary file is deleted and ``path`` is left untouched.
+
+    Parameters
+    ----------
+    path : path-like
+        Final output file.
+    inputs : iterable of path-like, optional
+        Input files of the computation; ``path`` must not be one of them unless ``force``.
+    force : bool, default False
+        Allow replacing an input file.
+
+    Yields
+    ------
+    Path
+        The temporary file to write.
+
+    Raises
+    ------
+    OutputPathError
+        See :func:`check_output_path`.
+
+    Examples
+    --------
+    >>> with atomic_output("out.h5", inputs=["in.uff"]) as tmp:  # doctest: +SKIP
+    ...     write_something(tmp)
+    """
+    path = check_output_path(path, inputs=inputs, force=force)
+    folder = path.parent if str(path.parent) != "" else Path(".")
+    tmp = _create_unique(folder, path.name)
+    try:
+        yield tmp
+        if path.exists():  # keep the permissions of the file being replaced
+            with contextlib.suppress(OSError):
+                os.chmod(tmp, os.stat(path).st_mode & 0o7777)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def save_figure(
+    fig,
+    path: str | os.PathLike,
+    *,
+    dpi: int = 120,
+    inputs: Iterable[str | os.PathLike | None] = (),
+    force: bool = False,
+) -> Path:
+    """Save a matplotlib figure atomically; the format comes from the suffix of ``path``.
+
+    Raises
+    ------
+    OutputPathError
+        See :func:`check_output_path`.
+    ValueError
+        Unknown image format (from matplotlib).
+    """
+    fmt = Path(os.fspath(path)).suffix.lstrip(".").lower() or None
+    with atomic_output(path, inputs=inputs, force=force) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=fmt)
+    return Path(os.fspath(path))
