@@ -192,6 +192,7 @@ class TablePoseModel:
         import h5py
 
         from .. import __version__
+        from ..io.provenance import set_units, write_provenance
 
         self._require_fitted()
         hp = self.gp_.hyperparameters_
@@ -208,12 +209,20 @@ class TablePoseModel:
             h5.attrs["kernel"] = self.kernel
             h5.attrs["mode_switch"] = str(self.mode_switch)
             h5.attrs["mode_switch_found"] = False
-            h5.create_dataset("X_train", data=self.X_train_)
-            h5.create_dataset("Y_train", data=np.nan_to_num(self.Y_train_))
-            h5.create_dataset("mask", data=self.mask_)
+            in_units = ", ".join(_input_unit(n) for n in self.input_names)
+            set_units(h5.create_dataset("X_train", data=self.X_train_), in_units)
+            set_units(
+                h5.create_dataset("Y_train", data=np.nan_to_num(self.Y_train_)),
+                "SI per column (see output_names): Hz, N/m, N s/m",
+            )
+            set_units(h5.create_dataset("mask", data=self.mask_), "1")
             g = h5.create_group("hyperparameters")
             for name in ("signal_std", "length_scales", "noise_std", "mean"):
-                g.create_dataset(name, data=np.asarray(getattr(hp, name)))
+                set_units(
+                    g.create_dataset(name, data=np.asarray(getattr(hp, name))),
+                    "1 (log of the SI outputs; length scales in the input units)",
+                )
+            write_provenance(h5)
 
     @classmethod
     def load(cls, path) -> TablePoseModel:

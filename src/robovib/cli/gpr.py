@@ -45,7 +45,9 @@ def predict(
                 "extrapolation": list(p.extrapolation),
                 "x_high_mode_probability": p.x_high_mode_probability,
                 "note": p.note,
-                "predictions": list(p.records),
+                "predictions": [
+                    {**r, "unit": r["output"].split("[")[-1].rstrip("]")} for r in p.records
+                ],
             }
         )
         return

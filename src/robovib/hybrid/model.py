@@ -29,6 +29,12 @@ from ..gp.regressor import BatchedGPRegressor
 
 __all__ = ["FRFPoseModel", "UpdateReport", "frfs_on_grid"]
 
+#: Units of the datasets of a saved model (path coordinate s [m], compliance scaled to um/N).
+_DATASET_UNITS = {
+    "frequency_hz": "Hz", "X_train": "m", "Y_train": "um/N", "mask": "1", "groups": "1",
+    "theta": "1 (log hyperparameters of the scaled inputs/outputs)", "x_loc": "m", "x_scale": "m",
+    "y_loc": "um/N", "y_scale": "um/N", "pose_lo": "m", "pose_hi": "m",
+}  # fmt: skip
 _FORMAT = "robovib-frf-pose-model"
 
 
@@ -234,6 +240,7 @@ class FRFPoseModel:
         """
         import h5py
 
+        from ..io.provenance import set_units, write_provenance
         from ..io.safe_write import atomic_output
 
         self._require_fitted()
@@ -254,7 +261,8 @@ class FRFPoseModel:
                 "x_scale": gp._x_scale, "y_loc": gp._y_loc, "y_scale": gp._y_scale,
                 "pose_lo": self.pose_range_[0], "pose_hi": self.pose_range_[1],
             }.items():  # fmt: skip
-                h5.create_dataset(name, data=value)
+                set_units(h5.create_dataset(name, data=value), _DATASET_UNITS[name])
+            write_provenance(h5, inputs=inputs)
 
     @classmethod
     def load(cls, path) -> FRFPoseModel:
@@ -268,7 +276,7 @@ class FRFPoseModel:
         with h5:
             if h5.attrs.get("format") != _FORMAT or int(h5.attrs.get("version", -1)) != 1:
                 raise ValueError(f"{path}: not a robovib FRF pose model (version 1)")
-            d = {k: h5[k][()] for k in h5}
+            d = {k: h5[k][()] for k in h5 if k != "provenance"}
             kernel = str(h5.attrs["kernel"])
             direction = str(h5.attrs.get("direction", "")) or None
         model = cls(d["frequency_hz"], kernel=kernel)
