@@ -113,19 +113,24 @@ def schedule(
 
         s, modes = virtual_path_modes(direction=direction, rng=seed)
     sched = schedule_gains(s, modes, warn=warnings_seen.append)
-    if plot is not None:
-        use_agg()
-        sched.plot(plot)
+
+    def draw() -> None:
+        if plot is not None:
+            use_agg()
+            sched.plot(plot)
+
     doc = {"s_m": sched.s_m, "w1": sched.w1, "w2": sched.w2, "r": sched.r, "stable_with_delay": sched.stable_with_delay,
            "w1_poly_high_to_low": sched.w1_poly, "w2_poly_high_to_low": sched.w2_poly, "warnings": warnings_seen}  # fmt: skip
     if json_out:
         emit_json(doc)
+        draw()
         return
     for si, w1, w2 in zip(sched.s_m, sched.w1, sched.w2, strict=True):
-        typer.echo(f"s = {si * 1e3:7.1f} mm   w1 = {w1:9.5f}   w2 = {w2:9.5f}")
+        typer.echo(f"s = {si:6.3f} m   w1 = {w1:9.5f}   w2 = {w2:9.5f}")
     for w in warnings_seen:
         typer.echo(f"warning: {w}")
     if plot is not None:
+        draw()
         typer.echo(f"wrote {plot}")
 
 
@@ -185,13 +190,15 @@ def simulate(
             else milling_study(robot, model, rng=seed)
         )
         bar.update(task, completed=1)
+    table_rows, _ = split_traces(rows)
+    if json_out:
+        emit_json({"experiment": experiment, "rows": table_rows})
+    else:
+        import pandas as pd
+
+        console().print(escape(pd.DataFrame(table_rows).round(3).to_string(index=False)))
     if plot is not None and experiment == "offset-mass":
         use_agg()
         save_figure(plot_offset_mass(rows), plot)
-    rows, _ = split_traces(rows)
-    if json_out:
-        emit_json({"experiment": experiment, "rows": rows})
-        return
-    import pandas as pd
-
-    console().print(escape(pd.DataFrame(rows).round(3).to_string(index=False)))
+        if not json_out:
+            typer.echo(f"wrote {plot}")

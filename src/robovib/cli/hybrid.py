@@ -75,7 +75,9 @@ def oma(
     ],
     output: OutOpt,
     direction: Annotated[str, typer.Option(help="x, y or z.")] = "x",
-    segment_mm: Annotated[float, typer.Option(help="Path length per FRF [mm].")] = 50.0,
+    segment_m: Annotated[
+        float, typer.Option("--segment", help="Path length per FRF [m] (path coordinates in m).")
+    ] = 0.05,
     nperseg: Annotated[int, typer.Option(help="Welch window [samples].")] = 512,
     fmin: Annotated[float, typer.Option(help="Lowest frequency [Hz].")] = 2.0,
     fmax: Annotated[float, typer.Option(help="Highest frequency [Hz].")] = 40.0,
@@ -89,7 +91,7 @@ def oma(
     from ..io import read_milling_record_csv, write_frfs
 
     frfs = oma_frfs_with_path(
-        read_milling_record_csv(record), direction=direction, segment_length_m=segment_mm / 1e3,
+        read_milling_record_csv(record), direction=direction, segment_length_m=segment_m,
         nperseg=nperseg, f_min_hz=fmin, f_max_hz=fmax, spindle_rpm=rpm,
     )  # fmt: skip
     write_frfs(output, frfs)
@@ -174,7 +176,10 @@ def predict(
         Path | None, typer.Option(help="A measured FRF file to compare with (first FRF).")
     ] = None,
     plot: Annotated[
-        Path | None, typer.Option(help="PNG: predicted FRF with 95 % band (and the measured one).")
+        Path | None,
+        typer.Option(
+            help="PNG: predicted FRF (magnitude/unwrapped phase, real/imaginary) with 95 % band and the measured one."
+        ),
     ] = None,
     json_out: JsonFlag = False,
 ) -> None:
@@ -186,11 +191,15 @@ def predict(
     meas = read_frfs(measured)[0] if measured is not None else None
     pred = predict_frf_at(model, path_s, meas)
     doc = pred.to_dict()
-    if plot is not None:
-        use_agg()
-        save_figure(plot_frf_prediction(pred), plot)
+
+    def draw() -> None:
+        if plot is not None:
+            use_agg()
+            save_figure(plot_frf_prediction(pred), plot)
+
     if json_out:
         emit_json(doc)
+        draw()
         return
     if pred.extrapolating:
         typer.echo("warning: the path coordinate is outside the calibrated range: extrapolation")
@@ -202,6 +211,7 @@ def predict(
     if pred.rmse_um_per_n is not None:
         typer.echo(f"RMSE vs measured: {pred.rmse_um_per_n:.3f} um/N")
     if plot is not None:
+        draw()
         typer.echo(f"wrote {plot}")
 
 
@@ -227,9 +237,6 @@ def next_poses(
 
     tested = path_s if path_s else [0.0, 0.585, 1.235]
     res = propose_next_poses(tested, k=k, direction=direction, rng=seed)
-    if plot is not None:
-        use_agg()
-        save_figure(plot_next_poses(res), plot)
     if json_out:
         emit_json({"tested_s_m": res.tested_s_m, "next_s_m": res.next_s_m})
     else:
@@ -237,3 +244,8 @@ def next_poses(
             "next hammer-test poses (path distance, m): "
             + ", ".join(f"{p:.3f}" for p in res.next_s_m)
         )
+    if plot is not None:
+        use_agg()
+        save_figure(plot_next_poses(res), plot)
+        if not json_out:
+            typer.echo(f"wrote {plot}")

@@ -130,9 +130,6 @@ def lobes(
     )  # fmt: skip
     speeds = np.linspace(rpm_min, rpm_max, 200)
     crit = result.critical_depth(speeds)
-    if plot is not None:
-        use_agg()
-        result.plot(path=plot, rpm_range=(rpm_min, rpm_max))
     doc = {
         "minimum_critical_depth_mm": 1e3 * result.minimum_depth_m,
         "spindle_rpm": speeds,
@@ -140,16 +137,19 @@ def lobes(
     }
     if json_out:
         emit_json(doc)
-        return
-    typer.echo(
-        f"minimum critical axial depth (all speeds): {doc['minimum_critical_depth_mm']:.3f} mm"
-    )
-    best = int(np.argmax(crit))
-    typer.echo(
-        f"most stable speed in {rpm_min:g}-{rpm_max:g} rpm: {speeds[best]:.0f} rpm ({1e3 * crit[best]:.2f} mm)"
-    )
+    else:
+        typer.echo(
+            f"minimum critical axial depth (all speeds): {doc['minimum_critical_depth_mm']:.3f} mm"
+        )
+        best = int(np.argmax(crit))
+        typer.echo(
+            f"most stable speed in {rpm_min:g}-{rpm_max:g} rpm: {speeds[best]:.0f} rpm ({1e3 * crit[best]:.2f} mm)"
+        )
     if plot is not None:
-        typer.echo(f"wrote {plot}")
+        use_agg()
+        result.plot(path=plot, rpm_range=(rpm_min, rpm_max))
+        if not json_out:
+            typer.echo(f"wrote {plot}")
 
 
 @app.command("map")
@@ -181,10 +181,6 @@ def lobe_map(
             model, rz, MillingTool(), cond, material(material_name), x_mm=xs, y_mm=ys,
             feed_direction=feed, progress=lambda done, total: bar.update(task, completed=done),
         )  # fmt: skip
-    if plot is not None:
-        use_agg()
-        title = f"critical depth at {rpm:g} rpm, Rz = {rz:g}°, ae = {ae:g} mm"
-        save_figure(plot_lobe_map(xs, ys, grid, title=title), plot)
     best = best_pose(xs, ys, grid)
     doc = {
         "x_mm": xs,
@@ -195,11 +191,15 @@ def lobe_map(
     }
     if json_out:
         emit_json(doc)
-        return
-    bx, by = best["best_pose_mm"]
-    typer.echo(
-        f"deepest stable cut at X={bx:.0f}, Y={by:.0f} mm: {best['best_depth_mm']:.2f} mm; "
-        f"shallowest: {best['shallowest_depth_mm']:.2f} mm"
-    )
+    else:
+        bx, by = best["best_pose_mm"]
+        typer.echo(
+            f"deepest stable cut at X={bx:.0f}, Y={by:.0f} mm: {best['best_depth_mm']:.2f} mm; "
+            f"shallowest: {best['shallowest_depth_mm']:.2f} mm"
+        )
     if plot is not None:
-        typer.echo(f"wrote {plot}")
+        use_agg()
+        title = f"critical depth at {rpm:g} rpm, Rz = {rz:g}°, ae = {ae:g} mm"
+        save_figure(plot_lobe_map(xs, ys, grid, title=title), plot)
+        if not json_out:
+            typer.echo(f"wrote {plot}")

@@ -25,7 +25,9 @@ def fit(
     max_order: Annotated[int, typer.Option(help="Highest LSCF model order for --modes.")] = 30,
     plot: Annotated[
         Path | None,
-        typer.Option(help="PNG of magnitude, phase and coherence with the fitted curve."),
+        typer.Option(
+            help="PNG: magnitude/unwrapped phase, real/imaginary parts and coherence with the fitted curve (flagged fits marked)."
+        ),
     ] = None,
     json_out: JsonFlag = False,
 ) -> None:
@@ -42,26 +44,12 @@ def fit(
         except (ValueError, RuntimeError) as exc:
             fail(f"FRF {i}: {exc}")
         results.append((frf, dom, multi))
-    if plot is not None:
-        use_agg()
-        from ..modal.plot import plot_frf_fit
-
-        frf, dom, multi = results[0]
-        shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
-        fitted = multi.modes if multi is not None else (dom.parameters,)
-        plot_frf_fit(
-            shown,
-            fitted,
-            plot,
-            residual=0j if multi else dom.residual_compliance,
-            title=f"{frf_file.name}, FRF 0",
-        )
     docs = []
     for i, (frf, dom, multi) in enumerate(results):
         doc = {
             "index": i,
             "direction": frf.direction,
-            "pose": frf.pose,
+            "pose_m_deg": frf.pose,
             "dominant_mode": dom.to_dict(),
         }
         if multi is not None:
@@ -69,6 +57,8 @@ def fit(
         docs.append(doc)
     if json_out:
         emit_json({"file": str(frf_file), "frfs": docs})
+        if plot is not None:
+            _plot(frf_file, results, plot)
         return
     con = console()
     t = Table(title=f"Dominant mode of each FRF in {frf_file.name}")
@@ -85,6 +75,9 @@ def fit(
             f"{dom.band_hz[0]:.1f}-{dom.band_hz[1]:.1f}",
         )  # fmt: skip
     con.print(t)
+    for i, (_, dom, _) in enumerate(results):
+        for reason in dom.flags:
+            con.print(f"[yellow]warning:[/] FRF {i} fit flagged: {escape(reason)}")
     for i, (_, _, multi) in enumerate(results):
         if multi is None:
             continue
@@ -102,4 +95,22 @@ def fit(
             )
         con.print(t)
     if plot is not None:
+        _plot(frf_file, results, plot)
         con.print(f"wrote {plot}")
+
+
+def _plot(frf_file: Path, results, plot: Path) -> None:
+    use_agg()
+    from ..modal.plot import plot_frf_fit
+
+    frf, dom, multi = results[0]
+    shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
+    fitted = multi.modes if multi is not None else (dom.parameters,)
+    plot_frf_fit(
+        shown,
+        fitted,
+        plot,
+        residual=0j if multi else dom.residual_compliance,
+        title=f"{frf_file.name}, FRF 0",
+        flags=dom.flags,
+    )
