@@ -65,7 +65,7 @@ def test_unwrapped_phase_has_no_jumps_and_matches_closed_form():
 
 @pytest.mark.parametrize("view", ["bode", "real-imag", "both"])
 def test_plot_frf_views(sdof, view):
-    mode, frf = sdof
+    _, frf = sdof
     fig = plot_frf(frf, view=view, overlays=[FRFCurve("fit", frf.frequency_hz, frf.values)])
     n_panels = {"bode": 2, "real-imag": 2, "both": 4}[view] + 1  # + coherence
     assert len(fig.axes) == n_panels
@@ -86,7 +86,7 @@ def test_plot_frf_rejects_bad_input(sdof):
     with pytest.raises(ValueError, match="view"):
         plot_frf(frf, view="nyquist")
     with pytest.raises(ValueError, match="axes"):
-        fig, ax = plt.subplots()
+        _, ax = plt.subplots()
         plot_frf(frf, ax, view="both")
     plt.close("all")
 
@@ -120,7 +120,7 @@ def test_modal_fit_figure_flags_poor_fit(sdof):
 def test_hybrid_prediction_figure(sdof):
     from robovib.hybrid import FRFPrediction, plot_frf_prediction
 
-    mode, frf = sdof
+    _, frf = sdof
     f, h = frf.frequency_hz, frf.values
     pred = FRFPrediction(0.5, f, h, 0.1 * np.abs(h), True, measured_m_per_n=1.1 * h)
     fig = plot_frf_prediction(pred)
