@@ -4,6 +4,7 @@ Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
 from .atomic import atomic_path
+from .frf_csv import FRF_CSV_UNITS, read_frf_csv, write_frf_csv
 from .frf_files import (
     read_frfs,
     read_frfs_hdf5,
@@ -40,6 +41,7 @@ from .uff58 import Record58, write_uff58
 from .units import apply_sensitivity, si_factor
 
 __all__ = [
+    "FRF_CSV_UNITS",
     "HammerRecording",
     "OutputPathError",
     "ReadReport",
@@ -53,6 +55,7 @@ __all__ = [
     "json_safe",
     "read_compliance_tests_csv",
     "read_force_csv",
+    "read_frf_csv",
     "read_frfs",
     "read_frfs_hdf5",
     "read_frfs_uff",
@@ -66,6 +69,7 @@ __all__ = [
     "save_figure",
     "select_channel",
     "si_factor",
+    "write_frf_csv",
     "write_frfs",
     "write_frfs_hdf5",
     "write_frfs_uff",

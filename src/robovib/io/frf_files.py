@@ -452,7 +452,11 @@ def write_frfs(
         return write_frfs_hdf5(path, frfs, inputs=inputs, force=force)
     if suffix in (".uff", ".unv"):
         return write_frfs_uff(path, frfs, inputs=inputs, force=force)
-    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff or .unv")
+    if suffix == ".csv":
+        from .frf_csv import write_frf_csv
+
+        return write_frf_csv(path, frfs, inputs=inputs, force=force)
+    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv")
 
 
 def read_frfs(path: str | Path) -> list[FRF]:
@@ -462,4 +466,8 @@ def read_frfs(path: str | Path) -> list[FRF]:
         return read_frfs_hdf5(path)
     if suffix in (".uff", ".unv"):
         return read_frfs_uff(path)
-    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff or .unv")
+    if suffix == ".csv":
+        from .frf_csv import read_frf_csv
+
+        return read_frf_csv(path)
+    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv")
