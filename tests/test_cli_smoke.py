@@ -91,6 +91,19 @@ def test_library_error_is_one_line_exit_1(tmp_path):
     assert result.exit_code == 1 and "unknown output format" in result.stderr
 
 
+def test_examples_listed_and_copied(tmp_path):
+    doc = run_json("examples")
+    assert len(doc["examples"]) >= 6
+    doc = run_json("examples", "--to", str(tmp_path / "ex"))
+    assert (tmp_path / "ex" / "hammer.uff").is_file()
+    doc = run_json(
+        "frf", "compute", str(tmp_path / "ex" / "hammer.uff"), "-o", str(tmp_path / "f.h5")
+    )
+    assert doc["direction"] == "x" and doc["input_files"][0]["path"].endswith("hammer.uff")
+    doc = run_json("modal", "fit", str(tmp_path / "ex" / "frf.csv"))
+    assert 10 < doc["frfs"][0]["dominant_mode"]["natural_frequency_hz"] < 25
+
+
 def test_gpr_predict(chapter3_model):
     doc = run_json("gpr", "predict", "--x", "2400", "--y", "0", "--rz", "45")
     assert len(doc["predictions"]) == 9 and doc["extrapolation"] == []

@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from . import control, demo, frf, gpr, hybrid, mill, modal, robot, sim
+from . import control, demo, examples, frf, gpr, hybrid, mill, modal, robot, sim
 from ._common import ErrorHandlingGroup, set_debug
 
 __all__ = ["app", "main"]
@@ -48,6 +48,7 @@ def _root(
 
 
 app.command("demo")(demo.demo)
+app.command("examples")(examples.examples)
 app.add_typer(gpr.app, name="gpr")
 app.add_typer(frf.app, name="frf")
 app.add_typer(modal.app, name="modal")
