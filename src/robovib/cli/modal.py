@@ -14,7 +14,12 @@ app = new_app("Modal parameters from FRFs.")
 
 @app.command("fit")
 def fit(
-    frf_file: Annotated[Path, typer.Argument(help="FRF file (.h5 or .uff).")],
+    frf_file: Annotated[
+        Path,
+        typer.Argument(
+            help="FRF file (.h5, .uff or .csv with frequency_hz,real_<unit>,imag_<unit>)."
+        ),
+    ],
     band: Annotated[
         tuple[float, float] | None,
         typer.Option(help="Fit band LO HI [Hz]; default: around the dominant peak."),
