@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from robovib.cli import app
+from robovib.datasets import example_path
 
 runner = CliRunner()
 
@@ -102,6 +103,22 @@ def test_examples_listed_and_copied(tmp_path):
     assert doc["direction"] == "x" and doc["input_files"][0]["path"].endswith("hammer.uff")
     doc = run_json("modal", "fit", str(tmp_path / "ex" / "frf.csv"))
     assert 10 < doc["frfs"][0]["dominant_mode"]["natural_frequency_hz"] < 25
+
+
+def test_plot_without_matplotlib_prints_results_then_one_line_error(tmp_path, monkeypatch):
+    import sys
+
+    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
+    frf = str(example_path("frf.csv"))
+    result = runner.invoke(app, ["modal", "fit", frf, "--plot", str(tmp_path / "f.png")])
+    assert result.exit_code == 1
+    assert "Dominant mode" in result.stdout and "16." in result.stdout  # the fit came first
+    assert result.stderr.count("\n") == 1 and "pip install 'robovib[plot]'" in result.stderr
+    result = runner.invoke(app, ["modal", "fit", frf, "--json", "--plot", str(tmp_path / "f.png")])
+    assert result.exit_code == 1 and json.loads(result.stdout)["frfs"][0]["dominant_mode"]
+    assert not (tmp_path / "f.png").exists()
 
 
 def test_gpr_predict(chapter3_model):

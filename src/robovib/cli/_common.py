@@ -303,8 +303,19 @@ def material(name: str):
 
 
 def use_agg() -> None:
-    """Pick matplotlib's file-only backend (the CLI never opens windows)."""
-    import matplotlib
+    """Pick matplotlib's file-only backend (the CLI never opens windows).
+
+    Raises
+    ------
+    ImportError
+        matplotlib is not installed (one line: how to install the extra).
+    """
+    try:
+        import matplotlib
+    except ImportError:
+        raise ImportError(
+            "--plot needs matplotlib: pip install 'robovib[plot]' (the results above are complete)"
+        ) from None
 
     matplotlib.use("Agg")
 
