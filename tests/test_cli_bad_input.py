@@ -263,69 +263,49 @@ case("hybrid-update-output-is-oma", "hybrid update {model} {oma} -o {oma}")
 case("hybrid-update-mode", "hybrid update {model} {oma} -o {out:.h5} --mode bogus")
 case("hybrid-update-direction-mismatch", "hybrid update {model} {omay} -o {out:.h5}")
 case("hybrid-update-ema-as-oma", "hybrid update {model} {ema} -o {out:.h5}")
-bad_inputs("hybrid-predict", "hybrid predict {IN} --s 0.5", ".h5")
-case("hybrid-predict-s=nan", "hybrid predict {model} --s nan")
-case("hybrid-predict-s=inf", "hybrid predict {model} --s inf")
-bad_inputs("hybrid-predict-measured", "hybrid predict {model} --s 0.5 --measured {IN}", ".h5")
-bad_outputs("hybrid-predict-plot", "hybrid predict {model} --s 0.5 --plot {OUT}", ".png", "model")
+bad_inputs("hybrid-predict", "hybrid predict {IN} --path-s 0.5", ".h5")
+case("hybrid-predict-s=nan", "hybrid predict {model} --path-s nan")
+case("hybrid-predict-s=inf", "hybrid predict {model} --path-s inf")
+bad_inputs("hybrid-predict-measured", "hybrid predict {model} --path-s 0.5 --measured {IN}", ".h5")
+bad_outputs(
+    "hybrid-predict-plot", "hybrid predict {model} --path-s 0.5 --plot {OUT}", ".png", "model"
+)
 bad_options("hybrid-next-poses", "hybrid next-poses", {
-    "--k": ["0", "1000"], "--ema": ["a,b", "nan,0.5", "0.5,0.5"], "--direction": ["q"],
+    "--k": ["0", "1000"], "--path-s": ["a", "nan", "0.5 --path-s 0.5"], "--direction": ["q"],
 })  # fmt: skip
 bad_outputs("hybrid-next-poses-plot", "hybrid next-poses --plot {OUT}", ".png", None)
+
+# examples / report
+case("examples-to-is-a-file", "examples --to {rec}")
+bad_inputs("report-model", "report model {IN} -o {out:.html}", ".h5")
+bad_outputs("report-model", "report model {model} -o {OUT}", ".html", "model")
+case("report-model-not-a-model", "report model {frf} -o {out:.html}")
+bad_inputs("report-control", "report control --path-file {IN} -o {out:.html}", ".csv")
+bad_outputs("report-control", "report control --path-file {sched} -o {OUT}", ".html", "sched")
+bad_options("report-lobes", "report lobes --x 2400 --y 0 --rz 0 -o {out:.html}", {
+    "--ae": ["nan", "-1"], "--material": ["bogus"], "--feed": ["z"], "--x": ["nan"],
+})  # fmt: skip
+bad_outputs("report-lobes", "report lobes --x 2400 --y 0 --rz 0 -o {OUT}", ".html", None)
+bad_options("report-chapter3", "report chapter3 -o {out:.html}", {
+    "--kernel": ["bogus"], "--n-splits": ["1"],
+})  # fmt: skip
+bad_outputs("report-chapter3", "report chapter3 -o {OUT}", ".html", None)
 
 #: cases the CLI still gets wrong (see module docstring), by kind; all need CLI changes (the
 #: library side is in place: writers take ``inputs=``/``force=``, checked library calls)
 KNOWN_GAPS: set[str] = {
-    # usage error printed as a rich panel, not one "error:" line
-    "control-table9-unknown-option",
-    "demo-kernel=bogus-range",
-    "gpr-predict-kernel=bogus-range",
-    "gpr-predict-x=nan",
-    "gpr-predict-y=inf",
-    "robot-fk-joints-count",
-    "robot-fk-joints-nan",
-    # data loss: output = input overwritten (CLI passes no inputs= to the writer)
-    "frf-compute-output-is-input",
-    "hybrid-fit-output-is-input",
-    "hybrid-update-output-is-input",
-    "hybrid-update-output-is-oma",
+    # duplicate tested coordinates accepted (was hybrid-next-poses-ema=0.5,0.5-range)
+    "hybrid-next-poses-path-s=0.5 --path-s 0.5-range",
     # silent wrong result: accepted with exit 0 (CLI maps/ignores the option or calls the unchecked path)
     "frf-compute-exp-window-tau-ms=-1-range",
     "frf-compute-exp-window-tau-ms=nan-nan",
     "frf-compute-force-window-ms=-1-range",
     "frf-compute-force-window-ms=nan-nan",
-    "hybrid-next-poses-ema=0.5,0.5-range",
-    "hybrid-next-poses-plot-output-folder-readonly",
-    "hybrid-predict-plot-output-folder-readonly",
     "hybrid-update-direction-mismatch",
     "hybrid-update-ema-as-oma",
     "mill-lobes-feed=z-range",
     "mill-lobes-rpm-max=inf-inf",
     "mill-lobes-rpm-reversed",
-    "mill-map-plot-output-folder-readonly",
-    # traceback: exception not caught by the CLI (plots outside try, OSError, arange before checks)
-    "control-schedule-input-missing",
-    "control-schedule-plot-output-folder-missing",
-    "control-schedule-plot-output-folder-readonly",
-    "control-schedule-plot-output-is-input",
-    "hybrid-fit-df=0-range",
-    "hybrid-fit-df=nan-nan",
-    "hybrid-fit-fmax=inf-inf",
-    "hybrid-fit-fmin=nan-nan",
-    "hybrid-next-poses-plot-output-folder-missing",
-    "hybrid-predict-plot-output-folder-missing",
-    "hybrid-predict-plot-output-is-input",
-    "hybrid-study-background=-1-range",
-    "hybrid-study-background=nan-nan",
-    "mill-lobes-plot-output-folder-missing",
-    "mill-lobes-plot-output-folder-readonly",
-    "mill-map-nx=-3-range",
-    "mill-map-plot-output-folder-missing",
-    "modal-fit-plot-output-folder-missing",
-    "modal-fit-plot-output-folder-readonly",
-    "modal-fit-plot-output-is-input",
-    "robot-compare-plot-output-folder-missing",
-    "robot-compare-plot-output-folder-readonly",
 }
 
 

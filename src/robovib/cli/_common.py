@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import sys
-import tempfile
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -320,18 +318,14 @@ def use_agg() -> None:
     matplotlib.use("Agg")
 
 
-def save_figure(fig, path: Path, dpi: int = 120) -> None:
-    """Save a figure atomically (temporary file in the target folder, then rename) and close it."""
+def save_figure(fig, path: Path, dpi: int = 120, inputs=()) -> None:
+    """Save a figure atomically (:func:`robovib.io.save_figure`: checked folder, never over an
+    input) and close it."""
     import matplotlib.pyplot as plt
 
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
-    os.close(fd)
+    from ..io import save_figure as _save
+
     try:
-        fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".") or "png")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        _save(fig, path, dpi=dpi, inputs=inputs)
     finally:
         plt.close(fig)

@@ -100,7 +100,7 @@ def compute(
     frf = result.frf.to_compliance(f_min_hz)
     if path_s is not None:
         frf = replace(frf, meta={**frf.meta, "path_s_m": float(path_s)})
-    write_frfs(output, [frf])
+    write_frfs(output, [frf], inputs=[recording])
     hits = [
         {
             "hit": h.index,

@@ -94,7 +94,7 @@ def oma(
         read_milling_record_csv(record), direction=direction, segment_length_m=segment_m,
         nperseg=nperseg, f_min_hz=fmin, f_max_hz=fmax, spindle_rpm=rpm,
     )  # fmt: skip
-    write_frfs(output, frfs)
+    write_frfs(output, frfs, inputs=[record])
     flagged = [np.asarray(f.meta["flagged"], bool) for f in frfs]
     doc = {"output": str(output), "segments": len(frfs), "s_mid_m": [f.meta["path_s_m"] for f in frfs],
            "flagged_fraction": float(np.mean([fl.mean() for fl in flagged]))}  # fmt: skip
@@ -127,7 +127,7 @@ def fit(
     grid = np.arange(fmin, fmax + 1e-9, df_hz)
     h, s, m = frfs_on_path_grid([f for path in ema for f in read_frfs(path)], grid)
     model = FRFPoseModel(grid).fit(s, h, mask=m)
-    model.save(output)
+    model.save(output, inputs=ema)
     doc = {
         "output": str(output),
         "n_frfs": len(s),
@@ -157,7 +157,7 @@ def update(
     model = FRFPoseModel.load(model_file)
     h, s, m = frfs_on_path_grid(read_frfs(oma_file), model.frequency_hz, partial=True)
     rep = model.update(s, h, mask=m, mode=mode)
-    model.save(output)
+    model.save(output, inputs=[model_file, oma_file])
     doc = {"output": str(output), "n_oma": len(s), "mode": mode,
            "iterations_mean": rep.iterations_mean_per_gp, "wall_time_s": rep.wall_time_s}  # fmt: skip
     if json_out:
@@ -195,7 +195,7 @@ def predict(
     def draw() -> None:
         if plot is not None:
             use_agg()
-            save_figure(plot_frf_prediction(pred), plot)
+            save_figure(plot_frf_prediction(pred), plot, inputs=[model_file, measured])
 
     if json_out:
         emit_json(doc)

@@ -17,10 +17,17 @@ app = new_app(
 HtmlOpt = Annotated[Path, typer.Option("-o", "--output", help="HTML file to write.")]
 
 
-def _done(report, output: Path, json_out: bool) -> None:
+def _check(output: Path, *inputs) -> None:
+    """Refuse a bad output path before any work (missing/read-only folder, output = input)."""
+    from ..io import check_output_path
+
+    check_output_path(output, inputs=inputs)
+
+
+def _done(report, output: Path, json_out: bool, *inputs) -> None:
     from ..report import write_report
 
-    write_report(report, output)
+    write_report(report, output, inputs=inputs)
     if json_out:
         emit_json({"output": str(output), "title": report.title})
     else:
@@ -39,6 +46,7 @@ def chapter3(
     """The chapter-3 study (GPR vs thesis Table 2, MLR, external validation) as a page."""
     from ..report import chapter3_study_report
 
+    _check(output)
     _done(chapter3_study_report(kernel=check_kernel(kernel), n_splits=n_splits,
                                 mode_switch=mode_switch, rng=seed), output, json_out)  # fmt: skip
 
@@ -55,7 +63,8 @@ def model(
     """A saved pose model: training range, fit at the training poses, predictions, provenance."""
     from ..report import model_report
 
-    _done(model_report(model_file), output, json_out)
+    _check(output, model_file)
+    _done(model_report(model_file), output, json_out, model_file)
 
 
 @app.command("lobes")
@@ -77,6 +86,7 @@ def lobes(
     """Stability lobes at a pose from the chapter-3 model, as a page."""
     from ..report import lobes_study_report
 
+    _check(output)
     _done(lobes_study_report(x, y, rz, ae_mm=ae, material=material_name, feed=feed,
                              rpm_range=(rpm_min, rpm_max), rng=seed), output, json_out)  # fmt: skip
 
@@ -100,4 +110,6 @@ def control(
     """LQR gain schedule along a path and the thesis Table 9 comparison, as a page."""
     from ..report import control_study_report
 
-    _done(control_study_report(path_file, direction=direction, rng=seed), output, json_out)
+    _check(output, path_file)
+    _done(control_study_report(path_file, direction=direction, rng=seed), output, json_out,
+          *([path_file] if path_file else []))  # fmt: skip

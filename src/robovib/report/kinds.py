@@ -150,6 +150,12 @@ def chapter3_study_report(
     """Run the chapter-3 study (:func:`robovib.gp.study.chapter3_study`) and report it."""
     from ..gp.study import chapter3_study
 
+    if kernel not in ("ard", "isotropic"):
+        raise ValueError(f"unknown kernel {kernel!r}; use 'ard' or 'isotropic'")
+    if int(n_splits) != n_splits or not 2 <= n_splits <= 20:
+        raise ValueError(
+            f"n_splits must be an integer in [2, 20] (cross-validation folds), got {n_splits}"
+        )
     study = chapter3_study(kernel=kernel, n_splits=n_splits, mode_switch=mode_switch, rng=rng)
     return chapter3_report(study, _provenance(None))
 
