@@ -113,7 +113,10 @@ def fit(
         typer.Argument(help="EMA FRF files (.h5) with path coordinates (frf compute --path-s)."),
     ],
     output: OutOpt,
-    fmin: Annotated[float, typer.Option(help="Model grid start [Hz].")] = 2.0,
+    fmin: Annotated[
+        float | None,
+        typer.Option(help="Model grid start [Hz]; default: where all EMA FRFs have data (>= 2)."),
+    ] = None,
     fmax: Annotated[float, typer.Option(help="Model grid end [Hz].")] = 40.0,
     df_hz: Annotated[
         float, typer.Option("--df", help="Model grid step [Hz] (match the OMA resolution).")
@@ -124,8 +127,11 @@ def fit(
     from ..hybrid import FRFPoseModel, frfs_on_path_grid
     from ..io import read_frfs
 
+    frfs = [f for path in ema for f in read_frfs(path)]
+    if fmin is None:
+        fmin = max([2.0, *(float(f.frequency_hz[0]) for f in frfs)])
     grid = np.arange(fmin, fmax + 1e-9, df_hz)
-    h, s, m = frfs_on_path_grid([f for path in ema for f in read_frfs(path)], grid)
+    h, s, m = frfs_on_path_grid(frfs, grid)
     model = FRFPoseModel(grid).fit(s, h, mask=m)
     model.save(output, inputs=ema)
     doc = {
