@@ -18,8 +18,8 @@ import numpy as np
 
 from robovib.control import design_lqr
 from robovib.control.schedule import schedule_gains
-from robovib.gp.study import fit_chapter3_model
 from robovib.modal import ModalParameters
+from robovib.studies.chapter3 import fit_chapter3_regressor
 
 
 def per_call(fn, n=2000):
@@ -31,7 +31,7 @@ def per_call(fn, n=2000):
 
 
 def main() -> None:
-    model = fit_chapter3_model(mode_switch=False)
+    model = fit_chapter3_regressor(mode_switch=False)
     pose = np.array([2450.0, 120.0, 60.0])
     t_gp = per_call(lambda: model.predict_one(pose))
     mean, _ = model.predict_one(pose)

@@ -12,20 +12,18 @@ from __future__ import annotations
 
 import argparse
 
-from robovib.robot.compare import hybrid_learning_curve
+from robovib.studies.hybrid_learning_curve import hybrid_learning_curve
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
-    df = hybrid_learning_curve(n_repeats=args.repeats)
-    table = df.groupby(["output", "model", "n_poses"]).rmse.mean().unstack("n_poses")
+    result = hybrid_learning_curve(n_repeats=args.repeats)
     print("Table A2 RMSE (fn in Hz, stiffness in MN/m) vs number of Table A1 training poses")
-    print(table.round(3).to_string())
-    ratio = table.xs("hybrid", level="model") / table.xs("pure GP", level="model")
+    print(result.mean_rmse().round(3).to_string())
     print("\nhybrid / pure GP RMSE ratio (< 1: the analytical mean helps)")
-    print(ratio.round(2).to_string())
+    print(result.ratio().round(2).to_string())
 
 
 if __name__ == "__main__":

@@ -101,7 +101,7 @@ def _cache_chapter3_model():
     """
     import functools
 
-    import robovib.gp.study as study
+    import robovib.gp as study
 
     original = study.fit_chapter3_model
     if not hasattr(original, "cache_info"):
@@ -111,7 +111,7 @@ def _cache_chapter3_model():
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
-    import robovib.gp.study as study
+    import robovib.gp as study
 
     original = _cache_chapter3_model()
     folder = tmp_path_factory.mktemp("inputs")

@@ -18,9 +18,10 @@ runner = CliRunner()
 
 
 @pytest.fixture(scope="module", autouse=True)
-def _memoised_chapter3(chapter3_factory):
+def _memoised_chapter3(chapter3_factory, chapter3_regressor_factory):
     mp = pytest.MonkeyPatch()
-    mp.setattr("robovib.gp.study.fit_chapter3_model", chapter3_factory)
+    mp.setattr("robovib.gp.fit_chapter3_model", chapter3_factory)
+    mp.setattr("robovib.studies.chapter3.fit_chapter3_regressor", chapter3_regressor_factory)
     yield
     mp.undo()
 
@@ -121,7 +122,7 @@ def test_plot_without_matplotlib_prints_results_then_one_line_error(tmp_path, mo
     assert not (tmp_path / "f.png").exists()
 
 
-def test_gpr_predict(chapter3_model):
+def test_gpr_predict():
     doc = run_json("gpr", "predict", "--x", "2400", "--y", "0", "--rz", "45")
     assert len(doc["predictions"]) == 9 and doc["extrapolation"] == []
 
@@ -198,9 +199,9 @@ def test_mill_commands(tmp_path):
     doc = run_json("mill", "predict", "--x", "2700", "--y", "0", "--rz", "0", "--samples", "5")
     assert [r["direction"] for r in doc["predictions"]] == ["x", "y", "z"]
     doc = run_json("mill", "lobes", "--x", "2400", "--y", "0", "--rz", "45")
-    assert doc["minimum_critical_depth_mm"] > 0 and len(doc["spindle_rpm"]) == 200
+    assert doc["minimum_depth_m"] > 0 and len(doc["rpm"]) == len(doc["a_lim_m"]) == 200
     doc = run_json("mill", "map", "--nx", "3", "--ny", "2", "--plot", str(tmp_path / "map.png"))
-    assert np.shape(doc["critical_depth_mm"]) == (2, 3) and (tmp_path / "map.png").stat().st_size
+    assert np.shape(doc["critical_depth_m"]) == (2, 3) and (tmp_path / "map.png").stat().st_size
 
 
 def test_control_gains_table9_and_schedule_file(tmp_path):

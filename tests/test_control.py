@@ -13,10 +13,10 @@ from robovib.control import (
     design_delay_aware_lqr,
     design_lqr,
     discretize,
-    table_9_comparison,
 )
 from robovib.control.schedule import schedule_gains
 from robovib.modal import ModalParameters
+from robovib.studies.table9 import table_9_comparison
 
 MODE = ModalParameters(8.5, 0.775e6, 0.179)  # §4.3.2 offset-mass pose, Y direction
 
@@ -44,7 +44,7 @@ def test_riccati_solution_and_python_control():
 def test_table_9_trends_with_displacement_input():
     rows = [
         r
-        for r in table_9_comparison()
+        for r in table_9_comparison().rows
         if r["formulation"] == "physical" and r["input"] == "displacement"
     ]
     g = {(r["position"], r["direction"]): (r["w1"], r["w2"]) for r in rows}

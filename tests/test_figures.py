@@ -129,20 +129,27 @@ def test_hybrid_prediction_figure(sdof):
 
 
 def test_lobes_and_map_figures():
+    from robovib.gp import get_chapter3_model
     from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    from robovib.milling.chart import lobes_chart, plot_lobes_chart
+    from robovib.milling.maps import plot_lobe_map, workspace_lobe_map
     from robovib.milling.stability import stability_lobes
-    from robovib.milling.workflow import plot_lobe_map
 
     m = ModalParameters(20.0, 2e6, 0.05)
-    lobes = stability_lobes([m], [m], MillingTool(), CuttingConditions(1000, 1e-4, 1e-3, 6e-3),
-                            ALUMINIUM_7075, n_lobes=5)  # fmt: skip
+    cond = CuttingConditions(1000, 1e-4, 1e-3, 6e-3)
+    lobes = stability_lobes([m], [m], MillingTool(), cond, ALUMINIUM_7075, n_lobes=5)
     assert_labelled(lobes.plot().figure)
-    grid = np.array([[1e-3, 2e-3, 3e-3], [2e-3, 4e-3, 1e-3]])
-    assert_labelled(plot_lobe_map(np.array([2100, 2400, 2700]), np.array([0, 300]), grid))
+    chart = lobes_chart(tool=MillingTool(), conditions=cond, coefficients=ALUMINIUM_7075,
+                        spindle_rpm=np.linspace(500, 3000, 40), method="zoa", modes_x=[m],
+                        modes_y=[m])  # fmt: skip
+    assert_labelled(plot_lobes_chart(chart))
+    ds = workspace_lobe_map(get_chapter3_model(), [2100, 2700], [0, 300], [0.0], [1750.0],
+                            MillingTool(), cond, ALUMINIUM_7075, method="zoa", scheduler="sync")  # fmt: skip
+    assert_labelled(plot_lobe_map(ds))
 
 
 def test_robot_compare_figure():
-    from robovib.robot.compare import compare_with_table_a1, plot_comparison
+    from robovib.studies.analytical import compare_with_table_a1, plot_comparison
 
     assert_labelled(plot_comparison(compare_with_table_a1()))
 
@@ -161,7 +168,7 @@ def test_control_figures():
 
 
 def test_next_poses_figure():
-    from robovib.hybrid.study import NextPoses, plot_next_poses
+    from robovib.studies.hybrid import NextPoses, plot_next_poses
 
     cand = np.linspace(0, 1.235, 50)
     res = NextPoses(np.array([0.0, 1.235]), np.array([0.6]), cand, (cand * (1.235 - cand)) ** 2)

@@ -4,6 +4,7 @@ import warnings
 
 import numpy as np
 import pytest
+from sklearn.exceptions import NotFittedError
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF
 from sklearn.gaussian_process.kernels import ConstantKernel as C
@@ -242,7 +243,7 @@ def test_bad_parameters_and_unfitted():
         BatchedGPRegressor(kernel="matern").fit(X, Y)
     with pytest.raises(ValueError, match="unknown optimizer"):
         BatchedGPRegressor(optimizer="adam").fit(X, Y)
-    with pytest.raises(RuntimeError, match="not fitted"):
+    with pytest.raises(NotFittedError, match="not fitted"):
         BatchedGPRegressor().predict(X)
     gp = BatchedGPRegressor(rng=0).fit(X, Y)
     with pytest.raises(ValueError, match="features"):

@@ -132,3 +132,195 @@ def test_hybrid_file_workflow_cli(tmp_path):
     )
     res = run(app, ["hybrid", "fit", str(oma).replace("oma", "missing"), "-o", str(model)])
     assert res.exit_code == 1
+
+
+def _ema_oma(rng, n_oma=10, noise=0.02):
+    f = np.linspace(2, 30, 20)
+    s_ema = np.array([0.0, 0.6, 1.2])
+    s_oma = np.linspace(0.05, 1.15, n_oma)
+    truth = _family(s_oma, f)
+    err = noise * np.abs(truth) * (rng.normal(size=truth.shape) + 1j * rng.normal(size=truth.shape))
+    return f, s_ema, _family(s_ema, f), s_oma, truth + err
+
+
+def test_robust_update_detects_known_scale_and_bin_bias():
+    """OMA with a known 1.35 source gain and an offset in two bins: both found and removed."""
+    rng = np.random.default_rng(1)
+    f, s_ema, h_ema, s_oma, h_oma = _ema_oma(rng)
+    biased = h_oma * 1.35
+    bad_bins = [4, 11]
+    biased[:, bad_bins] += 3.0 * np.abs(h_oma[:, bad_bins]).mean(axis=0)  # systematic offset
+    model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
+    rep = model.update(s_oma, biased, mode="robust")
+    assert rep.scale_applied and abs(rep.scale - 1.35) < 0.1
+    np.testing.assert_allclose(sorted(rep.rejected_bins_hz), f[bad_bins])
+    assert rep.n_rejected >= 2 * len(s_oma)
+    # The plain posterior update trusts the biased data and gets worse than EMA alone.
+    s_val = np.array([0.33, 0.91])
+    truth = _family(s_val, f)
+    ema_err = np.abs(FRFPoseModel(f, rng=0).fit(s_ema, h_ema).predict(s_val) - truth).mean()
+    naive = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
+    naive.update(s_oma, biased, mode="posterior")
+    assert np.abs(naive.predict(s_val) - truth).mean() > ema_err
+    assert np.abs(model.predict(s_val) - truth).mean() <= 1.05 * ema_err
+    d = rep.to_dict()
+    assert d["rejected_bins_hz"] == list(rep.rejected_bins_hz) and "scale_real" in d
+
+
+def test_robust_update_keeps_unbiased_data_and_estimates_noise():
+    """Unbiased OMA with known per-bin noise: nothing rejected, noise recovered by Eq. 33."""
+    rng = np.random.default_rng(2)
+    f = np.linspace(2, 30, 12)
+    s_ema = np.array([0.0, 0.6, 1.2])
+    s_oma = np.linspace(0.02, 1.18, 40)
+    sigma = 0.05e-6  # m/N per Re/Im component
+    h_oma = _family(s_oma, f) + sigma * (
+        rng.normal(size=(40, f.size)) + 1j * rng.normal(size=(40, f.size))
+    )
+    model = FRFPoseModel(f, rng=0).fit(s_ema, _family(s_ema, f))
+    rep = model.update(s_oma, h_oma, mode="robust")
+    assert not rep.scale_applied and rep.rejected_bins_hz == ()
+    assert rep.rejected_fraction < 0.01
+    noise = model.gp_.hyperparameters_.noise_std[:, 1] / 1e6
+    assert 0.6 < np.median(noise) / sigma < 1.5
+    truth = _family(np.array([0.3, 0.9]), f)
+    assert np.abs(model.predict([0.3, 0.9]) - truth).max() < 0.1 * np.abs(truth).max()
+
+
+def test_update_bad_input():
+    f = np.linspace(2, 30, 5)
+    s = np.array([0.0, 0.6, 1.2])
+    model = FRFPoseModel(f).fit(s, _family(s, f))
+    with pytest.raises(ValueError, match="unknown update mode"):
+        model.update(s, _family(s, f), mode="magic")
+    with pytest.raises(ValueError, match="noise_std"):
+        model.update(s, _family(s, f), noise_std=np.ones((2, 5)))
+    with pytest.raises(ValueError, match=r"poses must be \(n, 1\)"):
+        model.predict(np.ones((2, 3)))
+    with pytest.raises(ValueError, match="group 1"):
+        model.update(s, _family(s, f), groups=np.zeros(3, int))
+    from sklearn.base import clone
+
+    twin = clone(model)
+    assert twin.get_params()["input_names"] == ("s_m",) and not hasattr(twin, "gp_")
+
+
+def test_oma_random_error_and_quality_warning(robot):
+    from robovib.hybrid import OMAQualityWarning
+
+    cond = CuttingConditions(2700.0, 0.3e-3, 6e-3, 6e-3)
+    run = simulate_milling(robot, LinearMove("path", (1.0,), (1.1,)), MillingTool(), cond, ACETAL,
+                           background_noise_rel=0.0, force_noise_n=5.0, rng=0)  # fmt: skip
+    with pytest.warns(OMAQualityWarning, match="pass the coherence"):
+        segs = oma_frfs(run.time_s, run.force_n, run.displacement_m, run.coords, direction="z",
+                        spindle_rpm=cond.spindle_rpm, f_max_hz=30.0, window="hann", noverlap=128)  # fmt: skip
+    err = segs[0].random_error_m_per_n
+    coh = segs[0].frf.coherence
+    # Bendat & Piersol: error / |H| = sqrt(1 - g2) / (|g| sqrt(2 n_d)), larger where coherence is lower.
+    n_d = segs[0].frf.n_averages
+    np.testing.assert_allclose(
+        err / np.abs(segs[0].frf.values), np.sqrt((1 - coh) / (2 * n_d * coh)), rtol=1e-9
+    )
+    with pytest.raises(ValueError, match="noverlap"):
+        oma_frfs(run.time_s, run.force_n, run.displacement_m, run.coords, noverlap=600)
+
+
+def test_hybrid_core_does_not_import_sim_or_studies():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, robovib.hybrid; bad = [m for m in sys.modules "
+        "if m.startswith(('robovib.sim', 'robovib.studies'))]; print(bad); sys.exit(bool(bad))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_study_is_reproducible_per_seed():
+    from robovib.studies.hybrid import hybrid_study
+
+    kw = {"seeds": (3,), "directions": ("y",), "models": ("robust",)}
+    a, b = hybrid_study(**kw).to_frame(), hybrid_study(**kw).to_frame()
+    cols = [c for c in a.columns if c != "wall_time_s"]
+    assert list(a.model) == ["ema", "robust"]
+    assert a[cols].equals(b[cols])
+    doc = hybrid_study.__module__  # studies, not the core
+    assert doc == "robovib.studies.hybrid"
+    with pytest.raises(ValueError, match="unknown models"):
+        hybrid_study(models=("magic",))
+
+
+def test_workspace_model_end_to_end(tmp_path):
+    """EMA at 9 workspace poses + OMA along a cut -> FRF at unseen poses vs the sim's truth.
+
+    Tolerance: RMSE over 2-40 Hz within 15 % of the true peak compliance at each unseen pose,
+    and the updated model no worse than 1.5 x the EMA-only one. The model round-trips through
+    HDF5 with its input names and units.
+    """
+    import h5py
+
+    from robovib.studies.hybrid import workspace_study
+
+    res = workspace_study(direction="y", seed=0)
+    assert res.model.input_names == ("x_m", "y_m", "rz_deg")
+    rel = res.relative_rmse()
+    assert np.all(rel < 0.15), rel
+    assert np.all(rel <= 1.5 * res.relative_rmse("ema") + 0.02)
+    assert res.band_coverage(3.0) > 0.6
+    path = tmp_path / "ws.h5"
+    res.model.save(path, provenance={"source": "virtual robot", "seed": 0})
+    with h5py.File(path) as h5:
+        assert list(h5.attrs["input_names"]) == ["x_m", "y_m", "rz_deg"]
+        assert h5.attrs["compliance_unit"] == "um/N" and "robovib_version" in h5.attrs
+        assert h5.attrs["provenance/source"] == "virtual robot"
+    back = FRFPoseModel.load(path)
+    np.testing.assert_allclose(back.predict(res.test_poses), res.predicted_m_per_n, rtol=1e-9)
+    with pytest.raises(ValueError, match=r"poses must be \(n, 3\)"):
+        back.predict([0.5])
+
+
+def test_hybrid_workspace_cli(tmp_path):
+    """Workspace poses through the files: frf compute --x/--y/--rz, fit --inputs workspace,
+    oma of a workspace cut, robust update (rejections reported), predict --x/--y/--rz."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    run = CliRunner().invoke
+    files = []
+    for x, y in ((2100, -300), (2100, 600), (2700, -300), (2700, 600)):
+        rec, frf = tmp_path / f"e{x}_{y}.uff", tmp_path / f"e{x}_{y}.h5"
+        args = ["--x", str(x), "--y", str(y), "--rz", "45"]
+        res = run(app, ["sim", "hammer", *args, "--direction", "y", "--hits", "2",
+                        "--sample-rate-hz", "2048", "-o", str(rec)])  # fmt: skip
+        assert res.exit_code == 0, res.output
+        res = run(app, ["frf", "compute", str(rec), "--fmax", "100", *args, "-o", str(frf)])
+        assert res.exit_code == 0, res.output
+        files.append(str(frf))
+    model = tmp_path / "m.h5"
+    res = run(app, ["hybrid", "fit", *files, "--inputs", "workspace", "-o", str(model), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["input_names"] == ["x_m", "y_m", "rz_deg"]
+    cut, oma = tmp_path / "cut.csv", tmp_path / "oma.h5"
+    res = run(app, ["sim", "mill", "--x0", "2300", "--y0", "0", "--x1", "2450", "--y1", "100", "--rz", "45",
+                    "--rpm", "2700", "--fz", "0.3", "--ap", "6", "--ae", "6", "--material", "acetal",
+                    "--background", "1", "-o", str(cut)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    res = run(app, ["hybrid", "oma", str(cut), "--rpm", "2700", "--direction", "y",
+                    "--window", "hann", "--noverlap", "256", "-o", str(oma), "--json"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["segments"] >= 3
+    updated = tmp_path / "m2.h5"
+    res = run(app, ["hybrid", "update", str(model), str(oma), "-o", str(updated), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["mode"] == "robust" and 0 <= doc["n_rejected"] <= doc["n_observations"]
+    res = run(app, ["hybrid", "predict", str(updated), "--x", "2400", "--y", "50", "--rz", "45", "--json"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["x_m"] == 2.4 and not doc["extrapolating"]
+    res = run(app, ["hybrid", "predict", str(updated), "--path-s", "0.5"])
+    assert res.exit_code == 1 and "--x [mm]" in res.output

@@ -112,7 +112,7 @@ def test_resample_and_bad_input():
 def test_virtual_robot_peak_to_valley_near_the_63_hz_mode():
     """Thesis §3.5 cut at a pose where the ~63 Hz X mode meets the 58.3 Hz tooth passing:
     the GP-based prediction (dominant mode only) vs the virtual robot's tracker record."""
-    from robovib.gp.study import fit_chapter3_model
+    from robovib.gp import load_chapter3_model
     from robovib.milling.prediction import summarise_vibration
     from robovib.milling.workflow import predict_at_pose
     from robovib.sim import LinearMove, VirtualRobot, simulate_milling
@@ -121,7 +121,7 @@ def test_virtual_robot_peak_to_valley_near_the_63_hz_mode():
     move = LinearMove("workspace", (2.7, -0.005, 0.0), (2.7, 0.005, 0.0))
     run = simulate_milling(VirtualRobot(), move, MillingTool(), cond, ALUMINIUM_7075, rng=1)
     pred = predict_at_pose(
-        fit_chapter3_model(), 2700, 0, 0, cond, forces_n=run.force_n, n_samples=10
+        load_chapter3_model(), 2700, 0, 0, cond, forces_n=run.force_n, n_samples=10
     )
     measured = summarise_vibration(run.displacement_m[:, 0], 1000.0, 1750, skip_s=0.5)
     assert pred[0].peak_to_valley_m == pytest.approx(measured.peak_to_valley_m, rel=0.25)
@@ -139,7 +139,7 @@ def test_mill_cli(tmp_path):
     assert [r["direction"] for r in rows] == ["x", "y", "z"]
     assert all(r["peak_to_valley_band_mm"][0] <= r["peak_to_valley_band_mm"][1] for r in rows)
     res = runner.invoke(app, ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "45", "--json"])
-    assert res.exit_code == 0 and json.loads(res.output)["minimum_critical_depth_mm"] > 0
+    assert res.exit_code == 0 and json.loads(res.output)["minimum_depth_m"] > 0
     res = runner.invoke(
         app, ["mill", "predict", "--x", "2400", "--y", "0", "--rz", "0", "--material", "wood"]
     )

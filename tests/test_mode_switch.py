@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from sklearn.exceptions import NotFittedError
 
 from robovib.gp import BatchedGPRegressor
 from robovib.gp.mode_switch import ModeSwitchingGPRegressor, symmetric_rz_features
@@ -63,7 +64,7 @@ def test_symmetric_rz_features():
 
 
 def test_switching_model_errors():
-    with pytest.raises(RuntimeError, match="not fitted"):
+    with pytest.raises(NotFittedError, match="not fitted"):
         ModeSwitchingGPRegressor().predict(np.zeros((1, 2)))
     with pytest.raises(ValueError, match="indicator_output"):
         ModeSwitchingGPRegressor(switching_outputs=(1,), indicator_output=0).fit(

@@ -127,9 +127,11 @@ def test_identification_recovers_table_4_from_table_3_tests():
 
 
 def test_hybrid_learning_curve_runs_and_scores_both_models():
-    from robovib.robot.compare import hybrid_learning_curve
+    from robovib.studies.hybrid_learning_curve import hybrid_learning_curve
 
-    df = hybrid_learning_curve(n_poses=(10, 60), n_repeats=1)
+    result = hybrid_learning_curve(n_poses=(10, 60), n_repeats=1)
+    df = result.to_frame()
+    assert result.to_dict()["rows"] and result.ratio().shape == (6, 2)
     assert set(df["model"]) == {"pure GP", "hybrid"}
     assert set(df["n_poses"]) == {10, 60}
     assert np.all(np.isfinite(df["rmse"])) and np.all(df["rmse"] > 0)

@@ -39,7 +39,7 @@ def test_cv_matches_sklearn_cross_val_predict():
     rng = np.random.default_rng(2)
     X = rng.normal(size=(50, 2))
     y = X @ [1.0, -2.0] + 0.1 * rng.normal(size=50)
-    ours = cross_validate(lambda: PolynomialRegression(1), X, y, n_splits=5, rng=3)
+    ours = cross_validate(PolynomialRegression(1), X, y, n_splits=5, rng=3)
     seed = int(np.random.default_rng(3).integers(2**31 - 1))
     ref = cross_val_predict(LinearRegression(), X, y, cv=KFold(5, shuffle=True, random_state=seed))
     np.testing.assert_allclose(ours.predictions[:, 0], ref, atol=1e-10)
@@ -50,7 +50,7 @@ def test_grouped_cv_keeps_groups_together():
     groups = np.repeat(np.arange(20), 3)
     X = rng.normal(size=(60, 2))
     y = X[:, 0] + rng.normal(size=60) * 0.1
-    res = cross_validate(lambda: PolynomialRegression(1), X, y, groups=groups, rng=0)
+    res = cross_validate(PolynomialRegression(1), X, y, groups=groups, rng=0)
     assert res.grouped
     for g in range(20):
         assert np.unique(res.folds[groups == g]).size == 1
@@ -60,18 +60,18 @@ def test_grouped_cv_keeps_groups_together():
 def test_cv_bad_input():
     X, y = np.ones((3, 2)), np.arange(3.0)
     with pytest.raises(ValueError, match="fewer samples than folds"):
-        cross_validate(lambda: PolynomialRegression(1), X, y, n_splits=5)
+        cross_validate(PolynomialRegression(1), X, y, n_splits=5)
     with pytest.raises(ValueError, match="fewer groups than folds"):
         cross_validate(
-            lambda: PolynomialRegression(1),
+            PolynomialRegression(1),
             np.ones((10, 2)),
             np.arange(10.0),
             groups=np.repeat([0, 1], 5),
         )
     with pytest.raises(ValueError, match="NaN"):
-        cross_validate(lambda: PolynomialRegression(1), np.ones((10, 2)), np.full(10, np.nan))
+        cross_validate(PolynomialRegression(1), np.ones((10, 2)), np.full(10, np.nan))
     with pytest.raises(ValueError, match="mismatched"):
-        cross_validate(lambda: PolynomialRegression(1), np.ones((10, 2)), np.ones(9))
+        cross_validate(PolynomialRegression(1), np.ones((10, 2)), np.ones(9))
 
 
 def test_external_validation_relative_errors():

@@ -265,6 +265,10 @@ def emit_json(doc: dict, *, units: dict[str, str] | None = None) -> None:
 
     prov = run_provenance()
     body = _plain(doc)
+    for key in ("robovib_version", "command", "settings", "settings_units", "input_files"):
+        if key in body and key != "robovib_version":  # the result's own: kept under result_
+            body[f"result_{key}"] = body.pop(key)
+    body.pop("robovib_version", None)
     keys: set[str] = set()
     _numeric_keys(body, None, keys)
     extra = dict(units or {})

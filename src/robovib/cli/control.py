@@ -42,12 +42,12 @@ def gains(
         loop_margins,
         tune_r_for_delay,
     )
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..milling.workflow import pose_modes
 
     if direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}")
-    modes, _, _ = pose_modes(fit_chapter3_model(), x, y, rz)
+    modes = {d: m.parameters for d, m in pose_modes(get_chapter3_model(), (x, y, rz)).items()}
     mode = modes[direction]
     d = design_lqr(mode, period_ms / 1e3, r=[[r]])
     da = delay_analysis(d, delay_ms / 1e3)
@@ -137,9 +137,9 @@ def schedule(
 @app.command("table9")
 def table9(json_out: JsonFlag = False) -> None:
     """Gains from the thesis' Table 8 inputs under each plant formulation, beside Table 9."""
-    from ..control import table_9_comparison
+    from ..studies.table9 import table_9_comparison
 
-    rows = table_9_comparison()
+    rows = table_9_comparison().to_dict()["rows"]
     if json_out:
         emit_json({"rows": rows})
         return

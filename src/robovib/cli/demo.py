@@ -41,7 +41,7 @@ def demo(
     json_out: JsonFlag = False,
 ) -> None:
     """Chapter-3 study on the shipped thesis data: GPR vs thesis Table 2, MLR, external validation."""
-    from ..gp.study import chapter3_study
+    from ..studies.chapter3 import chapter3_study
 
     s = chapter3_study(
         kernel=check_kernel(kernel),

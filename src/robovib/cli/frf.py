@@ -62,6 +62,14 @@ def compute(
             help="Pose as distance along a tool path [m], stored with the FRF (hybrid model).",
         ),
     ] = None,
+    x_mm: Annotated[
+        float | None, typer.Option("--x", help="Workspace pose X [mm], stored with the FRF.")
+    ] = None,
+    y_mm: Annotated[float | None, typer.Option("--y", help="Workspace pose Y [mm].")] = None,
+    rz_deg: Annotated[
+        float | None,
+        typer.Option("--rz", help="Workspace pose: rotation about the tool axis [deg]."),
+    ] = None,
     force_sensitivity: Annotated[
         float | None, typer.Option(help="Hammer sensitivity [mV/N] for a force channel in V or mV.")
     ] = None,
@@ -100,6 +108,12 @@ def compute(
     frf = result.frf.to_compliance(f_min_hz)
     if path_s is not None:
         frf = replace(frf, meta={**frf.meta, "path_s_m": float(path_s)})
+    given = [v is not None for v in (x_mm, y_mm, rz_deg)]
+    if any(given) and not all(given):
+        fail("give all of --x [mm], --y [mm] and --rz [deg] for a workspace pose")
+    if all(given):
+        nan = float("nan")
+        frf = replace(frf, pose=(x_mm / 1e3, y_mm / 1e3, nan, nan, nan, float(rz_deg)))
     write_frfs(output, [frf], inputs=[recording])
     hits = [
         {

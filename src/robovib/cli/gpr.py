@@ -34,9 +34,9 @@ def predict(
 ) -> None:
     """Predicted dominant-mode parameters at a pose (Z = 325 mm, Rx = Ry = 0) with ±2σ."""
     from ..gp.pose_prediction import predict_pose
-    from ..gp.study import OUTPUT_LABELS, fit_chapter3_model
+    from ..studies.chapter3 import OUTPUT_LABELS, fit_chapter3_regressor
 
-    model = fit_chapter3_model(kernel=check_kernel(kernel), mode_switch=mode_switch, rng=seed)
+    model = fit_chapter3_regressor(kernel=check_kernel(kernel), mode_switch=mode_switch, rng=seed)
     p = predict_pose(model, x, y, rz, OUTPUT_LABELS)
     if json_out:
         emit_json(

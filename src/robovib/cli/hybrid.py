@@ -23,6 +23,16 @@ from ._common import (
 app = new_app("Hybrid EMA + OMA model of the whole FRF with Bayesian updating (thesis ch. 5).")
 
 
+def _seeds(text: str) -> list[int]:
+    try:
+        if "-" in text.strip("-"):
+            a, b = text.split("-", 1)
+            return list(range(int(a), int(b) + 1))
+        return [int(v) for v in text.split(",")]
+    except ValueError:
+        raise ValueError(f"--seeds must look like 0-4 or 0,1,2, got {text!r}") from None
+
+
 @app.command("study")
 def study(
     background: Annotated[
@@ -31,38 +41,44 @@ def study(
             help="Broadband force content of the OMA cut (x spread of the periodic force)."
         ),
     ] = 1.0,
-    seed: SeedOpt = 0,
+    seeds: Annotated[str, typer.Option(help="Simulator seeds: a range 0-4 or a list 0,1,2.")] = "0",
+    nperseg: Annotated[int, typer.Option(help="OMA Welch window [samples].")] = 1024,
+    noverlap: Annotated[
+        int | None, typer.Option(help="OMA Welch overlap [samples] (default half a window).")
+    ] = None,
+    window: Annotated[
+        str, typer.Option(help="OMA window (SciPy name: hann, boxcar, ...).")
+    ] = "hann",
+    segment_mm: Annotated[float, typer.Option(help="Path length per OMA FRF [mm].")] = 50.0,
+    validation_s: Annotated[
+        float, typer.Option("--validation-s", help="Validation path coordinate [m].")
+    ] = 0.91,
+    fmax: Annotated[float, typer.Option(help="Highest frequency [Hz].")] = 40.0,
     json_out: JsonFlag = False,
 ) -> None:
-    """EMA at 3 poses, OMA from a 600 mm cut, validation: the Table 12 / 13 analogue."""
-    from ..hybrid.study import hybrid_study
+    """EMA at 3 poses, OMA from a 600 mm cut, validation: Table 12 / 13 analogues over seeds."""
+    from ..studies.hybrid import hybrid_study
 
-    res = hybrid_study(background_noise_rel=background, rng=seed)
+    res = hybrid_study(
+        seeds=_seeds(seeds), background_noise_rel=background, nperseg=nperseg, noverlap=noverlap,
+        window=window, segment_length_m=segment_mm / 1e3, validation_s_m=validation_s,
+        f_range_hz=(2.0, fmax),
+    )  # fmt: skip
     if json_out:
-        emit_json(res)
+        emit_json(res.to_dict())
         return
-    con = console()
-    t = Table(
-        title="FRF RMSE at the validation pose [um/N] (peak error %) - thesis Table 12 analogue"
-    )
-    for col in ("dir", "bins", "OMA segs", "flagged", "before (EMA)", "posterior",
-                "warm update", "full retrain"):  # fmt: skip
+    summ = res.summary()
+    t = Table(title="FRF RMSE at the validation pose vs truth (um/N), change vs EMA (mean / worst "
+                    "seed), peak error vs hammer FRF, iterations per GP - Table 12/13 analogues")  # fmt: skip
+    for col in ("dir", "model", "RMSE", "change", "worst", "peak err", "rejected", "iter/GP"):
         t.add_column(col, justify="right")
-    for d, row in res.items():
-
-        def cell(k, row=row):
-            return f"{row[k]['rmse_um_per_n']:.3f} ({row[k]['peak_error_pct']:.0f} %)"
-
-        t.add_row(d.upper(), str(row["n_bins"]), str(row["n_oma_segments"]), f"{100 * row['flagged_fraction']:.0f} %",
-                  cell("before"), cell("posterior"), cell("warm"), cell("retrain"))  # fmt: skip
-    con.print(t)
-    t = Table(title="Optimiser iterations per GP and wall time - thesis Table 13 analogue")
-    for col in ("dir", "warm update", "full retrain"):
-        t.add_column(col, justify="right")
-    for d, row in res.items():
-        t.add_row(d.upper(), f"{row['warm']['iterations_mean']:.1f} ({row['warm']['wall_time_s'] * 1e3:.0f} ms)",
-                  f"{row['retrain']['iterations_mean']:.1f} ({row['retrain']['wall_time_s'] * 1e3:.0f} ms)")  # fmt: skip
-    con.print(t)
+    for r in summ.to_dict(orient="records"):
+        t.add_row(r["direction"].upper(), r["model"], f"{r['rmse_vs_truth_um_per_n']:.3f}",
+                  f"{r['change_pct']:+.0f} %", f"{r['worst_change_pct']:+.0f} %",
+                  f"{r['peak_error_pct']:.1f} %", f"{100 * r['rejected_fraction']:.0f} %",
+                  f"{r['iterations_mean']:.1f}")  # fmt: skip
+    console().print(t)
+    typer.echo(f"default (robust) update meets issue 17's rule: {res.rule_met()}")
 
 
 @app.command("oma")
@@ -79,24 +95,35 @@ def oma(
         float, typer.Option("--segment", help="Path length per FRF [m] (path coordinates in m).")
     ] = 0.05,
     nperseg: Annotated[int, typer.Option(help="Welch window [samples].")] = 512,
+    noverlap: Annotated[
+        int | None, typer.Option(help="Welch overlap [samples] (default half a window).")
+    ] = None,
+    window: Annotated[str, typer.Option(help="Window (SciPy name: hann, boxcar, ...).")] = "hann",
     fmin: Annotated[float, typer.Option(help="Lowest frequency [Hz].")] = 2.0,
     fmax: Annotated[float, typer.Option(help="Highest frequency [Hz].")] = 40.0,
     rpm: Annotated[
         float | None, typer.Option(help="Spindle speed [rpm]: flags its harmonics.")
     ] = None,
+    min_coherence: Annotated[float, typer.Option(help="Bins below are flagged.")] = 0.5,
     json_out: JsonFlag = False,
 ) -> None:
-    """OMA compliance FRFs per path segment from a milling record (flagged bins stored)."""
+    """OMA compliance FRFs per path segment from a milling record (flagged bins stored).
+
+    The record is a cut along the path (path_s_m column) or in the workspace (x_m, y_m,
+    rz_deg columns); a warning says when too few bins pass the coherence check.
+    """
     from ..hybrid import oma_frfs_with_path
     from ..io import read_milling_record_csv, write_frfs
 
     frfs = oma_frfs_with_path(
         read_milling_record_csv(record), direction=direction, segment_length_m=segment_m,
-        nperseg=nperseg, f_min_hz=fmin, f_max_hz=fmax, spindle_rpm=rpm,
+        nperseg=nperseg, noverlap=noverlap, window=window, f_min_hz=fmin, f_max_hz=fmax,
+        spindle_rpm=rpm, min_coherence=min_coherence,
     )  # fmt: skip
     write_frfs(output, frfs, inputs=[record])
     flagged = [np.asarray(f.meta["flagged"], bool) for f in frfs]
     doc = {"output": str(output), "segments": len(frfs), "s_mid_m": [f.meta["path_s_m"] for f in frfs],
+           "n_bins": int(frfs[0].frequency_hz.size), "df_hz": float(frfs[0].df_hz),
            "flagged_fraction": float(np.mean([fl.mean() for fl in flagged]))}  # fmt: skip
     if json_out:
         emit_json(doc)
@@ -121,23 +148,34 @@ def fit(
     df_hz: Annotated[
         float, typer.Option("--df", help="Model grid step [Hz] (match the OMA resolution).")
     ] = 1.953125,
+    inputs: Annotated[
+        str,
+        typer.Option(
+            help="Pose inputs: path (the path coordinate s, m) or workspace (x, y in m, rz in deg from each FRF's pose; ARD kernel)."
+        ),
+    ] = "path",
     json_out: JsonFlag = False,
 ) -> None:
-    """Initial per-bin GP model of the compliance over the path from EMA FRFs."""
-    from ..hybrid import FRFPoseModel, frfs_on_path_grid
+    """Initial per-bin GP model of the compliance over the path or the workspace from EMA FRFs."""
+    from ..hybrid import INPUT_SETS, FRFPoseModel, frfs_on_grid
     from ..io import read_frfs
 
+    if inputs not in INPUT_SETS:
+        raise ValueError(f"--inputs must be one of {list(INPUT_SETS)}, got {inputs!r}")
+    names = INPUT_SETS[inputs]
     frfs = [f for path in ema for f in read_frfs(path)]
     if fmin is None:
         fmin = max([2.0, *(float(f.frequency_hz[0]) for f in frfs)])
     grid = np.arange(fmin, fmax + 1e-9, df_hz)
-    h, s, m = frfs_on_path_grid(frfs, grid)
-    model = FRFPoseModel(grid).fit(s, h, mask=m)
-    model.save(output, inputs=ema)
+    h, s, m, _ = frfs_on_grid(frfs, grid, names)
+    kernel = "isotropic" if inputs == "path" else "ard"
+    model = FRFPoseModel(grid, kernel=kernel, input_names=names).fit(s, h, mask=m)
+    model.save(output, provenance={"ema_files": ",".join(str(p) for p in ema)}, inputs=ema)
     doc = {
         "output": str(output),
         "n_frfs": len(s),
         "n_bins": int(grid.size),
+        "input_names": list(names),
         "iterations_mean": model.last_report_.iterations_mean_per_gp,
     }
     if json_out:
@@ -152,32 +190,59 @@ def update(
     oma_file: Annotated[Path, typer.Argument(help="OMA FRFs from `hybrid oma`.")],
     output: OutOpt,
     mode: Annotated[
-        str, typer.Option(help="warm (re-optimise from the current hyperparameters) or posterior.")
-    ] = "warm",
+        str,
+        typer.Option(
+            help="robust (bias check and rejection, OMA noise by marginal likelihood), posterior, or warm (re-optimise from the current hyperparameters)."
+        ),
+    ] = "robust",
+    reoptimize: Annotated[
+        bool, typer.Option(help="robust only: then re-optimise all hyperparameters (warm start).")
+    ] = False,
     json_out: JsonFlag = False,
 ) -> None:
-    """Bayesian update of the model with OMA FRFs (separate noise level for OMA)."""
-    from ..hybrid import FRFPoseModel, frfs_on_path_grid
+    """Bayesian update of the model with OMA FRFs (separate noise level for OMA); says what was rejected."""
+    from ..hybrid import FRFPoseModel, frfs_on_grid
     from ..io import read_frfs
 
     model = FRFPoseModel.load(model_file)
-    h, s, m = frfs_on_path_grid(read_frfs(oma_file), model.frequency_hz, partial=True)
-    rep = model.update(s, h, mask=m, mode=mode)
-    model.save(output, inputs=[model_file, oma_file])
-    doc = {"output": str(output), "n_oma": len(s), "mode": mode,
-           "iterations_mean": rep.iterations_mean_per_gp, "wall_time_s": rep.wall_time_s}  # fmt: skip
+    h, s, m, err = frfs_on_grid(
+        read_frfs(oma_file), model.frequency_hz, model.input_names, partial=True
+    )
+    rep = model.update(s, h, mask=m, mode=mode, noise_std=err, reoptimize=reoptimize)
+    model.save(output, provenance={"updated_with": str(oma_file), "update_mode": mode},
+               inputs=[model_file, oma_file])  # fmt: skip
+    doc = {"output": str(output), "n_oma": len(s), **rep.to_dict()}
     if json_out:
         emit_json(doc)
     else:
         typer.echo(
             f"wrote {output}: updated with {len(s)} OMA FRFs ({mode}, {rep.iterations_mean_per_gp:.1f} iterations per GP)"
         )
+        if mode == "robust":
+            typer.echo(
+                f"rejected {rep.n_rejected} of {rep.n_observations} OMA bins "
+                f"({100 * rep.rejected_fraction:.0f} %); whole bins: "
+                f"{', '.join(f'{f:.2f}' for f in rep.rejected_bins_hz) or 'none'} Hz; source scale "
+                f"{abs(rep.scale):.3f} ({'applied' if rep.scale_applied else 'not applied'})"
+            )
 
 
 @app.command("predict")
 def predict(
     model_file: Annotated[Path, typer.Argument(help="Model file.")],
-    path_s: Annotated[float, typer.Option("--path-s", help="Path coordinate [m].")],
+    path_s: Annotated[
+        float | None, typer.Option("--path-s", help="Path coordinate [m] (path models).")
+    ] = None,
+    x_mm: Annotated[
+        float | None, typer.Option("--x", help="Tool-tip X [mm] (workspace models).")
+    ] = None,
+    y_mm: Annotated[
+        float | None, typer.Option("--y", help="Tool-tip Y [mm] (workspace models).")
+    ] = None,
+    rz_deg: Annotated[
+        float | None,
+        typer.Option("--rz", help="Rotation about the tool axis [deg] (workspace models)."),
+    ] = None,
     measured: Annotated[
         Path | None, typer.Option(help="A measured FRF file to compare with (first FRF).")
     ] = None,
@@ -189,13 +254,23 @@ def predict(
     ] = None,
     json_out: JsonFlag = False,
 ) -> None:
-    """Predicted compliance FRF at a path coordinate, with a band; optional comparison."""
+    """Predicted compliance FRF at a path coordinate or a workspace pose, with a band."""
     from ..hybrid import FRFPoseModel, plot_frf_prediction, predict_frf_at
     from ..io import read_frfs
 
     model = FRFPoseModel.load(model_file)
+    if tuple(model.input_names) == ("s_m",):
+        if path_s is None:
+            raise ValueError("this model is over the path coordinate: give --path-s [m]")
+        pose = path_s
+    else:
+        if None in (x_mm, y_mm, rz_deg):
+            raise ValueError(
+                f"this model's inputs are {tuple(model.input_names)}: give --x [mm] --y [mm] --rz [deg]"
+            )
+        pose = (x_mm / 1e3, y_mm / 1e3, rz_deg)
     meas = read_frfs(measured)[0] if measured is not None else None
-    pred = predict_frf_at(model, path_s, meas)
+    pred = predict_frf_at(model, pose, meas)
     doc = pred.to_dict()
 
     def draw() -> None:
@@ -208,7 +283,7 @@ def predict(
         draw()
         return
     if pred.extrapolating:
-        typer.echo("warning: the path coordinate is outside the calibrated range: extrapolation")
+        typer.echo("warning: the pose is outside the calibrated range: extrapolation")
     h, sd = pred.compliance_m_per_n, pred.std_m_per_n
     peak = int(np.argmax(np.abs(h)))
     typer.echo(
@@ -239,7 +314,7 @@ def next_poses(
     json_out: JsonFlag = False,
 ) -> None:
     """Where to hammer next along the chapter-4 path: largest integrated predictive variance."""
-    from ..hybrid.study import plot_next_poses, propose_next_poses
+    from ..studies.hybrid import plot_next_poses, propose_next_poses
 
     tested = path_s if path_s else [0.0, 0.585, 1.235]
     res = propose_next_poses(tested, k=k, direction=direction, rng=seed)

@@ -62,7 +62,7 @@ def predict(
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..gp.study import fit_chapter3_model
+    from ..gp import get_chapter3_model
     from ..io import read_force_csv
     from ..milling import CuttingConditions
     from ..milling.prediction import resample_force
@@ -71,7 +71,7 @@ def predict(
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
     f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
     res = predict_at_pose(
-        fit_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
+        get_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
@@ -101,105 +101,263 @@ def predict(
     con.print(t)
 
 
+TeethOpt = Annotated[int, typer.Option("--teeth", help="Number of teeth (flutes) of the tool.")]
+DiameterOpt = Annotated[float, typer.Option("--diameter", help="Tool diameter [mm].")]
+HelixOpt = Annotated[
+    float,
+    typer.Option("--helix", help="Helix angle [deg] (forces; the stability methods ignore it)."),
+]
+KtOpt = Annotated[
+    float | None,
+    typer.Option("--kt", help="Tangential cutting coefficient [N/m²] (overrides --material)."),
+]
+KnOpt = Annotated[
+    float | None,
+    typer.Option("--kn", help="Radial (normal) cutting coefficient [N/m²] (overrides --material)."),
+]
+RadialOpt = Annotated[
+    float | None,
+    typer.Option("--radial-immersion", help="Radial immersion a/D [-] (instead of --ae)."),
+]
+MillingOpt = Annotated[str, typer.Option("--milling", help="up or down milling.")]
+StepsOpt = Annotated[
+    int,
+    typer.Option("--steps", help="SDM steps across the cut (40; 20 is ~4x faster, <1 % change)."),
+]
+MethodOpt = Annotated[
+    str,
+    typer.Option("--method", help="sdm (semi-discretization, flip lobes) or zoa (zero-order)."),
+]
+
+
+def _cutting(material_name, kt, kn, diameter, teeth, helix, ae, radial_immersion, milling):
+    """Tool, conditions and coefficients from the shared options (SI)."""
+    from dataclasses import replace
+
+    from ..milling import CuttingConditions, MillingTool
+
+    if milling not in ("up", "down"):
+        raise ValueError(f"--milling must be 'up' or 'down', got {milling!r}")
+    tool = MillingTool(diameter_m=diameter / 1e3, n_flutes=teeth, helix_deg=helix)
+    if radial_immersion is not None:
+        if not 0 < radial_immersion <= 1:
+            raise ValueError(f"--radial-immersion is a/D in (0, 1], got {radial_immersion}")
+        ae_m = radial_immersion * tool.diameter_m
+    else:
+        ae_m = ae / 1e3
+    cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae_m, down_milling=milling == "down")
+    coef = material(material_name)
+    if kt is not None:
+        coef = replace(coef, ktc=kt)
+    if kn is not None:
+        coef = replace(coef, krc=kn)
+    return tool, cond, coef
+
+
 @app.command("lobes")
 def lobes(
-    x: XOpt,
-    y: YOpt,
-    rz: RzOpt,
+    x: Annotated[float | None, typer.Option("--x", help="Tool-tip X [mm] (pose model).")] = None,
+    y: Annotated[float | None, typer.Option("--y", help="Tool-tip Y [mm].")] = None,
+    rz: Annotated[
+        float | None, typer.Option("--rz", help="Rotation about the tool axis [deg].")
+    ] = None,
+    method: MethodOpt = "sdm",
+    mode: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--mode", help="Explicit mode DIR:FN_HZ,K_N_PER_M,ZETA (repeat; DIR x=feed, y=normal)."
+        ),
+    ] = None,
+    frf: Annotated[
+        Path | None,
+        typer.Option(
+            "--frf",
+            help="Measured tool-tip FRFs: .h5, .uff or .csv (frequency_hz, x_real_<unit>, ...).",
+        ),
+    ] = None,
+    teeth: TeethOpt = 2,
+    diameter: DiameterOpt = 25.4,
+    helix: HelixOpt = 30.0,
     ae: AeOpt = 6.0,
+    radial_immersion: RadialOpt = None,
+    milling: MillingOpt = "down",
     material_name: MaterialOpt = "al7075",
+    kt: KtOpt = None,
+    kn: KnOpt = None,
     feed: FeedOpt = "x",
-    rpm_min: Annotated[float, typer.Option(help="Lowest speed of the plot [rpm].")] = 100.0,
-    rpm_max: Annotated[float, typer.Option(help="Highest speed of the plot [rpm].")] = 3000.0,
-    plot: Annotated[Path | None, typer.Option(help="PNG of the lobes.")] = None,
+    rpm_range: Annotated[
+        str, typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm].")
+    ] = "100:3000:200",
+    cuts: Annotated[
+        Path | None,
+        typer.Option("--cuts", help="Test cuts CSV: spindle_rpm,depth_mm,result (stable/chatter)."),
+    ] = None,
+    operating_point: Annotated[
+        str | None,
+        typer.Option("--operating-point", help="RPM,DEPTH_MM drawn on the chart and checked."),
+    ] = None,
+    samples: Annotated[
+        int,
+        typer.Option(
+            help="Pose model only: samples of its predictive distribution (shaded lobes)."
+        ),
+    ] = 0,
+    steps: StepsOpt = 40,
+    plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
-    """Stability lobes (zero-order method) from the pose's predicted X/Y modes."""
-    from ..gp.study import fit_chapter3_model
-    from ..milling import CuttingConditions, MillingTool
-    from ..milling.stability import stability_lobes
-    from ..milling.workflow import pose_modes
+    """Stability lobes (envelope) from explicit modes, a measured FRF or the pose model's modes."""
+    from ..milling.chart import (
+        lobes_chart,
+        parse_mode_spec,
+        parse_operating_point,
+        parse_rpm_range,
+        plot_lobes_chart,
+    )
 
-    modes, _, _ = pose_modes(fit_chapter3_model(rng=seed), x, y, rz)
-    cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae / 1e3)
-    feed_dir, normal = ("x", "y") if feed == "x" else ("y", "x")
-    result = stability_lobes(
-        [modes[feed_dir]], [modes[normal]], MillingTool(), cond, material(material_name),
-        n_lobes=40,
+    tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
+                                radial_immersion, milling)  # fmt: skip
+    parsed = [parse_mode_spec(m) for m in (mode or [])]
+    modes_x = [m for d, m in parsed if d == "x"]
+    modes_y = [m for d, m in parsed if d == "y"]
+    model, pose, pose_label = None, None, None
+    if not parsed and frf is None:
+        if x is None or y is None or rz is None:
+            raise ValueError("give --x --y --rz (pose model), --mode ... or --frf FILE")
+        from ..gp import get_chapter3_model
+
+        model, pose = get_chapter3_model(rng=seed), (x, y, rz)
+        pose_label = f"X {x:g} mm, Y {y:g} mm, Rz {rz:g}°, feed {feed}"
+    chart = lobes_chart(
+        tool=tool, conditions=cond, coefficients=coef, spindle_rpm=parse_rpm_range(rpm_range),
+        method=method, modes_x=modes_x, modes_y=modes_y, frf_file=frf, cuts_file=cuts,
+        operating_point=None if operating_point is None else parse_operating_point(operating_point),
+        pose_label=pose_label, material_label=material_name if kt is None and kn is None else
+        f"Kt {coef.ktc:.3g}, Kn {coef.krc:.3g} N/m²", pose_model=model, pose=pose,
+        feed_direction=feed, n_samples=samples, rng=seed, steps_per_period=steps,
     )  # fmt: skip
-    speeds = np.linspace(rpm_min, rpm_max, 200)
-    crit = result.critical_depth(speeds)
-    doc = {
-        "minimum_critical_depth_mm": 1e3 * result.minimum_depth_m,
-        "spindle_rpm": speeds,
-        "critical_depth_mm": 1e3 * crit,
-    }
-    if json_out:
-        emit_json(doc)
-    else:
-        typer.echo(
-            f"minimum critical axial depth (all speeds): {doc['minimum_critical_depth_mm']:.3f} mm"
-        )
-        best = int(np.argmax(crit))
-        typer.echo(
-            f"most stable speed in {rpm_min:g}-{rpm_max:g} rpm: {speeds[best]:.0f} rpm ({1e3 * crit[best]:.2f} mm)"
-        )
     if plot is not None:
         use_agg()
-        result.plot(path=plot, rpm_range=(rpm_min, rpm_max))
-        if not json_out:
-            typer.echo(f"wrote {plot}")
+        save_figure(plot_lobes_chart(chart), plot)
+    doc = chart.to_dict()
+    if json_out:
+        emit_json({"pose_mm_deg": pose, "material": material_name, **doc})
+        return
+    env = chart.envelope
+    typer.echo(f"{chart.title.splitlines()[0]}")
+    if doc["minimum_depth_m"] is not None:
+        typer.echo(
+            f"depth stable at every speed ({method.upper()}): {1e3 * doc['minimum_depth_m']:.3f} mm"
+        )
+    if doc["most_stable_rpm"] is not None:
+        typer.echo(
+            f"most stable speed: {doc['most_stable_rpm']:.0f} rpm ({1e3 * doc['most_stable_depth_m']:.2f} mm)"
+        )
+    else:
+        typer.echo("no interior maximum of the envelope in the speed range: widen --rpm-range")
+    n_flip = int(np.sum(env.kind == "flip"))
+    if n_flip:
+        typer.echo(f"{n_flip} of {env.kind.size} speeds limited by flip (period-doubling) lobes")
+    if chart.operating_point is not None:
+        state = {True: "stable", False: "CHATTER", None: "outside the speed range"}[
+            chart.operating_point_stable
+        ]
+        typer.echo(
+            f"operating point {chart.operating_point[0]:.0f} rpm, {1e3 * chart.operating_point[1]:.2f} mm: {state}"
+        )
+    if plot is not None:
+        typer.echo(f"wrote {plot}")
 
 
 @app.command("map")
 def lobe_map(
     rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")] = 0.0,
     rpm: RpmOpt = 1750.0,
+    rpm_range: Annotated[
+        str | None,
+        typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm] (default: --rpm only)."),
+    ] = None,
+    method: Annotated[str, typer.Option("--method", help="zoa (fast) or sdm.")] = "zoa",
+    teeth: TeethOpt = 2,
+    diameter: DiameterOpt = 25.4,
+    helix: HelixOpt = 30.0,
     ae: AeOpt = 6.0,
+    radial_immersion: RadialOpt = None,
+    milling: MillingOpt = "down",
     material_name: MaterialOpt = "al7075",
+    kt: KtOpt = None,
+    kn: KnOpt = None,
     feed: FeedOpt = "x",
     nx: Annotated[int, typer.Option(help="Grid points in X.")] = 13,
     ny: Annotated[int, typer.Option(help="Grid points in Y.")] = 10,
-    plot: Annotated[Path | None, typer.Option(help="PNG heat map over X-Y.")] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Dask scheduler: sync, threads, processes or tcp://host:port (a cluster)."
+        ),
+    ] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Local Dask workers (default: all cores).")
+    ] = None,
+    chunk: Annotated[int, typer.Option(help="Poses per Dask task.")] = 4,
+    steps: StepsOpt = 40,
+    output: Annotated[
+        Path | None, typer.Option("-o", "--output", help="NetCDF (.nc) of the map.")
+    ] = None,
+    plot: Annotated[Path | None, typer.Option(help="PNG map over X-Y at --rpm.")] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
-    """Critical axial depth at a spindle speed over the workspace: where to mill."""
+    """Critical axial depth over the workspace × spindle speeds (Dask): where and how fast to mill."""
     from rich.progress import Progress
 
-    from ..gp.study import fit_chapter3_model
-    from ..milling import CuttingConditions, MillingTool
-    from ..milling.workflow import best_pose, plot_lobe_map, workspace_lobe_map
+    from ..gp import get_chapter3_model
+    from ..milling.chart import parse_rpm_range
+    from ..milling.maps import plot_lobe_map, save_lobe_map, workspace_lobe_map
 
+    tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
+                                radial_immersion, milling)  # fmt: skip
+    speeds = np.array([rpm]) if rpm_range is None else np.union1d(parse_rpm_range(rpm_range), [rpm])
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
-    model = fit_chapter3_model(rng=seed)
-    cond = CuttingConditions(rpm, 1e-4, 1e-3, ae / 1e3)
+    model = get_chapter3_model(rng=seed)
     with Progress(transient=True, disable=json_out) as bar:
-        task = bar.add_task("lobes over the workspace", total=nx * ny)
-        grid = workspace_lobe_map(
-            model, rz, MillingTool(), cond, material(material_name), x_mm=xs, y_mm=ys,
-            feed_direction=feed, progress=lambda done, total: bar.update(task, completed=done),
+        task = bar.add_task(f"{method.upper()} lobes over the workspace", total=None)
+        ds = workspace_lobe_map(
+            model, xs, ys, [rz], speeds, tool, cond, coef, method=method, feed_direction=feed,
+            scheduler=scheduler, n_workers=workers, poses_per_chunk=chunk,
+            **({"steps_per_period": steps} if method == "sdm" else {}),
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
         )  # fmt: skip
-    best = best_pose(xs, ys, grid)
+    if output is not None:
+        save_lobe_map(ds, output)
+    if plot is not None:
+        use_agg()
+        save_figure(plot_lobe_map(ds, spindle_rpm=rpm), plot)
+    at = ds["a_lim_m"].sel(spindle_rpm=rpm, rz_deg=rz)
+    vals = np.where(np.isfinite(at.values), at.values, np.nan)
+    i, j = np.unravel_index(np.nanargmax(vals), vals.shape)
     doc = {
+        "method": method,
+        "rz_deg": rz,
+        "spindle_rpm": rpm,
         "x_mm": xs,
         "y_mm": ys,
-        "critical_depth_mm": grid * 1e3,
-        "best_pose_mm": best["best_pose_mm"],
-        "best_depth_mm": best["best_depth_mm"],
+        "critical_depth_m": vals.T,
+        "best_pose_mm": [float(xs[i]), float(ys[j])],
+        "best_depth_m": float(vals[i, j]),
+        "shallowest_depth_m": float(np.nanmin(vals)),
+        "netcdf": None if output is None else str(output),
+        "settings": ds.attrs["settings"],
+        "robovib_version": ds.attrs["robovib_version"],
     }
     if json_out:
         emit_json(doc)
-    else:
-        bx, by = best["best_pose_mm"]
-        typer.echo(
-            f"deepest stable cut at X={bx:.0f}, Y={by:.0f} mm: {best['best_depth_mm']:.2f} mm; "
-            f"shallowest: {best['shallowest_depth_mm']:.2f} mm"
-        )
-    if plot is not None:
-        use_agg()
-        title = f"critical depth at {rpm:g} rpm, Rz = {rz:g}°, ae = {ae:g} mm"
-        save_figure(plot_lobe_map(xs, ys, grid, title=title), plot)
-        if not json_out:
-            typer.echo(f"wrote {plot}")
+        return
+    typer.echo(
+        f"deepest stable cut at {rpm:g} rpm: X={xs[i]:.0f}, Y={ys[j]:.0f} mm: {1e3 * vals[i, j]:.2f} mm; "
+        f"shallowest: {1e3 * np.nanmin(vals):.2f} mm ({method.upper()})"
+    )
+    for path in (output, plot):
+        if path is not None:
+            typer.echo(f"wrote {path}")

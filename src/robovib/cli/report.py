@@ -80,6 +80,9 @@ def lobes(
     feed: Annotated[str, typer.Option(help="Feed direction in the base frame: x or y.")] = "x",
     rpm_min: Annotated[float, typer.Option(help="Lowest speed [rpm].")] = 100.0,
     rpm_max: Annotated[float, typer.Option(help="Highest speed [rpm].")] = 3000.0,
+    method: Annotated[
+        str, typer.Option(help="zoa (zero-order, fast) or sdm (semi-discretisation, flip lobes).")
+    ] = "zoa",
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
@@ -88,7 +91,7 @@ def lobes(
 
     _check(output)
     _done(lobes_study_report(x, y, rz, ae_mm=ae, material=material_name, feed=feed,
-                             rpm_range=(rpm_min, rpm_max), rng=seed), output, json_out)  # fmt: skip
+                             rpm_range=(rpm_min, rpm_max), method=method, rng=seed), output, json_out)  # fmt: skip
 
 
 @app.command("control")

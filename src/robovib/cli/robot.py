@@ -153,16 +153,16 @@ def compare(
     json_out: JsonFlag = False,
 ) -> None:
     """Analytical model vs Table A1 measurements: relative errors of fn and stiffness per direction."""
-    from ..robot.compare import (
+    from ..studies.analytical import (
         compare_with_table_a1,
         comparison_summary,
         gp_input_comparison,
         plot_comparison,
     )
 
-    table = compare_with_table_a1()
+    table = compare_with_table_a1().to_frame()
     summary = comparison_summary(table)
-    gp = gp_input_comparison() if gp_inputs else None
+    gp = gp_input_comparison().to_frame() if gp_inputs else None
 
     def draw() -> None:
         if plot is not None:

@@ -14,7 +14,6 @@ from .lqr import (
     design_lqr,
     discretize,
     loop_margins,
-    table_9_comparison,
     tune_r_for_delay,
 )
 
@@ -32,6 +31,5 @@ __all__ = [
     "design_lqr",
     "discretize",
     "loop_margins",
-    "table_9_comparison",
     "tune_r_for_delay",
 ]

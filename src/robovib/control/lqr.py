@@ -12,7 +12,7 @@ The thesis prints ``A = [[0, 1], [-k, -c]]`` and ``c = 2 m wn / zeta`` (Eq. 21-2
 wrong (k and c must be divided by m) and the damping relation inverted (``c = 2 zeta m wn``).
 The physical form is the default; ``formulation="thesis_printed"`` builds the printed matrices
 (``B = [0, 1/m]``, SI) for comparison only. Neither reproduces Table 9's absolute gains (see
-:func:`table_9_comparison`); the displacement-input physical model reproduces all the trends
+:func:`robovib.studies.table9.table_9_comparison`); the displacement-input physical model reproduces all the trends
 the thesis states.
 
 Discretisation (Eq. 19-20) is the exact zero-order hold through the matrix exponential of the
@@ -45,7 +45,6 @@ __all__ = [
     "design_lqr",
     "discretize",
     "loop_margins",
-    "table_9_comparison",
     "tune_r_for_delay",
 ]
 
@@ -231,35 +230,6 @@ def delay_analysis(
         else:
             break
     return DelayAnalysis(steps, rho, rho < 1, max_ok, max_ok * design.period_s)
-
-
-def table_9_comparison(period_s: float = 0.004) -> list[dict]:
-    """Gains from the thesis' Table 8 predictions under each formulation, beside Table 9."""
-    from ..datasets import load_reference_table
-
-    t8 = load_reference_table(8)
-    t9 = load_reference_table(9).set_index("position")
-    rows = []
-    for form, inp in (
-        ("physical", "displacement"),
-        ("physical", "force"),
-        ("thesis_printed", "force"),
-    ):
-        for _, row in t8[t8["kind"] == "predicted"].iterrows():
-            pos = int(row["position"])
-            for d in ("x", "z"):
-                mode = ModalParameters(
-                    row[f"fn_{d}_hz"],
-                    row[f"stiffness_{d}_mn_per_m"] * 1e6,
-                    row[f"damping_ratio_{d}"],
-                )
-                w = design_lqr(mode, period_s, input=inp, formulation=form).gains
-                rows.append({
-                    "formulation": form, "input": inp, "position": pos, "direction": d,
-                    "w1": float(w[0]), "w2": float(w[1]),
-                    "thesis_w1": float(t9.loc[pos, f"w1_{d}"]), "thesis_w2": float(t9.loc[pos, f"w2_{d}"]),
-                })  # fmt: skip
-    return rows
 
 
 def tune_r_for_delay(

@@ -21,6 +21,8 @@ import warnings
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.exceptions import NotFittedError
 
 from .regressor import BatchedGPRegressor
 
@@ -33,7 +35,7 @@ def symmetric_rz_features(X: np.ndarray) -> np.ndarray:
     return np.column_stack([X[:, 0], X[:, 1], np.cos(np.radians(2.0 * X[:, 2]))])
 
 
-class ModeSwitchingGPRegressor:
+class ModeSwitchingGPRegressor(BaseEstimator):
     """Multi-output GP with a classified switch of the dominant mode in some outputs.
 
     Parameters
@@ -49,6 +51,8 @@ class ModeSwitchingGPRegressor:
         :func:`symmetric_rz_features` where Rz = 0° and 180° are the same configuration.
     kernel, rng
         Passed to the underlying :class:`BatchedGPRegressor` models.
+    n_noise_groups
+        Number of noise groups (``fit(..., groups=...)``), passed to the regressors.
 
     Attributes
     ----------
@@ -66,6 +70,7 @@ class ModeSwitchingGPRegressor:
         classifier_features: Callable[[np.ndarray], np.ndarray] | None = None,
         kernel: str = "ard",
         rng: int | np.random.Generator | None = 0,
+        n_noise_groups: int = 1,
     ) -> None:
         self.switching_outputs = switching_outputs
         self.indicator_output = indicator_output
@@ -73,8 +78,31 @@ class ModeSwitchingGPRegressor:
         self.classifier_features = classifier_features
         self.kernel = kernel
         self.rng = rng
+        self.n_noise_groups = n_noise_groups
 
-    def fit(self, X, Y, mask=None) -> ModeSwitchingGPRegressor:
+    def _regressor(self) -> BatchedGPRegressor:
+        return BatchedGPRegressor(
+            kernel=self.kernel, rng=self.rng, n_noise_groups=self.n_noise_groups
+        )
+
+    def fit(self, X, Y, mask=None, groups=None) -> ModeSwitchingGPRegressor:
+        """Fit the low-mode GP, the high-mode GP and the classifier.
+
+        Parameters
+        ----------
+        X
+            (n, d) inputs.
+        Y
+            (n, n_outputs) targets; NaN where not observed.
+        mask
+            Optional (n, n_outputs) bool, ``True`` where observed (default: finite ``Y``).
+        groups
+            Optional (n,) int noise group of each sample.
+
+        Returns
+        -------
+        self
+        """
         from sklearn.gaussian_process import GaussianProcessClassifier
         from sklearn.gaussian_process.kernels import RBF
         from sklearn.gaussian_process.kernels import ConstantKernel as C
@@ -84,6 +112,7 @@ class ModeSwitchingGPRegressor:
         if Y.ndim != 2:
             raise ValueError(f"Y must be 2-D (n_samples, n_outputs), got shape {Y.shape}")
         mask = np.isfinite(Y) if mask is None else np.asarray(mask, bool)
+        groups = None if groups is None else np.asarray(groups)
         switching = np.asarray(self.switching_outputs, dtype=int)
         if self.indicator_output not in switching:
             raise ValueError("indicator_output must be one of switching_outputs")
@@ -94,9 +123,7 @@ class ModeSwitchingGPRegressor:
 
         low_mask = mask.copy()
         low_mask[np.ix_(high, switching)] = False
-        self.low_model_ = BatchedGPRegressor(kernel=self.kernel, rng=self.rng).fit(
-            X, Y, mask=low_mask
-        )
+        self.low_model_ = self._regressor().fit(X, Y, mask=low_mask, groups=groups)
 
         self.high_model_ = None
         if self.n_high_ >= 3:
@@ -104,8 +131,8 @@ class ModeSwitchingGPRegressor:
             m_high = mask[np.ix_(high, switching)]
             spread = np.nanstd(np.where(m_high, y_high, np.nan), axis=0)
             if np.all(spread > 0):
-                self.high_model_ = BatchedGPRegressor(kernel=self.kernel, rng=self.rng).fit(
-                    X[high], y_high, mask=m_high
+                self.high_model_ = self._regressor().fit(
+                    X[high], y_high, mask=m_high, groups=None if groups is None else groups[high]
                 )
         self._high_mean = (
             np.nanmean(
@@ -137,14 +164,91 @@ class ModeSwitchingGPRegressor:
         self._all_high = labels.size > 0 and labels.all()
         return self
 
+    def update(
+        self, X_new, Y_new, mask=None, groups=None, *, mode: str = "posterior"
+    ) -> ModeSwitchingGPRegressor:
+        """Bayesian update with new samples (same names as :meth:`BatchedGPRegressor.update`).
+
+        New samples are split by ``threshold`` as in :meth:`fit`: the low-mode GP gets every
+        sample (switching outputs of high-mode samples masked), the high-mode GP the high-mode
+        samples, the classifier the new labels. ``mode="posterior"`` keeps every
+        hyperparameter (the GPs' and the classifier kernel's); ``"warm"`` re-optimises them from
+        the current values.
+
+        Raises
+        ------
+        NotFittedError
+            If not fitted.
+        ValueError
+            Unknown ``mode``; high-mode samples for a model without a high-mode GP, or both
+            labels for a model fitted with one (refit with :meth:`fit` then).
+        """
+        from sklearn.gaussian_process import GaussianProcessClassifier
+
+        self._require_fitted()
+        if mode not in ("posterior", "warm"):
+            raise ValueError(f"unknown update mode {mode!r}; expected 'posterior' or 'warm'")
+        X_new = np.asarray(X_new, float)
+        Y_new = np.asarray(Y_new, float)
+        mask = np.isfinite(Y_new) if mask is None else np.asarray(mask, bool)
+        groups = None if groups is None else np.asarray(groups)
+        sw = self._switching
+        observed = mask[:, self.indicator_output]
+        indicator = np.where(observed, Y_new[:, self.indicator_output], -np.inf)
+        high = observed & (indicator > self.threshold)
+        if np.any(high) and self.high_model_ is None:
+            raise ValueError("this model has no high-mode GP to update; refit it with fit()")
+        labels = high[observed]
+        if self.classifier_ is None and labels.size and labels.any() != self._all_high:
+            raise ValueError("the new samples add a second mode to a one-mode model; use fit()")
+        low_mask = mask.copy()
+        low_mask[np.ix_(high, sw)] = False
+        self.low_model_.update(
+            X_new, np.where(low_mask, Y_new, 0.0), low_mask, groups=groups, mode=mode
+        )
+        if np.any(high):
+            m_high = mask[np.ix_(high, sw)]
+            self.high_model_.update(
+                X_new[high],
+                np.where(m_high, Y_new[np.ix_(high, sw)], 0.0),
+                m_high,
+                groups=None if groups is None else groups[high],
+                mode=mode,
+            )
+            self.n_high_ += int(high.sum())
+        if self.classifier_ is not None and labels.size:
+            base = self.classifier_.base_estimator_
+            xs = (self._features(X_new[observed]) - self._x_loc) / self._x_scale
+            rows = np.vstack(
+                [
+                    np.column_stack([base.X_train_, base.y_train_]),
+                    np.column_stack([xs, labels]),
+                ]
+            )
+            unique = np.unique(rows, axis=0)
+            kernel = base.kernel_
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message=".*close to the specified")
+                self.classifier_ = GaussianProcessClassifier(
+                    kernel, optimizer=None if mode == "posterior" else "fmin_l_bfgs_b"
+                ).fit(unique[:, :-1], unique[:, -1].astype(bool))
+        return self
+
     def high_mode_probability(self, X) -> np.ndarray:
         """Probability (n,) that the high mode is the dominant one at each input."""
+        self._require_fitted()
         X = np.asarray(X, float)
         if self.classifier_ is None:
             return np.full(X.shape[0], 1.0 if self._all_high else 0.0)
         return self.classifier_.predict_proba((self._features(X) - self._x_loc) / self._x_scale)[
             :, 1
         ]
+
+    def _require_fitted(self) -> None:
+        if not hasattr(self, "low_model_"):
+            raise NotFittedError(
+                "this ModeSwitchingGPRegressor is not fitted yet; call fit() first"
+            )
 
     def _features(self, X: np.ndarray) -> np.ndarray:
         return (
@@ -155,8 +259,7 @@ class ModeSwitchingGPRegressor:
 
     def predict(self, X, return_std: bool = False):
         """Mean (and std) of every output; switching outputs from the more probable mode."""
-        if not hasattr(self, "low_model_"):
-            raise RuntimeError("this ModeSwitchingGPRegressor is not fitted yet; call fit() first")
+        self._require_fitted()
         X = np.asarray(X, float)
         mean, std = self.low_model_.predict(X, return_std=True)
         use_high = self.high_mode_probability(X) > 0.5

@@ -34,7 +34,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy import optimize
+from scipy import linalg, optimize
+from sklearn.base import BaseEstimator
+from sklearn.exceptions import NotFittedError
 
 from .optimize import batched_bfgs
 
@@ -107,7 +109,7 @@ def _as_2d_float(name: str, value, ndim_hint: str) -> np.ndarray:
     return arr
 
 
-class BatchedGPRegressor:
+class BatchedGPRegressor(BaseEstimator):
     """Independent exact GPs for every output column, fitted and evaluated in one batch.
 
     Parameters
@@ -137,6 +139,14 @@ class BatchedGPRegressor:
         hyperparameters are then (B, G) and ``noise_std`` has that shape.
     rng
         Seed or :class:`numpy.random.Generator` for the restarts.
+
+    Notes
+    -----
+    A scikit-learn estimator (:class:`sklearn.base.BaseEstimator`): the constructor stores its
+    arguments unchanged, so :func:`sklearn.base.clone`, ``get_params``/``set_params`` and the
+    repr work; using an unfitted model raises :class:`sklearn.exceptions.NotFittedError`.
+    Vocabulary shared by every robovib pose model: *noise groups* are given per sample as
+    ``groups`` (``n_noise_groups`` of them), and new data are added with :meth:`update`.
 
     Attributes
     ----------
@@ -175,6 +185,50 @@ class BatchedGPRegressor:
         self.initial_hyperparameters = initial_hyperparameters
         self.n_noise_groups = n_noise_groups
         self.rng = rng
+
+    def update(
+        self,
+        X_new,
+        Y_new,
+        mask=None,
+        groups=None,
+        *,
+        mode: Literal["posterior", "warm"] = "posterior",
+    ) -> BatchedGPRegressor:
+        """Bayesian update of a fitted model with new observations (thesis §5.2.4).
+
+        The one name for updating a robovib pose model (also :meth:`FRFPoseModel.update
+        <robovib.hybrid.FRFPoseModel.update>`).
+
+        Parameters
+        ----------
+        X_new
+            (m, n_features) new inputs.
+        Y_new
+            (m, n_outputs) new targets (or (m,) for a model fitted on a 1-D ``Y``).
+        mask
+            Optional boolean array like ``Y_new``: ``True`` where the target is observed.
+        groups
+            Optional (m,) int noise group of each new sample (needed when ``n_noise_groups > 1``).
+        mode
+            ``"posterior"``: keep the hyperparameters and recompute the posterior with the
+            enlarged data (Eq. 9-10); ``"warm"``: re-optimise the hyperparameters starting from
+            the current ones.
+
+        Returns
+        -------
+        self
+
+        Raises
+        ------
+        NotFittedError
+            If the model is not fitted.
+        ValueError
+            On an unknown ``mode`` or new data of the wrong shape.
+        """
+        if mode not in ("posterior", "warm"):
+            raise ValueError(f"unknown update mode {mode!r}; expected 'posterior' or 'warm'")
+        return self.add_observations(X_new, Y_new, mask, reoptimize=(mode == "warm"), groups=groups)
 
     # ------------------------------------------------------------------ validation
     def _check_params(self) -> None:
@@ -614,7 +668,7 @@ class BatchedGPRegressor:
     # ------------------------------------------------------------------ prediction
     def _require_fitted(self):
         if not hasattr(self, "_theta"):
-            raise RuntimeError("this BatchedGPRegressor is not fitted yet; call fit() first")
+            raise NotFittedError("this BatchedGPRegressor is not fitted yet; call fit() first")
 
     def predict(self, X, return_std: bool = False, include_noise: bool = False):
         """Posterior mean (Eq. 9) and, optionally, standard deviation (Eq. 10).
@@ -686,23 +740,54 @@ class BatchedGPRegressor:
     ) -> np.ndarray:
         """Eq. 33 for each output, in data units, at the fitted or the given hyperparameters.
 
-        With given hyperparameters the constant mean is taken from them (not re-estimated).
+        Parameters
+        ----------
+        hyperparameters
+            Hyperparameters in data units; their ``mean`` is the constant mean used (passed in,
+            not re-estimated). ``None``: the value at the fitted optimum.
+
+        Returns
+        -------
+        ndarray (n_outputs,)
+            log p(y | X, hyperparameters) of the observed targets of each output.
+
+        Raises
+        ------
+        NotFittedError
+            If the model is not fitted.
+        GPNumericalError
+            If a covariance matrix is not positive definite at the given hyperparameters.
         """
         self._require_fitted()
         if hyperparameters is None:
             return self.log_marginal_likelihood_value_.copy()
-        theta = self._theta_from_hyperparameters(hyperparameters, self.n_features_in_, clip=False)
-        x_s = self._x_s
-        mask = self.mask_
-        y = np.where(mask, self.Y_train_, 0.0) - np.asarray(hyperparameters.mean, float)
-        y_s = np.where(mask, y / self._y_scale, 0.0)
-        sq_diff = (x_s[:, None, :] - x_s[None, :, :]) ** 2
-        saved = self.mean
-        try:
-            self.mean = "zero"
-            nll, _, _ = self._nll_and_grad(
-                theta, y_s.T, mask.T, sq_diff, want_grad=False, allow_fail=False
-            )
-        finally:
-            self.mean = saved
-        return -nll - mask.sum(axis=0) * np.log(self._y_scale)
+        n_out, n_features = self.n_outputs_, self.n_features_in_
+        hp = hyperparameters
+        signal = np.broadcast_to(np.asarray(hp.signal_std, float), (n_out,))
+        lengths = np.broadcast_to(np.asarray(hp.length_scales, float), (n_out, n_features))
+        means = np.broadcast_to(np.asarray(hp.mean, float), (n_out,))
+        n_groups = int(self.n_noise_groups)
+        noise = np.asarray(hp.noise_std, float)
+        if n_groups == 1 and noise.ndim < 2:
+            noise = np.broadcast_to(noise, (n_out,))[:, None]
+        noise = np.broadcast_to(noise, (n_out, n_groups))
+        X = self.X_train_
+        groups = getattr(self, "_active_groups", None)
+        groups = np.zeros(X.shape[0], int) if groups is None else np.asarray(groups)
+        out = np.empty(n_out)
+        for b in range(n_out):
+            obs = self.mask_[:, b]
+            x = X[obs] / lengths[b]
+            d2 = np.sum((x[:, None, :] - x[None, :, :]) ** 2, axis=-1)
+            k = signal[b] ** 2 * np.exp(-0.5 * d2)
+            k[np.diag_indices_from(k)] += noise[b, groups[obs]] ** 2
+            r = self.Y_train_[obs, b] - means[b]
+            try:
+                chol = linalg.cholesky(k, lower=True)
+            except linalg.LinAlgError:
+                raise GPNumericalError(
+                    f"covariance of output {b} not positive definite at the given hyperparameters"
+                ) from None
+            a = linalg.solve_triangular(chol, r, lower=True)
+            out[b] = -0.5 * a @ a - np.sum(np.log(np.diag(chol))) - 0.5 * r.size * np.log(2 * np.pi)
+        return out

@@ -16,10 +16,11 @@ reported beside it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from sklearn.base import BaseEstimator, clone
+from sklearn.exceptions import NotFittedError
 from sklearn.linear_model import LinearRegression
 from sklearn.model_selection import GroupKFold, KFold
 from sklearn.pipeline import make_pipeline
@@ -97,7 +98,7 @@ def _check_validation_inputs(X, Y, mask):
 
 
 def cross_validate(
-    make_model: Callable[[], object],
+    estimator,
     X,
     Y,
     *,
@@ -110,9 +111,10 @@ def cross_validate(
 
     Parameters
     ----------
-    make_model
-        Zero-argument factory returning a fresh model with ``fit(X, Y, mask=...)`` and
-        ``predict(X)`` (e.g. ``lambda: BatchedGPRegressor(rng=0)``).
+    estimator
+        An unfitted scikit-learn-style estimator with ``fit(X, Y, mask=...)`` and
+        ``predict(X)`` (e.g. ``BatchedGPRegressor(rng=0)``); each fold fits a
+        :func:`sklearn.base.clone` of it, ``estimator`` itself is left untouched.
     X, Y
         (n, d) inputs and (n, B) targets.
     n_splits
@@ -123,7 +125,23 @@ def cross_validate(
         Optional (n, B) observed-target mask (NaN targets must be masked explicitly).
     rng
         Seed or Generator for the fold shuffle.
+
+    Returns
+    -------
+    CVResult
+
+    Raises
+    ------
+    TypeError
+        If ``estimator`` is not an estimator (e.g. a factory function).
+    ValueError
+        On bad shapes, NaN inputs or fewer samples/groups than folds.
     """
+    if not (hasattr(estimator, "fit") and hasattr(estimator, "get_params")):
+        raise TypeError(
+            f"estimator must be an unfitted scikit-learn-style estimator (with fit and "
+            f"get_params), got {type(estimator).__name__}; pass the model, not a factory"
+        )
     X, Y, mask = _check_validation_inputs(X, Y, mask)
     n = X.shape[0]
     if n_splits < 2:
@@ -150,7 +168,7 @@ def cross_validate(
     predictions = np.full(Y.shape, np.nan)
     folds = np.empty(n, dtype=int)
     for k, (train, test) in enumerate(splitter):
-        model = make_model()
+        model = clone(estimator)
         model.fit(X[train], Y[train], mask=mask[train])
         pred = np.asarray(model.predict(X[test]))
         predictions[test] = pred.reshape(len(test), -1)
@@ -159,7 +177,7 @@ def cross_validate(
     return CVResult(predictions, r2, r2c, rmse, folds, groups is not None)
 
 
-class PolynomialRegression:
+class PolynomialRegression(BaseEstimator):
     """Multivariate polynomial least squares (the thesis' 2nd-order MLR baseline, §3.3.2).
 
     A full polynomial of ``degree`` in all inputs (standardised first), one independent
@@ -186,7 +204,7 @@ class PolynomialRegression:
 
     def predict(self, X) -> np.ndarray:
         if not hasattr(self, "models_"):
-            raise RuntimeError("this PolynomialRegression is not fitted yet; call fit() first")
+            raise NotFittedError("this PolynomialRegression is not fitted yet; call fit() first")
         X = np.asarray(X, float)
         return np.column_stack([m.predict(X) for m in self.models_])
 

@@ -1,9 +1,12 @@
 """Hybrid EMA + OMA statistical model of the robot FRF with Bayesian updating (thesis ch. 5)."""
 
-from .model import FRFPoseModel, UpdateReport, frfs_on_grid
-from .oma import OMASegment, oma_frfs
+from .model import UPDATE_MODES, FRFPoseModel, UpdateReport
+from .oma import OMAQualityWarning, OMASegment, oma_frfs
 from .workflow import (
+    INPUT_SETS,
     FRFPrediction,
+    frf_pose,
+    frfs_on_grid,
     frfs_on_path_grid,
     oma_frfs_with_path,
     plot_frf_prediction,
@@ -11,10 +14,14 @@ from .workflow import (
 )
 
 __all__ = [
+    "INPUT_SETS",
+    "UPDATE_MODES",
     "FRFPoseModel",
     "FRFPrediction",
+    "OMAQualityWarning",
     "OMASegment",
     "UpdateReport",
+    "frf_pose",
     "frfs_on_grid",
     "frfs_on_path_grid",
     "oma_frfs",

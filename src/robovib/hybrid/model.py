@@ -7,12 +7,39 @@ Re/Im is consistent with both the physics and the noise; it keeps the phase (nee
 convolve forces, §3.5.2). A GP of |H| would lose the phase, and a GP of log|H| turns additive
 noise into a biased multiplicative one near anti-resonances.
 
-Sources: EMA (hammer, group 0) and OMA (milling, group 1) have separate noise
-hyperparameters (§5.2.4: different sensors). Updating with OMA FRFs (§5.2.4):
+The pose inputs are whatever ``input_names`` says: the path coordinate ``("s_m",)`` (thesis
+ch. 5) or workspace poses such as ``("x_mm", "y_mm", "rz_deg")`` or joint angles (the thesis'
+future work, §5.5); use ``kernel="ard"`` for several inputs of different units.
 
+Sources: EMA (hammer, group 0) and OMA (milling, group 1) have separate noise
+hyperparameters (§5.2.4: different sensors). Updating with OMA FRFs (:meth:`FRFPoseModel.update`):
+
+* ``"robust"`` (default) — *bias-aware* update, beyond the thesis. The OMA FRFs are checked
+  against the current (EMA) model's predictive distribution before they are used:
+
+  1. a complex scale of the OMA source (sensor-to-tool transfer, force-sensor gain): per bin
+     by weighted least squares on the predictive check (the maximum of the diagonal
+     marginal likelihood of the OMA data under the EMA model), pooled by a weighted median;
+     applied only if it is a property of the source: off 1 by > 10 %, at least half of the
+     bins agree with it (chi-square(2) <= ``chi2_reject``) and at most half as many agree
+     with 1 (leakage at a coarse resolution bends single bins, not all of them);
+  2. per bin: the mean standardised residual over the OMA segments (a systematic offset in
+     that bin: leakage at a sharp peak, a sensor resonance, a harmonic); bins whose bias
+     test exceeds ``chi2_reject`` are rejected for OMA;
+  3. per observation: bins of single segments whose standardised residual exceeds
+     ``chi2_reject`` are rejected (outliers);
+  4. the OMA noise of every bin (Re and Im) by maximising the marginal likelihood (Eq. 33)
+     of all kept data with the EMA kernel hyperparameters fixed, floored by the H1 random
+     error from the coherence when ``noise_std`` is given (Bendat & Piersol: relative error
+     ``sqrt((1 - γ²) / (2 n_d γ²))``);
+  5. the posterior (Eq. 9-10) with those hyperparameters.
+
+  The kernel hyperparameters stay those of the EMA fit, so OMA data can sharpen the
+  prediction between EMA poses but cannot reshape the prior (the failure of ``"warm"`` on
+  the Y direction of the study). What was rejected is in the :class:`UpdateReport`.
 * ``"posterior"`` — hyperparameters kept, Eq. 9-10 with the enlarged data (OMA noise = EMA's);
 * ``"warm"`` — hyperparameters re-optimised starting from the EMA optimum (the thesis' method);
-* full retraining = a new :meth:`fit` on all data from the default start.
+* full retraining = a new :meth:`FRFPoseModel.fit` on all data from the default start.
 
 Flagged OMA bins (harmonics, low coherence) enter as missing targets of those bins only.
 """
@@ -20,129 +47,208 @@ Flagged OMA bins (harmonics, low coherence) enter as missing targets of those bi
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+import warnings
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.exceptions import NotFittedError
 
-from ..gp.regressor import BatchedGPRegressor
+from ..gp.regressor import BatchedGPRegressor, GPHyperparameters
 
-__all__ = ["FRFPoseModel", "UpdateReport", "frfs_on_grid"]
+__all__ = ["FRFPoseModel", "UpdateReport"]
 
-#: Units of the datasets of a saved model (path coordinate s [m], compliance scaled to um/N).
-_DATASET_UNITS = {
-    "frequency_hz": "Hz", "X_train": "m", "Y_train": "um/N", "mask": "1", "groups": "1",
-    "theta": "1 (log hyperparameters of the scaled inputs/outputs)", "x_loc": "m", "x_scale": "m",
-    "y_loc": "um/N", "y_scale": "um/N", "pose_lo": "m", "pose_hi": "m",
-}  # fmt: skip
 _FORMAT = "robovib-frf-pose-model"
+_VERSION = 2
+_SCALE = 1e6  # m/N -> um/N: O(1) numbers inside the GPs
+UPDATE_MODES = ("robust", "posterior", "warm")
 
 
 @dataclass(frozen=True)
 class UpdateReport:
+    """What a :meth:`FRFPoseModel.fit` / :meth:`FRFPoseModel.update` did.
+
+    Attributes
+    ----------
+    mode
+        ``"fit"``, ``"robust"``, ``"posterior"`` or ``"warm"``.
+    iterations_total, iterations_mean_per_gp
+        Quasi-Newton iterations (Eq. 34-36) over all 2 n_f GPs, and their mean.
+    wall_time_s
+        Wall time of the call [s].
+    n_observations
+        New (segment, bin) observations offered, unflagged.
+    n_rejected
+        Of those, rejected by the bias check (robust mode only).
+    rejected_bins_hz
+        Bins rejected for the new source as a whole (systematic bias) [Hz].
+    scale, scale_std
+        Complex scale of the new source relative to the model (1 = unbiased) and its std.
+    scale_applied
+        Whether the new FRFs were divided by ``scale`` (significant scale bias).
+    noise_median_um_per_n
+        Median over bins of the new source's noise std (Re/Im) used in the posterior [um/N].
+    """
+
     mode: str
     iterations_total: int
     iterations_mean_per_gp: float
     wall_time_s: float
+    n_observations: int = 0
+    n_rejected: int = 0
+    rejected_bins_hz: tuple[float, ...] = ()
+    scale: complex = 1.0 + 0.0j
+    scale_std: float = 0.0
+    scale_applied: bool = False
+    noise_median_um_per_n: float | None = None
+
+    @property
+    def rejected_fraction(self) -> float:
+        return self.n_rejected / self.n_observations if self.n_observations else 0.0
+
+    def to_dict(self) -> dict:
+        """JSON-friendly (complex scale as real/imag)."""
+        d = asdict(self)
+        d["scale_real"], d["scale_imag"] = float(self.scale.real), float(self.scale.imag)
+        del d["scale"]
+        d["rejected_bins_hz"] = list(self.rejected_bins_hz)
+        d["rejected_fraction"] = self.rejected_fraction
+        return d
 
 
-class FRFPoseModel:
+def _gp_add(gp: BatchedGPRegressor, x, y, mask, groups, reoptimize: bool) -> None:
+    """Add observations through the house's updating name (``update``)."""
+    gp.update(x, y, mask=mask, groups=groups, mode="warm" if reoptimize else "posterior")
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    order = np.argsort(values)
+    cw = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cw, 0.5 * cw[-1])])
+
+
+class FRFPoseModel(BaseEstimator):
     """Per-bin GP model of the compliance over the pose (``fit`` / ``update`` / ``predict``).
 
     Parameters
     ----------
     frequency_hz
-        The common frequency grid (n_f,): all FRFs must be given on it.
-    kernel, n_restarts, rng
+        The common frequency grid (n_f,) [Hz]: all FRFs must be given on it.
+    kernel
+        ``"isotropic"`` (thesis Eq. 7) or ``"ard"`` (one length scale per pose input).
+    n_restarts, rng
         Passed to :class:`~robovib.gp.BatchedGPRegressor` (2 n_f outputs, 2 noise groups).
+    input_names
+        Names (with units) of the pose columns, e.g. ``("s_m",)`` or
+        ``("x_mm", "y_mm", "rz_deg")``; poses must have ``len(input_names)`` columns.
+    chi2_reject
+        Threshold of the chi-square(2) bias tests of the robust update (default 13.8: p = 0.001).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f = np.linspace(2, 30, 15)
+    >>> s = np.array([0.0, 0.6, 1.2])
+    >>> h = 1e-6 / (1 - (f[None] / (10 - 2 * s[:, None])) ** 2 + 0.3j)
+    >>> FRFPoseModel(f).fit(s, h).predict([0.3]).shape
+    (1, 15)
     """
 
     def __init__(
-        self, frequency_hz, kernel: str = "isotropic", n_restarts: int | None = 0, rng=0
+        self,
+        frequency_hz,
+        kernel: str = "isotropic",
+        n_restarts: int | None = 0,
+        rng=0,
+        input_names: tuple[str, ...] = ("s_m",),
+        chi2_reject: float = 13.8,
     ) -> None:
-        self.frequency_hz = np.asarray(frequency_hz, float)
+        self.frequency_hz = frequency_hz
         self.kernel = kernel
         self.n_restarts = n_restarts
         self.rng = rng
+        self.input_names = input_names
+        self.chi2_reject = chi2_reject
 
-    # ------------------------------------------------------------------ FRF objects, checked
-    def fit_frfs(self, frfs) -> FRFPoseModel:
-        """Fit from FRF objects (path coordinate in ``meta["path_s_m"]``), checked at the door.
-
-        All FRFs must be compliances of one direction (stored as ``direction_``) from EMA or OMA
-        (source sets the noise group); bins outside an FRF's range are an error.
-
-        Raises
-        ------
-        ValueError
-            Mixed directions, model-source FRFs, missing path coordinate, other quantity, or an
-            FRF that does not cover the model's frequency grid.
-        """
-        frfs = list(frfs)
-        direction = _common_direction(frfs, None, "fit")
-        h, s, m, groups = frfs_on_grid(frfs, self.frequency_hz)
-        self.fit(s, h, mask=m, sources=groups)
-        self.direction_ = direction
-        return self
-
-    def update_frfs(
-        self, frfs, *, mode: str = "warm", expect_source: str | None = "OMA"
-    ) -> UpdateReport:
-        """Bayesian update from FRF objects, checked against the model.
-
-        Each FRF's direction must be the model's (``hybrid update model_x.h5 oma_y.h5`` fails)
-        and, with ``expect_source`` (default ``"OMA"``), its source must be that one (EMA FRFs
-        given as OMA are refused rather than fitted with the OMA noise level). Grid bins
-        outside an FRF's range are treated as missing.
-
-        Raises
-        ------
-        ValueError
-            Direction or source mismatch, or see :func:`frfs_on_grid`.
-        """
-        self._require_fitted()
-        frfs = list(frfs)
-        if expect_source is not None:
-            for i, f in enumerate(frfs):
-                if f.source != expect_source:
-                    raise ValueError(
-                        f"FRF {i} is a {f.source} FRF; this update expects {expect_source} FRFs "
-                        f"(e.g. from `hybrid oma`)"
-                    )
-        _common_direction(frfs, getattr(self, "direction_", None), "update")
-        h, s, m, groups = frfs_on_grid(frfs, self.frequency_hz, partial=True)
-        return self.update(s, h, mask=m, sources=groups, mode=mode)
-
+    # ------------------------------------------------------------------ input checks
     def _targets(self, frfs, mask):
         h = np.asarray(frfs, complex)
-        if h.ndim != 2 or h.shape[1] != self.frequency_hz.size:
+        n_f = self.frequency_hz_.size
+        if h.ndim != 2 or h.shape[1] != n_f:
             raise ValueError(
-                f"FRFs must be (n_poses, {self.frequency_hz.size}) on the model's frequency grid, got {h.shape}"
+                f"FRFs must be (n_poses, {n_f}) on the model's frequency grid, got {h.shape}"
             )
         m = np.ones(h.shape, bool) if mask is None else np.asarray(mask, bool)
         if m.shape != h.shape:
-            raise ValueError("mask must have the FRFs' shape")
+            raise ValueError(f"mask must have the FRFs' shape {h.shape}, got {m.shape}")
         if not np.all(np.isfinite(h[m])):
             raise ValueError("FRFs contain NaN or inf at unmasked bins")
-        scale = 1e6  # um/N: O(1) numbers inside
-        y = np.hstack([np.where(m, h.real, 0.0), np.where(m, h.imag, 0.0)]) * scale
+        y = np.hstack([np.where(m, h.real, 0.0), np.where(m, h.imag, 0.0)]) * _SCALE
         return y, np.hstack([m, m])
 
-    @staticmethod
-    def _poses(poses) -> np.ndarray:
+    def _poses(self, poses) -> np.ndarray:
         p = np.asarray(poses, float)
-        return p[:, None] if p.ndim == 1 else p
+        p = p[:, None] if p.ndim == 1 else p
+        n_in = len(self.input_names)
+        if p.ndim != 2 or p.shape[1] != n_in:
+            raise ValueError(
+                f"poses must be (n, {n_in}) with columns {tuple(self.input_names)}, got shape {p.shape}"
+            )
+        if not np.all(np.isfinite(p)):
+            raise ValueError("poses contain NaN or inf")
+        return p
 
-    def fit(self, poses, frfs, mask=None, sources=None) -> FRFPoseModel:
-        """Fit from scratch; ``sources`` (n,) ints: 0 = EMA, 1 = OMA (default all EMA)."""
+    @staticmethod
+    def _groups(groups, sources, default: int, n: int) -> np.ndarray:
+        if sources is not None:
+            warnings.warn(
+                "sources= is deprecated; pass the noise groups as groups=",
+                DeprecationWarning,
+                stacklevel=3,
+            )
+            groups = sources if groups is None else groups
+        g = np.full(n, default, int) if groups is None else np.asarray(groups, int)
+        if g.shape != (n,):
+            raise ValueError(f"groups must have shape ({n},), got {g.shape}")
+        return g
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, poses, frfs, mask=None, groups=None, sources=None) -> FRFPoseModel:
+        """Fit from scratch (hyperparameters by Eq. 33).
+
+        Parameters
+        ----------
+        poses
+            (n,) or (n, n_inputs) pose inputs in the units of ``input_names``.
+        frfs
+            (n, n_f) complex compliance [m/N] on ``frequency_hz``.
+        mask
+            (n, n_f) bool, True where a bin is observed.
+        groups
+            (n,) ints: 0 = EMA, 1 = OMA (default all EMA).
+
+        Returns
+        -------
+        self
+
+        Raises
+        ------
+        ValueError
+            Bad grid, shapes, NaN at observed bins.
+        """
+        grid = np.asarray(self.frequency_hz, float)
+        if grid.ndim != 1 or grid.size == 0 or not np.all(np.isfinite(grid)):
+            raise ValueError("frequency_hz must be a non-empty 1-D array of finite values [Hz]")
+        self.frequency_hz_ = grid
         x = self._poses(poses)
         y, m = self._targets(frfs, mask)
-        groups = np.zeros(x.shape[0], int) if sources is None else np.asarray(sources, int)
+        g = self._groups(groups, sources, 0, x.shape[0])
         t0 = time.perf_counter()
         self.gp_ = BatchedGPRegressor(
             kernel=self.kernel, n_restarts=self.n_restarts, n_noise_groups=2, rng=self.rng
         )
-        self.gp_.fit(x, y, mask=m, groups=groups)
+        self.gp_.fit(x, y, mask=m, groups=g)
         self.last_report_ = UpdateReport(
             "fit",
             int(self.gp_.n_iter_.sum()),
@@ -150,37 +256,257 @@ class FRFPoseModel:
             time.perf_counter() - t0,
         )
         self.pose_range_ = (x.min(axis=0), x.max(axis=0))
+        self.n_features_in_ = x.shape[1]
         return self
 
-    def update(self, poses, frfs, mask=None, sources=None, *, mode: str = "warm") -> UpdateReport:
-        """Bayesian update with new FRFs: ``mode="posterior"`` or ``"warm"`` (see module docs)."""
-        if mode not in ("posterior", "warm"):
-            raise ValueError(f"unknown update mode {mode!r}; expected 'posterior' or 'warm'")
+    def update(
+        self,
+        poses,
+        frfs,
+        mask=None,
+        groups=None,
+        sources=None,
+        *,
+        mode: str = "robust",
+        noise_std=None,
+        reoptimize: bool = False,
+    ) -> UpdateReport:
+        """Bayesian update with new FRFs (thesis §5.2.4; ``"robust"`` is beyond the thesis).
+
+        Parameters
+        ----------
+        poses, frfs, mask
+            As in :meth:`fit`: (n,) / (n, n_inputs), (n, n_f) complex [m/N], (n, n_f) bool.
+        groups
+            (n,) noise groups of the new data (default 1 = OMA).
+        mode
+            ``"robust"`` (bias check, rejection, OMA noise by marginal likelihood, see the
+            module docs), ``"posterior"`` or ``"warm"``.
+        noise_std
+            Optional (n, n_f) random-error std of each new FRF bin [m/N] (e.g.
+            :attr:`robovib.hybrid.OMASegment.random_error_m_per_n`): a floor for the OMA
+            noise in robust mode.
+        reoptimize
+            Robust mode only: after the checks, re-optimise all hyperparameters (Eq. 33)
+            starting from the EMA kernel and the estimated OMA noise (a warm start on the
+            cleaned data).
+
+        Returns
+        -------
+        UpdateReport
+
+        Raises
+        ------
+        ValueError
+            Unknown mode, bad shapes, NaN at observed bins.
+        """
+        if mode not in UPDATE_MODES:
+            raise ValueError(f"unknown update mode {mode!r}; expected one of {UPDATE_MODES}")
         self._require_fitted()
         x = self._poses(poses)
         y, m = self._targets(frfs, mask)
-        groups = np.ones(x.shape[0], int) if sources is None else np.asarray(sources, int)
-        # The OMA noise is not identifiable from EMA data alone: start it at the EMA noise
-        # (kept there by "posterior", re-optimised by "warm").
-        if not np.any(self.gp_._active_groups == 1):
-            self.gp_._theta[:, -1] = self.gp_._theta[:, -2]
+        g = self._groups(groups, sources, 1, x.shape[0])
+        n_obs = int(m[:, : self.frequency_hz_.size].sum())
         t0 = time.perf_counter()
-        self.gp_.add_observations(x, y, mask=m, reoptimize=(mode == "warm"), groups=groups)
-        self.last_report_ = UpdateReport(
-            mode,
-            int(self.gp_.n_iter_.sum()),
-            float(self.gp_.n_iter_.mean()),
-            time.perf_counter() - t0,
-        )
+        if mode == "robust":
+            if np.any(g != 1):
+                raise ValueError(
+                    "mode='robust' checks a new source against the model: the new FRFs must all be "
+                    "group 1 (OMA); use mode='posterior' or 'warm' to add EMA FRFs (group 0)"
+                )
+            report = self._robust_update(x, y, m, g, noise_std, n_obs, reoptimize)
+            report = UpdateReport(**{**asdict(report), "wall_time_s": time.perf_counter() - t0})
+        else:
+            # The OMA noise is not identifiable from EMA data alone: start it at the EMA
+            # noise (kept there by "posterior", re-optimised by "warm").
+            if not np.any(self.gp_._active_groups == 1):
+                self.gp_._theta[:, -1] = self.gp_._theta[:, -2]
+            _gp_add(self.gp_, x, y, m, g, reoptimize=(mode == "warm"))
+            report = UpdateReport(
+                mode,
+                int(self.gp_.n_iter_.sum()),
+                float(self.gp_.n_iter_.mean()),
+                time.perf_counter() - t0,
+                n_observations=n_obs,
+            )
+        self.last_report_ = report
         self.pose_range_ = (
             np.minimum(self.pose_range_[0], x.min(axis=0)),
             np.maximum(self.pose_range_[1], x.max(axis=0)),
         )
-        return self.last_report_
+        return report
 
+    # ------------------------------------------------------------------ robust update
+    def _robust_update(self, x, y, m, g, noise_std, n_obs, reoptimize=False) -> UpdateReport:
+        n_f = self.frequency_hz_.size
+        gp = self.gp_
+        mu, s = gp.predict(x, return_std=True)  # (n, 2 n_f) um/N, latent std
+        if noise_std is None:
+            sig = np.zeros_like(y)
+        else:
+            ns = np.asarray(noise_std, float)
+            if ns.shape != (x.shape[0], n_f):
+                raise ValueError(
+                    f"noise_std must be (n, n_f) = {(x.shape[0], n_f)}, got {ns.shape}"
+                )
+            ns = np.where(m[:, :n_f], ns, 0.0)
+            if np.any(~np.isfinite(ns)) or np.any(ns < 0):
+                raise ValueError("noise_std must be finite and >= 0 [m/N]")
+            sig = np.hstack([ns, ns]) * _SCALE
+        # EMA noise (measurement noise of the reference) also separates the two sources.
+        hp = gp.hyperparameters_
+        ema_noise = np.asarray(hp.noise_std)[:, 0]
+        var = s**2 + sig**2 + ema_noise[None, :] ** 2
+        mc = mu[:, :n_f] + 1j * mu[:, n_f:]
+        yc = y[:, :n_f] + 1j * y[:, n_f:]
+        vc = var[:, :n_f] + var[:, n_f:]
+        obs = m[:, :n_f]
+        yc0, sig0 = yc, sig
+        keep = obs.copy()
+        # Alternate 1-3 until the kept set settles (a biased bin must not bend the scale).
+        for _ in range(4):
+            yc, sig = yc0, sig0
+            var = s**2 + sig**2 + ema_noise[None, :] ** 2
+            vc = var[:, :n_f] + var[:, n_f:]
+            # 1. complex scale of the source: per bin by weighted LS (the maximum of the
+            # diagonal marginal likelihood), pooled by a weighted median across bins. Applied
+            # only if it is a *source* property: most bins agree with it and few with 1.
+            w = np.where(keep, 1.0 / vc, 0.0)
+            den_f = np.sum(w * np.abs(mc) ** 2, axis=0)
+            ok_f = den_f > 0
+            scale, scale_std, applied = 1.0 + 0.0j, 0.0, False
+            if np.count_nonzero(ok_f) >= 3:
+                a_f = np.sum(w * np.conj(mc) * yc, axis=0)[ok_f] / den_f[ok_f]
+                var_f = 1.0 / den_f[ok_f]
+                a = complex(
+                    _weighted_median(a_f.real, 1 / var_f), _weighted_median(a_f.imag, 1 / var_f)
+                )
+                scale = a
+                scale_std = float(1.4826 * np.median(np.abs(a_f - a)) / np.sqrt(a_f.size))
+                agree_a = np.mean(2 * np.abs(a_f - a) ** 2 / var_f <= self.chi2_reject)
+                agree_1 = np.mean(2 * np.abs(a_f - 1) ** 2 / var_f <= self.chi2_reject)
+                if abs(a - 1) > 0.1 and agree_a >= 0.5 and agree_1 <= 0.5 * agree_a:
+                    applied = True
+                    yc = yc / a
+                    sig = sig / abs(a)
+                    var = s**2 + sig**2 + ema_noise[None, :] ** 2
+                    vc = var[:, :n_f] + var[:, n_f:]
+            r = np.where(obs, yc - mc, 0.0)
+            # 2. systematic bias per bin: mean residual over segments against the model's
+            # uncertainty there (EMA errors are correlated along the path: mean var, not /K).
+            n_seg = obs.sum(axis=0)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                mean_r = r.sum(axis=0) / n_seg
+                spread = np.where(obs, np.abs(r - mean_r) ** 2, 0.0).sum(axis=0) / np.maximum(
+                    n_seg - 1, 1
+                )
+                mean_var = np.where(obs, vc, 0.0).sum(axis=0) / n_seg
+                chi_bin = 2 * np.abs(mean_r) ** 2 / (mean_var + spread / n_seg)
+                # 3. single outliers: residual against predictive + this bin's scatter.
+                chi_obs = 2 * np.abs(r) ** 2 / (vc + spread[None, :])
+            bad_bin = (n_seg > 0) & (chi_bin > self.chi2_reject)
+            bad_obs = obs & (chi_obs > self.chi2_reject)
+            new_keep = obs & ~bad_bin[None, :] & ~bad_obs
+            if np.array_equal(new_keep, keep):
+                break
+            keep = new_keep
+        n_rej = int(obs.sum() - keep.sum())
+        y_new = np.hstack([yc.real, yc.imag])
+        m_new = np.hstack([keep, keep])
+        # 4. OMA noise per output by marginal likelihood with the EMA kernel fixed.
+        noise_oma = self._ml_source_noise(x, y_new, m_new, g, sig)
+        noise = np.column_stack([ema_noise, noise_oma])
+        hp_new = GPHyperparameters(
+            signal_std=np.asarray(hp.signal_std),
+            length_scales=np.asarray(hp.length_scales),
+            noise_std=noise,
+            mean=np.asarray(hp.mean),
+        )
+        X_all = np.vstack([gp.X_train_, x])
+        Y_all = np.vstack([np.where(gp.mask_, gp.Y_train_, 0.0), np.where(m_new, y_new, 0.0)])
+        M_all = np.vstack([gp.mask_, m_new])
+        G_all = np.concatenate([gp._active_groups, g])
+        new = BatchedGPRegressor(
+            kernel=self.kernel,
+            optimizer="bfgs" if reoptimize else None,
+            n_restarts=0,
+            initial_hyperparameters=hp_new,
+            n_noise_groups=2,
+            rng=self.rng,
+        )
+        new.fit(X_all, Y_all, mask=M_all, groups=G_all)
+        if not reoptimize:
+            new.n_iter_ = np.zeros(2 * n_f, int)
+        self.gp_ = new
+        rej_hz = tuple(float(f) for f in self.frequency_hz_[bad_bin])
+        return UpdateReport(
+            "robust",
+            int(new.n_iter_.sum()),
+            float(new.n_iter_.mean()),
+            0.0,
+            n_observations=n_obs,
+            n_rejected=n_rej,
+            rejected_bins_hz=rej_hz,
+            scale=complex(scale),
+            scale_std=float(scale_std),
+            scale_applied=bool(applied),
+            noise_median_um_per_n=float(np.median(noise_oma)),
+        )
+
+    def _ml_source_noise(self, x_new, y_new, m_new, g_new, sig_floor) -> np.ndarray:
+        """Noise std per output [um/N] of the new group maximising Eq. 33, kernel fixed.
+
+        A log grid search (robust, no derivatives) over [1e-3, 10] x the output's signal std;
+        the result is floored by the RMS of the given random errors of that output.
+        """
+        gp = self.gp_
+        hp = gp.hyperparameters_
+        X = np.vstack([gp.X_train_, x_new])
+        Y = np.vstack([np.where(gp.mask_, gp.Y_train_, 0.0), y_new]).T  # (B, n)
+        M = np.vstack([gp.mask_, m_new]).T
+        G = np.concatenate([gp._active_groups, g_new])
+        sf = np.asarray(hp.signal_std)
+        ls = np.asarray(hp.length_scales)  # (B, d) data units
+        d2 = (X[:, None, :] - X[None, :, :]) ** 2  # (n, n, d)
+        dist = np.einsum("ijd,bd->bij", d2, 1.0 / ls**2)
+        kf = sf[:, None, None] ** 2 * np.exp(-0.5 * dist)
+        pair = M[:, :, None] & M[:, None, :]
+        kf = np.where(pair, kf, 0.0)
+        ema_var = np.asarray(hp.noise_std)[:, 0] ** 2
+        is_new = G == 1
+        grid = np.exp(np.linspace(np.log(1e-3), np.log(10.0), 41))
+        best = np.full(Y.shape[0], np.inf)
+        best_noise = sf * 0.1
+        idx = np.arange(X.shape[0])
+        ones = M.astype(float)
+        for gv in grid:
+            nv = (gv * sf) ** 2
+            diag = np.where(is_new[None, :], nv[:, None], ema_var[:, None])
+            diag = np.where(M, diag, 1.0)
+            ky = kf.copy()
+            ky[:, idx, idx] += diag
+            try:
+                chol = np.linalg.cholesky(ky)
+            except np.linalg.LinAlgError:
+                continue
+            kinv = np.linalg.inv(ky)
+            k1 = np.einsum("bij,bj->bi", kinv, ones)
+            mean = np.sum(k1 * Y, axis=1) / np.sum(k1 * ones, axis=1)
+            r = np.where(M, Y - mean[:, None], 0.0)
+            quad = np.einsum("bi,bij,bj->b", r, kinv, r)
+            logdet = 2 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
+            nll = 0.5 * quad + 0.5 * logdet
+            better = nll < best
+            best = np.where(better, nll, best)
+            best_noise = np.where(better, gv * sf, best_noise)
+        n_new = m_new.sum(axis=0)
+        floor = np.sqrt(np.where(m_new, sig_floor**2, 0.0).sum(axis=0) / np.maximum(n_new, 1))
+        return np.maximum(best_noise, floor)
+
+    # ------------------------------------------------------------------ prediction
     def _require_fitted(self):
         if not hasattr(self, "gp_"):
-            raise RuntimeError("this FRFPoseModel is not fitted yet; call fit() first")
+            raise NotFittedError("this FRFPoseModel is not fitted yet; call fit() first")
 
     def extrapolating(self, poses) -> np.ndarray:
         """(n,) bool: poses outside the calibrated range (per coordinate)."""
@@ -190,20 +516,32 @@ class FRFPoseModel:
         return np.any((x < lo - 1e-12) | (x > hi + 1e-12), axis=1)
 
     def predict(self, poses, return_std: bool = False):
-        """Complex compliance (n, n_f) [m/N] and, optionally, its std (sqrt(var Re + var Im))."""
+        """Complex compliance at poses (thesis Eq. 9-10 per bin).
+
+        Parameters
+        ----------
+        poses
+            (n,) or (n, n_inputs) in the units of ``input_names``.
+        return_std
+            Also return the latent std ``sqrt(var Re + var Im)`` (n, n_f) [m/N].
+
+        Returns
+        -------
+        h : (n, n_f) complex [m/N]
+        std : (n, n_f) [m/N], if ``return_std``
+        """
         self._require_fitted()
         x = self._poses(poses)
-        if not np.all(np.isfinite(x)):
-            raise ValueError("poses contain NaN or inf")
         mean, std = self.gp_.predict(x, return_std=True)
-        n_f = self.frequency_hz.size
-        h = (mean[:, :n_f] + 1j * mean[:, n_f:]) / 1e6
+        n_f = self.frequency_hz_.size
+        h = (mean[:, :n_f] + 1j * mean[:, n_f:]) / _SCALE
         if not return_std:
             return h
-        return h, np.sqrt(std[:, :n_f] ** 2 + std[:, n_f:] ** 2) / 1e6
+        return h, np.sqrt(std[:, :n_f] ** 2 + std[:, n_f:] ** 2) / _SCALE
 
     def integrated_variance(self, poses) -> np.ndarray:
         """Predictive variance summed over frequency and Re/Im, per pose (n,) [(um/N)^2]."""
+        self._require_fitted()
         _, std = self.gp_.predict(self._poses(poses), return_std=True)
         return np.sum(std**2, axis=1)
 
@@ -228,44 +566,65 @@ class FRFPoseModel:
             i = int(np.argmax(score))
             chosen.append(i)
             mean = gp.predict(cand[i : i + 1])
-            gp.add_observations(cand[i : i + 1], mean, groups=np.zeros(1, int))
+            _gp_add(gp, cand[i : i + 1], mean, None, np.zeros(1, int), reoptimize=False)
         return cand[chosen]
 
     # ------------------------------------------------------------------ persistence (no pickle)
-    def save(self, path, *, inputs=(), force: bool = False) -> None:
-        """HDF5: training data, hyperparameters and scalers, with a format tag and version.
+    def save(self, path, *, provenance: dict | None = None, inputs=(), force: bool = False) -> None:
+        """HDF5 (atomic): training data, hyperparameters, scalers, units and provenance.
 
-        Written atomically (:func:`robovib.io.atomic_output`); ``path`` must not be one of
-        ``inputs`` unless ``force``.
+        Attributes: ``format``, ``version``, ``robovib_version``, ``kernel``,
+        ``input_names`` (units in the names), ``compliance_unit = "um/N"`` (training targets
+        and noise), ``frequency_unit = "Hz"``, ``groups = "0=EMA,1=OMA"``, and
+        ``provenance/<key>`` for the given dict (strings/numbers). Each dataset has a ``units``
+        attribute; the ``provenance`` group holds the command, settings and input SHA-256
+        (:func:`robovib.io.provenance.write_provenance`). Written through
+        :func:`robovib.io.atomic_output`: ``path`` must not be one of ``inputs`` unless ``force``.
         """
         import h5py
 
+        from .. import __version__
         from ..io.provenance import set_units, write_provenance
         from ..io.safe_write import atomic_output
 
         self._require_fitted()
         gp = self.gp_
+        units = {
+            "frequency_hz": "Hz", "X_train": ", ".join(self.input_names), "Y_train": "um/N",
+            "mask": "1", "groups": "1 (0=EMA, 1=OMA)", "theta": "1 (log hyperparameters, scaled)",
+            "x_loc": "input units", "x_scale": "input units", "y_loc": "um/N", "y_scale": "um/N",
+            "pose_lo": "input units", "pose_hi": "input units",
+        }  # fmt: skip
         with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
             h5.attrs["format"] = _FORMAT
-            h5.attrs["version"] = 1
-            h5.attrs["kernel"] = self.kernel
-            h5.attrs["direction"] = getattr(self, "direction_", None) or ""
-            h5.attrs["frequency_unit"] = "Hz"
-            h5.attrs["compliance_unit"] = "um/N (Re, Im stacked)"
-            from .. import __version__
-
+            h5.attrs["version"] = _VERSION
             h5.attrs["robovib_version"] = __version__
+            h5.attrs["kernel"] = self.kernel
+            h5.attrs["input_names"] = list(self.input_names)
+            h5.attrs["compliance_unit"] = "um/N"
+            h5.attrs["frequency_unit"] = "Hz"
+            h5.attrs["groups"] = "0=EMA,1=OMA"
+            h5.attrs["targets"] = "columns: Re of n_f bins, then Im of n_f bins"
+            for key, value in (provenance or {}).items():
+                h5.attrs[f"provenance/{key}"] = value
             for name, value in {
-                "frequency_hz": self.frequency_hz, "X_train": gp.X_train_, "Y_train": np.nan_to_num(gp.Y_train_),
+                "frequency_hz": self.frequency_hz_, "X_train": gp.X_train_, "Y_train": np.nan_to_num(gp.Y_train_),
                 "mask": gp.mask_, "groups": gp._active_groups, "theta": gp._theta, "x_loc": gp._x_loc,
                 "x_scale": gp._x_scale, "y_loc": gp._y_loc, "y_scale": gp._y_scale,
                 "pose_lo": self.pose_range_[0], "pose_hi": self.pose_range_[1],
             }.items():  # fmt: skip
-                set_units(h5.create_dataset(name, data=value), _DATASET_UNITS[name])
+                set_units(h5.create_dataset(name, data=value), units[name])
             write_provenance(h5, inputs=inputs)
 
     @classmethod
     def load(cls, path) -> FRFPoseModel:
+        """Read a model written by :meth:`save` (versions 1 and 2).
+
+        Raises
+        ------
+        ValueError
+            Not HDF5, or not a robovib FRF pose model.
+        """
         import h5py
 
         path = Path(path)
@@ -274,12 +633,12 @@ class FRFPoseModel:
         except OSError as exc:
             raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
         with h5:
-            if h5.attrs.get("format") != _FORMAT or int(h5.attrs.get("version", -1)) != 1:
-                raise ValueError(f"{path}: not a robovib FRF pose model (version 1)")
-            d = {k: h5[k][()] for k in h5 if k != "provenance"}
+            if h5.attrs.get("format") != _FORMAT or int(h5.attrs.get("version", -1)) not in (1, 2):
+                raise ValueError(f"{path}: not a robovib FRF pose model (version 1 or 2)")
+            d = {k: h5[k][()] for k in h5 if isinstance(h5[k], h5py.Dataset)}
             kernel = str(h5.attrs["kernel"])
-            direction = str(h5.attrs.get("direction", "")) or None
-        model = cls(d["frequency_hz"], kernel=kernel)
+            names = tuple(str(v) for v in h5.attrs.get("input_names", ["s_m"]))
+        model = cls(d["frequency_hz"], kernel=kernel, input_names=names)
         gp = BatchedGPRegressor(kernel=kernel, n_noise_groups=2)
         gp._x_loc, gp._x_scale, gp._y_loc, gp._y_scale = (
             d["x_loc"],
@@ -293,81 +652,7 @@ class FRFPoseModel:
         gp.n_iter_ = np.zeros(gp._theta.shape[0], int)
         gp._set_training_data(d["X_train"], d["Y_train"], d["mask"].astype(bool))
         model.gp_ = gp
+        model.frequency_hz_ = np.asarray(d["frequency_hz"], float)
         model.pose_range_ = (d["pose_lo"], d["pose_hi"])
-        model.direction_ = direction
+        model.n_features_in_ = len(names)
         return model
-
-
-_GROUP = {"EMA": 0, "OMA": 1}
-
-
-def _common_direction(frfs, model_direction, what):
-    dirs = {f.direction for f in frfs} - {None}
-    if len(dirs) > 1:
-        raise ValueError(f"cannot {what} one model with FRFs of several directions {sorted(dirs)}")
-    direction = dirs.pop() if dirs else None
-    if model_direction is not None and direction is not None and direction != model_direction:
-        raise ValueError(
-            f"the model is of direction {model_direction!r} but the FRFs are {direction!r}: "
-            "a model must be updated with FRFs of its own direction"
-        )
-    return direction
-
-
-def frfs_on_grid(frfs, grid, partial: bool = False):
-    """FRFs interpolated on a frequency grid, with path coordinates, bin masks and noise groups.
-
-    Parameters
-    ----------
-    frfs : sequence of FRF
-        Compliances with ``meta["path_s_m"]`` [m]; OMA bins flagged in ``meta["flagged"]``
-        become missing targets.
-    grid : (n_f,) array [Hz]
-    partial : bool
-        True: grid bins outside an FRF's range are masked (missing), not an error.
-
-    Returns
-    -------
-    values : (n, n_f) complex [m/N]
-    s_m : (n,) path coordinates [m]
-    mask : (n, n_f) bool, True = usable bin
-    groups : (n,) int, 0 = EMA, 1 = OMA
-
-    Raises
-    ------
-    ValueError
-        No FRFs, a missing path coordinate, a non-compliance FRF, a model-source FRF, or
-        (``partial=False``) an FRF not covering the grid.
-    """
-    grid = np.asarray(grid, float)
-    if len(frfs) == 0:
-        raise ValueError("no FRFs given")
-    vals, s, masks, groups = [], [], [], []
-    for i, f in enumerate(frfs):
-        if "path_s_m" not in f.meta:
-            raise ValueError(
-                f"FRF {i} has no path coordinate (write it with --path-s / from `hybrid oma`)"
-            )
-        if f.quantity != "compliance":
-            raise ValueError(f"FRF {i} is {f.quantity}, expected compliance")
-        if f.source not in _GROUP:
-            raise ValueError(f"FRF {i} has source {f.source!r}; expected measured EMA or OMA")
-        s_i = float(f.meta["path_s_m"])
-        if not np.isfinite(s_i):
-            raise ValueError(f"FRF {i} has a non-finite path coordinate {s_i}")
-        outside = (grid < f.frequency_hz[0] - 1e-3) | (grid > f.frequency_hz[-1] + 1e-3)
-        if np.any(outside) and not partial:
-            raise ValueError(
-                f"FRF {i} covers {f.frequency_hz[0]:g}-{f.frequency_hz[-1]:g} Hz, not the model "
-                f"grid {grid[0]:g}-{grid[-1]:g} Hz"
-            )
-        vals.append(
-            np.interp(grid, f.frequency_hz, f.values.real)
-            + 1j * np.interp(grid, f.frequency_hz, f.values.imag)
-        )
-        flagged = np.asarray(f.meta.get("flagged", np.zeros(f.frequency_hz.size, bool)), bool)
-        nearest = np.clip(np.searchsorted(f.frequency_hz, grid), 0, f.frequency_hz.size - 1)
-        masks.append(~flagged[nearest] & ~outside)
-        s.append(s_i)
-        groups.append(_GROUP[f.source])
-    return np.array(vals), np.array(s), np.array(masks), np.array(groups, int)

@@ -9,11 +9,19 @@ content; that background excites the structure at all frequencies, so Eq. 5
 * H1 and the coherence per bin; bins within ``harmonic_tolerance_hz`` of a spindle-frequency
   harmonic (which includes the tooth-passing harmonics) and bins with coherence below
   ``min_coherence`` are *flagged*, never silently used: the pose model masks them out;
-* the segment's pose is the path coordinate at its midpoint.
+* the segment's pose is the pose at its midpoint: the path coordinate (1-D ``path_s_m``) or
+  the mean of the workspace pose columns (2-D poses, segmented by the XY distance travelled);
+* each segment carries the H1 random error per bin (Bendat & Piersol, normalised error
+  ``sqrt(1 - γ²) / (|γ| sqrt(2 n_d))`` x |H|), used as a noise floor by the robust update.
+
+What OMA needs: broadband force content between the harmonics. When fewer than
+``min_usable_fraction`` of the bins pass the checks (averaged over segments) an
+:class:`OMAQualityWarning` says so (too little background excitation, too short segments).
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,15 +29,29 @@ import numpy as np
 from ..frf.core import FRF
 from ..frf.estimate import estimate_frf
 
-__all__ = ["OMASegment", "oma_frfs"]
+__all__ = ["OMAQualityWarning", "OMASegment", "oma_frfs"]
+
+
+class OMAQualityWarning(UserWarning):
+    """Too few OMA bins pass the coherence / harmonic checks to be useful."""
 
 
 @dataclass(frozen=True)
 class OMASegment:
+    """One OMA FRF: a path segment's compliance with its flags and random error."""
+
     frf: FRF  #: compliance [m/N] of the segment
     flagged: np.ndarray  #: (n_f,) bool: harmonic or low-coherence bins
-    s_mid_m: float  #: path coordinate of the segment midpoint
+    s_mid_m: float  #: path coordinate of the midpoint (2-D poses: travelled distance [m])
     n_samples: int
+    pose_mid: tuple[float, ...] = ()  #: mean pose of the segment (2-D poses), in their units
+
+    @property
+    def random_error_m_per_n(self) -> np.ndarray:
+        """(n_f,) H1 random error std per bin [m/N] (Bendat & Piersol, from the coherence)."""
+        coh = np.clip(np.asarray(self.frf.coherence, float), 1e-6, 1.0)
+        n_d = max(int(self.frf.n_averages), 1)
+        return np.abs(self.frf.values) * np.sqrt((1 - coh) / (2 * n_d * coh))
 
 
 def oma_frfs(
@@ -41,6 +63,8 @@ def oma_frfs(
     direction: str = "x",
     segment_length_m: float = 0.05,
     nperseg: int = 512,
+    noverlap: int | None = None,
+    window: str = "hann",
     f_min_hz: float = 2.0,
     f_max_hz: float = 60.0,
     spindle_rpm: float | None = None,
@@ -49,40 +73,66 @@ def oma_frfs(
     force_transform=None,
     displacement_transform=None,
     exclude_s_m: tuple[float, float] | None = None,
+    min_usable_fraction: float = 0.5,
 ) -> list[OMASegment]:
-    """OMA compliance FRFs of one direction for consecutive path segments.
+    """OMA compliance FRFs of one direction for consecutive path segments (Eq. 5 per segment).
 
     Parameters
     ----------
-    time_s, force_n, displacement_m, path_s_m
-        Synchronised records: (n,), (n, 3), (n, 3), (n,) — equal lengths, uniform sampling.
+    time_s, force_n, displacement_m
+        Synchronised records: (n,) [s], (n, 3) [N], (n, 3) [m] — uniform sampling.
+    path_s_m
+        (n,) path coordinate [m], or (n, d) poses whose first two columns are x, y [m]
+        (segments by XY distance travelled; each segment's mean pose in ``pose_mid``).
     segment_length_m
-        Path length per FRF (thesis: 50 mm).
+        Path length per FRF [m] (thesis: 50 mm).
+    nperseg, noverlap, window
+        Welch segment [samples], overlap [samples] (default nperseg // 2) and window (SciPy
+        name, e.g. ``"hann"``, ``"boxcar"``, ``"hamming"``); resolution = rate / nperseg.
+    f_min_hz, f_max_hz
+        Band kept [Hz].
+    spindle_rpm, harmonic_tolerance_hz
+        Flags bins within the tolerance (default 1.5 bins) of spindle harmonics.
+    min_coherence
+        Bins below are flagged.
     exclude_s_m
-        A path interval left out (e.g. 50 mm around a validation pose).
+        A path interval left out (e.g. 50 mm around a validation pose) [m].
+    min_usable_fraction
+        Warn (:class:`OMAQualityWarning`) when fewer bins than this pass on average.
+
+    Returns
+    -------
+    list of OMASegment
+
+    Raises
+    ------
+    ValueError
+        Unsynchronised or non-uniform records, NaN, unknown direction, segments shorter than
+        one Welch window, bad overlap.
     """
     t = np.asarray(time_s, float)
     f = np.asarray(force_n, float)
     x = np.asarray(displacement_m, float)
-    s = np.asarray(path_s_m, float)
-    from .._checks import check_choice, check_int, check_number
-
-    check_choice("direction", direction, ("x", "y", "z"))
-    segment_length_m = check_number("segment_length_m", segment_length_m, "m", lo=0.0, lo_open=True)
-    nperseg = check_int("nperseg", nperseg, lo=8)
-    f_min_hz = check_number("f_min_hz", f_min_hz, "Hz", lo=0.0)
-    f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
-    if f_min_hz >= f_max_hz:
-        raise ValueError(f"f_min_hz={f_min_hz:g} Hz must be below f_max_hz={f_max_hz:g} Hz")
-    check_number("min_coherence", min_coherence, "", lo=0.0, hi=1.0)
-    if spindle_rpm is not None:
-        check_number("spindle_rpm", spindle_rpm, "rpm", lo=0.0, lo_open=True)
+    s_in = np.asarray(path_s_m, float)
+    if s_in.ndim == 2 and s_in.shape[0] == t.size and s_in.shape[1] >= 2:
+        poses = s_in
+        step = np.hypot(np.diff(s_in[:, 0]), np.diff(s_in[:, 1]))
+        s = np.concatenate([[0.0], np.cumsum(step)])
+    else:
+        poses = None
+        s = s_in
+    if noverlap is not None and not 0 <= noverlap < nperseg:
+        raise ValueError(f"noverlap must be in [0, nperseg={nperseg}) samples, got {noverlap}")
+    if segment_length_m <= 0:
+        raise ValueError(f"segment_length_m must be > 0 [m], got {segment_length_m}")
+    if direction not in ("x", "y", "z"):
+        raise ValueError(f"unknown direction {direction!r}")
     if not (
         t.ndim == 1 and f.shape == (t.size, 3) and x.shape == (t.size, 3) and s.shape == (t.size,)
     ):
         raise ValueError(
-            f"unsynchronised records: time {t.shape}, force {f.shape}, displacement {x.shape}, path {s.shape} "
-            "(need (n,), (n, 3), (n, 3), (n,))"
+            f"unsynchronised records: time {t.shape}, force {f.shape}, displacement {x.shape}, path {s_in.shape} "
+            "(need (n,), (n, 3), (n, 3), (n,) or (n, d))"
         )
     if not all(np.all(np.isfinite(a)) for a in (t, f, x, s)):
         raise ValueError("OMA records contain NaN or inf")
@@ -115,7 +165,7 @@ def oma_frfs(
             )
         frf = estimate_frf(
             f[idx, axis], x[idx, axis], fs, response_quantity="displacement", nperseg=nperseg,
-            f_max_hz=f_max_hz, direction=direction, source="OMA",
+            noverlap=noverlap, window=window, f_max_hz=f_max_hz, direction=direction, source="OMA",
         ).band(f_min_hz, f_max_hz)  # fmt: skip
         flagged = frf.coherence < min_coherence
         if spindle_rpm is not None:
@@ -123,7 +173,17 @@ def oma_frfs(
             tol = harmonic_tolerance_hz if harmonic_tolerance_hz is not None else 1.5 * frf.df_hz
             harmonic = np.abs(frf.frequency_hz - np.round(frf.frequency_hz / f_sp) * f_sp) <= tol
             flagged |= harmonic & (np.round(frf.frequency_hz / f_sp) >= 1)
-        out.append(OMASegment(frf, flagged, s_mid, int(idx.size)))
+        pose_mid = () if poses is None else tuple(float(v) for v in poses[idx].mean(axis=0))
+        out.append(OMASegment(frf, flagged, s_mid, int(idx.size), pose_mid))
     if not out:
         raise ValueError("every segment was excluded")
+    usable = 1.0 - float(np.mean([sg.flagged.mean() for sg in out]))
+    if usable < min_usable_fraction:
+        warnings.warn(
+            f"only {100 * usable:.0f} % of the OMA bins ({direction}) pass the coherence "
+            f"(>= {min_coherence}) and harmonic checks: too little broadband force content "
+            "for OMA, or too few averages (longer segments / shorter nperseg)",
+            OMAQualityWarning,
+            stacklevel=2,
+        )
     return out

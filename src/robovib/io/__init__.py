@@ -4,6 +4,7 @@ Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
 from .atomic import atomic_path
+from .cuts import MeasuredCuts, read_cuts_csv
 from .frf_csv import FRF_CSV_UNITS, read_frf_csv, write_frf_csv
 from .frf_files import (
     read_frfs,
@@ -43,6 +44,7 @@ from .units import apply_sensitivity, si_factor
 __all__ = [
     "FRF_CSV_UNITS",
     "HammerRecording",
+    "MeasuredCuts",
     "OutputPathError",
     "ReadReport",
     "Record58",
@@ -54,6 +56,7 @@ __all__ = [
     "json_dumps",
     "json_safe",
     "read_compliance_tests_csv",
+    "read_cuts_csv",
     "read_force_csv",
     "read_frf_csv",
     "read_frfs",

@@ -137,19 +137,27 @@ def write_path_modes_csv(path: str | Path, s_m, modes: Sequence[ModalParameters]
 def read_milling_record_csv(path: str | Path) -> dict[str, np.ndarray]:
     """Synchronised milling record along a path (e.g. ``robovib sim mill --path-s-from ...``).
 
-    Columns ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m, path_s_m``.
+    Columns ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m`` and either ``path_s_m`` (a cut
+    along the chapter-4 path) or ``x_m, y_m, rz_deg`` (a cut in the workspace).
 
     Returns
     -------
     dict
-        ``time_s`` (n,), ``force_n`` (n, 3) [N], ``displacement_m`` (n, 3) [m], ``path_s_m``
-        (n,) [m].
+        ``time_s`` (n,), ``force_n`` (n, 3) [N], ``displacement_m`` (n, 3) [m], and
+        ``path_s_m`` (n,) [m] or ``pose`` (n, 3) [m, m, deg].
 
     Raises
     ------
     ValueError
         Missing column, NaN or inf.
     """
+    import pandas as pd
+
+    head = pd.read_csv(path, nrows=0).columns
+    if "path_s_m" not in head and all(c in head for c in ("x_m", "y_m", "rz_deg")):
+        _, d = _read_table(path, (*MILLING_RECORD_COLUMNS[:-1], "x_m", "y_m", "rz_deg"))
+        return {"time_s": d[:, 0], "force_n": d[:, 1:4], "displacement_m": d[:, 4:7],
+                "pose": d[:, 7:10]}  # fmt: skip
     _, d = _read_table(path, MILLING_RECORD_COLUMNS)
     return {
         "time_s": d[:, 0],

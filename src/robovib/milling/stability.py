@@ -60,6 +60,7 @@ class StabilityLobes:
     spindle_rpm: list[np.ndarray]
     depth_m: list[np.ndarray]
     chatter_hz: np.ndarray
+    branch_chatter_hz: list[np.ndarray] | None = None
 
     def critical_depth(self, spindle_rpm) -> np.ndarray:
         """Lowest critical depth over all lobes at the given speeds (inf where no lobe covers)."""
@@ -154,7 +155,7 @@ def stability_lobes(
             disc = np.sqrt(a1**2 - 4 * a0)
             lam = np.stack([-(a1 + disc) / (2 * a0), -(a1 - disc) / (2 * a0)])
     n_fl = tool.n_flutes
-    rpms, depths = [], []
+    rpms, depths, freqs = [], [], []
     wc = 2 * np.pi * f
     for branch in lam:
         lr, li = branch.real, branch.imag
@@ -171,6 +172,7 @@ def stability_lobes(
             ok = valid & np.isfinite(rpm) & (rpm > 0)
             rpms.append(rpm[ok])
             depths.append(depth[ok])
+            freqs.append(f[ok])
     if not depths:
         raise ValueError("no positive critical depth: check the modes and the engagement")
-    return StabilityLobes(rpms, depths, f)
+    return StabilityLobes(rpms, depths, f, freqs)

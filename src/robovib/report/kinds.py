@@ -148,7 +148,7 @@ def chapter3_study_report(
     *, kernel: str = "ard", n_splits: int = 5, mode_switch: bool = True, rng: int = 0
 ) -> Report:
     """Run the chapter-3 study (:func:`robovib.gp.study.chapter3_study`) and report it."""
-    from ..gp.study import chapter3_study
+    from ..studies.chapter3 import chapter3_study
 
     if kernel not in ("ard", "isotropic"):
         raise ValueError(f"unknown kernel {kernel!r}; use 'ard' or 'isotropic'")
@@ -343,40 +343,35 @@ def _frf_model_report(model, path, prov) -> Report:
 
 
 # --------------------------------------------------------------------------------- lobes
-def lobes_report(pose_lobes, settings: Mapping[str, Any], provenance=None) -> Report:
-    """Stability lobes at a pose (:class:`robovib.milling.workflow.PoseLobes`) as a report."""
-    import matplotlib.pyplot as plt
+def lobes_report(chart, settings: Mapping[str, Any], provenance=None) -> Report:
+    """A stability chart (:class:`robovib.milling.chart.LobesChart`) as a report."""
     import pandas as pd
 
-    res = pose_lobes
-    crit = np.asarray(res.critical_depth_m, float)
-    finite = np.isfinite(crit)
-    best = int(np.argmax(np.where(finite, crit, -np.inf)))
+    from ..milling.chart import plot_lobes_chart
+
+    doc = chart.to_dict()
+
+    def mm(v):
+        return "-" if v is None else f"{1e3 * v:.3f}"
+
     summary = pd.DataFrame({
-        "quantity": ["minimum critical depth [mm]", "deepest stable cut in the range [mm]",
-                     "at spindle speed [rpm]", "feed direction", "extrapolating"],
-        "value": [f"{1e3 * res.lobes.minimum_depth_m:.3f}", f"{1e3 * crit[best]:.3f}",
-                  f"{res.spindle_rpm[best]:.0f}", res.feed_direction,
-                  ", ".join(res.extrapolation) or "no"],
+        "quantity": ["depth stable at every speed [mm]", "most stable speed [rpm]",
+                     "critical depth there [mm]", "method", "tool"],
+        "value": [mm(doc["minimum_depth_m"]),
+                  "-" if doc["most_stable_rpm"] is None else f"{doc['most_stable_rpm']:.0f}",
+                  mm(doc["most_stable_depth_m"]), doc["method"],
+                  f"{1e3 * chart.tool.diameter_m:g} mm, {chart.tool.n_flutes} flutes"],
     }).set_index("quantity")  # fmt: skip
-    step = max(1, res.spindle_rpm.size // 25)
-    samples = pd.DataFrame({"spindle_rpm": res.spindle_rpm[::step],
-                            "critical_depth_mm": 1e3 * crit[::step]})  # fmt: skip
-    fig, ax = plt.subplots(figsize=(7, 4))
-    res.lobes.plot(ax=ax, rpm_range=(float(res.spindle_rpm[0]), float(res.spindle_rpm[-1])))
-    ax.plot(res.spindle_rpm, 1e3 * np.where(finite, crit, np.nan), "k", lw=2, label="envelope")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    notes = (
-        (f"pose outside the training data ({', '.join(res.extrapolation)}): extrapolation",)
-        if res.extrapolation
-        else ()
-    )
+    rpm = np.asarray(doc["rpm"], float)
+    depth = np.array([np.nan if v is None else v for v in doc["a_lim_m"]], float)
+    step = max(1, rpm.size // 25)
+    samples = pd.DataFrame({"spindle_rpm": rpm[::step], "critical_depth_mm": 1e3 * depth[::step],
+                            "limited_by": np.asarray(doc["kind"])[::step]})  # fmt: skip
     section = ReportSection(
-        title="Chatter stability at the pose (zero-order method)",
-        notes=notes,
+        title="Chatter stability at the pose",
+        paragraphs=(chart.title.replace("\n", "; "),),
         tables=(("Summary", summary), ("Critical axial depth vs spindle speed", samples)),
-        figures=(("Stability lobes from the predicted X/Y modes", fig),),
+        figures=(("Stability chart: envelope, unstable region shaded", plot_lobes_chart(chart)),),
     )
     return Report("robovib — stability lobes", (section,), settings=dict(settings),
                   provenance=_provenance(provenance))  # fmt: skip
@@ -391,24 +386,48 @@ def lobes_study_report(
     material: str = "al7075",
     feed: str = "x",
     rpm_range: tuple[float, float] = (100.0, 3000.0),
+    n_speeds: int = 100,
+    method: str = "zoa",
     model=None,
     rng: int = 0,
 ) -> Report:
-    """Lobes at a pose from the chapter-3 model (or ``model``) as a report."""
-    from ..gp.study import fit_chapter3_model
-    from ..milling import ACETAL, ALUMINIUM_7075
-    from ..milling.workflow import lobes_at_pose
+    """Lobes at a pose from the chapter-3 pose model (or ``model``) as a report.
+
+    Raises
+    ------
+    ValueError
+        Unknown material, feed direction or method; non-finite pose; bad speed range or radial
+        depth (checked by :func:`robovib.milling.chart.lobes_chart`).
+    """
+    from ..gp import get_chapter3_model
+    from ..milling import ACETAL, ALUMINIUM_7075, CuttingConditions, MillingTool
+    from ..milling.chart import lobes_chart
 
     mats = {"al7075": ALUMINIUM_7075, "acetal": ACETAL}
     if material not in mats:
         raise ValueError(f"unknown material {material!r}; use one of {', '.join(mats)}")
-    model = model if model is not None else fit_chapter3_model(rng=rng)
-    res = lobes_at_pose(model, x_mm, y_mm, rz_deg, mats[material], radial_depth_m=ae_mm / 1e3,
-                        feed_direction=feed, rpm_range=rpm_range)  # fmt: skip
+    if feed not in ("x", "y"):
+        raise ValueError(f"unknown feed direction {feed!r}; use x or y")
+    for name, v in (("x", x_mm), ("y", y_mm), ("rz", rz_deg), ("ae", ae_mm)):
+        if not np.isfinite(v):
+            raise ValueError(f"--{name} must be finite, got {v}")
+    if not ae_mm > 0:
+        raise ValueError(f"radial depth ae must be > 0 mm, got {ae_mm}")
+    if not 0 < rpm_range[0] < rpm_range[1] < np.inf:
+        raise ValueError(f"speed range must be 0 < min < max rpm, got {rpm_range}")
+    model = model if model is not None else get_chapter3_model(rng=rng)
+    tool = MillingTool()
+    chart = lobes_chart(
+        tool=tool, conditions=CuttingConditions(1000.0, 1e-4, 1e-3, ae_mm / 1e3),
+        coefficients=mats[material], spindle_rpm=np.linspace(*rpm_range, n_speeds), method=method,
+        pose_label=f"X {x_mm:g} mm, Y {y_mm:g} mm, Rz {rz_deg:g}°, feed {feed}",
+        material_label=material, pose_model=model, pose=(x_mm, y_mm, rz_deg), feed_direction=feed,
+    )  # fmt: skip
     settings = {"x_mm": x_mm, "y_mm": y_mm, "z_mm": 325.0, "rz_deg": rz_deg, "ae_mm": ae_mm,
                 "material": material, "feed_direction": feed, "rpm_range_rpm": list(rpm_range),
+                "n_speeds": n_speeds, "method": method,
                 "tool": "25.4 mm, 2 flutes, 30° helix (thesis §3.5)"}  # fmt: skip
-    return lobes_report(res, settings)
+    return lobes_report(chart, settings)
 
 
 # ------------------------------------------------------------------------------- control

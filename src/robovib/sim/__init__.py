@@ -16,6 +16,7 @@ from .experiments import (
     simulate_offset_mass,
 )
 from .plant import run_closed_loop
+from .regenerative import RegenerativeCut, simulate_regenerative_cut, simulated_stability_limit
 from .truth import (
     PATH_LENGTH_M,
     POSITION_1_S_M,
@@ -37,6 +38,7 @@ __all__ = [
     "ModeSet",
     "MotionRecord",
     "PathTruth",
+    "RegenerativeCut",
     "SimulatedCampaign",
     "VirtualRobot",
     "WorkspaceTruth",
@@ -49,6 +51,8 @@ __all__ = [
     "simulate_hammer_test",
     "simulate_milling",
     "simulate_offset_mass",
+    "simulate_regenerative_cut",
+    "simulated_stability_limit",
     "truth_table",
     "zoh_transition",
 ]

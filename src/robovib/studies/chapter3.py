@@ -16,6 +16,9 @@ that exist nowhere between X = 2400 and 2700 mm). ``mode_switch=False`` gives th
 GP per output.
 
 All figures are in the thesis' units (Hz, MN/m, kN·s/m) so they can be set beside Table 2.
+The models fitted here are the thesis-unit regressors (:func:`make_chapter3_regressor`); the
+SI pose model for applications is :func:`robovib.gp.fit_chapter3_model` /
+:func:`robovib.gp.load_chapter3_model`.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from typing import Literal
 
 import numpy as np
 import pandas as pd
+from sklearn.base import clone
 
 from ..datasets import (
     DIRECTIONS,
@@ -36,9 +40,9 @@ from ..datasets import (
     modal_output_columns,
     pose_columns,
 )
-from .mode_switch import ModeSwitchingGPRegressor, symmetric_rz_features
-from .regressor import BatchedGPRegressor
-from .validation import (
+from ..gp.mode_switch import ModeSwitchingGPRegressor, symmetric_rz_features
+from ..gp.regressor import BatchedGPRegressor
+from ..gp.validation import (
     PolynomialRegression,
     cross_validate,
     external_validation,
@@ -49,8 +53,8 @@ __all__ = [
     "OUTPUT_LABELS",
     "Chapter3Study",
     "chapter3_study",
-    "fit_chapter3_model",
-    "make_chapter3_model",
+    "fit_chapter3_regressor",
+    "make_chapter3_regressor",
 ]
 
 #: Short labels of the 9 outputs in Table-2 order, with the thesis' units.
@@ -84,9 +88,17 @@ class Chapter3Study:
     settings: dict
 
     def to_frame(self) -> pd.DataFrame:
-        """One row per output, one column per figure."""
+        """One row per output, one column per figure (thesis units: Hz, MN/m, kN·s/m)."""
         data = {k: v for k, v in self.__dict__.items() if isinstance(v, np.ndarray)}
         return pd.DataFrame(data, index=list(self.outputs))
+
+    def to_dict(self) -> dict:
+        """JSON-ready: settings, units and one record per output."""
+        return {
+            "settings": dict(self.settings),
+            "units": {"fn": "Hz", "stiffness": "MN/m", "damping": "kN*s/m", "rmse": "output units"},
+            "outputs": self.to_frame().reset_index(names="output").to_dict(orient="records"),
+        }
 
 
 def _training_data(stiffness_reading: str):
@@ -96,12 +108,12 @@ def _training_data(stiffness_reading: str):
     return a1, X, Y, np.isfinite(Y)
 
 
-def make_chapter3_model(
+def make_chapter3_regressor(
     kernel: Literal["isotropic", "ard"] = "ard",
     mode_switch: bool = True,
     rng: int | np.random.Generator | None = 0,
 ) -> BatchedGPRegressor | ModeSwitchingGPRegressor:
-    """An unfitted 9-output pose model (outputs in Table-2 order, X outputs first)."""
+    """An unfitted 9-output regressor in thesis units (Table-2 order, X outputs first)."""
     if mode_switch:
         return ModeSwitchingGPRegressor(
             switching_outputs=(0, 1, 2),
@@ -114,15 +126,15 @@ def make_chapter3_model(
     return BatchedGPRegressor(kernel=kernel, rng=rng)
 
 
-def fit_chapter3_model(
+def fit_chapter3_regressor(
     kernel: Literal["isotropic", "ard"] = "ard",
     mode_switch: bool = True,
     stiffness_reading: Literal["corrected", "printed"] = "corrected",
     rng: int | np.random.Generator | None = 0,
 ) -> BatchedGPRegressor | ModeSwitchingGPRegressor:
-    """The 9-output pose model of Table A1 over (X [mm], Y [mm], Rz [deg]), thesis units."""
+    """The 9-output regressor of Table A1 over (X [mm], Y [mm], Rz [deg]), thesis units."""
     _, X, Y, mask = _training_data(stiffness_reading)
-    return make_chapter3_model(kernel, mode_switch, rng).fit(X, Y, mask=mask)
+    return make_chapter3_regressor(kernel, mode_switch, rng).fit(X, Y, mask=mask)
 
 
 def chapter3_study(
@@ -149,20 +161,16 @@ def chapter3_study(
     """
     a1, X, Y, mask = _training_data(stiffness_reading)
 
-    def make_gp():
-        return make_chapter3_model(kernel, mode_switch, rng)
-
-    plain = cross_validate(make_gp, X, Y, n_splits=n_splits, mask=mask, rng=rng)
+    gp = make_chapter3_regressor(kernel, mode_switch, rng)
+    plain = cross_validate(gp, X, Y, n_splits=n_splits, mask=mask, rng=rng)
     grouped = cross_validate(
-        make_gp, X, Y, n_splits=n_splits, mask=mask, groups=a1["test"].to_numpy(), rng=rng
+        gp, X, Y, n_splits=n_splits, mask=mask, groups=a1["test"].to_numpy(), rng=rng
     )
     mlr = PolynomialRegression(degree=2).fit(X, Y, mask=mask)
     mlr_in_r2, _, mlr_in_rmse = regression_scores(np.where(mask, Y, np.nan), mlr.predict(X), mask)
-    mlr_cv = cross_validate(
-        lambda: PolynomialRegression(2), X, Y, n_splits=n_splits, mask=mask, rng=rng
-    )
+    mlr_cv = cross_validate(PolynomialRegression(2), X, Y, n_splits=n_splits, mask=mask, rng=rng)
 
-    model = make_gp().fit(X, Y, mask=mask)
+    model = clone(gp).fit(X, Y, mask=mask)
     a2 = load_table_a2(units="thesis")
     ext = external_validation(
         model, a2[pose_columns("thesis")].to_numpy(), a2[modal_output_columns("thesis")].to_numpy()

@@ -11,22 +11,66 @@ angles as inputs and scores both on Table A2 (external validation).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pandas as pd
 
 from ..datasets import load_table_a1, load_table_a2, modal_output_columns
 from ..gp.regressor import BatchedGPRegressor
 from ..gp.validation import external_validation
-from .dynamics import TABLE_4_JOINT_STIFFNESS, cartesian_modes
-from .kinematics import KR500, tool_down_orientation
+from ..robot.dynamics import TABLE_4_JOINT_STIFFNESS, cartesian_modes
+from ..robot.kinematics import KR500, tool_down_orientation
 
 __all__ = [
+    "AnalyticalComparison",
+    "GPInputComparison",
     "compare_with_table_a1",
+    "comparison_summary",
     "gp_input_comparison",
-    "hybrid_learning_curve",
     "plot_comparison",
     "workspace_joints",
 ]
+
+
+@dataclass(frozen=True)
+class AnalyticalComparison:
+    """Analytical vs measured fn [Hz] and stiffness [N/m] per Table A1 pose (thesis Fig. 11).
+
+    ``table`` has one row per pose (``test, x_m, y_m, rz_deg, extension_m`` and per direction
+    ``fn_<d>_{analytical,measured}_hz``, ``stiffness_<d>_{analytical,measured}_n_per_m``,
+    ``*_rel_error`` = analytical / measured - 1).
+    """
+
+    table: pd.DataFrame
+
+    def to_frame(self) -> pd.DataFrame:
+        """A copy of the per-pose table."""
+        return self.table.copy()
+
+    def summary(self) -> dict[str, dict[str, float]]:
+        """Mean, min and max relative error of fn and stiffness per direction."""
+        return comparison_summary(self.table)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: summary and one record per pose (units in the keys)."""
+        return {"summary": self.summary(), "poses": self.table.to_dict(orient="records")}
+
+
+@dataclass(frozen=True)
+class GPInputComparison:
+    """Table A2 errors of the chapter-3 GP on Cartesian vs joint-angle inputs (thesis units)."""
+
+    table: pd.DataFrame
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per (inputs, output): ``rmse`` (output units) and ``mean_relative_error``."""
+        return self.table.copy()
+
+    def to_dict(self) -> dict:
+        """JSON-ready records."""
+        return {"rows": self.table.to_dict(orient="records")}
+
 
 _Z_M = 0.325
 
@@ -43,7 +87,7 @@ def workspace_joints(robot: KR500, x_m, y_m, rz_deg) -> np.ndarray:
 
 def compare_with_table_a1(
     robot: KR500 | None = None, k_theta=TABLE_4_JOINT_STIFFNESS
-) -> pd.DataFrame:
+) -> AnalyticalComparison:
     """Per Table A1 pose: measured vs analytical fn [Hz] and stiffness [N/m] per direction."""
     robot = robot or KR500()
     a1 = load_table_a1(units="si")
@@ -64,10 +108,12 @@ def compare_with_table_a1(
             rec[f"fn_{d}_rel_error"] = rec[f"fn_{d}_analytical_hz"] / rec[f"fn_{d}_measured_hz"] - 1
             rec[f"stiffness_{d}_rel_error"] = k_dir[i] / row[f"stiffness_{d}_n_per_m"] - 1
         rows.append(rec)
-    return pd.DataFrame(rows)
+    return AnalyticalComparison(pd.DataFrame(rows))
 
 
-def comparison_summary(table: pd.DataFrame) -> dict[str, dict[str, float]]:
+def comparison_summary(
+    table: AnalyticalComparison | pd.DataFrame,
+) -> dict[str, dict[str, float]]:
     """Mean, min and max relative error per quantity and direction of :func:`compare_with_table_a1`.
 
     Returns
@@ -75,6 +121,8 @@ def comparison_summary(table: pd.DataFrame) -> dict[str, dict[str, float]]:
     dict
         ``{"fn_x": {"mean_rel_error", "min", "max"}, "stiffness_x": ..., ...}`` (fractions).
     """
+    if isinstance(table, AnalyticalComparison):
+        table = table.table
     summary = {}
     for d in "xyz":
         for q in ("fn", "stiffness"):
@@ -87,8 +135,10 @@ def comparison_summary(table: pd.DataFrame) -> dict[str, dict[str, float]]:
     return summary
 
 
-def plot_comparison(table: pd.DataFrame, path=None):
+def plot_comparison(table: AnalyticalComparison | pd.DataFrame, path=None):
     """Relative errors (analytical / measured - 1) vs arm extension, like thesis Fig. 11."""
+    if isinstance(table, AnalyticalComparison):
+        table = table.table
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
@@ -123,7 +173,7 @@ def plot_comparison(table: pd.DataFrame, path=None):
     return fig
 
 
-def gp_input_comparison(robot: KR500 | None = None, rng: int = 0) -> pd.DataFrame:
+def gp_input_comparison(robot: KR500 | None = None, rng: int = 0) -> GPInputComparison:
     """External-validation (Table A2) errors of GPs on Cartesian vs joint-angle inputs."""
     robot = robot or KR500()
     a1 = load_table_a1(units="thesis")
@@ -149,90 +199,4 @@ def gp_input_comparison(robot: KR500 | None = None, rng: int = 0) -> pd.DataFram
         ev = external_validation(model, x2, y2)
         for c, rmse, mre in zip(cols, ev.rmse, ev.mean_relative_error, strict=True):
             rows.append({"inputs": name, "output": c, "rmse": rmse, "mean_relative_error": mre})
-    return pd.DataFrame(rows)
-
-
-def hybrid_learning_curve(
-    n_poses=(5, 10, 20, 40, 60),
-    n_repeats: int = 5,
-    robot: KR500 | None = None,
-    rng: int = 0,
-) -> pd.DataFrame:
-    """Pure GP vs hybrid (analytical mean + GP on the residual) vs number of training poses.
-
-    Outputs: natural frequency and stiffness in X, Y, Z (the quantities the analytical model
-    predicts). The hybrid models ``log(y) - log(y_analytical)`` (multiplicative correction of
-    the analytical model), the pure GP ``log(y)``; both ARD, constant mean. For each size,
-    ``n_repeats`` random subsets of Table A1 poses (all replicates of a chosen pose) are drawn;
-    the score is the RMSE on Table A2 in the thesis' units (Hz, MN/m), averaged over repeats.
-    The ~63 Hz X-mode rows are left out of the X outputs (Table A2 has no such pose).
-    """
-    robot = robot or KR500()
-    a1 = load_table_a1(units="thesis")
-    a2 = load_table_a2(units="thesis")
-    outs = [f"{q}_{d}" for d in "xyz" for q in ("fn", "stiffness")]
-    comp1 = compare_with_table_a1(robot).set_index("test")
-    x1 = a1[["x_mm", "y_mm", "rz_deg"]].to_numpy()
-    x2 = a2[["x_mm", "y_mm", "rz_deg"]].to_numpy()
-    unit = {"fn": ("hz", 1.0), "stiffness": ("mn_per_m", 1e-6)}
-
-    def analytical_a1(name):
-        q, d = name.split("_")
-        col = f"{q}_{d}_analytical_{'hz' if q == 'fn' else 'n_per_m'}"
-        return comp1.loc[a1["test"], col].to_numpy() * unit[q][1]
-
-    joints2 = workspace_joints(robot, a2["x_mm"] / 1e3, a2["y_mm"] / 1e3, a2["rz_deg"])
-    modes2 = [cartesian_modes(robot, q) for q in joints2]
-
-    def analytical_a2(name):
-        q, d = name.split("_")
-        i = "xyz".index(d)
-        if q == "stiffness":
-            return np.array([m.directional_stiffness()[i] for m in modes2]) * 1e-6
-        return np.array(
-            [m.natural_frequencies_hz[int(np.argmax(np.abs(m.directions[i])))] for m in modes2]
-        )
-
-    y1 = np.column_stack(
-        [a1[f"{n.split('_')[0]}_{n.split('_')[1]}_{unit[n.split('_')[0]][0]}"] for n in outs]
-    )
-    y2 = np.column_stack(
-        [a2[f"{n.split('_')[0]}_{n.split('_')[1]}_{unit[n.split('_')[0]][0]}"] for n in outs]
-    )
-    base1 = np.column_stack([analytical_a1(n) for n in outs])
-    base2 = np.column_stack([analytical_a2(n) for n in outs])
-    mask_all = np.isfinite(y1)
-    mask_all[a1["x_high_mode"].to_numpy(), :2] = False
-    tests = a1["test"].unique()
-    gen = np.random.default_rng(rng)
-    rows = []
-    for n in n_poses:
-        for rep in range(n_repeats if n < len(tests) else 1):
-            chosen = gen.choice(tests, size=min(n, len(tests)), replace=False)
-            sel = np.isin(a1["test"], chosen)
-            mask = mask_all[sel]
-            if np.any(mask.sum(axis=0) < 3):
-                continue
-            for name, target, offset in (
-                ("pure GP", np.log(y1[sel]), 0.0),
-                ("hybrid", np.log(y1[sel]) - np.log(base1[sel]), None),
-            ):
-                if np.any(np.nanstd(np.where(mask, target, np.nan), axis=0) == 0):
-                    continue
-                model = BatchedGPRegressor(kernel="ard", rng=rng).fit(
-                    x1[sel], np.where(mask, target, 0.0), mask=mask
-                )
-                pred = model.predict(x2)
-                pred = np.exp(pred if offset is not None else pred + np.log(base2))
-                rmse = np.sqrt(np.mean((pred - y2) ** 2, axis=0))
-                for o, r in zip(outs, rmse, strict=True):
-                    rows.append(
-                        {
-                            "n_poses": int(n),
-                            "repeat": rep,
-                            "model": name,
-                            "output": o,
-                            "rmse": float(r),
-                        }
-                    )
-    return pd.DataFrame(rows)
+    return GPInputComparison(pd.DataFrame(rows))

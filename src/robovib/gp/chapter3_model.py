@@ -1,0 +1,128 @@
+"""The chapter-3 pose model of Table A1 as a :class:`~robovib.gp.PoseModalModel` (SI).
+
+:func:`fit_chapter3_model` fits it; :func:`load_chapter3_model` loads the fitted copy shipped as
+package data (``robovib/datasets/data/chapter3_model.h5``, written by
+``scripts/build_chapter3_model.py`` and checked against a fresh fit by the tests), so that pose
+commands answer without refitting.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from typing import Literal
+
+import numpy as np
+
+from ..datasets import load_table_a1, modal_output_columns, pose_columns
+from .pose_model import PoseModalModel
+
+__all__ = [
+    "CHAPTER3_INPUTS",
+    "chapter3_training_data",
+    "fit_chapter3_model",
+    "get_chapter3_model",
+    "load_chapter3_model",
+]
+
+#: Inputs of the chapter-3 model (Z = 325 mm, Rx = Ry = 0 throughout Table A1).
+CHAPTER3_INPUTS = ("x_mm", "y_mm", "rz_deg")
+_FILE = "chapter3_model.h5"
+
+
+def chapter3_training_data(
+    stiffness_reading: Literal["corrected", "printed"] = "corrected",
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Table A1 as (X (180, 3) [mm, mm, deg], Y (180, 9) SI, groups (180,) test number).
+
+    ``Y`` columns: fn [Hz], k [N/m], c [N·s/m] for X, Y, Z; NaN where a cell is missing.
+    """
+    a1 = load_table_a1(units="si", stiffness_reading=stiffness_reading)
+    X = a1[pose_columns("si")].to_numpy() * [1e3, 1e3, 1.0]
+    Y = a1[modal_output_columns("si")].to_numpy()
+    return X, Y, a1["test"].to_numpy()
+
+
+def fit_chapter3_model(
+    kernel: Literal["isotropic", "ard"] = "ard",
+    mode_switch: str | bool = "auto",
+    stiffness_reading: Literal["corrected", "printed"] = "corrected",
+    rng: int | np.random.Generator | None = 0,
+) -> PoseModalModel:
+    """Fit the 9-output pose model of Table A1 over (x_mm, y_mm, rz_deg), outputs in SI.
+
+    Parameters
+    ----------
+    kernel
+        ``"ard"`` (default) or ``"isotropic"`` (thesis Eq. 7).
+    mode_switch
+        ``"auto"`` (default: detects the ~63 Hz X-mode switch), ``True`` or ``False`` (the
+        thesis' one smooth GP per output); see :class:`PoseModalModel`.
+    stiffness_reading
+        Reading of Table A1's shifted stiffness cells (:func:`robovib.datasets.load_table_a1`).
+    rng
+        Seed of the optimiser restarts and the classifier.
+
+    Returns
+    -------
+    PoseModalModel
+        Fitted; the mode classifier sees cos(2 Rz) (Rz and Rz + 180° are the same arm
+        configuration).
+    """
+    X, Y, _ = chapter3_training_data(stiffness_reading)
+    model = PoseModalModel(
+        input_names=CHAPTER3_INPUTS,
+        directions=("x", "y", "z"),
+        kernel=kernel,
+        mode_switch=mode_switch,
+        rng=rng,
+        rz_symmetric=True,
+    )
+    return model.fit(X, Y)
+
+
+def load_chapter3_model() -> PoseModalModel:
+    """The fitted chapter-3 model shipped with robovib (``fit_chapter3_model()`` defaults).
+
+    Returns
+    -------
+    PoseModalModel
+        Loaded from package data in milliseconds, no refit.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the package data is missing (run ``python scripts/build_chapter3_model.py``).
+    """
+    ref = resources.files("robovib.datasets").joinpath("data", _FILE)
+    with resources.as_file(ref) as path:
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"{path}: shipped chapter-3 model missing; run scripts/build_chapter3_model.py"
+            )
+        return PoseModalModel.load(path)
+
+
+def get_chapter3_model(
+    kernel: Literal["isotropic", "ard"] = "ard",
+    mode_switch: str | bool = "auto",
+    rng: int | None = 0,
+) -> PoseModalModel:
+    """The chapter-3 model for these settings: the shipped copy when they are its settings.
+
+    Parameters
+    ----------
+    kernel, mode_switch, rng
+        As :func:`fit_chapter3_model` (corrected stiffness reading).
+
+    Returns
+    -------
+    PoseModalModel
+        :func:`load_chapter3_model` (milliseconds) for the defaults (``"ard"``, ``"auto"``,
+        0), else a fresh :func:`fit_chapter3_model` (seconds).
+    """
+    if kernel == "ard" and mode_switch == "auto" and rng == 0 and not isinstance(rng, bool):
+        try:
+            return load_chapter3_model()
+        except FileNotFoundError:
+            pass
+    return fit_chapter3_model(kernel=kernel, mode_switch=mode_switch, rng=rng)

@@ -1,0 +1,786 @@
+"""The pose model: dominant modal parameters per direction as GPs of the pose (thesis §3.3).
+
+:class:`PoseModalModel` is the one type every consumer of a pose model takes (milling, control,
+the CLI): the chapter-3 model of Table A1 over ``(x_mm, y_mm, rz_deg)``, the chapter-4 path model
+over ``(s_m,)`` and any model a user fits to their own robot are all instances of it.
+
+For each direction it models the natural frequency ``fn`` [Hz], the modal stiffness ``k``
+[N/m] and the damping coefficient ``c`` [N·s/m] of the dominant mode (SI inside and out) with
+exact GPs (thesis Eq. 6-10, :class:`~robovib.gp.BatchedGPRegressor`).
+
+Mode switches
+-------------
+Where another mode of the arm becomes the dominant one (Table A1: 61-65 Hz in X at full
+extension next to 15-23 Hz elsewhere), a smooth GP averages the two and predicts modes that
+exist nowhere. With ``mode_switch="auto"`` the model first *tests* each direction for a switch
+(:func:`detect_mode_switch`) and, only where it finds one, models that direction with
+:class:`~robovib.gp.mode_switch.ModeSwitchingGPRegressor` (a GP classifier of which mode
+dominates plus one GP per mode). The detection rule, on ``log fn`` of the observed samples:
+
+1. a 2-component 1-D Gaussian mixture beats 1 component by ``ΔBIC = BIC₁ − BIC₂ ≥ 10``
+   ("very strong" evidence on the Kass-Raftery scale);
+2. the two components are separated: Ashman's ``D = √2 |μ₁ − μ₂| / √(σ₁² + σ₂²) ≥ 3``;
+3. the data have an empty gap between the modes at least 3 times the larger within-mode
+   standard deviation of ``log fn`` (so a skewed or merely clustered cloud, as Table A1's Z
+   frequencies at 9-11 Hz, is not called a switch);
+4. each mode has at least 3 samples.
+
+The threshold between the modes is the geometric midpoint of the gap. The outcome per
+direction is kept in ``mode_switches_``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.exceptions import NotFittedError
+
+from ..modal.parameters import ModalParameters
+from .mode_switch import ModeSwitchingGPRegressor
+from .regressor import BatchedGPRegressor
+
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "ModeSwitchDetection",
+    "PoseModalModel",
+    "PoseMode",
+    "detect_mode_switch",
+]
+
+#: Format tag and version of the HDF5 files written by :meth:`PoseModalModel.save`.
+FORMAT = "robovib.PoseModalModel"
+FORMAT_VERSION = 1
+
+_QUANTITIES = (("fn", "hz"), ("stiffness", "n_per_m"), ("damping", "ns_per_m"))
+_UNIT_LABELS = {"hz": "Hz", "n_per_m": "N/m", "ns_per_m": "N*s/m"}
+
+
+# ---------------------------------------------------------------------------------- values
+@dataclass(frozen=True)
+class PoseMode:
+    """The dominant mode of one direction at one pose, with its predictive uncertainty.
+
+    Attributes
+    ----------
+    parameters
+        Mean prediction as :class:`~robovib.modal.ModalParameters` (SI).
+    fn_std_hz, stiffness_std_n_per_m, damping_std_ns_per_m
+        Predictive (latent) standard deviations of fn, k and c.
+    extrapolating
+        The pose is outside the calibrated inputs (see :meth:`PoseModalModel.extrapolating`).
+    high_mode_probability
+        Probability that the high mode dominates, where a mode switch was modelled in this
+        direction; ``None`` otherwise.
+    """
+
+    parameters: ModalParameters
+    fn_std_hz: float
+    stiffness_std_n_per_m: float
+    damping_std_ns_per_m: float
+    extrapolating: bool
+    high_mode_probability: float | None
+
+    def to_dict(self) -> dict:
+        """JSON-ready, units in the keys (fn, k, c, ζ with the std of fn, k, c)."""
+        p = self.parameters
+        return {
+            "fn_hz": p.natural_frequency_hz,
+            "fn_std_hz": self.fn_std_hz,
+            "stiffness_n_per_m": p.stiffness_n_per_m,
+            "stiffness_std_n_per_m": self.stiffness_std_n_per_m,
+            "damping_ns_per_m": p.damping_ns_per_m,
+            "damping_std_ns_per_m": self.damping_std_ns_per_m,
+            "damping_ratio": p.damping_ratio,
+            "extrapolating": self.extrapolating,
+            "high_mode_probability": self.high_mode_probability,
+        }
+
+
+@dataclass(frozen=True)
+class ModeSwitchDetection:
+    """Outcome of the mode-switch test of one direction (see the module docstring).
+
+    Attributes
+    ----------
+    direction
+        The direction tested.
+    found
+        A switch is modelled in this direction.
+    assumed
+        The switch was given by the user (``mode_switch={direction: threshold_hz}``), not tested.
+    threshold_hz
+        Frequency separating the low and the high mode (NaN when none is found).
+    delta_bic
+        BIC(1 component) − BIC(2 components) of ``log fn``.
+    ashman_d
+        Ashman's D of the two mixture components.
+    gap_sigma
+        Empty gap between the modes / larger within-mode std, both in ``log fn``.
+    n_low, n_high
+        Samples in the low and the high mode.
+    reason
+        One line explaining the decision.
+    """
+
+    direction: str
+    found: bool
+    assumed: bool
+    threshold_hz: float
+    delta_bic: float
+    ashman_d: float
+    gap_sigma: float
+    n_low: int
+    n_high: int
+    reason: str
+
+    def to_dict(self) -> dict:
+        """Plain dict (JSON-ready; NaN stays NaN)."""
+        return asdict(self)
+
+
+def detect_mode_switch(
+    fn_hz,
+    *,
+    direction: str = "",
+    min_delta_bic: float = 10.0,
+    min_ashman_d: float = 3.0,
+    min_gap_sigma: float = 3.0,
+    min_samples: int = 3,
+) -> ModeSwitchDetection:
+    """Test whether the natural frequencies of one direction come from two distinct modes.
+
+    Parameters
+    ----------
+    fn_hz
+        (n,) observed natural frequencies of the dominant mode [Hz], over the workspace.
+    direction
+        Label stored in the result.
+    min_delta_bic, min_ashman_d, min_gap_sigma, min_samples
+        The thresholds of rules 1-4 of the module docstring.
+
+    Returns
+    -------
+    ModeSwitchDetection
+
+    Raises
+    ------
+    ValueError
+        If ``fn_hz`` is not 1-D or holds non-finite or non-positive values.
+    """
+    from sklearn.mixture import GaussianMixture
+
+    fn = np.asarray(fn_hz, float)
+    if fn.ndim != 1:
+        raise ValueError(f"fn_hz must be 1-D, got shape {fn.shape}")
+    if not np.all(np.isfinite(fn)) or np.any(fn <= 0):
+        raise ValueError("fn_hz must be positive finite natural frequencies [Hz]")
+    nan = float("nan")
+
+    def none(reason, dbic=nan, d=nan, gap=nan, n_low=fn.size, n_high=0):
+        return ModeSwitchDetection(
+            direction, False, False, nan, dbic, d, gap, int(n_low), int(n_high), reason
+        )
+
+    if fn.size < 2 * min_samples or np.unique(fn).size < 2:
+        return none(f"too few distinct samples ({fn.size}) to test for two modes")
+    v = np.log(fn)[:, None]
+    one = GaussianMixture(1).fit(v)
+    two = GaussianMixture(2, n_init=5, random_state=0).fit(v)
+    delta_bic = float(one.bic(v) - two.bic(v))
+    labels = two.predict(v)
+    high_label = int(np.argmax(two.means_[:, 0]))
+    low, high = v[labels != high_label, 0], v[labels == high_label, 0]
+    if low.size == 0 or high.size == 0:
+        return none("the 2-component mixture put every sample in one mode", delta_bic)
+    ashman = float(np.sqrt(2.0) * abs(high.mean() - low.mean()) / np.hypot(low.std(), high.std()))
+    # Floor of the within-mode spread: frequencies are read to ~0.5 %, and identical replicates
+    # must not make any gap look infinitely wide.
+    spread = max(low.std(), high.std(), 0.005)
+    gap = float(max(high.min() - low.max(), 0.0) / spread)
+    stats = dict(dbic=delta_bic, d=ashman, gap=gap, n_low=low.size, n_high=high.size)
+    if delta_bic < min_delta_bic:
+        return none(f"one mode: ΔBIC = {delta_bic:.1f} < {min_delta_bic:g}", **stats)
+    if ashman < min_ashman_d:
+        return none(f"modes not separated: Ashman's D = {ashman:.2f} < {min_ashman_d:g}", **stats)
+    if gap < min_gap_sigma:
+        return none(
+            f"no clear gap between the modes: gap = {gap:.2f} within-mode std < {min_gap_sigma:g}",
+            **stats,
+        )
+    if min(low.size, high.size) < min_samples:
+        return none(f"a mode has fewer than {min_samples} samples", **stats)
+    threshold = float(np.exp(0.5 * (low.max() + high.min())))
+    return ModeSwitchDetection(
+        direction,
+        True,
+        False,
+        threshold,
+        delta_bic,
+        ashman,
+        gap,
+        int(low.size),
+        int(high.size),
+        f"two modes: {np.exp(low.min()):.3g}-{np.exp(low.max()):.3g} Hz and "
+        f"{np.exp(high.min()):.3g}-{np.exp(high.max()):.3g} Hz (ΔBIC = {delta_bic:.0f}, "
+        f"D = {ashman:.1f}, gap = {gap:.1f} std)",
+    )
+
+
+class _RzCos2:
+    """Classifier features with ``rz_deg`` replaced by cos(2 Rz): Rz and Rz + 180° coincide."""
+
+    def __init__(self, index: int) -> None:
+        self.index = index
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        X = np.array(X, float)
+        X[:, self.index] = np.cos(np.radians(2.0 * X[:, self.index]))
+        return X
+
+
+def _unit_of(name: str) -> str:
+    if "_" not in name.strip("_"):
+        raise ValueError(
+            f"input name {name!r} carries no unit: name inputs as <quantity>_<unit>, e.g. 'x_mm'"
+        )
+    return name.rsplit("_", 1)[1]
+
+
+# ---------------------------------------------------------------------------------- the model
+class PoseModalModel(BaseEstimator):
+    """Dominant modal parameters (fn, k, c) per direction as functions of the pose.
+
+    Parameters
+    ----------
+    input_names
+        Names of the input columns with their unit as suffix (``"x_mm"``, ``"rz_deg"``,
+        ``"s_m"``); ``X`` is given in those units.
+    directions
+        Directions modelled; ``Y`` has 3 columns per direction.
+    kernel
+        ``"ard"`` (one length scale per input) or ``"isotropic"`` (thesis Eq. 7).
+    mode_switch
+        ``"auto"``: test each direction for a switch of the dominant mode and model it where
+        found (:func:`detect_mode_switch`); ``True``: the same, but fitting fails when no switch
+        is found; ``False``: one smooth GP per output (the thesis); a mapping
+        ``{direction: threshold_hz}``: assume a switch at that frequency, untested.
+    rng
+        Seed of the optimiser restarts and of the classifier's optimiser.
+    rz_symmetric
+        The mode classifier sees cos(2 Rz) instead of ``rz_deg`` (Rz and Rz + 180° give the
+        same configuration of the arm, as on Table A1). Needs an input named ``"rz_deg"``.
+
+    Attributes
+    ----------
+    output_names_ : tuple of str
+        ``"<direction>_fn_hz"``, ``"<direction>_stiffness_n_per_m"``,
+        ``"<direction>_damping_ns_per_m"`` per direction.
+    input_units_, output_units_ : tuple of str
+    mode_switches_ : dict[str, ModeSwitchDetection]
+        Outcome of the mode-switch test per direction.
+    estimators_ : list of BatchedGPRegressor / ModeSwitchingGPRegressor
+    estimator_columns_ : list of ndarray of int
+        Output columns of each estimator.
+    X_train_, Y_train_, mask_ : ndarray
+        Training data (``Y_train_`` NaN where not observed).
+    groups_ : ndarray of int or None
+        Noise group of each training sample.
+    input_min_, input_max_ : ndarray (n_inputs,)
+        Box of the training inputs.
+
+    Notes
+    -----
+    Noise groups are given per sample as ``groups`` (as everywhere in robovib).
+    """
+
+    def __init__(
+        self,
+        input_names: Sequence[str] = ("x_mm", "y_mm", "rz_deg"),
+        directions: Sequence[str] = ("x", "y", "z"),
+        kernel: str = "ard",
+        mode_switch: str | bool | Mapping[str, float] = "auto",
+        rng: int | np.random.Generator | None = 0,
+        rz_symmetric: bool = False,
+    ) -> None:
+        self.input_names = input_names
+        self.directions = directions
+        self.kernel = kernel
+        self.mode_switch = mode_switch
+        self.rng = rng
+        self.rz_symmetric = rz_symmetric
+
+    # ------------------------------------------------------------------ validation
+    def _check_params(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        names = tuple(self.input_names)
+        dirs = tuple(self.directions)
+        if not names or not all(isinstance(n, str) for n in names) or len(set(names)) != len(names):
+            raise ValueError(f"input_names must be unique strings, got {self.input_names!r}")
+        for n in names:
+            _unit_of(n)
+        if (
+            not dirs
+            or not all(isinstance(d, str) and d for d in dirs)
+            or len(set(dirs)) != len(dirs)
+        ):
+            raise ValueError(
+                f"directions must be unique non-empty strings, got {self.directions!r}"
+            )
+        if self.kernel not in ("isotropic", "ard"):
+            raise ValueError(f"unknown kernel {self.kernel!r}; expected 'isotropic' or 'ard'")
+        ms = self.mode_switch
+        if isinstance(ms, Mapping):
+            unknown = set(ms) - set(dirs)
+            if unknown:
+                raise ValueError(f"mode_switch names unknown directions {sorted(unknown)}")
+            for d, thr in ms.items():
+                if not (np.isfinite(thr) and thr > 0):
+                    raise ValueError(f"mode_switch threshold of {d!r} must be > 0 Hz, got {thr!r}")
+        elif not (ms is True or ms is False or ms == "auto"):
+            raise ValueError(
+                f"unknown mode_switch {ms!r}; expected 'auto', True, False or "
+                "{direction: threshold_hz}"
+            )
+        if self.rz_symmetric and "rz_deg" not in names:
+            raise ValueError("rz_symmetric=True needs an input named 'rz_deg'")
+        return names, dirs
+
+    def _check_X(self, X) -> np.ndarray:
+        self._require_fitted()
+        X = np.asarray(X, float)
+        if X.ndim == 1 and len(self.input_names_) == 1:
+            X = X[:, None]
+        if X.ndim == 1:
+            X = X[None, :]
+        if X.ndim != 2 or X.shape[1] != len(self.input_names_):
+            raise ValueError(
+                f"X must be (n, {len(self.input_names_)}) with columns {list(self.input_names_)}, "
+                f"got shape {X.shape}"
+            )
+        if not np.all(np.isfinite(X)):
+            raise ValueError(f"X contains NaN or inf (columns {list(self.input_names_)})")
+        return X
+
+    def _require_fitted(self) -> None:
+        if not hasattr(self, "estimators_"):
+            raise NotFittedError("this PoseModalModel is not fitted yet; call fit() first")
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, X, Y, mask=None, groups=None) -> PoseModalModel:
+        """Fit the GPs (and, where a switch is found, classifiers) of every output.
+
+        Parameters
+        ----------
+        X
+            (n, n_inputs) poses in the units named by ``input_names``.
+        Y
+            (n, 3 * n_directions) SI targets, per direction in the order
+            ``[fn_hz, stiffness_n_per_m, damping_ns_per_m]``; NaN where not observed.
+        mask
+            Optional (n, 3 * n_directions) bool, ``True`` where observed (default: finite ``Y``).
+        groups
+            Optional (n,) int >= 0: noise group of each sample (e.g. 0 = hammer, 1 = OMA).
+
+        Returns
+        -------
+        self
+
+        Raises
+        ------
+        ValueError
+            On bad shapes, NaN/inf inputs, non-positive fn or k, negative c, bad parameters, or
+            ``mode_switch=True`` when no switch is found.
+        """
+        names, dirs = self._check_params()
+        X, Y, mask, obs, groups = self._validated(X, Y, mask, groups, names, dirs)
+        n_groups = 1 if groups is None else int(groups.max()) + 1
+
+        self.mode_switches_ = self._detect(obs, mask, dirs)
+        if self.mode_switch is True and not any(s.found for s in self.mode_switches_.values()):
+            raise ValueError(
+                "mode_switch=True but no direction shows a mode switch: "
+                + "; ".join(f"{d}: {s.reason}" for d, s in self.mode_switches_.items())
+                + " (use mode_switch='auto' to fit without one)"
+            )
+        features = _RzCos2(names.index("rz_deg")) if self.rz_symmetric else None
+        switching = [i for i, d in enumerate(dirs) if self.mode_switches_[d].found]
+        smooth_cols = [3 * i + j for i in range(len(dirs)) if i not in switching for j in range(3)]
+        self.estimators_, self.estimator_columns_ = [], []
+        if smooth_cols:
+            gp = BatchedGPRegressor(kernel=self.kernel, rng=self.rng, n_noise_groups=n_groups)
+            gp.fit(X, Y[:, smooth_cols], mask=mask[:, smooth_cols], groups=groups)
+            self.estimators_.append(gp)
+            self.estimator_columns_.append(np.array(smooth_cols))
+        for i in switching:
+            cols = np.arange(3 * i, 3 * i + 3)
+            msgp = ModeSwitchingGPRegressor(
+                switching_outputs=(0, 1, 2),
+                indicator_output=0,
+                threshold=self.mode_switches_[dirs[i]].threshold_hz,
+                classifier_features=features,
+                kernel=self.kernel,
+                rng=self.rng,
+                n_noise_groups=n_groups,
+            )
+            msgp.fit(
+                X, np.where(mask[:, cols], Y[:, cols], np.nan), mask=mask[:, cols], groups=groups
+            )
+            self.estimators_.append(msgp)
+            self.estimator_columns_.append(cols)
+        self._set_fitted(names, dirs, X, np.where(mask, Y, np.nan), mask, groups)
+        return self
+
+    @staticmethod
+    def _validated(X, Y, mask, groups, names, dirs):
+        """Checked (X, Y, mask, Y with NaN where unobserved, groups) of fit/update."""
+        X = np.asarray(X, float)
+        Y = np.asarray(Y, float)
+        n_out = 3 * len(dirs)
+        if X.ndim == 1 and len(names) == 1:
+            X = X[:, None]
+        if X.ndim != 2 or X.shape[1] != len(names):
+            raise ValueError(
+                f"X must be (n, {len(names)}) with columns {list(names)}, got {X.shape}"
+            )
+        if Y.ndim != 2 or Y.shape != (X.shape[0], n_out):
+            raise ValueError(
+                f"Y must be (n, {n_out}) = [fn_hz, stiffness_n_per_m, damping_ns_per_m] per "
+                f"direction {list(dirs)} for the {X.shape[0]} poses, got shape {Y.shape}"
+            )
+        if not np.all(np.isfinite(X)):
+            raise ValueError(f"X contains NaN or inf (columns {list(names)})")
+        mask = np.isfinite(Y) if mask is None else np.asarray(mask, bool)
+        if mask.shape != Y.shape:
+            raise ValueError(f"mask shape {mask.shape} does not match Y shape {Y.shape}")
+        if not np.all(np.isfinite(Y[mask])):
+            raise ValueError("Y contains NaN or inf at observed entries; mark them mask=False")
+        obs = np.where(mask, Y, np.nan)
+        for i, d in enumerate(dirs):
+            for j, (q, unit) in enumerate(_QUANTITIES):
+                col = obs[:, 3 * i + j]
+                bad = col <= 0 if q != "damping" else col < 0
+                if np.any(bad & mask[:, 3 * i + j]):
+                    raise ValueError(
+                        f"{d}_{q}_{unit} must be {'>= 0' if q == 'damping' else '> 0'} "
+                        f"{_UNIT_LABELS[unit]} (SI) at every observed sample"
+                    )
+        if groups is not None:
+            groups = np.asarray(groups)
+            if groups.shape != (X.shape[0],) or not np.issubdtype(groups.dtype, np.integer):
+                raise ValueError(f"groups must be an integer array of shape ({X.shape[0]},)")
+            if np.any(groups < 0):
+                raise ValueError("groups must be >= 0")
+            groups = groups.astype(int)
+        return X, Y, mask, obs, groups
+
+    def update(
+        self, X_new, Y_new, mask=None, groups=None, *, mode: str = "posterior"
+    ) -> PoseModalModel:
+        """Bayesian update with new poses (the one name for updating in robovib, thesis §5.2.4).
+
+        Parameters
+        ----------
+        X_new, Y_new, mask, groups
+            As in :meth:`fit` (same inputs, directions and SI columns).
+        mode
+            ``"posterior"``: every hyperparameter kept, posterior recomputed with the enlarged
+            data (Eq. 9-10); ``"warm"``: hyperparameters re-optimised from the current ones.
+
+        Returns
+        -------
+        self
+
+        Notes
+        -----
+        The mode-switch test is not re-run: ``mode_switches_`` stays as fitted (call
+        :meth:`fit` on all data to re-test). In a direction with a switch, new samples are
+        assigned to a mode by its threshold.
+
+        Raises
+        ------
+        NotFittedError, ValueError
+        """
+        self._require_fitted()
+        if mode not in ("posterior", "warm"):
+            raise ValueError(f"unknown update mode {mode!r}; expected 'posterior' or 'warm'")
+        names, dirs = self.input_names_, self.directions_
+        X_new, Y_new, mask, obs, groups = self._validated(X_new, Y_new, mask, groups, names, dirs)
+        n_groups = int(self.estimators_[0].n_noise_groups)
+        if groups is not None and int(groups.max()) >= n_groups:
+            raise ValueError(
+                f"groups must be in [0, {n_groups}): the model was fitted with {n_groups} "
+                "noise group(s)"
+            )
+        if groups is None and self.groups_ is not None:
+            groups = np.zeros(X_new.shape[0], int)
+        for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
+            m = mask[:, cols]
+            if isinstance(est, ModeSwitchingGPRegressor):
+                est.update(X_new, obs[:, cols], m, groups=groups, mode=mode)
+            else:
+                est.update(X_new, np.where(m, Y_new[:, cols], 0.0), m, groups=groups, mode=mode)
+        old_groups = self.groups_
+        if groups is not None and old_groups is None:
+            old_groups = np.zeros(self.X_train_.shape[0], int)
+        self._set_fitted(
+            names,
+            dirs,
+            np.vstack([self.X_train_, X_new]),
+            np.vstack([self.Y_train_, obs]),
+            np.vstack([self.mask_, mask]),
+            None if groups is None else np.concatenate([old_groups, groups]),
+        )
+        return self
+
+    def _detect(self, obs, mask, dirs) -> dict[str, ModeSwitchDetection]:
+        nan = float("nan")
+        out = {}
+        for i, d in enumerate(dirs):
+            fn = obs[mask[:, 3 * i], 3 * i]
+            if isinstance(self.mode_switch, Mapping):
+                if d in self.mode_switch:
+                    thr = float(self.mode_switch[d])
+                    n_high = int(np.sum(fn > thr))
+                    out[d] = ModeSwitchDetection(
+                        d, True, True, thr, nan, nan, nan, fn.size - n_high, n_high,
+                        f"assumed by the user at {thr:g} Hz",
+                    )  # fmt: skip
+                else:
+                    out[d] = ModeSwitchDetection(
+                        d, False, True, nan, nan, nan, nan, fn.size, 0, "none assumed by the user"
+                    )
+            elif self.mode_switch is False:
+                out[d] = ModeSwitchDetection(
+                    d,
+                    False,
+                    False,
+                    nan,
+                    nan,
+                    nan,
+                    nan,
+                    fn.size,
+                    0,
+                    "not tested (mode_switch=False)",
+                )
+            else:
+                out[d] = detect_mode_switch(fn, direction=d)
+        return out
+
+    def _set_fitted(self, names, dirs, X, Y, mask, groups) -> None:
+        self.input_names_ = names
+        self.directions_ = dirs
+        self.input_units_ = tuple(_unit_of(n) for n in names)
+        self.output_names_ = tuple(f"{d}_{q}_{u}" for d in dirs for q, u in _QUANTITIES)
+        self.output_units_ = tuple(_UNIT_LABELS[u] for _ in dirs for _, u in _QUANTITIES)
+        self.X_train_, self.Y_train_, self.mask_, self.groups_ = X, Y, mask, groups
+        self.n_features_in_ = X.shape[1]
+        self.n_outputs_ = Y.shape[1]
+        self.input_min_, self.input_max_ = X.min(axis=0), X.max(axis=0)
+        self._build_hull()
+
+    def _build_hull(self) -> None:
+        """Delaunay triangulation of the (standardised) training inputs, if they span a volume."""
+        self._hull = None
+        X = self.X_train_
+        if X.shape[1] < 2:
+            return
+        from scipy.spatial import Delaunay, QhullError
+
+        self._hull_loc = X.mean(axis=0)
+        self._hull_scale = np.where(X.std(axis=0) > 0, X.std(axis=0), 1.0)
+        pts = np.unique((X - self._hull_loc) / self._hull_scale, axis=0)
+        if pts.shape[0] <= X.shape[1]:
+            return
+        try:
+            self._hull = Delaunay(pts)
+        except QhullError:  # flat point set: the box test alone applies
+            self._hull = None
+
+    # ------------------------------------------------------------------ prediction
+    def predict(self, X, return_std: bool = False):
+        """Posterior mean (thesis Eq. 9) and optionally latent std (Eq. 10) of every output.
+
+        Parameters
+        ----------
+        X
+            (n, n_inputs) poses in the units of ``input_names``.
+        return_std
+            Also return the predictive standard deviation.
+
+        Returns
+        -------
+        mean : ndarray (n, 3 * n_directions)
+            SI, columns ``output_names_``; in a direction with a mode switch, the values of the
+            more probable mode (never a blend).
+        std : ndarray (n, 3 * n_directions), if ``return_std``
+
+        Raises
+        ------
+        NotFittedError, ValueError
+        """
+        X = self._check_X(X)
+        mean = np.empty((X.shape[0], self.n_outputs_))
+        std = np.empty_like(mean)
+        for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
+            m, s = est.predict(X, return_std=True)
+            mean[:, cols], std[:, cols] = m, s
+        return (mean, std) if return_std else mean
+
+    def outside_inputs(self, X) -> np.ndarray:
+        """(n, n_inputs) bool: input value outside the training range of that input."""
+        X = self._check_X(X)
+        tol = 1e-9 * np.maximum(1.0, self.input_max_ - self.input_min_)
+        return (self.input_min_ - tol > X) | (self.input_max_ + tol < X)
+
+    def extrapolating(self, X) -> np.ndarray:
+        """(n,) bool: the pose is outside the calibrated inputs.
+
+        Outside means outside the box of the training inputs (per input, as ``gpr predict``
+        has always reported) or, for two or more inputs, outside the convex hull of the
+        training poses (inside the box but off the measured workspace).
+        """
+        X = self._check_X(X)
+        out = np.any(self.outside_inputs(X), axis=1)
+        if self._hull is not None:
+            xs = (X - self._hull_loc) / self._hull_scale
+            out |= self._hull.find_simplex(xs, tol=1e-9) < 0
+        return out
+
+    def mode_switch_probability(self, X) -> np.ndarray | None:
+        """(n, n_directions) probability that the high mode dominates; None without switches.
+
+        Columns of directions without a modelled switch are NaN.
+        """
+        X = self._check_X(X)
+        if not any(isinstance(e, ModeSwitchingGPRegressor) for e in self.estimators_):
+            return None
+        p = np.full((X.shape[0], len(self.directions_)), np.nan)
+        for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
+            if isinstance(est, ModeSwitchingGPRegressor):
+                p[:, cols[0] // 3] = est.high_mode_probability(X)
+        return p
+
+    def modes(self, X) -> list[dict[str, PoseMode]]:
+        """The dominant mode of each direction at each pose (one dict per row of ``X``).
+
+        Raises
+        ------
+        ValueError
+            If a predicted mean is not a physical mode (fn or k <= 0, c < 0), which happens only
+            far outside the calibrated workspace.
+        """
+        X = self._check_X(X)
+        mean, std = self.predict(X, return_std=True)
+        extrap = self.extrapolating(X)
+        p = self.mode_switch_probability(X)
+        out = []
+        for r in range(X.shape[0]):
+            row = {}
+            for i, d in enumerate(self.directions_):
+                fn, k, c = mean[r, 3 * i : 3 * i + 3]
+                if not (fn > 0 and k > 0 and c >= 0):
+                    raise ValueError(
+                        f"predicted {d} mode at {dict(zip(self.input_names_, X[r], strict=True))} "
+                        f"is not physical (fn = {fn:.4g} Hz, k = {k:.4g} N/m, c = {c:.4g} N*s/m): "
+                        "far outside the calibrated workspace"
+                    )
+                prob = None if p is None or np.isnan(p[r, i]) else float(p[r, i])
+                row[d] = PoseMode(
+                    ModalParameters.from_fn_k_c(fn, k, c),
+                    float(std[r, 3 * i]),
+                    float(std[r, 3 * i + 1]),
+                    float(std[r, 3 * i + 2]),
+                    bool(extrap[r]),
+                    prob,
+                )
+            out.append(row)
+        return out
+
+    # ------------------------------------------------------------------ persistence
+    def save(self, path, *, cv=None, provenance: Mapping[str, object] | None = None) -> Path:
+        """Write the fitted model to HDF5 (no pickle), atomically (temporary file + rename).
+
+        Parameters
+        ----------
+        path
+            Target file (``.h5``).
+        cv
+            Optional cross-validation figures to keep with the model: a
+            :class:`~robovib.gp.validation.CVResult` or a mapping name -> (n_outputs,) array.
+            Default: ``self.cv_`` if set.
+        provenance
+            Optional mapping of strings/numbers (data source, command, script, ...), stored as
+            attributes of ``/provenance``. Default: ``self.provenance_`` if set.
+
+        Returns
+        -------
+        Path of the written file.
+
+        Raises
+        ------
+        NotFittedError, ValueError
+        """
+        from . import _h5
+
+        self._require_fitted()
+        cv = getattr(self, "cv_", None) if cv is None else cv
+        provenance = getattr(self, "provenance_", None) if provenance is None else provenance
+        path = Path(path)
+        if not path.parent.is_dir():
+            raise ValueError(f"{path.parent}: folder does not exist")
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+        try:
+            _h5.write_pose_model(self, tmp, cv=cv, provenance=provenance)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path) -> PoseModalModel:
+        """Read a model written by :meth:`save`; predictions match the saved model to ~1e-12.
+
+        Raises
+        ------
+        ValueError
+            If the file is not readable HDF5, not a ``robovib.PoseModalModel`` or of a newer
+            format version.
+        """
+        from . import _h5
+
+        return _h5.read_pose_model(cls, path)
+
+
+def _params_json(model: PoseModalModel) -> str:
+    ms = model.mode_switch
+    rng = model.rng if isinstance(model.rng, int | np.integer) or model.rng is None else None
+    return json.dumps(
+        {
+            "input_names": list(model.input_names),
+            "directions": list(model.directions),
+            "kernel": model.kernel,
+            "mode_switch": dict(ms) if isinstance(ms, Mapping) else ms,
+            "rng": None if rng is None else int(rng),
+            "rz_symmetric": bool(model.rz_symmetric),
+        }
+    )
+
+
+def _now_utc() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def _finite_or_nan(v) -> float:
+    v = float(v)
+    return v if math.isfinite(v) else float("nan")

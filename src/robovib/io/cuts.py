@@ -1,0 +1,81 @@
+"""Measured test cuts (stable / chatter) from CSV, for overlaying on stability charts.
+
+Format: a header row naming the columns with their units, then one cut per row::
+
+    spindle_rpm,depth_mm,result
+    1500,2.0,stable
+    1500,3.5,chatter
+
+The depth column may be ``depth_mm`` or ``depth_m``; ``result`` is ``stable`` or ``chatter``
+(case-insensitive; ``1``/``0`` and ``true``/``false`` for chatter also accepted).
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["MeasuredCuts", "read_cuts_csv"]
+
+
+@dataclass(frozen=True)
+class MeasuredCuts:
+    """Test cuts: speeds [rpm], axial depths [m], chatter observed (bool), all (n,)."""
+
+    spindle_rpm: np.ndarray
+    depth_m: np.ndarray
+    chatter: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {
+            "spindle_rpm": [float(v) for v in self.spindle_rpm],
+            "depth_m": [float(v) for v in self.depth_m],
+            "chatter": [bool(v) for v in self.chatter],
+        }
+
+
+_TRUE = {"chatter", "unstable", "1", "true", "yes"}
+_FALSE = {"stable", "0", "false", "no"}
+
+
+def read_cuts_csv(path: str | Path) -> MeasuredCuts:
+    """Read measured cuts (module docs); raises ``ValueError`` naming the bad row or column."""
+    p = Path(path)
+    with p.open(newline="") as fh:
+        rows = list(csv.reader(line for line in fh if line.strip() and not line.startswith("#")))
+    if not rows:
+        raise ValueError(f"{p}: empty cuts file")
+    header = [h.strip().lower() for h in rows[0]]
+    if "spindle_rpm" not in header or "result" not in header:
+        raise ValueError(
+            f"{p}: header must name spindle_rpm, depth_mm (or depth_m) and result, got {header}"
+        )
+    if "depth_mm" in header:
+        dcol, scale = header.index("depth_mm"), 1e-3
+    elif "depth_m" in header:
+        dcol, scale = header.index("depth_m"), 1.0
+    else:
+        raise ValueError(f"{p}: no depth column with units (depth_mm or depth_m) in {header}")
+    rcol, scol = header.index("result"), header.index("spindle_rpm")
+    rpm, depth, chat = [], [], []
+    for i, row in enumerate(rows[1:], start=2):
+        try:
+            s, d = float(row[scol]), float(row[dcol]) * scale
+        except (ValueError, IndexError) as exc:
+            raise ValueError(f"{p}, line {i}: cannot read speed/depth from {row}") from exc
+        if not (np.isfinite(s) and s > 0 and np.isfinite(d) and d > 0):
+            raise ValueError(f"{p}, line {i}: speed [rpm] and depth must be positive, got {row}")
+        r = row[rcol].strip().lower()
+        if r not in _TRUE | _FALSE:
+            raise ValueError(
+                f"{p}, line {i}: result must be 'stable' or 'chatter', got {row[rcol]!r}"
+            )
+        rpm.append(s)
+        depth.append(d)
+        chat.append(r in _TRUE)
+    if not rpm:
+        raise ValueError(f"{p}: no cuts")
+    return MeasuredCuts(np.array(rpm), np.array(depth), np.array(chat, bool))

@@ -1,0 +1,359 @@
+"""One stability chart from what a user has: explicit modes or a measured FRF file, tool, material.
+
+This is the library side of ``robovib mill lobes``: option strings are parsed here
+(:func:`parse_mode_spec`, :func:`parse_rpm_range`), the FRF and test-cut files are read through
+:mod:`robovib.io`, the envelope is computed by the semi-discretization (default) or the
+zero-order method, and :func:`plot_lobes_chart` draws it with the operating point and the cuts.
+
+With a measured FRF the semi-discretization needs modes: they are identified from each
+direction's driving-point compliance (:func:`robovib.modal.fit_modes`, LSCF + LSFD); the
+zero-order method uses the measured FRF directly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..modal.parameters import ModalParameters
+from .forces import CuttingCoefficients, CuttingConditions, MillingTool
+from .lobes import LobeEnvelope, lobes_title, plot_lobes, zoa_envelope
+from .sdm import sdm_lobes
+from .stability import stability_lobes
+
+__all__ = [
+    "LobesChart",
+    "lobes_chart",
+    "parse_mode_spec",
+    "parse_operating_point",
+    "parse_rpm_range",
+    "plot_lobes_chart",
+    "read_frf_csv",
+]
+
+
+def parse_mode_spec(spec: str) -> tuple[str, ModalParameters]:
+    """``"x:FN_HZ,K_N_PER_M,ZETA"`` -> (direction, mode); e.g. ``"y:650,2.1e7,0.03"``."""
+    try:
+        direction, rest = spec.split(":", 1)
+        fn, k, zeta = (float(v) for v in rest.split(","))
+    except ValueError as exc:
+        raise ValueError(
+            f"mode {spec!r} must read DIRECTION:FN_HZ,K_N_PER_M,ZETA (e.g. x:650,2.1e7,0.03)"
+        ) from exc
+    direction = direction.strip().lower()
+    if direction not in ("x", "y"):
+        raise ValueError(
+            f"mode {spec!r}: direction must be x (feed) or y (normal), got {direction!r}"
+        )
+    if not 0 <= zeta < 1:
+        raise ValueError(
+            f"mode {spec!r}: damping ratio ZETA must be in [0, 1), got {zeta} (a ratio, not %)"
+        )
+    return direction, ModalParameters(fn, k, zeta)
+
+
+def parse_operating_point(spec: str) -> tuple[float, float]:
+    """``"RPM,DEPTH_MM"`` -> (rpm, depth [m])."""
+    try:
+        a, b = (float(v) for v in spec.split(","))
+    except ValueError as exc:
+        raise ValueError(
+            f"operating point {spec!r} must read RPM,DEPTH_MM (e.g. 9000,1.5)"
+        ) from exc
+    if not (a > 0 and b > 0 and math.isfinite(a) and math.isfinite(b)):
+        raise ValueError(
+            f"operating point needs a positive speed [rpm] and depth [mm], got {spec!r}"
+        )
+    return a, b * 1e-3
+
+
+def parse_rpm_range(spec: str) -> np.ndarray:
+    """``"A:B:N"`` -> N speeds [rpm] from A to B."""
+    try:
+        a, b, n = spec.split(":")
+        lo, hi, count = float(a), float(b), int(n)
+    except ValueError as exc:
+        raise ValueError(
+            f"rpm range {spec!r} must read MIN_RPM:MAX_RPM:N (e.g. 2000:12000:200)"
+        ) from exc
+    if not (0 < lo < hi and math.isfinite(hi)) or count < 2:
+        raise ValueError(f"rpm range needs 0 < MIN_RPM < MAX_RPM and N >= 2, got {spec!r}")
+    return np.linspace(lo, hi, count)
+
+
+_CSV_UNITS = {"m_per_n": 1.0, "mm_per_n": 1e-3, "um_per_n": 1e-6}
+
+
+def read_frf_csv(path: str | Path):
+    """Tool-tip compliance FRFs from CSV: ``frequency_hz`` then ``<d>_real_<unit>``,
+    ``<d>_imag_<unit>`` for d in x, y (unit ``m_per_n``, ``mm_per_n`` or ``um_per_n``).
+
+    Returns a list of :class:`robovib.frf.FRF` (compliance, SI), one per direction found.
+    """
+    from ..frf import FRF
+
+    p = Path(path)
+    with p.open() as fh:
+        header = [h.strip().lower() for h in fh.readline().split(",")]
+    if not header or header[0] != "frequency_hz":
+        raise ValueError(f"{p}: first column must be frequency_hz, got {header[:1]}")
+    data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
+    if data.shape[1] != len(header):
+        raise ValueError(f"{p}: {data.shape[1]} columns of data, {len(header)} in the header")
+    out = []
+    for d in ("x", "y"):
+        cols = {}
+        for part in ("real", "imag"):
+            hit = [(i, h) for i, h in enumerate(header) if h.startswith(f"{d}_{part}_")]
+            if hit:
+                i, h = hit[0]
+                unit = h[len(f"{d}_{part}_") :]
+                if unit not in _CSV_UNITS:
+                    raise ValueError(
+                        f"{p}: unknown unit {unit!r} in {h!r}; use {sorted(_CSV_UNITS)}"
+                    )
+                cols[part] = data[:, i] * _CSV_UNITS[unit]
+        if len(cols) == 1:
+            raise ValueError(f"{p}: direction {d} needs both {d}_real_<unit> and {d}_imag_<unit>")
+        if cols:
+            out.append(FRF(data[:, 0], cols["real"] + 1j * cols["imag"], direction=d,
+                           source="EMA", estimator="H1", coherence=None))  # fmt: skip
+    if not out:
+        raise ValueError(f"{p}: no x_real_<unit>/x_imag_<unit> or y_... columns in {header}")
+    return out
+
+
+def _read_frfs(path: Path):
+    if path.suffix.lower() == ".csv":
+        return read_frf_csv(path)
+    from ..io import read_frfs
+
+    return read_frfs(path)
+
+
+@dataclass(frozen=True)
+class LobesChart:
+    """A stability chart with its inputs (everything the JSON output and the figure need)."""
+
+    envelope: LobeEnvelope
+    modes_x: tuple[ModalParameters, ...]
+    modes_y: tuple[ModalParameters, ...]
+    tool: MillingTool
+    conditions: CuttingConditions
+    coefficients: CuttingCoefficients
+    title: str
+    cuts: object | None = None
+    operating_point: tuple[float, float] | None = None
+    operating_point_stable: bool | None = None
+    frf_file: str | None = None
+    settings: dict = field(default_factory=dict)
+    probability: object | None = None
+
+    def to_dict(self) -> dict:
+        """JSON document: ``rpm``, ``a_lim_m`` arrays, units in every key, all inputs."""
+        from .. import __version__
+
+        env = self.envelope.to_dict()
+        doc = {
+            "robovib_version": __version__,
+            "method": self.envelope.method,
+            "rpm": env["rpm"],
+            "a_lim_m": env["a_lim_m"],
+            "chatter_hz": env["chatter_hz"],
+            "kind": env["kind"],
+            "minimum_depth_m": env["minimum_depth_m"],
+            "most_stable_rpm": env["most_stable_rpm"],
+            "most_stable_depth_m": env["most_stable_depth_m"],
+            "modes_x": [m.to_dict() for m in self.modes_x],
+            "modes_y": [m.to_dict() for m in self.modes_y],
+            "tool": {"diameter_m": self.tool.diameter_m, "n_flutes": int(self.tool.n_flutes),
+                     "helix_deg": self.tool.helix_deg},
+            "cutting": {"radial_depth_m": self.conditions.radial_depth_m,
+                        "milling": "down" if self.conditions.down_milling else "up",
+                        "ktc_n_per_m2": self.coefficients.ktc, "krc_n_per_m2": self.coefficients.krc},
+            "frf_file": self.frf_file,
+            "settings": {**self.envelope.settings, **self.settings},
+            "title": self.title,
+        }  # fmt: skip
+        if self.operating_point is not None:
+            doc["operating_point"] = {
+                "rpm": self.operating_point[0],
+                "depth_m": self.operating_point[1],
+                "stable": self.operating_point_stable,
+            }
+        if self.cuts is not None:
+            doc["cuts"] = self.cuts.to_dict()
+        if self.probability is not None:
+            p = self.probability
+            doc["probability"] = {
+                "n_samples": p.settings["n_samples"],
+                "a_lim_p05_m": p.depth_quantile_m(0.05),
+                "a_lim_p95_m": p.depth_quantile_m(0.95),
+                "sampling": p.settings["sampling"],
+            }
+        return doc
+
+
+def lobes_chart(
+    *,
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    spindle_rpm,
+    method: str = "sdm",
+    modes_x=(),
+    modes_y=(),
+    frf_file: str | Path | None = None,
+    cuts_file: str | Path | None = None,
+    operating_point: tuple[float, float] | None = None,
+    pose_label: str | None = None,
+    material_label: str | None = None,
+    steps_per_period: int = 40,
+    pose_model=None,
+    pose: tuple[float, float, float] | None = None,
+    feed_direction: str = "x",
+    n_samples: int = 0,
+    rng=0,
+) -> LobesChart:
+    """Stability envelope from modes or a measured FRF file, with cuts and an operating point.
+
+    Parameters
+    ----------
+    tool, conditions, coefficients
+        Tool geometry (diameter, flutes; the helix is ignored by both methods), radial depth and
+        up/down milling, cutting coefficients [N/m²].
+    spindle_rpm : array_like (n,)
+        Speeds [rpm].
+    method : {"sdm", "zoa"}
+    modes_x, modes_y : sequence of ModalParameters
+        Tool-tip modes in the feed and normal directions (ignored with ``frf_file``).
+    frf_file : path, optional
+        Measured tool-tip FRFs (.h5/.hdf5, .uff/.unv with direction metadata, or .csv as in
+        :func:`read_frf_csv`); directions x (feed) and y (normal).
+    cuts_file : path, optional
+        Test cuts CSV (:func:`robovib.io.read_cuts_csv`).
+    operating_point : (rpm, depth [m]), optional
+    pose_label, material_label : str, optional
+        For the title.
+    pose_model, pose : optional
+        Without modes or an FRF file: the pose model and the pose ``(x_mm, y_mm, rz_deg)`` whose
+        predicted feed/normal modes are used (``feed_direction`` x or y in the base frame).
+    n_samples : int
+        With a pose model: Monte-Carlo samples of its predictive distribution for the probability
+        of a stable cut (:func:`robovib.milling.uncertainty.stability_probability`); 0 = none.
+
+    Returns
+    -------
+    LobesChart
+    """
+    if method not in ("sdm", "zoa"):
+        raise ValueError(f"method must be 'sdm' or 'zoa', got {method!r}")
+    rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
+    modes_x, modes_y = tuple(modes_x), tuple(modes_y)
+    frfs = {}
+    if frf_file is not None:
+        for frf in _read_frfs(Path(frf_file)):
+            if frf.direction in ("x", "y") and frf.direction not in frfs:
+                frfs[frf.direction] = frf.to_compliance()
+        if not frfs:
+            raise ValueError(f"{frf_file}: no FRF with direction x or y")
+        from ..modal.lscf import fit_modes
+
+        fitted = {}
+        for d, f in frfs.items():
+            try:
+                fitted[d] = tuple(fit_modes(f).modes)
+            except ValueError:
+                if method == "sdm":
+                    raise
+                fitted[d] = ()  # the zero-order method uses the measured FRF itself
+        modes_x, modes_y = fitted.get("x", ()), fitted.get("y", ())
+    probability = None
+    if not modes_x and not modes_y and not frfs and pose_model is not None:
+        from .uncertainty import mode_distribution_at_pose, stability_probability
+
+        if pose is None or len(pose) != 3:
+            raise ValueError("a pose (x_mm, y_mm, rz_deg) is needed with a pose model")
+        if feed_direction not in ("x", "y"):
+            raise ValueError(f"feed_direction must be 'x' or 'y', got {feed_direction!r}")
+        dist = mode_distribution_at_pose(pose_model, pose)
+        normal = "y" if feed_direction == "x" else "x"
+        modes_x, modes_y = (dist[feed_direction].mean,), (dist[normal].mean,)
+        if int(n_samples) > 0:
+            probability = stability_probability(
+                dist, tool, conditions, coefficients, rpm, n_samples=int(n_samples),
+                method=method, feed_direction=feed_direction, rng=rng,
+                **({"steps_per_period": steps_per_period} if method == "sdm" else {}),
+            )  # fmt: skip
+    if not modes_x and not modes_y and not frfs:
+        raise ValueError("give at least one mode (--mode x:FN,K,ZETA) or an FRF file")
+    if method == "sdm":
+        env = sdm_lobes(modes_x, modes_y, tool, conditions, coefficients, rpm,
+                        steps_per_period=steps_per_period)  # fmt: skip
+    elif frfs:
+
+        def measured(f_hz):
+            out = []
+            for d in ("x", "y"):
+                if d in frfs:
+                    g = frfs[d]
+                    re = np.interp(f_hz, g.frequency_hz, g.values.real, left=0, right=0)
+                    im = np.interp(f_hz, g.frequency_hz, g.values.imag, left=0, right=0)
+                    out.append(re + 1j * im)
+                else:
+                    out.append(np.zeros_like(f_hz, complex))
+            return tuple(out)
+
+        band = (
+            max(min(g.frequency_hz[0] for g in frfs.values()), 1e-3),
+            min(g.frequency_hz[-1] for g in frfs.values()),
+        )
+        lobes = stability_lobes(modes_x, modes_y, tool, conditions, coefficients, n_lobes=40,
+                                frequency_range_hz=band, frf=measured)  # fmt: skip
+        env = zoa_envelope(lobes, rpm, settings={"frf": "measured"})
+    else:
+        lobes = stability_lobes(modes_x, modes_y, tool, conditions, coefficients, n_lobes=40)
+        env = zoa_envelope(lobes, rpm, settings={"n_lobes": 40})
+    cuts = None
+    if cuts_file is not None:
+        from ..io.cuts import read_cuts_csv
+
+        cuts = read_cuts_csv(cuts_file)
+    op_stable = None
+    if operating_point is not None:
+        op_rpm, op_depth = (float(v) for v in operating_point)
+        if not (op_rpm > 0 and op_depth > 0):
+            raise ValueError(
+                f"operating point needs a positive speed [rpm] and depth [m], got {operating_point}"
+            )
+        if rpm.min() <= op_rpm <= rpm.max():
+            op_stable = bool(env.is_stable(op_rpm, op_depth)[0])
+        operating_point = (op_rpm, op_depth)
+    ae_mm = conditions.radial_depth_m * 1e3
+    tool_txt = (f"Ø{tool.diameter_m * 1e3:g} mm, {tool.n_flutes} teeth, ae {ae_mm:g} mm "
+                f"{'down' if conditions.down_milling else 'up'}-milling")  # fmt: skip
+    title = lobes_title(pose=pose_label, tool=tool_txt, material=material_label,
+                        extra=f"{method.upper()}" + (f", FRF {Path(frf_file).name}" if frf_file else ""))  # fmt: skip
+    return LobesChart(env, modes_x, modes_y, tool, conditions, coefficients, title, cuts,
+                      operating_point, op_stable, None if frf_file is None else str(frf_file),
+                      probability=probability)  # fmt: skip
+
+
+def plot_lobes_chart(chart: LobesChart, ax=None):
+    """The chart's envelope, shaded unstable region, best speed, operating point and cuts.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if chart.probability is not None:
+        from .uncertainty import plot_stability_probability
+
+        return plot_stability_probability(chart.probability, ax=ax, title=chart.title,
+                                          operating_point=chart.operating_point, cuts=chart.cuts)  # fmt: skip
+    return plot_lobes(chart.envelope, ax=ax, operating_point=chart.operating_point,
+                      cuts=chart.cuts, title=chart.title)  # fmt: skip

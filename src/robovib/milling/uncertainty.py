@@ -1,0 +1,246 @@
+"""How sure is a lobe? Probability of a stable cut from the pose model's predictive distribution.
+
+The pose model predicts, per direction, the dominant mode's natural frequency, stiffness and
+damping coefficient with a predictive standard deviation. Samples are drawn from those normals
+(each quantity independently, which ignores correlations between outputs; draws with fn, k, c <= 0
+or zeta >= 1 are redrawn), a stability envelope is computed for every sample (semi-discretization
+or zero-order method) and at each (speed, depth) the probability of a stable cut is the fraction
+of samples whose envelope lies above that depth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..modal.parameters import ModalParameters
+from .forces import CuttingCoefficients, CuttingConditions, MillingTool
+from .lobes import LobeEnvelope, zoa_envelope
+from .sdm import sdm_lobes
+from .stability import stability_lobes
+
+__all__ = [
+    "ModeDistribution",
+    "StabilityProbability",
+    "mode_distribution_at_pose",
+    "plot_stability_probability",
+    "stability_probability",
+]
+
+
+@dataclass(frozen=True)
+class ModeDistribution:
+    """Normal predictive distribution of one direction's dominant mode (SI units)."""
+
+    fn_hz: float
+    stiffness_n_per_m: float
+    damping_ns_per_m: float
+    fn_std_hz: float = 0.0
+    stiffness_std_n_per_m: float = 0.0
+    damping_std_ns_per_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("fn_std_hz", "stiffness_std_n_per_m", "damping_std_ns_per_m"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
+
+    @property
+    def mean(self) -> ModalParameters:
+        return ModalParameters.from_fn_k_c(
+            self.fn_hz, self.stiffness_n_per_m, self.damping_ns_per_m
+        )
+
+    def sample(self, n: int, rng) -> list[ModalParameters]:
+        """``n`` physical draws (rejection of fn, k, c <= 0 and zeta >= 1)."""
+        gen = np.random.default_rng(rng)
+        mu = np.array([self.fn_hz, self.stiffness_n_per_m, self.damping_ns_per_m])
+        sd = np.array([self.fn_std_hz, self.stiffness_std_n_per_m, self.damping_std_ns_per_m])
+        out: list[ModalParameters] = []
+        tries = 0
+        while len(out) < n:
+            tries += 1
+            if tries > 50 * n + 100:
+                raise ValueError(
+                    "the predictive distribution is mostly non-physical (fn, k, c <= 0)"
+                )
+            s = gen.normal(mu, sd)
+            if np.any(s <= 0):
+                continue
+            m = ModalParameters.from_fn_k_c(*s)
+            if m.damping_ratio < 1:
+                out.append(m)
+        return out
+
+
+def mode_distribution_at_pose(model, pose) -> dict[str, ModeDistribution]:
+    """Predictive distribution per direction at one pose from a pose model.
+
+    Accepts a :class:`robovib.gp.PoseModalModel` (``modes(X)`` with ``PoseMode`` std fields, SI)
+    or any model whose ``predict(X, return_std=True)`` returns the 9 chapter-3 outputs in thesis
+    units (fn [Hz], k [MN/m], c [kN·s/m] for X, Y, Z).
+    """
+    x = np.atleast_2d(np.asarray(pose, float))
+    if x.shape[0] != 1:
+        raise ValueError(f"one pose expected, got {x.shape[0]}")
+    if hasattr(model, "modes") and hasattr(model, "output_names_"):
+        row = model.modes(x)[0]
+        out = {}
+        for d, pm in row.items():
+            p = pm.parameters
+            out[d] = ModeDistribution(
+                p.natural_frequency_hz, p.stiffness_n_per_m, p.damping_ns_per_m,
+                float(pm.fn_std_hz), float(pm.stiffness_std_n_per_m),
+                float(pm.damping_std_ns_per_m),
+            )  # fmt: skip
+        return out
+    mean, std = model.predict(x, return_std=True)
+    mean, std = np.asarray(mean)[0], np.asarray(std)[0]
+    if mean.size != 9:
+        raise ValueError(f"expected 9 chapter-3 outputs (fn, k, c for X, Y, Z), got {mean.size}")
+    scale = np.array([1.0, 1e6, 1e3])
+    return {
+        d: ModeDistribution(*(mean[3 * i : 3 * i + 3] * scale), *(std[3 * i : 3 * i + 3] * scale))
+        for i, d in enumerate(("x", "y", "z"))
+    }
+
+
+@dataclass(frozen=True)
+class StabilityProbability:
+    """``p_stable`` (n_speeds, n_depths) over ``spindle_rpm`` [rpm] × ``depth_m`` [m].
+
+    ``a_lim_samples_m`` (n_samples, n_speeds) the sampled envelopes, ``minimum_depth_samples_m``
+    (n_samples,) their minima, ``mean`` the envelope of the mean modes.
+    """
+
+    spindle_rpm: np.ndarray
+    depth_m: np.ndarray
+    p_stable: np.ndarray
+    a_lim_samples_m: np.ndarray
+    minimum_depth_samples_m: np.ndarray
+    mean: LobeEnvelope
+    settings: dict = field(default_factory=dict)
+
+    def p_unconditionally_stable(self, depth_m) -> np.ndarray:
+        """Probability that the depth [m] is stable at every speed (below every sample's minimum)."""
+        d = np.atleast_1d(np.asarray(depth_m, float))
+        return np.mean(self.minimum_depth_samples_m[:, None] > d[None, :], axis=0)
+
+    def depth_quantile_m(self, q: float) -> np.ndarray:
+        """Depth [m] at each speed that is stable with probability ``1 - q`` (e.g. q = 0.05)."""
+        return np.quantile(self.a_lim_samples_m, q, axis=0, method="nearest")  # inf-safe
+
+
+def _envelope(mx, my, tool, cond, coef, rpm, method, **kw):
+    if method == "sdm":
+        env = sdm_lobes(mx, my, tool, cond, coef, rpm, **kw)
+        return env, env.minimum_depth_m
+    if method == "zoa":
+        lobes = stability_lobes(mx, my, tool, cond, coef, n_lobes=kw.get("n_lobes", 20))
+        return zoa_envelope(lobes, rpm), lobes.minimum_depth_m
+    raise ValueError(f"method must be 'sdm' or 'zoa', got {method!r}")
+
+
+def stability_probability(
+    distribution: dict[str, ModeDistribution],
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    spindle_rpm,
+    depth_m=None,
+    *,
+    n_samples: int = 40,
+    method: str = "sdm",
+    feed_direction: str = "x",
+    rng=0,
+    **lobe_options,
+) -> StabilityProbability:
+    """Probability of a stable cut over speeds × depths from sampled modes (module docs).
+
+    Parameters
+    ----------
+    distribution : dict direction -> ModeDistribution
+        E.g. :func:`mode_distribution_at_pose`; ``x`` and ``y`` are used.
+    tool, conditions, coefficients
+        As for :func:`robovib.milling.sdm.sdm_lobes`.
+    spindle_rpm : array_like (n_speeds,)
+        Speeds [rpm].
+    depth_m : array_like (n_depths,), optional
+        Depth grid [m] (default 0 to 3x the mean envelope's minimum, 120 points).
+    n_samples : int
+        Monte-Carlo samples.
+    method : {"sdm", "zoa"}
+    feed_direction : {"x", "y"}
+        Base-frame direction of the feed (the other horizontal one is the normal).
+    rng : seed or Generator
+
+    Returns
+    -------
+    StabilityProbability
+    """
+    if feed_direction not in ("x", "y"):
+        raise ValueError(f"feed_direction must be 'x' or 'y', got {feed_direction!r}")
+    normal = "y" if feed_direction == "x" else "x"
+    for d in (feed_direction, normal):
+        if d not in distribution:
+            raise ValueError(f"the distribution has no {d!r} direction")
+    if int(n_samples) < 2:
+        raise ValueError(f"n_samples must be >= 2, got {n_samples}")
+    rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
+    gen = np.random.default_rng(rng)
+    feed_s = distribution[feed_direction].sample(int(n_samples), gen)
+    norm_s = distribution[normal].sample(int(n_samples), gen)
+    mean_env, _ = _envelope(
+        [distribution[feed_direction].mean], [distribution[normal].mean],
+        tool, conditions, coefficients, rpm, method, **lobe_options,
+    )  # fmt: skip
+    a_s = np.empty((int(n_samples), rpm.size))
+    mins = np.empty(int(n_samples))
+    for i, (mf, mn) in enumerate(zip(feed_s, norm_s, strict=True)):
+        env, mins[i] = _envelope(
+            [mf], [mn], tool, conditions, coefficients, rpm, method, **lobe_options
+        )
+        a_s[i] = env.a_lim_m
+    if depth_m is None:
+        depth = np.linspace(0, 3 * mean_env.minimum_depth_m, 121)[1:]
+    else:
+        depth = np.atleast_1d(np.asarray(depth_m, float))
+        if np.any(~np.isfinite(depth)) or np.any(depth < 0):
+            raise ValueError("depth_m must be finite depths >= 0 m")
+    p = np.mean(a_s[:, :, None] > depth[None, None, :], axis=0)
+    return StabilityProbability(
+        rpm, depth, p, a_s, mins, mean_env,
+        {"n_samples": int(n_samples), "method": method, "feed_direction": feed_direction,
+         "sampling": "independent normals on fn_hz, stiffness_n_per_m, damping_ns_per_m"},
+    )  # fmt: skip
+
+
+def plot_stability_probability(
+    result: StabilityProbability,
+    ax=None,
+    *,
+    title: str | None = None,
+    operating_point: tuple[float, float] | None = None,
+    cuts=None,
+):
+    """Shaded lobes: probability of a stable cut, mean envelope, 5 % / 95 % depth quantiles.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    from .lobes import plot_lobes
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(8, 4.5))
+    plot_lobes(result.mean, ax=ax, probability=result, depth_max_m=float(result.depth_m.max()),
+               operating_point=operating_point, cuts=cuts,
+               title=title or f"probability of a stable cut ({result.settings['n_samples']} samples)")  # fmt: skip
+    for q, ls in ((0.05, ":"), (0.95, "--")):
+        ax.plot(result.spindle_rpm, result.depth_quantile_m(q) * 1e3, color="0.2", ls=ls, lw=1,
+                label=f"{int(q * 100)} % quantile of the limit")  # fmt: skip
+    ax.legend(fontsize=8, loc="upper left")
+    return ax.figure

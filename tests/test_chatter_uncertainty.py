@@ -1,0 +1,75 @@
+"""Stability probability from a predictive distribution against a closed form (normal CDF)."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+from robovib.milling.stability import directional_coefficients
+from robovib.milling.uncertainty import (
+    ModeDistribution,
+    mode_distribution_at_pose,
+    plot_stability_probability,
+    stability_probability,
+)
+
+TOOL = MillingTool(diameter_m=0.02, n_flutes=2, helix_deg=0.0)
+SLOT = CuttingConditions(3000, 1e-4, 1e-3, 0.02)
+
+
+def test_probability_of_unconditional_stability_matches_normal_cdf():
+    # Rigid feed direction; normal mode with uncertain damping only. Zero-order slotting:
+    # a_min = 2 pi / (N K_t |a_yy| max|Re G|),  max|Re G| = 1 / (4 k zeta (1 + zeta)).
+    fn, k, c_mean, c_std = (
+        40.0,
+        5e6,
+        2 * 0.05 * 5e6 / (2 * math.pi * 40),
+        2 * 0.01 * 5e6 / (2 * math.pi * 40),
+    )
+    dist = {
+        "x": ModeDistribution(40.0, 1e13, 4e10),
+        "y": ModeDistribution(fn, k, c_mean, 0.0, 0.0, c_std),
+    }
+    res = stability_probability(dist, TOOL, SLOT, ALUMINIUM_7075, np.linspace(500, 5000, 30),
+                                n_samples=300, method="zoa", rng=1)  # fmt: skip
+    ayy = directional_coefficients(0.0, math.pi, ALUMINIUM_7075.krc / ALUMINIUM_7075.ktc)[3]
+    big_b = 8 * math.pi * k / (TOOL.n_flutes * ALUMINIUM_7075.ktc * abs(ayy))  # a_min = B z (1 + z)
+    zeta_mu, zeta_sd = 0.05, 0.01
+    depths = np.array([0.85, 1.0, 1.2]) * big_b * zeta_mu * (1 + zeta_mu)
+    zstar = (-1 + np.sqrt(1 + 4 * depths / big_b)) / 2
+    expected = 1 - norm.cdf((zstar - zeta_mu) / zeta_sd)
+    got = res.p_unconditionally_stable(depths)
+    np.testing.assert_allclose(got, expected, atol=0.1)
+    assert got[0] > got[1] > got[2]
+    # p_stable falls with depth at every speed and is 0/1 consistent with the sampled envelopes.
+    assert np.all(np.diff(res.p_stable, axis=1) <= 0)
+    fig = plot_stability_probability(res)
+    assert "[rpm]" in fig.axes[0].get_xlabel() and "[mm]" in fig.axes[0].get_ylabel()
+
+
+def test_zero_spread_gives_the_deterministic_envelope():
+    dist = {"x": ModeDistribution(600.0, 5e6, 1131.0), "y": ModeDistribution(660.0, 6e6, 1500.0)}
+    rpm = np.linspace(4000, 12000, 12)
+    res = stability_probability(dist, TOOL, SLOT, ALUMINIUM_7075, rpm, n_samples=3, method="sdm")
+    expected = res.mean.a_lim_m[:, None] > res.depth_m[None, :]
+    np.testing.assert_array_equal(res.p_stable, expected.astype(float))
+
+
+class _ThesisUnitsModel:
+    def predict(self, x, return_std=False):
+        mean = np.tile([20.0, 4.0, 3.0, 10.0, 2.0, 1.5, 30.0, 8.0, 2.0], (len(x), 1))
+        return (mean, 0.1 * mean) if return_std else mean
+
+
+def test_distribution_from_a_thesis_units_model_and_errors():
+    d = mode_distribution_at_pose(_ThesisUnitsModel(), [2400, 0, 45])
+    assert d["x"].stiffness_n_per_m == pytest.approx(4e6) and d[
+        "y"
+    ].damping_ns_per_m == pytest.approx(1.5e3)
+    assert d["x"].stiffness_std_n_per_m == pytest.approx(4e5)
+    with pytest.raises(ValueError, match="method"):
+        stability_probability(d, TOOL, SLOT, ALUMINIUM_7075, [3000.0], method="fdm")
+    with pytest.raises(ValueError, match="std"):
+        ModeDistribution(1.0, 1.0, 1.0, -1.0)

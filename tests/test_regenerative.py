@@ -1,0 +1,75 @@
+"""Regenerative milling on the virtual robot against the semi-discretization's predictions."""
+
+import numpy as np
+import pytest
+
+from robovib.milling import CuttingCoefficients, CuttingConditions, MillingTool
+from robovib.milling.sdm import floquet_multipliers, sdm_lobes
+from robovib.modal import ModalParameters
+from robovib.sim import VirtualRobot, simulate_regenerative_cut, simulated_stability_limit
+
+# Cutting coefficients of Al 7075 without edge forces: the tool stays in the cut below the limit,
+# so the linear theory applies (see the module docs of robovib.sim.regenerative).
+AL_NO_EDGE = CuttingCoefficients(ktc=796e6, krc=168e6, kac=0.0)
+TOOL = MillingTool()  # 25.4 mm, 2 flutes
+POSES = [(2.4, 0.0, 45.0), (2.2, 0.4, 0.0)]
+RPM = 1750.0
+
+
+def _pose_modes(pose):
+    ws = VirtualRobot().workspace
+    return ws.modes([pose], "x").at(0), ws.modes([pose], "y").at(0)
+
+
+@pytest.mark.parametrize("pose", POSES)
+def test_simulated_cut_chatters_above_the_sdm_limit_and_not_below(pose):
+    mx, my = _pose_modes(pose)
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3, down_milling=True)
+    a_lim = sdm_lobes(mx, my, TOOL, cond, AL_NO_EDGE, [RPM]).a_lim_m[0]
+    depths = a_lim * np.array([0.8, 1.25])
+    cut = simulate_regenerative_cut(mx, my, TOOL, cond, AL_NO_EDGE, depths,
+                                    n_tooth_periods=300, steps_per_tooth=60)  # fmt: skip
+    assert not cut.chatter[0] and cut.chatter[1]
+    assert cut.growth[0] < 1e-2
+    # Energy away from the tooth-passing harmonics: none when stable, most of it in chatter.
+    assert cut.off_harmonic_fraction[0] < 0.01 < 0.5 < cut.off_harmonic_fraction[1]
+    # The stable cut's transient decays at the rate of the predicted Floquet multiplier.
+    mu = floquet_multipliers(mx, my, TOOL, cond, AL_NO_EDGE, [RPM], depths[:1])
+    assert cut.decay_rate_per_period[0] == pytest.approx(np.log(np.abs(mu[0])), rel=0.1)
+
+
+def test_simulation_shows_the_flip_lobe_the_zero_order_method_misses():
+    mode = ModalParameters(922.0, 1.34e6, 0.011)
+    tool = MillingTool(diameter_m=0.02, n_flutes=2, helix_deg=0.0)
+    cond = CuttingConditions(17000, 1e-4, 1e-3, 0.001, down_milling=True)
+    coef = CuttingCoefficients(6e8, 2e8, 0.0)
+    env = sdm_lobes([mode], [], tool, cond, coef, [17000.0])
+    assert env.kind[0] == "flip"
+    cut = simulate_regenerative_cut([mode], [], tool, cond, coef, env.a_lim_m[0] * np.array([0.9, 1.1]),
+                                    n_tooth_periods=300, steps_per_tooth=80)  # fmt: skip
+    assert list(cut.chatter) == [False, True]
+    # Period doubling: chatter at an odd multiple of half the tooth-passing frequency.
+    ratio = cut.chatter_hz[1] / cut.tooth_passing_hz
+    assert abs(ratio - 0.5 - round(ratio - 0.5)) < 0.02
+
+
+def test_regenerative_input_errors():
+    mx, my = _pose_modes(POSES[0])
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3)
+    with pytest.raises(ValueError, match="depth_m"):
+        simulate_regenerative_cut(mx, my, TOOL, cond, AL_NO_EDGE, [-1e-3])
+    with pytest.raises(ValueError, match="steps per period"):
+        simulate_regenerative_cut(mx, my, TOOL, cond, AL_NO_EDGE, [1e-3], steps_per_tooth=8)
+    with pytest.raises(ValueError, match="bracket"):
+        simulated_stability_limit(mx, my, TOOL, cond, AL_NO_EDGE, (1e-5, 2e-5))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("pose", POSES)
+def test_simulated_limit_confirms_sdm_within_10_percent(pose):
+    mx, my = _pose_modes(pose)
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3, down_milling=True)
+    a_lim = sdm_lobes(mx, my, TOOL, cond, AL_NO_EDGE, [RPM]).a_lim_m[0]
+    lo, hi = simulated_stability_limit(mx, my, TOOL, cond, AL_NO_EDGE, (0.7 * a_lim, 1.4 * a_lim),
+                                       n_bisections=3, n_tooth_periods=300, steps_per_tooth=60)  # fmt: skip
+    assert abs(0.5 * (lo + hi) / a_lim - 1) < 0.10
