@@ -9,6 +9,7 @@ import matplotlib
 import numpy as np
 import pytest
 from browser import assert_page_ok
+from test_cli_smoke import assert_self_describing
 from typer.testing import CliRunner
 
 from robovib.cli import app
@@ -22,7 +23,8 @@ def report(tmp_path, kind: str, *args: str) -> tuple:
     result = runner.invoke(app, ["report", kind, *args, "-o", str(out), "--json"])
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
-    assert doc["output"] == str(out) and doc["command"][:3] == ["robovib", "report", kind]
+    assert_self_describing(doc, ["report", kind, *args, "-o", str(out), "--json"])
+    assert doc["output"] == str(out)
     text = out.read_text()
     assert "Settings" in text and "Provenance" in text and "robovib_version" in text
     assert "robovib report " + kind in text  # the command that made it

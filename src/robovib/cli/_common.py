@@ -194,6 +194,17 @@ KEY_UNITS: dict[str, str] = {
     "gain_margins": "1 (factor)",
     "iterations_mean": "1 (optimiser iterations per GP)",
     "flagged_fraction": "1",
+    "n_flutes": "1 (count)",
+    "rtol": "1 (relative tolerance)",
+    "steps_per_period_min": "1 (count)",
+    "steps_per_vibration": "1 (count)",
+    "iterations_mean_per_gp": "1 (optimiser iterations per GP)",
+    "iterations_total": "1 (count)",
+    "n_observations": "1 (count)",
+    "n_rejected": "1 (count)",
+    "scale_real": "1 (noise scale factor)",
+    "scale_imag": "1 (noise scale factor)",
+    "scale_std": "1 (noise scale factor)",
 }
 
 

@@ -38,6 +38,7 @@ UNIT_SUFFIXES: tuple[tuple[str, str], ...] = (
     ("_m_per_s_per_n", "m/s/N"),
     ("_n_m_per_rad", "N m/rad"),
     ("_ns_per_m", "N s/m"),
+    ("_n_per_m2", "N/m^2"),
     ("_n_per_m", "N/m"),
     ("_um_per_n", "um/N"),
     ("_mm_per_n", "mm/N"),

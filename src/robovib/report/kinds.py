@@ -462,8 +462,8 @@ def control_report(schedule, table9_rows, settings: Mapping[str, Any], provenanc
 
 def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) -> Report:
     """Schedule from a path-modes CSV (or the virtual robot's EMA) + Table 9, as a report."""
-    from ..control import table_9_comparison
     from ..control.schedule import schedule_gains
+    from ..studies.table9 import table_9_comparison
 
     if path_file is not None:
         from ..io import read_path_modes_csv
@@ -477,7 +477,7 @@ def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) 
     sched = schedule_gains(s, modes, warn=warnings.append)
     settings = {"path_file": str(path_file) if path_file else "virtual-robot EMA along the chapter-4 path",
                 "direction": direction, "period_ms": 4.0, "delay_ms": 32.0, "q": "diag(1, 0.001)"}  # fmt: skip
-    rep = control_report(sched, table_9_comparison(), settings,
+    rep = control_report(sched, list(table_9_comparison().rows), settings,
                          provenance=_provenance(None, inputs=[path_file] if path_file else []))  # fmt: skip
     if warnings:
         first = rep.sections[0]
