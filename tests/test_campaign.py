@@ -8,9 +8,10 @@ import pandas as pd
 import pytest
 
 from robovib.campaign import (
-    TablePoseModel,
     fit_pose_model_from_table,
+    load_pose_model,
     next_poses,
+    predict_at,
     process_campaign,
     read_manifest,
     save_pose_model,
@@ -64,7 +65,8 @@ def test_end_to_end_unseen_pose_errors(campaign, tmp_path):
     median fn < 3 %, k < 6 %, zeta < 6 %; 90th percentile fn < 8 %, k < 15 %, zeta < 15 %."""
     _, sim, _, out = campaign
     fit = fit_pose_model_from_table(out / "out" / "modal.csv", inputs=["x_mm", "y_mm", "rz_deg"])
-    assert list(fit.cv_table["output"]) == fit.model.output_names_
+    assert list(fit.cv_table["output"]) == list(fit.model.output_names_)
+    assert fit.model.provenance_["mode_switch_found"] == {"x": False, "y": False, "z": False}
     assert (fit.cv_table["relative_rmse_pct"] < 15).all()
     truth = pd.read_csv(sim.truth)
     X = truth[["x_mm", "y_mm", "rz_deg"]].to_numpy()
@@ -84,8 +86,15 @@ def test_end_to_end_unseen_pose_errors(campaign, tmp_path):
     # Save with CV + provenance, reload: same predictions, no refit.
     path = tmp_path / "model.h5"
     save_pose_model(fit, path)
-    back = TablePoseModel.load(path)
+    back = load_pose_model(path)
     np.testing.assert_allclose(back.predict(X), pred, rtol=1e-9)
+    far = predict_at(back, {"x_mm": 9999.0, "y_mm": fit.X[0, 1], "rz_deg": fit.X[0, 2]})
+    assert far.extrapolating and far.outside_inputs == ("x_mm",)
+    near = predict_at(back, dict(zip(back.input_names, fit.X[0], strict=True)))
+    assert not near.extrapolating
+    assert near.outputs[0]["mean"] == pytest.approx(back.predict(fit.X[:1])[0, 0])
+    with pytest.raises(ValueError, match=r"--rz\); missing rz_deg; not an input: a1_deg"):
+        predict_at(back, {"x_mm": 1.0, "y_mm": 0.0, "a1_deg": 3.0})
     assert (
         back.extrapolating([[9999.0, 0.0, 0.0]])[0]
         and not back.extrapolating(X[:1] * 0 + fit.X[:1])[0]
@@ -101,7 +110,9 @@ def test_next_poses_matches_brute_force_refit(campaign):
         [rng.uniform(2100, 2550, 40), rng.uniform(-300, 600, 40), rng.uniform(0, 180, 40)]
     )
     nx = next_poses(fit.model, cand, k=2)
-    gp = fit.model.gp_
+    from robovib.campaign.model import _gps_of
+
+    (gp,) = _gps_of(fit.model)  # no mode switch here: one batched GP for all outputs
     prior = gp.hyperparameters_.signal_std**2
     _, s0 = gp.predict(cand, return_std=True)
     best = []
@@ -160,3 +171,53 @@ def test_manifest_errors(tmp_path):
     (row,) = read_manifest(p)
     assert row.file == (tmp_path / "sub" / "a.uff").resolve() and row.direction == "x"
     assert row.pose_tuple_si() == pytest.approx((0.001, 0.002, 0.003, 0, 0, 4))
+
+
+def test_plot_next_poses(campaign, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from robovib.campaign import plot_next_poses
+
+    _, _, res, _ = campaign
+    fit = fit_pose_model_from_table(res.table)
+    cand = pd.DataFrame({"x_mm": [2200.0, 2300, 2400, 2500], "y_mm": [0.0, 100, -200, 500],
+                         "rz_deg": [10.0, 90, 170, 45]})  # fmt: skip
+    nx = next_poses(fit.model, cand, k=2)
+    fig = plot_next_poses(nx, fit.model, cand)
+    fig.savefig(tmp_path / "next.png")
+    assert (tmp_path / "next.png").stat().st_size > 5000
+
+
+def test_pose_table_errors(tmp_path):
+    from robovib.io import read_pose_table
+
+    p = tmp_path / "poses.csv"
+    p.write_text("x_mm,y_mm,rz_deg\n2100,0,0\n2200,abc,0\n")
+    with pytest.raises(ValueError, match=r"line 3: y_mm = 'abc' is not a finite number"):
+        read_pose_table(p, ["x_mm", "y_mm", "rz_deg"])
+    with pytest.raises(ValueError, match="lacks column"):
+        read_pose_table(p, ["a1_deg"])
+
+
+def test_mode_switch_detected_end_to_end(tmp_path):
+    """X hammer tests incl. full extension at Rz 0/180° (virtual robot: ~63 Hz mode dominant
+    there): the modal table shows it and the fitted model reports a switch in X."""
+    import warnings
+
+    from robovib.campaign import mode_switches_found
+
+    rng = np.random.default_rng(3)
+    base = np.column_stack([rng.uniform(2100, 2600, 24), rng.uniform(-300, 600, 24),
+                            rng.uniform(30, 150, 24)])  # fmt: skip
+    ext = np.column_stack([rng.uniform(2660, 2700, 8), rng.uniform(-300, 600, 8),
+                           rng.choice([0.0, 5, 175, 180], 8)])  # fmt: skip
+    poses = np.vstack([base, ext])
+    sim = simulate_campaign(poses, tmp_path, rng=1, n_hits=2, directions=("x",), n_truth=0)
+    res = process_campaign(sim.manifest, tmp_path / "out", n_workers=1)
+    high = res.table["x_mm"] > 2650
+    assert (res.table.loc[high, "fn_hz"] > 60).all() and (res.table.loc[~high, "fn_hz"] < 30).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        fit = fit_pose_model_from_table(tmp_path / "out" / "modal.csv")
+    assert mode_switches_found(fit.model) == {"x": True}

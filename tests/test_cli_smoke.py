@@ -80,7 +80,10 @@ def files(tmp_path_factory):
 def test_version_and_help_units():
     result = runner.invoke(app, ["--version"])
     assert result.exit_code == 0 and result.stdout.startswith("robovib ")
-    assert "[mm]" in runner.invoke(app, ["sim", "hammer", "--help"]).stdout
+    hammer_help = runner.invoke(app, ["sim", "hammer", "--help"])
+    assert hammer_help.exit_code == 0, hammer_help.output
+    assert "error" not in hammer_help.output
+    assert "[mm]" in hammer_help.stdout
     assert "[w1, w2]" in runner.invoke(app, ["control", "gains", "--help"]).stdout
     assert "[dB]" in runner.invoke(app, ["sim", "hammer", "--help"]).stdout
 
@@ -223,7 +226,17 @@ def test_hybrid_fit_update_predict_next_poses(files, tmp_path):
     ema = [str(files / f"e{s}.h5") for s in ("0", "1.235")]
     doc = run_json("hybrid", "fit", *ema, "--fmax", "30", "-o", str(tmp_path / "m.h5"))
     assert doc["n_frfs"] == 2
-    doc = run_json("hybrid", "update", str(tmp_path / "m.h5"), str(files / "e0.585.h5"),
+    # an EMA file is refused as OMA data (issue 18); relabel a copy as an OMA measurement
+    from dataclasses import replace
+
+    from robovib.io import read_frfs, write_frfs
+
+    err = CliRunner().invoke(app, ["hybrid", "update", str(tmp_path / "m.h5"),
+                                   str(files / "e0.585.h5"), "-o", str(tmp_path / "m2.h5")])  # fmt: skip
+    assert err.exit_code != 0 and "expects OMA" in err.output
+    oma = tmp_path / "o0.585.h5"
+    write_frfs(oma, [replace(f, source="OMA") for f in read_frfs(files / "e0.585.h5")])
+    doc = run_json("hybrid", "update", str(tmp_path / "m.h5"), str(oma),
                    "--mode", "posterior", "-o", str(tmp_path / "m2.h5"))  # fmt: skip
     assert doc["n_oma"] == 1
     doc = run_json("hybrid", "predict", str(tmp_path / "m2.h5"), "--path-s", "0.585",

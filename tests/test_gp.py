@@ -10,6 +10,7 @@ from sklearn.gaussian_process.kernels import RBF
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 from robovib.gp import BatchedGPRegressor, GPHyperparameters, GPNumericalError
+from robovib.gp._likelihood import _factor_and_invert
 
 
 def _data(rng, n=25, d=3, n_out=3):
@@ -254,12 +255,15 @@ def test_bad_parameters_and_unfitted():
 
 def test_cholesky_jitter_escalation_and_failure():
     singular = np.ones((1, 4, 4))
-    chol, jitter = BatchedGPRegressor._cholesky(singular)
-    assert jitter[0] > 0 and np.all(np.isfinite(chol))
-    np.testing.assert_allclose(chol[0] @ chol[0].T, singular[0] + jitter[0] * np.eye(4), atol=1e-12)
-    broken = -np.eye(3)[None]
-    _, jitter = BatchedGPRegressor._cholesky(broken)
-    assert np.isinf(jitter[0])
+    buf, logdet, jitter = singular.copy(), np.empty(1), np.zeros(1)
+    _factor_and_invert(buf, logdet, jitter)
+    assert jitter[0] > 0 and np.all(np.isfinite(buf))
+    # The inverse of the jittered matrix (condition number ~1e10: relative accuracy ~1e-6).
+    ref = np.linalg.inv(singular[0] + jitter[0] * np.eye(4))
+    np.testing.assert_allclose(buf[0], ref, rtol=1e-4, atol=1e-4 * np.abs(ref).max())
+    broken = -np.eye(3)[None].copy()
+    _factor_and_invert(broken, logdet, jitter)
+    assert np.isinf(jitter[0]) and np.isinf(logdet[0])
     gp = BatchedGPRegressor(kernel="ard", optimizer=None, normalize=False)
     with pytest.raises(GPNumericalError, match="not positive definite"), warnings.catch_warnings():
         warnings.simplefilter("ignore")

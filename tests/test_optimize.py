@@ -50,3 +50,31 @@ def test_batched_bfgs_rejects_bad_start():
 
     with pytest.raises(ValueError, match="not finite at the starting point"):
         batched_bfgs(fun, np.zeros((2, 2)))
+
+
+def test_duplicate_starts_in_one_basin_are_merged():
+    """Starts of one problem that meet stop early; the kept start still reaches SciPy's optimum."""
+    a = np.array([1.0, -0.5])
+
+    x0 = np.array([[-1.2, 1.0], [-0.5, 2.0], [-1.2, 1.0001], [-1.19, 1.0]])
+    label = np.array([0, 1, 0, 0])
+
+    def fun(theta, index):
+        return rosenbrock(theta, a[label[index]])
+
+    plain = batched_bfgs(fun, x0, max_iter=500, gtol=1e-8)
+    merged = batched_bfgs(fun, x0, max_iter=500, gtol=1e-8, same_problem=label)
+    for b in range(2):
+        ref = optimize.minimize(
+            lambda t, b=b: rosenbrock(t[None], a[b : b + 1])[0][0],
+            x0[b],
+            jac=lambda t, b=b: rosenbrock(t[None], a[b : b + 1])[1][0],
+            method="BFGS",
+        )
+        rows = np.flatnonzero(label == b)
+        best = rows[np.argmin(merged.fun[rows])]
+        np.testing.assert_allclose(merged.x[best], ref.x, atol=1e-5)
+        assert merged.converged[best]
+    # Rows 2 and 3 start next to row 0: stopped as duplicates, with fewer evaluations.
+    assert not merged.converged[2] or not merged.converged[3]
+    assert merged.n_fev[[2, 3]].sum() < plain.n_fev[[2, 3]].sum()

@@ -64,26 +64,38 @@ def test_uff_pairs_all_load_case_zero(tmp_path_factory, n_hits, seed, response_f
 
 
 @SETTINGS
-@given(n_hits=st.integers(1, 6), spacing_s=st.floats(0.7, 1.5), seed=st.integers(0, 1000))
-def test_uff_continuous_record_is_cut_into_hits(tmp_path_factory, n_hits, spacing_s, seed):
-    """One force and one response record holding n hits a spacing apart: n hits out."""
+@given(
+    n_hits=st.integers(1, 6),
+    spacing_s=st.floats(0.7, 1.5),
+    seed=st.integers(0, 1000),
+    double=st.sampled_from([None, "before", "after"]),
+)
+def test_uff_continuous_record_is_cut_into_hits(tmp_path_factory, n_hits, spacing_s, seed, double):
+    """One force and one response record holding n hits a spacing apart: n hits out; a double
+    hit (a second, smaller pulse 40 ms before or after one impact) stays one hit, flagged."""
     rng = np.random.default_rng(seed)
     fs = 1024.0
     n = round((0.1 + n_hits * spacing_s) * fs)
     onsets = 0.1 + spacing_s * np.arange(n_hits)
     peaks = rng.uniform(100, 900, n_hits)
     force = sum(pulse(n, fs, t, p) for t, p in zip(onsets, peaks, strict=True))
+    victim = int(rng.integers(n_hits))
+    if double is not None:
+        shift = 0.04 if double == "after" else -0.04
+        force = force + pulse(n, fs, onsets[victim] + shift, 0.4 * peaks[victim])
     force = force + rng.normal(size=n) * 0.05
     resp = sum(decay(n, fs, t, p / 100) for t, p in zip(onsets, peaks, strict=True))
     path = tmp_path_factory.mktemp("u") / "cont.uff"
     write_pyuff(path, [rec58(force, fs, 13, "N", 2), rec58(resp, fs, 12, "m/s^2", 2)])
-    rec = read_recording(path, "y")
+    rec = read_recording(path, "y", pretrigger_s=0.05 if double == "before" else 0.01)
     assert rec.report.layout == ("continuous" if n_hits > 1 else "paired")
     assert rec.n_hits == n_hits and not rec.report.hits_rejected
     expect = [pulse(n, fs, t, p).max() for t, p in zip(onsets, peaks, strict=True)]
     np.testing.assert_allclose(rec.forces.max(axis=1), expect, rtol=0.02)
-    for f in rec.forces:  # every hit keeps ~10 ms before its impact and one pulse
-        assert check_hit(f, f, fs, pretrigger_s=0.009).accepted
+    for i, f in enumerate(rec.forces):  # each hit keeps its pre-trigger; only the victim is double
+        rep = check_hit(f, f, fs, pretrigger_s=0.009)
+        is_double = any("double hit" in r for r in rep.reasons)
+        assert is_double == (double is not None and i == victim), (i, rep.reasons)
 
 
 @SETTINGS

@@ -9,6 +9,7 @@ from robovib.frf import impact_frf
 from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
 from robovib.modal import fit_dominant_mode
 from robovib.sim import (
+    CommandChannel,
     LinearMove,
     VirtualRobot,
     affine_scan,
@@ -197,3 +198,54 @@ def test_determinism_and_bad_input(robot):
         robot.workspace.modes((2.4, 0.0, 0.0), "w")
     extrapolated = robot.workspace.modes((2.75, 0.0, 45.0), "y", allow_extrapolation=True)
     assert np.all(np.isfinite(extrapolated.fn_hz))
+
+
+@pytest.mark.parametrize(
+    "channel",
+    [
+        CommandChannel(),
+        CommandChannel(delay_s=0.0),
+        CommandChannel(
+            delay_s=0.03, lag_s=0.01, rate_limit_m_per_s=0.05, breakaway_m=2e-5, hold_periods=1
+        ),
+    ],
+)
+def test_blocked_closed_loop_equals_per_sample_loop(robot, channel):
+    """One Python step per command period gives the per-sample recursion's numbers."""
+    move = LinearMove("path", (1.2,), (1.0,))
+    force = offset_mass_force(np.arange(1500) / 1000.0, 480.0)
+    ctrl = lambda t, d, v, c: -(0.03 * d + 0.002 * v)  # noqa: E731
+    a = run_closed_loop(robot, move, force, 1000.0, ctrl, channel=channel, rng=3)
+    b = run_closed_loop(robot, move, force, 1000.0, ctrl, channel=channel, rng=3,
+                        method="per-sample")  # fmt: skip
+    scale = np.max(np.abs(b.true_displacement_m))
+    assert scale > 1e-5
+    np.testing.assert_allclose(a.true_displacement_m, b.true_displacement_m, atol=1e-12 * scale)
+    np.testing.assert_array_equal(a.meta["commands_m"], b.meta["commands_m"])
+    np.testing.assert_allclose(a.displacement_m, b.displacement_m, atol=1e-5 + 1e-12)
+
+
+def test_command_channel_stages_and_bad_input(robot):
+    """A held 1 mm step through each stage: delay, breakaway band, rate limit, first-order lag."""
+    move = LinearMove("path", (0.5,), (0.5001,))
+    zero = np.zeros((400, 3))
+    step = lambda t, d, v, c: np.array([1e-3, 0.0, 0.0])  # noqa: E731
+    lag = run_closed_loop(robot, move, zero, 1000.0, step, channel=CommandChannel(delay_s=0.01, lag_s=0.02))  # fmt: skip
+    u = lag.meta["commands_m"][:, 0]
+    assert np.all(u[:10] == 0)
+    k = np.arange(1, 100)
+    np.testing.assert_allclose(u[10 + k - 1], 1e-3 * (1 - np.exp(-k * 1e-3 / 0.02)), rtol=1e-12)
+    rate = run_closed_loop(robot, move, zero, 1000.0, step, channel=CommandChannel(delay_s=0.0, rate_limit_m_per_s=0.01))  # fmt: skip
+    np.testing.assert_allclose(rate.meta["commands_m"][:100, 0], 1e-5 * np.arange(1, 101))
+    play = run_closed_loop(robot, move, zero, 1000.0, step, channel=CommandChannel(delay_s=0.0, breakaway_m=4e-4))  # fmt: skip
+    np.testing.assert_allclose(play.meta["commands_m"][:, 0], 6e-4)  # dragged to the band edge
+    hold = run_closed_loop(robot, move, zero, 1000.0, step, channel=CommandChannel(hold_periods=2))  # fmt: skip
+    assert np.flatnonzero(hold.meta["commands_m"][:, 0])[0] == 32 + 8
+    with pytest.raises(ValueError, match="lag_s"):
+        CommandChannel(lag_s=-1.0)
+    with pytest.raises(ValueError, match="hold_periods"):
+        CommandChannel(hold_periods=0.5)
+    with pytest.raises(ValueError, match="either delay_s or channel"):
+        run_closed_loop(robot, move, zero, 1000.0, step, delay_s=0.0, channel=CommandChannel())
+    with pytest.raises(ValueError, match="method"):
+        run_closed_loop(robot, move, zero, 1000.0, step, method="fast")

@@ -18,11 +18,15 @@ from .manifest import (
 from .model import (
     NextPoses,
     PoseModelFit,
-    TablePoseModel,
+    PosePrediction,
     fit_pose_model_from_table,
+    load_pose_model,
+    mode_switches_found,
     next_poses,
+    predict_at,
     save_pose_model,
 )
+from .plot import plot_next_poses
 from .process import CampaignResult, ProcessingSettings, process_campaign, process_row
 
 __all__ = [
@@ -33,10 +37,14 @@ __all__ = [
     "CampaignRow",
     "NextPoses",
     "PoseModelFit",
+    "PosePrediction",
     "ProcessingSettings",
-    "TablePoseModel",
     "fit_pose_model_from_table",
+    "load_pose_model",
+    "mode_switches_found",
     "next_poses",
+    "plot_next_poses",
+    "predict_at",
     "process_campaign",
     "process_row",
     "read_manifest",

@@ -9,7 +9,21 @@ from typing import Annotated
 
 import typer
 
-from . import control, demo, examples, frf, gpr, hybrid, mill, modal, report, robot, sim
+from . import (
+    campaign,
+    control,
+    demo,
+    examples,
+    frf,
+    gpr,
+    hybrid,
+    mill,
+    modal,
+    model,
+    report,
+    robot,
+    sim,
+)
 from ._common import ErrorHandlingGroup, set_debug
 
 __all__ = ["app", "main"]
@@ -57,6 +71,8 @@ app.add_typer(robot.app, name="robot")
 app.add_typer(mill.app, name="mill")
 app.add_typer(control.app, name="control")
 app.add_typer(hybrid.app, name="hybrid")
+app.add_typer(campaign.app, name="campaign")
+app.add_typer(model.app, name="model")
 app.add_typer(report.app, name="report")
 
 

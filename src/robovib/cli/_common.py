@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import re
 import sys
@@ -18,13 +17,17 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 __all__ = [
+    "ForceOpt",
     "JsonFlag",
+    "KeepFlaggedFitsOpt",
     "KernelOpt",
     "ModeSwitchOpt",
+    "ModelOpt",
     "OutOpt",
     "SeedOpt",
     "Table",
     "check_kernel",
+    "check_output",
     "console",
     "emit_json",
     "escape",
@@ -33,6 +36,7 @@ __all__ = [
     "new_app",
     "save_figure",
     "use_agg",
+    "workspace_model",
 ]
 
 JsonFlag = Annotated[
@@ -53,6 +57,39 @@ ModeSwitchOpt = Annotated[
     ),
 ]
 OutOpt = Annotated[Path, typer.Option("-o", "--output", help="File to write.")]
+ForceOpt = Annotated[
+    bool,
+    typer.Option(
+        "--force", help="Allow the output to replace one of the input files (the input is lost)."
+    ),
+]
+KeepFlaggedFitsOpt = Annotated[
+    bool,
+    typer.Option(
+        "--keep-flagged",
+        help="Exit 0 even when a fit is flagged (at a bound, large residual, inverted sign).",
+    ),
+]
+ModelOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--model",
+        help="Your pose model (.h5 from 'robovib model fit', inputs x_mm,y_mm,rz_deg); "
+        "default: the thesis' chapter-3 model.",
+    ),
+]
+
+
+def workspace_model(path: Path | None, seed: int = 0):
+    """The pose model to predict with: the user's file or the shipped chapter-3 model."""
+    if path is None:
+        from ..gp import get_chapter3_model
+
+        return get_chapter3_model(rng=seed)
+    from ..campaign import load_pose_model
+
+    return load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg"))
+
 
 try:  # Typer >= 0.2x vendors Click as typer._click: its context stack and exceptions are those
     from typer._click.exceptions import ClickException as _TyperClickException
@@ -81,6 +118,24 @@ def new_app(help: str, **kwargs) -> typer.Typer:
     return typer.Typer(help=help, rich_markup_mode=None, no_args_is_help=True, **kwargs)
 
 
+def _click_passthrough() -> tuple[type, ...]:
+    """Click's own exceptions (usage errors, --help exits), also those of the click copy that
+    recent Typer vendors as ``typer._click``: click reports them itself, never as "unexpected"."""
+    kinds: list[type] = [
+        click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort,
+        typer.Exit, typer.Abort,
+    ]  # fmt: skip
+    try:
+        from typer._click import exceptions as vendored
+    except ImportError:  # older Typer: plain click only
+        return tuple(kinds)
+    names = ("ClickException", "Exit", "Abort")
+    return (*kinds, *(getattr(vendored, n) for n in names if hasattr(vendored, n)))
+
+
+_PASSTHROUGH = _click_passthrough()
+
+
 class ErrorHandlingGroup(TyperGroup):
     """Root group: library errors become one line on stderr and exit code 1."""
 
@@ -94,7 +149,7 @@ class ErrorHandlingGroup(TyperGroup):
         set_run_info_provider(run_info)
         try:
             return super().invoke(ctx)
-        except _PASS_THROUGH:
+        except _PASSTHROUGH:  # typer.Exit is a RuntimeError in recent Typer: --help exits 0
             raise
         except EXPECTED_ERRORS as exc:
             if _STATE["debug"]:
@@ -265,21 +320,25 @@ def run_info() -> dict:
 
 
 def emit_json(doc: dict, *, units: dict[str, str] | None = None) -> None:
-    """Print ``doc`` as one self-describing JSON document (strict: NaN and inf become null).
+    """Print ``doc`` as one self-describing JSON document (strict: NaN and inf become null,
+    the reason listed under ``null_reasons``; see :func:`robovib.io.json_dumps`).
 
     Added to ``doc``: ``robovib_version``, ``command`` (argv as run), ``settings`` (every option
     and argument, defaults included), ``settings_units`` (setting -> unit), ``input_files`` (path
     and SHA-256 of each input file) and ``units`` (unit of every key of ``doc`` whose name has
     no unit suffix: from :data:`KEY_UNITS` and ``units``).
     """
+    from ..io import json_dumps
+    from ..io.json_safe import json_safe
     from ..io.provenance import run_provenance
 
     prov = run_provenance()
-    body = _plain(doc)
-    for key in ("robovib_version", "command", "settings", "settings_units", "input_files"):
-        if key in body and key != "robovib_version":  # the result's own: kept under result_
-            body[f"result_{key}"] = body.pop(key)
-    body.pop("robovib_version", None)
+    raw = dict(doc)
+    raw.pop("robovib_version", None)
+    for key in ("command", "settings", "settings_units", "input_files"):
+        if key in raw:  # the result's own: kept under result_<key>
+            raw[f"result_{key}"] = raw.pop(key)
+    body, _ = json_safe(raw)  # JSON-ready copy (NaN/inf -> null) to find the numbers
     keys: set[str] = set()
     _numeric_keys(body, None, keys)
     extra = dict(units or {})
@@ -296,10 +355,18 @@ def emit_json(doc: dict, *, units: dict[str, str] | None = None) -> None:
         "settings": prov["settings"],
         "settings_units": prov["units"],
         "input_files": prov["input_files"],
-        **body,
+        **raw,
         "units": {**key_units, **_plain(body.get("units", {}))},
     }
-    typer.echo(json.dumps(out, indent=2, allow_nan=False))
+    typer.echo(json_dumps(out, indent=2))
+
+
+def check_output(path: Path | None, inputs=(), force: bool = False) -> None:
+    """Refuse an output before any work: missing/read-only folder, or one of the inputs."""
+    if path is not None:
+        from ..io import check_output_path
+
+        check_output_path(path, inputs=inputs, force=force)
 
 
 def materials() -> dict:
@@ -333,14 +400,13 @@ def use_agg() -> None:
     matplotlib.use("Agg")
 
 
-def save_figure(fig, path: Path, dpi: int = 120, inputs=()) -> None:
-    """Save a figure atomically (:func:`robovib.io.save_figure`: checked folder, never over an
-    input) and close it."""
+def save_figure(fig, path: Path, dpi: int = 120, inputs=(), force: bool = False) -> None:
+    """Save a figure atomically (:func:`robovib.io.save_figure`) and close it."""
     import matplotlib.pyplot as plt
 
     from ..io import save_figure as _save
 
     try:
-        _save(fig, path, dpi=dpi, inputs=inputs)
+        _save(fig, path, dpi=dpi, inputs=inputs, force=force)
     finally:
         plt.close(fig)

@@ -9,8 +9,10 @@ import typer
 
 from ._common import (
     JsonFlag,
+    ModelOpt,
     SeedOpt,
     Table,
+    check_output,
     console,
     emit_json,
     escape,
@@ -18,6 +20,7 @@ from ._common import (
     new_app,
     save_figure,
     use_agg,
+    workspace_model,
 )
 
 app = new_app("Pose-dependent LQR vibration control (thesis ch. 4).")
@@ -32,6 +35,7 @@ def gains(
     period_ms: Annotated[float, typer.Option(help="Command period [ms] (RSI: 4 ms).")] = 4.0,
     delay_ms: Annotated[float, typer.Option(help="Actuator delay [ms] (KRC4: 32 ms).")] = 32.0,
     r: Annotated[float, typer.Option("--r", help="Input weight R (Q = diag(1, 0.001)).")] = 0.001,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """LQR gains W = [w1, w2] at a pose from the GP's predicted mode, with the delay analysis."""
@@ -42,12 +46,13 @@ def gains(
         loop_margins,
         tune_r_for_delay,
     )
-    from ..gp import get_chapter3_model
-    from ..milling.workflow import pose_modes
+    from ..milling.workflow import pose_extrapolation, pose_modes
 
     if direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}")
-    modes = {d: m.parameters for d, m in pose_modes(get_chapter3_model(), (x, y, rz)).items()}
+    model = workspace_model(model_path)
+    modes = {d: m.parameters for d, m in pose_modes(model, (x, y, rz)).items()}
+    outside = list(pose_extrapolation(model, (x, y, rz)))
     mode = modes[direction]
     d = design_lqr(mode, period_ms / 1e3, r=[[r]])
     da = delay_analysis(d, delay_ms / 1e3)
@@ -55,6 +60,7 @@ def gains(
     aware = design_delay_aware_lqr(mode, period_ms / 1e3, delay_ms / 1e3, r=[[1.0]])
     margins = loop_margins(d, round(delay_ms / period_ms))
     doc = {
+        "extrapolation": outside,
         "mode": mode.to_dict(), "w1": d.gains[0], "w2": d.gains[1], "spectral_radius_no_delay": d.spectral_radius,
         "stable_with_delay": da.stable, "spectral_radius_with_delay": da.spectral_radius,
         "max_stable_delay_ms": 1e3 * da.max_stable_delay_s,
@@ -80,6 +86,11 @@ def gains(
             f"gain margin with the delay: {margins.gain_margins[0]:.3g} at {margins.phase_crossovers_hz[0]:.2f} Hz"
         )
     typer.echo(f"delay-aware LQR (R = 1): spectral radius {aware.spectral_radius:.3f}")
+    if outside:
+        typer.echo(
+            f"warning: {', '.join(outside)} outside the calibrated workspace: the mode is a GP "
+            "extrapolation"
+        )
 
 
 @app.command("schedule")
@@ -103,13 +114,14 @@ def schedule(
     """Gains along a path (R tuned for the 32 ms delay), with the Eq. 28-29 polynomial fits."""
     from ..control.schedule import schedule_gains
 
+    check_output(plot, [path_file])
     warnings_seen: list[str] = []
     if path_file is not None:
         from ..io import read_path_modes_csv
 
         s, modes = read_path_modes_csv(path_file)
     else:
-        from ..control.studies import virtual_path_modes
+        from ..studies.control_closed_loop import virtual_path_modes
 
         s, modes = virtual_path_modes(direction=direction, rng=seed)
     sched = schedule_gains(s, modes, warn=warnings_seen.append)
@@ -158,47 +170,56 @@ def table9(json_out: JsonFlag = False) -> None:
 
 @app.command("simulate")
 def simulate(
-    experiment: Annotated[str, typer.Argument(help="offset-mass or milling.")],
+    experiment: Annotated[str, typer.Argument(help="offset-mass (Table 7) or milling (Table 10).")],
+    controller: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--controller",
+            help="Controller(s), repeatable: thesis, constant-start, constant-end, tuned, lqg, "
+            "robust, feedforward, feedforward+robust, repetitive. Default: all.",
+        ),
+    ] = None,
+    actuator: Annotated[
+        str, typer.Option(help="Command channel: pure-delay (32 ms) or calibrated.")
+    ] = "pure-delay",
     plot: Annotated[
         Path | None,
-        typer.Option(help="PNG of the X vibration per controller (offset-mass, first speed)."),
+        typer.Option(
+            help="PNG: offset-mass X vibration envelope per controller (first speed); milling "
+            "RMS per cut and controller (X and Z figures: NAME_x.png, NAME_z.png)."
+        ),
     ] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
-    """Closed-loop runs on the virtual robot: Table 7 (offset mass) or Table 10 (milling) analogue."""
+    """Closed-loop runs on the virtual robot, controllers designed from the path model only."""
+    check_output(plot)
     from rich.progress import Progress
 
-    from ..control.studies import (
-        milling_study,
-        offset_mass_study,
-        path_modal_model,
-        plot_offset_mass,
-        split_traces,
-    )
-    from ..sim import VirtualRobot
+    from ..studies.control_closed_loop import simulate_control
 
-    if experiment not in ("offset-mass", "milling"):
-        fail(f"unknown experiment {experiment!r}; use offset-mass or milling")
-    robot = VirtualRobot()
     with Progress(transient=True, disable=json_out) as bar:
-        task = bar.add_task("virtual EMA along the path + closed-loop runs", total=None)
-        model = path_modal_model(robot, rng=seed)
-        rows = (
-            offset_mass_study(robot, model, rng=seed, keep_traces=plot is not None)
-            if experiment == "offset-mass"
-            else milling_study(robot, model, rng=seed)
-        )
+        task = bar.add_task("virtual EMA along the path, designs, closed-loop runs", total=None)
+        try:
+            result = simulate_control(experiment, controller or None, actuator=actuator,
+                                      keep_traces=plot is not None, rng=seed)  # fmt: skip
+        except ValueError as exc:
+            fail(str(exc))
         bar.update(task, completed=1)
-    table_rows, _ = split_traces(rows)
+    frame = result.to_frame()
     if json_out:
-        emit_json({"experiment": experiment, "rows": table_rows})
+        emit_json(result.to_dict())
     else:
-        import pandas as pd
-
-        console().print(escape(pd.DataFrame(table_rows).round(3).to_string(index=False)))
-    if plot is not None and experiment == "offset-mass":
+        console().print(escape(frame.round(3).to_string(index=False)))
+    if plot is not None:
         use_agg()
-        save_figure(plot_offset_mass(rows), plot)
+        if experiment == "offset-mass":
+            save_figure(result.plot(), plot)
+            written = [plot]
+        else:
+            written = [plot.with_name(f"{plot.stem}_{d}{plot.suffix}") for d in ("x", "z")]
+            for d, path in zip(("x", "z"), written, strict=True):
+                save_figure(result.plot(d), path)
         if not json_out:
-            typer.echo(f"wrote {plot}")
+            for path in written:
+                typer.echo(f"wrote {path}")

@@ -8,7 +8,17 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import JsonFlag, Table, console, emit_json, escape, fail, new_app
+from ._common import (
+    ForceOpt,
+    JsonFlag,
+    Table,
+    check_output,
+    console,
+    emit_json,
+    escape,
+    fail,
+    new_app,
+)
 
 app = new_app("FRFs from impact-hammer recordings (thesis §3.2.1).")
 
@@ -82,6 +92,7 @@ def compute(
     response_unit: Annotated[
         str, typer.Option(help="Unit of the response sensitivity (g, m/s^2, m/s, m).")
     ] = "g",
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
     """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
@@ -92,6 +103,7 @@ def compute(
 
     if direction is not None and direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}; use x, y or z")
+    check_output(output, [recording], force)
     rec = read_recording(
         recording, direction,
         Sensitivity(force_sensitivity, "N") if force_sensitivity else None,
@@ -101,8 +113,8 @@ def compute(
         rec.forces, rec.responses, rec.sample_rate_hz,
         response_quantity=rec.response_quantity, estimator=estimator,
         pretrigger_s=pretrigger_ms / 1e3,
-        force_window_s=force_window_ms / 1e3 if force_window_ms > 0 else None,
-        exp_window_tau_s=exp_window_tau_ms / 1e3 if exp_window_tau_ms > 0 else None,
+        force_window_s=None if force_window_ms == 0 else force_window_ms / 1e3,  # < 0: error
+        exp_window_tau_s=None if exp_window_tau_ms == 0 else exp_window_tau_ms / 1e3,
         reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
     )  # fmt: skip
     frf = result.frf.to_compliance(f_min_hz)
@@ -114,7 +126,7 @@ def compute(
     if all(given):
         nan = float("nan")
         frf = replace(frf, pose=(x_mm / 1e3, y_mm / 1e3, nan, nan, nan, float(rz_deg)))
-    write_frfs(output, [frf], inputs=[recording])
+    write_frfs(output, [frf], inputs=[recording], force=force)
     hits = [
         {
             "hit": h.index,
@@ -137,6 +149,7 @@ def compute(
         "df_hz": frf.df_hz,
         "mean_coherence": float(np.mean(frf.coherence)),
         "hits": hits,
+        "reader": rec.report.to_dict() if rec.report is not None else None,
     }
     if json_out:
         emit_json(summary)
@@ -156,6 +169,14 @@ def compute(
             escape("; ".join(h["reasons"])),
         )
     con.print(t)
+    if rec.report is not None:
+        rep = rec.report
+        con.print(
+            f"read {rep.records_read} records ({rep.layout}): {rep.hits_formed} hits formed, "
+            f"{len(rep.hits_rejected)} rejected"
+            + "".join(f"\n  rejected {escape(h)}: {escape(r)}" for h, r in rep.hits_rejected)
+            + "".join(f"\n  note: {escape(n)}" for n in rep.notes)
+        )
     con.print(
         f"wrote {output}: compliance FRF, {frf.frequency_hz[0]:g}-{frf.frequency_hz[-1]:g} Hz, "
         f"df = {frf.df_hz:.3g} Hz, {frf.n_averages} hits averaged, mean coherence {summary['mean_coherence']:.3f}"

@@ -9,10 +9,12 @@ import numpy as np
 import typer
 
 from ._common import (
+    ForceOpt,
     JsonFlag,
     OutOpt,
     SeedOpt,
     Table,
+    check_output,
     console,
     emit_json,
     new_app,
@@ -105,6 +107,7 @@ def oma(
         float | None, typer.Option(help="Spindle speed [rpm]: flags its harmonics.")
     ] = None,
     min_coherence: Annotated[float, typer.Option(help="Bins below are flagged.")] = 0.5,
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
     """OMA compliance FRFs per path segment from a milling record (flagged bins stored).
@@ -115,12 +118,13 @@ def oma(
     from ..hybrid import oma_frfs_with_path
     from ..io import read_milling_record_csv, write_frfs
 
+    check_output(output, [record], force)
     frfs = oma_frfs_with_path(
         read_milling_record_csv(record), direction=direction, segment_length_m=segment_m,
         nperseg=nperseg, noverlap=noverlap, window=window, f_min_hz=fmin, f_max_hz=fmax,
         spindle_rpm=rpm, min_coherence=min_coherence,
     )  # fmt: skip
-    write_frfs(output, frfs, inputs=[record])
+    write_frfs(output, frfs, inputs=[record], force=force)
     flagged = [np.asarray(f.meta["flagged"], bool) for f in frfs]
     doc = {"output": str(output), "segments": len(frfs), "s_mid_m": [f.meta["path_s_m"] for f in frfs],
            "n_bins": int(frfs[0].frequency_hz.size), "df_hz": float(frfs[0].df_hz),
@@ -154,26 +158,32 @@ def fit(
             help="Pose inputs: path (the path coordinate s, m) or workspace (x, y in m, rz in deg from each FRF's pose; ARD kernel)."
         ),
     ] = "path",
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
-    """Initial per-bin GP model of the compliance over the path or the workspace from EMA FRFs."""
-    from ..hybrid import INPUT_SETS, FRFPoseModel, frfs_on_grid
+    """Initial per-bin GP model of the compliance over the path or the workspace from EMA FRFs.
+
+    All FRFs must be of one direction (kept in the model and checked by ``hybrid update``).
+    """
+    from ..hybrid import INPUT_SETS, FRFPoseModel, frequency_grid
     from ..io import read_frfs
 
     if inputs not in INPUT_SETS:
         raise ValueError(f"--inputs must be one of {list(INPUT_SETS)}, got {inputs!r}")
+    check_output(output, ema, force)
     names = INPUT_SETS[inputs]
     frfs = [f for path in ema for f in read_frfs(path)]
-    if fmin is None:
+    if fmin is None:  # where all EMA FRFs have data
         fmin = max([2.0, *(float(f.frequency_hz[0]) for f in frfs)])
-    grid = np.arange(fmin, fmax + 1e-9, df_hz)
-    h, s, m, _ = frfs_on_grid(frfs, grid, names)
+    grid = frequency_grid(fmin, fmax, df_hz)
     kernel = "isotropic" if inputs == "path" else "ard"
-    model = FRFPoseModel(grid, kernel=kernel, input_names=names).fit(s, h, mask=m)
-    model.save(output, provenance={"ema_files": ",".join(str(p) for p in ema)}, inputs=ema)
+    model = FRFPoseModel(grid, kernel=kernel, input_names=names).fit_frfs(frfs)
+    model.save(output, provenance={"ema_files": ",".join(str(p) for p in ema)}, inputs=ema,
+               force=force)  # fmt: skip
     doc = {
         "output": str(output),
-        "n_frfs": len(s),
+        "direction": model.direction_,
+        "n_frfs": len(frfs),
         "n_bins": int(grid.size),
         "input_names": list(names),
         "iterations_mean": model.last_report_.iterations_mean_per_gp,
@@ -181,7 +191,7 @@ def fit(
     if json_out:
         emit_json(doc)
     else:
-        typer.echo(f"wrote {output}: {len(s)} EMA FRFs, {grid.size} bins")
+        typer.echo(f"wrote {output}: {len(frfs)} EMA FRFs ({model.direction_}), {grid.size} bins")
 
 
 @app.command("update")
@@ -198,19 +208,22 @@ def update(
     reoptimize: Annotated[
         bool, typer.Option(help="robust only: then re-optimise all hyperparameters (warm start).")
     ] = False,
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
-    """Bayesian update of the model with OMA FRFs (separate noise level for OMA); says what was rejected."""
-    from ..hybrid import FRFPoseModel, frfs_on_grid
+    """Bayesian update of the model with OMA FRFs (separate noise level for OMA); says what was rejected.
+
+    The FRFs must be OMA FRFs of the model's direction (checked, never mixed).
+    """
+    from ..hybrid import FRFPoseModel
     from ..io import read_frfs
 
+    check_output(output, [model_file, oma_file], force)
     model = FRFPoseModel.load(model_file)
-    h, s, m, err = frfs_on_grid(
-        read_frfs(oma_file), model.frequency_hz, model.input_names, partial=True
-    )
-    rep = model.update(s, h, mask=m, mode=mode, noise_std=err, reoptimize=reoptimize)
+    s = read_frfs(oma_file)
+    rep = model.update_frfs(s, mode=mode, reoptimize=reoptimize)
     model.save(output, provenance={"updated_with": str(oma_file), "update_mode": mode},
-               inputs=[model_file, oma_file])  # fmt: skip
+               inputs=[model_file, oma_file], force=force)  # fmt: skip
     doc = {"output": str(output), "n_oma": len(s), **rep.to_dict()}
     if json_out:
         emit_json(doc)
@@ -258,6 +271,7 @@ def predict(
     from ..hybrid import FRFPoseModel, plot_frf_prediction, predict_frf_at
     from ..io import read_frfs
 
+    check_output(plot, [model_file, measured])
     model = FRFPoseModel.load(model_file)
     if tuple(model.input_names) == ("s_m",):
         if path_s is None:
@@ -316,6 +330,7 @@ def next_poses(
     """Where to hammer next along the chapter-4 path: largest integrated predictive variance."""
     from ..studies.hybrid import plot_next_poses, propose_next_poses
 
+    check_output(plot)
     tested = path_s if path_s else [0.0, 0.585, 1.235]
     res = propose_next_poses(tested, k=k, direction=direction, rng=seed)
     if json_out:

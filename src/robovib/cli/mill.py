@@ -10,15 +10,19 @@ import typer
 
 from ._common import (
     JsonFlag,
+    ModelOpt,
     SeedOpt,
     Table,
+    check_output,
     console,
     emit_json,
     escape,
+    fail,
     material,
     new_app,
     save_figure,
     use_agg,
+    workspace_model,
 )
 
 app = new_app("Milling vibration and chatter stability at a pose (thesis §3.5).")
@@ -59,10 +63,10 @@ def predict(
         int, typer.Option(help="Monte-Carlo draws of the GP prediction for the band.")
     ] = 50,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..gp import get_chapter3_model
     from ..io import read_force_csv
     from ..milling import CuttingConditions
     from ..milling.prediction import resample_force
@@ -71,7 +75,7 @@ def predict(
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
     f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
     res = predict_at_pose(
-        get_chapter3_model(rng=seed), x, y, rz, cond, coefficients=material(material_name),
+        workspace_model(model_path, seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
@@ -82,8 +86,10 @@ def predict(
          "mode": r.mode.to_dict()}
         for r in res
     ]  # fmt: skip
+    outside = list(res[0].extrapolation)
     if json_out:
-        emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm, "predictions": rows})
+        emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm,
+                   "extrapolation": outside, "predictions": rows})  # fmt: skip
         return
     con = console()
     t = Table(
@@ -99,6 +105,10 @@ def predict(
             f"{r['peak_to_valley_mm']:.4f}", escape(f"[{r['peak_to_valley_band_mm'][0]:.4f}, {r['peak_to_valley_band_mm'][1]:.4f}]"),
         )  # fmt: skip
     con.print(t)
+    if outside:
+        con.print(
+            f"[yellow]warning:[/] {', '.join(outside)} outside the calibrated workspace: extrapolation"
+        )
 
 
 TeethOpt = Annotated[int, typer.Option("--teeth", help="Number of teeth (flutes) of the tool.")]
@@ -205,6 +215,7 @@ def lobes(
     steps: StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Stability lobes (envelope) from explicit modes, a measured FRF or the pose model's modes."""
@@ -216,6 +227,7 @@ def lobes(
         plot_lobes_chart,
     )
 
+    check_output(plot, [model_path, frf, cuts])
     tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     parsed = [parse_mode_spec(m) for m in (mode or [])]
@@ -225,9 +237,7 @@ def lobes(
     if not parsed and frf is None:
         if x is None or y is None or rz is None:
             raise ValueError("give --x --y --rz (pose model), --mode ... or --frf FILE")
-        from ..gp import get_chapter3_model
-
-        model, pose = get_chapter3_model(rng=seed), (x, y, rz)
+        model, pose = workspace_model(model_path, seed), (x, y, rz)
         pose_label = f"X {x:g} mm, Y {y:g} mm, Rz {rz:g}°, feed {feed}"
     chart = lobes_chart(
         tool=tool, conditions=cond, coefficients=coef, spindle_rpm=parse_rpm_range(rpm_range),
@@ -241,11 +251,20 @@ def lobes(
         use_agg()
         save_figure(plot_lobes_chart(chart), plot)
     doc = chart.to_dict()
+    from ..milling.workflow import pose_extrapolation
+
+    outside = list(pose_extrapolation(model, pose)) if model is not None else []
     if json_out:
-        emit_json({"pose_mm_deg": pose, "material": material_name, **doc})
+        emit_json({"pose_mm_deg": pose, "material": material_name,
+                   "extrapolation": outside, **doc})  # fmt: skip
         return
     env = chart.envelope
     typer.echo(f"{chart.title.splitlines()[0]}")
+    if outside:
+        typer.echo(
+            f"warning: {', '.join(outside)} outside the calibrated workspace: the modes are a GP "
+            "extrapolation"
+        )
     if doc["minimum_depth_m"] is not None:
         typer.echo(
             f"depth stable at every speed ({method.upper()}): {1e3 * doc['minimum_depth_m']:.3f} mm"
@@ -307,20 +326,24 @@ def lobe_map(
     ] = None,
     plot: Annotated[Path | None, typer.Option(help="PNG map over X-Y at --rpm.")] = None,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Critical axial depth over the workspace × spindle speeds (Dask): where and how fast to mill."""
     from rich.progress import Progress
 
-    from ..gp import get_chapter3_model
     from ..milling.chart import parse_rpm_range
     from ..milling.maps import plot_lobe_map, save_lobe_map, workspace_lobe_map
 
+    check_output(plot, [model_path])
+    for name, n in (("--nx", nx), ("--ny", ny)):
+        if n < 2:
+            fail(f"{name} must be at least 2 grid points, got {n}")
     tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     speeds = np.array([rpm]) if rpm_range is None else np.union1d(parse_rpm_range(rpm_range), [rpm])
     xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
-    model = get_chapter3_model(rng=seed)
+    model = workspace_model(model_path, seed)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task(f"{method.upper()} lobes over the workspace", total=None)
         ds = workspace_lobe_map(

@@ -7,19 +7,26 @@ from typing import Annotated
 
 import typer
 
-from ._common import JsonFlag, Table, console, emit_json, escape, fail, new_app, use_agg
+from ._common import (
+    ForceOpt,
+    JsonFlag,
+    KeepFlaggedFitsOpt,
+    Table,
+    check_output,
+    console,
+    emit_json,
+    escape,
+    fail,
+    new_app,
+    use_agg,
+)
 
 app = new_app("Modal parameters from FRFs.")
 
 
 @app.command("fit")
 def fit(
-    frf_file: Annotated[
-        Path,
-        typer.Argument(
-            help="FRF file (.h5, .uff or .csv with frequency_hz,real_<unit>,imag_<unit>)."
-        ),
-    ],
+    frf_file: Annotated[Path, typer.Argument(help="FRF file (.h5 or .uff).")],
     band: Annotated[
         tuple[float, float] | None,
         typer.Option(help="Fit band LO HI [Hz]; default: around the dominant peak."),
@@ -30,16 +37,21 @@ def fit(
     max_order: Annotated[int, typer.Option(help="Highest LSCF model order for --modes.")] = 30,
     plot: Annotated[
         Path | None,
-        typer.Option(
-            help="PNG: magnitude/unwrapped phase, real/imaginary parts and coherence with the fitted curve (flagged fits marked)."
-        ),
+        typer.Option(help="PNG of magnitude, phase and coherence with the fitted curve."),
     ] = None,
+    keep_flagged: KeepFlaggedFitsOpt = False,
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
-    """Dominant-mode fit (fn, k, c, zeta with standard errors) of every FRF in a file."""
+    """Dominant-mode fit (fn, k, c, zeta with standard errors) of every FRF in a file.
+
+    A fit the library flags (parameter at a bound, large residual, inverted sign) is shown
+    with its reasons, and the command then exits with an error unless ``--keep-flagged``.
+    """
     from ..io import read_frfs
     from ..modal import fit_dominant_mode, fit_modes
 
+    check_output(plot, [frf_file], force)
     frfs = read_frfs(frf_file)
     results = []
     for i, frf in enumerate(frfs):
@@ -59,15 +71,31 @@ def fit(
         }
         if multi is not None:
             doc["modes"] = [m.to_dict() for m in multi.modes]
+            doc["modes_flags"] = list(multi.flags)
         docs.append(doc)
+    flagged = [
+        (i, [*dom.flags, *(multi.flags if multi is not None else ())])
+        for i, (_, dom, multi) in enumerate(results)
+        if dom.flagged or (multi is not None and multi.flagged)
+    ]
     if json_out:
-        emit_json({"file": str(frf_file), "frfs": docs})
+        emit_json({"file": str(frf_file), "frfs": docs, "n_flagged": len(flagged)})
         if plot is not None:
-            _plot(frf_file, results, plot)
+            _plot(frf_file, results, plot, force)
+        _flagged_exit(flagged, keep_flagged)
         return
     con = console()
     t = Table(title=f"Dominant mode of each FRF in {frf_file.name}")
-    for col in ("FRF", "dir", "fn [Hz]", "k [MN/m]", "c [kN·s/m]", "zeta [%]", "band [Hz]"):
+    for col in (
+        "FRF",
+        "dir",
+        "fn [Hz]",
+        "k [MN/m]",
+        "c [kN·s/m]",
+        "zeta [%]",
+        "band [Hz]",
+        "flags",
+    ):
         t.add_column(escape(col), justify="right")
     for i, (frf, dom, _) in enumerate(results):
         p, sd = dom.parameters, dom.std
@@ -78,11 +106,9 @@ def fit(
             f"{p.damping_ns_per_m / 1e3:.3f} ± {sd['damping_ns_per_m'] / 1e3:.3f}",
             f"{100 * p.damping_ratio:.2f} ± {100 * sd['damping_ratio']:.2f}",
             f"{dom.band_hz[0]:.1f}-{dom.band_hz[1]:.1f}",
+            "[red]" + escape("; ".join(dom.flags)) + "[/]" if dom.flags else "-",
         )  # fmt: skip
     con.print(t)
-    for i, (_, dom, _) in enumerate(results):
-        for reason in dom.flags:
-            con.print(f"[yellow]warning:[/] FRF {i} fit flagged: {escape(reason)}")
     for i, (_, _, multi) in enumerate(results):
         if multi is None:
             continue
@@ -100,22 +126,43 @@ def fit(
             )
         con.print(t)
     if plot is not None:
-        _plot(frf_file, results, plot)
+        _plot(frf_file, results, plot, force)
         con.print(f"wrote {plot}")
+    _flagged_exit(flagged, keep_flagged)
 
 
-def _plot(frf_file: Path, results, plot: Path) -> None:
+def _flagged_exit(flagged, keep_flagged: bool) -> None:
+    """Fits that say they are wrong make the command fail, unless the user keeps them."""
+    if not flagged:
+        return
+    detail = "; ".join(f"FRF {i}: {reasons[0]}" for i, reasons in flagged[:3])
+    more = f" (+{len(flagged) - 3} more)" if len(flagged) > 3 else ""
+    if keep_flagged:
+        typer.echo(f"warning: {len(flagged)} flagged fit(s) kept: {detail}{more}", err=True)
+        return
+    fail(f"{len(flagged)} fit(s) flagged: {detail}{more}; see the flags, or pass --keep-flagged")
+
+
+def _plot(frf_file: Path, results, plot: Path, force: bool) -> None:
+    """The first FRF with its fit (magnitude/unwrapped phase, Re/Im, coherence; flags in red),
+    drawn after the results are printed."""
     use_agg()
+    import matplotlib.pyplot as plt
+
+    from ..io import save_figure
     from ..modal.plot import plot_frf_fit
 
     frf, dom, multi = results[0]
     shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
     fitted = multi.modes if multi is not None else (dom.parameters,)
-    plot_frf_fit(
+    fig = plot_frf_fit(
         shown,
         fitted,
-        plot,
         residual=0j if multi else dom.residual_compliance,
         title=f"{frf_file.name}, FRF 0",
-        flags=dom.flags,
+        flags=(*dom.flags, *(multi.flags if multi is not None else ())),
     )
+    try:
+        save_figure(fig, plot, inputs=[frf_file], force=force)
+    finally:
+        plt.close(fig)

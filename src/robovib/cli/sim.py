@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated
 
 import numpy as np
@@ -167,3 +168,30 @@ def offset_mass(
         typer.echo(
             f"wrote {output}: {run.time_s.size} samples; peak vibration X/Y = {amp[0]:.3f}/{amp[1]:.3f} mm"
         )
+
+
+@app.command("campaign")
+def campaign(
+    poses: Annotated[Path, typer.Option("--poses", help="CSV of poses: x_mm, y_mm, rz_deg.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="Folder for the campaign.")],
+    hits: Annotated[int, typer.Option(min=1, help="Hits per recording.")] = 3,
+    duration_s: Annotated[float, typer.Option(help="Seconds per hit.")] = 2.0,
+    sample_rate_hz: Annotated[float, typer.Option(help="Sample rate [Hz].")] = 1280.0,
+    truth: Annotated[int, typer.Option(min=0, help="Unseen poses in truth.csv.")] = 20,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """A virtual hammer campaign: recordings in mixed layouts, manifest and truth at unseen poses."""
+    from ..sim import simulate_campaign
+
+    res = simulate_campaign(poses, output, rng=seed, n_hits=hits, duration_s=duration_s,
+                            sample_rate_hz=sample_rate_hz, n_truth=truth)  # fmt: skip
+    doc = {
+        "manifest": str(res.manifest),
+        "truth": str(res.truth),
+        "recordings": len(res.recordings),
+    }
+    if json_out:
+        emit_json(doc)
+    else:
+        typer.echo(f"wrote {res.manifest} ({len(res.recordings)} recordings) and {res.truth}")

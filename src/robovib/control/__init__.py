@@ -1,5 +1,18 @@
-"""Pose-dependent optimal vibration control (thesis ch. 4): LQR, gain scheduling, delay analysis."""
+"""Pose-dependent optimal vibration control (thesis ch. 4): LQR, gain scheduling, delay analysis,
+run-time controllers (:mod:`robovib.control.controllers`)."""
 
+from .controllers import (
+    Combined,
+    DelayAwareFeedback,
+    ForceFeedforward,
+    RepetitiveFeedback,
+    ScheduledTable,
+    StateFeedback,
+    design_kalman,
+    design_tuned_state_feedback,
+    implemented_loop_matrix,
+    lqg_loop_matrix,
+)
 from .lqr import (
     THESIS_Q,
     THESIS_R,
@@ -20,16 +33,26 @@ from .lqr import (
 __all__ = [
     "THESIS_Q",
     "THESIS_R",
+    "Combined",
     "DelayAnalysis",
     "DelayAwareDesign",
+    "DelayAwareFeedback",
+    "ForceFeedforward",
     "LQRDesign",
     "LoopMargins",
+    "RepetitiveFeedback",
+    "ScheduledTable",
+    "StateFeedback",
     "closed_loop_with_delay",
     "continuous_model",
     "delay_analysis",
     "design_delay_aware_lqr",
+    "design_kalman",
     "design_lqr",
+    "design_tuned_state_feedback",
     "discretize",
+    "implemented_loop_matrix",
     "loop_margins",
+    "lqg_loop_matrix",
     "tune_r_for_delay",
 ]

@@ -25,6 +25,8 @@ def training_range(model) -> tuple[np.ndarray, np.ndarray]:
     TypeError
         The model exposes none of these.
     """
+    if hasattr(model, "input_min_") and hasattr(model, "input_max_"):  # PoseModalModel
+        return np.asarray(model.input_min_, float), np.asarray(model.input_max_, float)
     if hasattr(model, "pose_range_"):
         lo, hi = model.pose_range_
         return np.atleast_1d(np.asarray(lo, float)), np.atleast_1d(np.asarray(hi, float))
@@ -51,6 +53,9 @@ def extrapolating(model, X) -> np.ndarray:
 def outside_inputs(model, x, names) -> tuple[str, ...]:
     """Names of the inputs of one point ``x`` that lie outside the training range."""
     x = np.asarray(x, float).reshape(-1)
+    if hasattr(model, "outside_inputs") and hasattr(model, "input_names"):
+        flags = np.asarray(model.outside_inputs(x[None, :]), bool).reshape(-1)
+        return tuple(n for n, f in zip(names, flags, strict=True) if f)
     lo, hi = training_range(model)
     if x.size != lo.size or len(names) != lo.size:
         raise ValueError(f"need {lo.size} inputs and names, got {x.size} and {len(names)}")

@@ -44,6 +44,23 @@ def _projected_gradient(theta, grad, lower, upper):
     return pg
 
 
+def _merge_duplicates(theta, f, active, label, tol) -> None:
+    """Deactivate the worse of two active rows with one label whose x are within ``tol``."""
+    idx = np.flatnonzero(active)
+    if idx.size < 2:
+        return
+    idx = idx[np.lexsort((f[idx], label[idx]))]  # by label, best f first
+    lab = label[idx]
+    for lag in range(1, idx.size):
+        a, b = idx[:-lag], idx[lag:]
+        same = lab[:-lag] == lab[lag:]
+        if not np.any(same):
+            break
+        close = same & (np.max(np.abs(theta[a] - theta[b]), axis=1) < tol)
+        # b sorts after a within its label, so f[b] >= f[a]: stop b (if a still runs).
+        active[b[close & active[a]]] = False
+
+
 def batched_bfgs(
     fun: BatchedObjective,
     x0: np.ndarray,
@@ -55,6 +72,8 @@ def batched_bfgs(
     ftol: float = 1e-10,
     max_backtracks: int = 30,
     armijo: float = 1e-4,
+    same_problem: np.ndarray | None = None,
+    merge_tol: float = 1e-2,
 ) -> BatchedMinimizeResult:
     """Minimise ``B`` independent smooth functions with BFGS (thesis Eq. 34-36), vectorised.
 
@@ -73,6 +92,11 @@ def batched_bfgs(
         Stop a problem when the max-norm of its projected gradient falls below ``gtol``.
     ftol
         Stop when the relative decrease of ``f`` in one step falls below ``ftol``.
+    same_problem
+        Optional (B,) integer labels: rows with the same label are starts of one problem
+        (restarts). When two active starts of a problem come within ``merge_tol`` (max-norm of
+        ``x``) of each other they are in one basin; the one with the higher ``f`` stops there
+        (not ``converged``), saving the evaluations of a duplicate descent.
 
     Returns
     -------
@@ -183,6 +207,8 @@ def batched_bfgs(
         stop = small_grad | small_change | failed
         converged[idx] |= small_grad | small_change
         active[idx[stop]] = False
+        if same_problem is not None:
+            _merge_duplicates(theta, f, active, same_problem, merge_tol)
 
     return BatchedMinimizeResult(
         x=theta, fun=f, grad=g, n_iter=n_iter, n_fev=n_fev, converged=converged

@@ -25,6 +25,15 @@ optimised in that scaled space and reported in the data's units.
 Missing targets are supported through ``mask`` (``True`` = observed): a missing entry is
 decoupled from the others (unit diagonal, zero covariance, zero residual), which leaves the
 likelihood and the posterior of the observed entries exactly as if it were absent.
+
+Speed and memory (``robovib.gp._likelihood``, ``benchmarks/bench_gp.py``): replicated inputs
+(identical rows in one noise group, e.g. Table A1's 3 hammer tests per pose) are collapsed
+exactly to their means before anything else; ``K^-1`` for the gradient comes from LAPACK
+``potrf``/``potri`` in place; work arrays are chunked over outputs (a bounded working set, plus
+the fitted ``L^-1`` of 8 B x outputs x n_unique^2); random restarts start from the best of
+screened candidates and starts that meet in one basin are merged. ``fit``/``predict`` run with
+one BLAS thread (:func:`robovib._threads.single_blas_thread`): many small matrices gain
+nothing from BLAS threads and lose much on a shared machine.
 """
 
 from __future__ import annotations
@@ -34,21 +43,26 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy import linalg, optimize
+from scipy import optimize
 from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
+from .._threads import single_blas_thread
+from . import _likelihood
 from .optimize import batched_bfgs
 
 __all__ = ["BatchedGPRegressor", "GPHyperparameters", "GPNumericalError", "JitterWarning"]
-
-_LOG_2PI = np.log(2.0 * np.pi)
 
 # Box for the log-hyperparameters in the scaled space (standardised inputs, unit-variance targets).
 _LOG_SIGNAL_BOUNDS = (np.log(1e-3), np.log(1e2))
 _LOG_LENGTH_BOUNDS = (np.log(1e-2), np.log(1e3))
 _LOG_NOISE_BOUNDS = (np.log(1e-4), np.log(1e1))
-_JITTER_STEPS = (1e-10, 1e-8, 1e-6, 1e-4)
+_JITTER_STEPS = _likelihood._JITTER_STEPS
+# Random restarts are chosen as the best of this many screened candidates each.
+_SCREEN_PER_START = 4
+# Relative function-change stop of the optimiser: that of SciPy's L-BFGS-B (factr=1e7), which
+# scikit-learn uses.
+_FTOL = 1e7 * np.finfo(float).eps
 
 
 class GPNumericalError(np.linalg.LinAlgError):
@@ -90,14 +104,12 @@ class GPHyperparameters:
         )
 
 
-def _inverse_from_cholesky(chol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(K^-1, L^-1) from lower Cholesky factors L (k, n, n).
+def _vecdot_einsum(a, b):
+    return np.einsum("...i,...i->...", a, b)
 
-    NumPy only: alternating NumPy's and SciPy's OpenBLAS in this hot loop makes their thread
-    pools contend (measured 4x slower on 2 cores).
-    """
-    chol_inv = np.linalg.inv(chol)
-    return np.matmul(chol_inv.transpose(0, 2, 1), chol_inv), chol_inv
+
+#: Row-wise dot product (NumPy >= 2 has a ufunc for it).
+_vecdot = getattr(np, "vecdot", _vecdot_einsum)
 
 
 def _as_2d_float(name: str, value, ndim_hint: str) -> np.ndarray:
@@ -354,110 +366,61 @@ class BatchedGPRegressor(BaseEstimator):
         return log_sf, log_l, log_sn
 
     # ------------------------------------------------------------------ likelihood core
-    def _covariance(self, theta, sq_diff, mask):
-        """K (noise-free, masked) and the full K + noise for each row of theta.
+    def _design(self, x_s, y_s, mask, groups=None):
+        """The replicate-collapsed training set (scaled x (n, d), y and mask (n, B))."""
+        groups = self._groups_for(x_s.shape[0]) if groups is None else groups
+        return _likelihood.collapse_replicates(x_s, y_s.T, mask.T, groups, self._n_groups)
 
-        sq_diff: (n, n, d) squared input differences (scaled); mask: (k, n).
-        """
-        log_sf, log_l, log_sn = self._split(theta)
-        inv_l2 = np.exp(-2.0 * log_l)  # (k, 1 or d)
-        n = sq_diff.shape[0]
-        if inv_l2.shape[1] == 1:
-            dist = sq_diff.sum(axis=-1)[None] * inv_l2[:, :, None]  # (k, n, n)
-        else:
-            dist = (inv_l2 @ sq_diff.reshape(n * n, -1).T).reshape(-1, n, n)
-        k_f = np.exp(2.0 * log_sf)[:, None, None] * np.exp(-0.5 * dist)
-        pair = mask[:, :, None] & mask[:, None, :]
-        k_f = np.where(pair, k_f, 0.0)
-        diag = np.where(mask, np.exp(2.0 * log_sn)[:, self._groups_for(mask.shape[1])], 1.0)
-        k_y = k_f.copy()
-        idx = np.arange(k_y.shape[-1])
-        k_y[:, idx, idx] += diag
-        return k_f, k_y, inv_l2
-
-    @staticmethod
-    def _cholesky(k_y, jitter_scale=None):
-        """Batched Cholesky; on failure escalate jitter per matrix. Returns (L, jitter)."""
-        jitter = np.zeros(k_y.shape[0])
-        try:
-            chol = np.linalg.cholesky(k_y)
-            if np.all(np.isfinite(chol)):
-                return chol, jitter
-        except np.linalg.LinAlgError:
-            pass
-        chol = np.empty_like(k_y)
-        n = k_y.shape[-1]
-
-        def factor(matrix):
-            try:
-                out = np.linalg.cholesky(matrix)
-            except np.linalg.LinAlgError:
-                return None
-            return out if np.all(np.isfinite(out)) else None
-
-        for b in range(k_y.shape[0]):
-            out = factor(k_y[b])
-            if out is not None:
-                chol[b] = out
-                continue
-            scale = float(np.mean(np.diag(k_y[b])))
-            for step in _JITTER_STEPS:
-                out = factor(k_y[b] + step * scale * np.eye(n)) if np.isfinite(scale) else None
-                if out is not None:
-                    chol[b], jitter[b] = out, step * scale
-                    break
-            else:
-                chol[b], jitter[b] = np.nan, np.inf
-        return chol, jitter
-
-    def _nll_and_grad(self, theta, y, mask, sq_diff, *, want_grad=True, allow_fail=True):
-        """Negative log marginal likelihood (Eq. 33, mean profiled) and its gradient.
-
-        theta: (k, p); y, mask: (k, n) scaled targets and observation masks.
-        """
-        k_f, k_y, inv_l2 = self._covariance(theta, sq_diff, mask)
-        chol, jitter = self._cholesky(k_y)
-        failed = ~np.isfinite(jitter)
+    def _evaluate(
+        self, theta, design, *, want_grad=True, allow_fail=True, want_state=False, mean=None
+    ):
+        """Eq. 33 on a design; ``mean``: "constant" (profiled) or "zero" (default: self.mean)."""
+        mean = self.mean if mean is None else mean
+        nll, grad, state = _likelihood.evaluate(
+            theta,
+            design,
+            n_groups=self._n_groups,
+            constant_mean=mean == "constant",
+            want_grad=want_grad,
+            want_state=want_state,
+        )
+        failed = ~np.isfinite(nll)
         if np.any(failed) and not allow_fail:
             raise GPNumericalError(
                 f"covariance not positive definite for outputs {np.flatnonzero(failed).tolist()} "
                 f"even with jitter up to {_JITTER_STEPS[-1]:g} x mean diagonal"
             )
-        eye = np.eye(k_y.shape[-1])
-        chol_safe = np.where(failed[:, None, None], eye, chol)
-        k_inv, chol_inv = _inverse_from_cholesky(chol_safe)
-        ones = mask.astype(float)
-        if self.mean == "constant":
-            k_inv_1 = np.matmul(k_inv, ones[:, :, None])[:, :, 0]
-            m = np.sum(k_inv_1 * y, axis=1) / np.sum(k_inv_1 * ones, axis=1)
-        else:
-            m = np.zeros(theta.shape[0])
-        r = np.where(mask, y - m[:, None], 0.0)
-        alpha = np.matmul(k_inv, r[:, :, None])[:, :, 0]
-        n_obs = mask.sum(axis=1)
-        log_det_half = np.sum(np.log(np.diagonal(chol_safe, axis1=1, axis2=2)), axis=1)
-        nll = 0.5 * np.sum(r * alpha, axis=1) + log_det_half + 0.5 * n_obs * _LOG_2PI
-        nll = np.where(failed, np.inf, nll)
-        if not want_grad:
-            return nll, None, (chol_inv, k_inv, alpha, m, jitter)
-        # dNLL/dtheta_j = -1/2 tr((alpha alpha^T - K^-1) dK/dtheta_j)
-        w = alpha[:, :, None] * alpha[:, None, :] - k_inv
-        wk = (w * k_f).reshape(theta.shape[0], -1)
-        grad = np.empty_like(theta)
-        grad[:, 0] = -np.sum(wk, axis=1)  # dK/dlog sf = 2 K_f
-        flat_sq = sq_diff.reshape(wk.shape[1], -1)
-        if inv_l2.shape[1] == 1:
-            grad[:, 1] = -0.5 * (wk @ flat_sq.sum(axis=1)) * inv_l2[:, 0]
-        else:
-            grad[:, 1 : 1 + inv_l2.shape[1]] = -0.5 * (wk @ flat_sq) * inv_l2
-        g = self._n_groups
-        w_diag = np.where(mask, np.diagonal(w, axis1=1, axis2=2), 0.0)
-        for j in range(g):
-            noise_var = np.exp(2.0 * theta[:, theta.shape[1] - g + j])
-            in_group = self._groups_for(mask.shape[1]) == j
-            grad[:, theta.shape[1] - g + j] = -np.sum(w_diag[:, in_group], axis=1) * noise_var
-        grad = np.where(failed[:, None], 0.0, grad)
-        return nll, grad, (chol_inv, k_inv, alpha, m, jitter)
+        return nll, grad, state
+
+    def _nll_and_grad(self, theta, y, mask, sq_diff, *, want_grad=True, allow_fail=True):
+        """Negative log marginal likelihood (Eq. 33, mean profiled) and its gradient.
+
+        theta: (k, p); y, mask: (k, n) scaled targets and observation masks; sq_diff: (n, n, d)
+        squared scaled input differences. No replicate collapsing (see :meth:`_design`).
+        Returns (nll (k,), grad (k, p) or None, (chol_inv, alpha, mean, jitter)).
+        """
+        n = sq_diff.shape[0]
+        k = y.shape[0]
+        G = self._n_groups
+        design = _likelihood.Design(
+            x=np.zeros((n, 0)),
+            sq_flat=sq_diff.reshape(n * n, -1),
+            group=self._groups_for(n),
+            y=np.where(mask, y, 0.0),
+            obs=np.asarray(mask, bool),
+            count=np.ones((k, n)),
+            ss=np.zeros((k, G)),
+            extra=np.zeros((k, G)),
+            half_log_count=np.zeros(k),
+            index=np.arange(n),
+        )
+        nll, grad, state = self._evaluate(
+            theta, design, want_grad=want_grad, allow_fail=allow_fail, want_state=not want_grad
+        )
+        extra = None
+        if state is not None:
+            extra = (state["chol_inv"], state["alpha"], state["mean"], state["jitter"])
+        return nll, grad, extra
 
     # ------------------------------------------------------------------ fitting
     def _initial_thetas(self, n_out: int, n_features: int, rng: np.random.Generator):
@@ -475,6 +438,10 @@ class BatchedGPRegressor(BaseEstimator):
                 np.array([0.0, *[0.0] * n_len, *[np.log(0.1)] * self._n_groups]), (n_out, 1)
             )
             n_random = 2 if self.n_restarts is None else int(self.n_restarts)
+            if n_random > 0 and self.optimizer is not None:
+                # The default start plus n_random starts chosen by screening candidates.
+                n_cand = _SCREEN_PER_START * n_random
+                return [base], self._candidates(n_out, n_features, rng, n_cand)
         starts = [base]
         for _ in range(n_random):
             draw = np.column_stack(
@@ -485,33 +452,77 @@ class BatchedGPRegressor(BaseEstimator):
                 ]
             )
             starts.append(np.clip(draw, lower, upper))
-        return starts
+        return starts, None
 
-    def _optimize(self, x_s, y_s, mask, theta_starts):
+    def _candidates(self, n_out, n_features, rng, n_cand):
+        """(n_cand, n_out, p) Latin-hypercube starting points in a wide box (scaled space)."""
+        n_len = self._n_length(n_features)
+        lo = np.array([np.log(0.1), *[np.log(0.03)] * n_len, *[np.log(1e-3)] * self._n_groups])
+        hi = np.array([np.log(10.0), *[np.log(30.0)] * n_len, *[np.log(1.0)] * self._n_groups])
+        # Latin hypercube per output: one point in each of n_cand strata of every parameter.
+        strata = rng.permuted(
+            np.broadcast_to(np.arange(n_cand)[:, None, None], (n_cand, n_out, lo.size)), axis=0
+        )
+        u = (strata + rng.uniform(size=strata.shape)) / n_cand
+        return lo + u * (hi - lo)
+
+    def _screen(self, design, candidates, n_keep):
+        """The ``n_keep`` candidates of highest likelihood, per output (value-only evaluations).
+
+        Screening many cheap points and starting BFGS from the best few finds the global mode of
+        multimodal likelihoods (short vs long length scale) more often than as many random starts.
+        """
+        n_cand, n_out, p = candidates.shape
+        flat = candidates.reshape(n_cand * n_out, p)
+        owner = np.tile(np.arange(n_out), n_cand)
+        nll, _, _ = self._evaluate(flat, design.take(owner), want_grad=False)
+        nll = np.where(np.isfinite(nll), nll, np.inf).reshape(n_cand, n_out)
+        # Keep the best candidate of each of n_keep strata of log(length scale x noise / signal):
+        # the two usual modes (short length scale and little noise: "interpolating"; long length
+        # scale and more noise: "smoothing") lie at either end, so both get a start.
+        coord = (
+            candidates[:, :, 1 : -self._n_groups].mean(axis=2)
+            + candidates[:, :, -self._n_groups :].mean(axis=2)
+            - candidates[:, :, 0]
+        )
+        rank = np.argsort(np.argsort(coord, axis=0, kind="stable"), axis=0, kind="stable")
+        stratum = rank * n_keep // n_cand
+        cols = np.arange(n_out)
+        return [
+            candidates[np.argmin(np.where(stratum == j, nll, np.inf), axis=0), cols]
+            for j in range(n_keep)
+        ]
+
+    def _optimize(self, x_s, y_s, mask, theta_starts, candidates=None):
         n_out, n_features = y_s.shape[1], x_s.shape[1]
-        sq_diff = (x_s[:, None, :] - x_s[None, :, :]) ** 2
-        y_t, mask_t = y_s.T, mask.T
+        design = self._design(x_s, y_s, mask)
+        if candidates is not None:
+            n_keep = candidates.shape[0] // _SCREEN_PER_START
+            theta_starts = [*theta_starts, *self._screen(design, candidates, n_keep)]
         n_starts = len(theta_starts)
         theta0 = np.concatenate(theta_starts, axis=0)
         owner = np.tile(np.arange(n_out), n_starts)
         lower, upper = self._bounds(n_features)
         if self.optimizer is None:
             theta_opt = theta0
-            nll, _, _ = self._nll_and_grad(
-                theta0, y_t[owner], mask_t[owner], sq_diff, want_grad=False
-            )
+            nll, _, _ = self._evaluate(theta0, design.take(owner), want_grad=False)
             n_iter = np.zeros(theta0.shape[0], dtype=int)
             converged = np.ones(theta0.shape[0], dtype=bool)
         elif self.optimizer == "bfgs":
 
             def fun(theta, index):
-                nll, grad, _ = self._nll_and_grad(
-                    theta, y_t[owner[index]], mask_t[owner[index]], sq_diff
-                )
+                nll, grad, _ = self._evaluate(theta, design.take(owner[index]))
                 return nll, grad
 
             res = batched_bfgs(
-                fun, theta0, lower=lower, upper=upper, max_iter=self.max_iter, gtol=self.gtol
+                fun,
+                theta0,
+                lower=lower,
+                upper=upper,
+                max_iter=self.max_iter,
+                gtol=self.gtol,
+                ftol=_FTOL,
+                same_problem=owner,
             )
             theta_opt, nll, n_iter, converged = res.x, res.fun, res.n_iter, res.converged
         else:
@@ -520,10 +531,10 @@ class BatchedGPRegressor(BaseEstimator):
             n_iter = np.zeros(theta0.shape[0], dtype=int)
             converged = np.zeros(theta0.shape[0], dtype=bool)
             for row in range(theta0.shape[0]):
-                yb, mb = y_t[owner[row]][None], mask_t[owner[row]][None]
+                one = design.take(owner[row : row + 1])
 
-                def fun1(t, yb=yb, mb=mb):
-                    val, grad, _ = self._nll_and_grad(t[None], yb, mb, sq_diff)
+                def fun1(t, one=one):
+                    val, grad, _ = self._evaluate(t[None], one)
                     return (val[0], grad[0]) if np.isfinite(val[0]) else (1e300, np.zeros_like(t))
 
                 out = optimize.minimize(
@@ -576,6 +587,10 @@ class BatchedGPRegressor(BaseEstimator):
         mask
             Optional boolean array like ``Y``: ``True`` where the target is observed.
         """
+        with single_blas_thread():
+            return self._fit(X, Y, mask, groups)
+
+    def _fit(self, X, Y, mask, groups) -> BatchedGPRegressor:
         self._check_params()
         X, Y, mask, squeeze = self._check_xy(X, Y, mask)
         if int(self.n_noise_groups) < 1:
@@ -583,9 +598,9 @@ class BatchedGPRegressor(BaseEstimator):
         self._active_groups = self._set_groups(groups, X.shape[0])
         self._fit_scalers(X, Y, mask)
         rng = np.random.default_rng(self.rng)
-        starts = self._initial_thetas(Y.shape[1], X.shape[1], rng)
+        starts, candidates = self._initial_thetas(Y.shape[1], X.shape[1], rng)
         x_s, y_s = self._scale_x(X), self._scale_y(Y, mask)
-        self._theta = self._optimize(x_s, y_s, mask, starts)
+        self._theta = self._optimize(x_s, y_s, mask, starts, candidates)
         self._squeeze = squeeze
         self._set_training_data(X, Y, mask)
         return self
@@ -593,9 +608,15 @@ class BatchedGPRegressor(BaseEstimator):
     def _set_training_data(self, X, Y, mask):
         self.X_train_, self.Y_train_, self.mask_ = X, np.where(mask, Y, np.nan), mask
         x_s, y_s = self._scale_x(X), self._scale_y(Y, mask)
-        sq_diff = (x_s[:, None, :] - x_s[None, :, :]) ** 2
-        nll, _, (chol_inv, _, alpha, m, jitter) = self._nll_and_grad(
-            self._theta, y_s.T, mask.T, sq_diff, want_grad=False, allow_fail=False
+        design = self._design(x_s, y_s, mask)
+        nll, _, state = self._evaluate(
+            self._theta, design, want_grad=False, allow_fail=False, want_state=True
+        )
+        chol_inv, alpha, m, jitter = (
+            state["chol_inv"],
+            state["alpha"],
+            state["mean"],
+            state["jitter"],
         )
         if np.any(jitter > 0):
             warnings.warn(
@@ -607,12 +628,23 @@ class BatchedGPRegressor(BaseEstimator):
         self.jitter_ = jitter
         # Predictive variance as sf^2 - |L^-1 k*|^2 (as scikit-learn): less cancellation than
         # k*^T K^-1 k* when the posterior variance is small.
-        self._x_s, self._chol_inv, self._alpha, self._m_s = x_s, chol_inv, alpha, m
+        # The posterior given replicates equals that given their means: keep the unique inputs.
+        self._x_s, self._chol_inv, self._alpha, self._m_s = design.x, chol_inv, alpha, m
+        self._obs_u = design.obs  # (B, u) outputs observed at each unique input
+        # Unobserved entries are decoupled (unit diagonal) and alpha is zero there; zeroing the
+        # columns of L^-1 makes k* of those entries drop out without a mask at prediction time.
+        self._chol_inv *= design.obs[:, None, :]
         log_sf, log_l, log_sn = self._split(self._theta)
         self._sf2 = np.exp(2.0 * log_sf)
         self._inv_l2 = np.broadcast_to(
             np.exp(-2.0 * log_l), (self._theta.shape[0], x_s.shape[1])
         ).copy()
+        # predict_one's precomputed arrays (data units; see there).
+        self._p1_x = design.x * self._x_scale + self._x_loc
+        self._p1_neg_half_inv_l2 = -0.5 * self._inv_l2 / self._x_scale**2
+        self._p1_log_k0 = (np.log(self._sf2) + np.log(self._y_scale))[:, None]
+        self._p1_offset = m * self._y_scale + self._y_loc
+        self._p1_var0 = self._sf2 * self._y_scale**2
         # Eq. 33 in data units: the Jacobian of the target scaling shifts the log density.
         self.log_marginal_likelihood_value_ = -nll - mask.sum(axis=0) * np.log(self._y_scale)
         n_features = X.shape[1]
@@ -641,6 +673,10 @@ class BatchedGPRegressor(BaseEstimator):
         so that the warm start stays meaningful. ``groups`` assigns the new samples to noise
         groups (needed when ``n_noise_groups > 1``).
         """
+        with single_blas_thread():
+            return self._add_observations(X_new, Y_new, mask, reoptimize, groups)
+
+    def _add_observations(self, X_new, Y_new, mask, reoptimize, groups):
         self._require_fitted()
         X_new, Y_new, mask_new, _ = self._check_xy(X_new, Y_new, mask, min_observed=0)
         if X_new.shape[1] != self.n_features_in_ or Y_new.shape[1] != self.n_outputs_:
@@ -687,6 +723,10 @@ class BatchedGPRegressor(BaseEstimator):
         mean : ndarray (n_query, n_outputs) — or (n_query,) if fitted on a 1-D ``Y``
         std : ndarray, same shape, if ``return_std``
         """
+        with single_blas_thread():
+            return self._predict(X, return_std, include_noise)
+
+    def _predict(self, X, return_std, include_noise):
         self._require_fitted()
         Xq = _as_2d_float("X", X, "(n_query, n_features)")
         if Xq.shape[1] != self.n_features_in_:
@@ -699,7 +739,7 @@ class BatchedGPRegressor(BaseEstimator):
         sq = (xq[:, None, :] - self._x_s[None, :, :]) ** 2  # (m, n, d)
         m_q, n_tr = sq.shape[:2]
         dist = (self._inv_l2 @ sq.reshape(m_q * n_tr, -1).T).reshape(-1, m_q, n_tr)
-        k_star = self._sf2[:, None, None] * np.exp(-0.5 * dist) * self.mask_.T[:, None, :]
+        k_star = self._sf2[:, None, None] * np.exp(-0.5 * dist)
         mean_s = self._m_s[:, None] + np.matmul(k_star, self._alpha[:, :, None])[:, :, 0]
         mean = (mean_s * self._y_scale[:, None] + self._y_loc[:, None]).T
         if not return_std:
@@ -720,20 +760,17 @@ class BatchedGPRegressor(BaseEstimator):
         ``x`` is a single input of shape (n_features,); returns two (n_outputs,) arrays. No
         input validation beyond the shape, to stay well under 100 µs for hundreds of outputs.
         """
-        xs = (np.asarray(x, dtype=float) - self._x_loc) / self._x_scale
-        if xs.shape != (self.n_features_in_,):
-            raise ValueError(f"x must have shape ({self.n_features_in_},), got {xs.shape}")
-        d2 = (self._x_s - xs) ** 2  # (n, d)
-        k = self._sf2[:, None] * np.exp(-0.5 * (self._inv_l2 @ d2.T))  # (B, n)
-        k *= self._mask_t
-        mean = (self._m_s + np.einsum("bn,bn->b", k, self._alpha)) * self._y_scale + self._y_loc
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.n_features_in_,):
+            raise ValueError(f"x must have shape ({self.n_features_in_},), got {x.shape}")
+        # Scalings folded into precomputed arrays (_set_training_data): the kernel row is in
+        # data units times y_scale, so mean and variance come out in data units.
+        d2 = (self._p1_x - x) ** 2  # (n, d)
+        k = np.exp(self._p1_neg_half_inv_l2 @ d2.T + self._p1_log_k0)  # (B, n)
+        mean = self._p1_offset + _vecdot(k, self._alpha)
         v = np.matmul(self._chol_inv, k[:, :, None])[:, :, 0]
-        var = self._sf2 - np.sum(v * v, axis=1)
-        return mean, np.sqrt(np.maximum(var, 0.0)) * self._y_scale
-
-    @property
-    def _mask_t(self):
-        return self.mask_.T
+        var = self._p1_var0 - _vecdot(v, v)
+        return mean, np.sqrt(np.maximum(var, 0.0, out=var), out=var)
 
     def log_marginal_likelihood(
         self, hyperparameters: GPHyperparameters | None = None
@@ -761,33 +798,15 @@ class BatchedGPRegressor(BaseEstimator):
         self._require_fitted()
         if hyperparameters is None:
             return self.log_marginal_likelihood_value_.copy()
-        n_out, n_features = self.n_outputs_, self.n_features_in_
-        hp = hyperparameters
-        signal = np.broadcast_to(np.asarray(hp.signal_std, float), (n_out,))
-        lengths = np.broadcast_to(np.asarray(hp.length_scales, float), (n_out, n_features))
-        means = np.broadcast_to(np.asarray(hp.mean, float), (n_out,))
-        n_groups = int(self.n_noise_groups)
-        noise = np.asarray(hp.noise_std, float)
-        if n_groups == 1 and noise.ndim < 2:
-            noise = np.broadcast_to(noise, (n_out,))[:, None]
-        noise = np.broadcast_to(noise, (n_out, n_groups))
-        X = self.X_train_
-        groups = getattr(self, "_active_groups", None)
-        groups = np.zeros(X.shape[0], int) if groups is None else np.asarray(groups)
-        out = np.empty(n_out)
-        for b in range(n_out):
-            obs = self.mask_[:, b]
-            x = X[obs] / lengths[b]
-            d2 = np.sum((x[:, None, :] - x[None, :, :]) ** 2, axis=-1)
-            k = signal[b] ** 2 * np.exp(-0.5 * d2)
-            k[np.diag_indices_from(k)] += noise[b, groups[obs]] ** 2
-            r = self.Y_train_[obs, b] - means[b]
-            try:
-                chol = linalg.cholesky(k, lower=True)
-            except linalg.LinAlgError:
-                raise GPNumericalError(
-                    f"covariance of output {b} not positive definite at the given hyperparameters"
-                ) from None
-            a = linalg.solve_triangular(chol, r, lower=True)
-            out[b] = -0.5 * a @ a - np.sum(np.log(np.diag(chol))) - 0.5 * r.size * np.log(2 * np.pi)
-        return out
+        theta = self._theta_from_hyperparameters(hyperparameters, self.n_features_in_, clip=False)
+        x_s = self._scale_x(self.X_train_)
+        mask = self.mask_
+        y = np.where(mask, self.Y_train_, 0.0) - np.asarray(hyperparameters.mean, float)
+        y_s = np.where(mask, y / self._y_scale, 0.0)
+        design = self._design(x_s, y_s, mask)
+        with single_blas_thread():
+            # The mean is given (subtracted above), not re-estimated.
+            nll, _, _ = self._evaluate(
+                theta, design, want_grad=False, allow_fail=False, mean="zero"
+            )
+        return -nll - mask.sum(axis=0) * np.log(self._y_scale)

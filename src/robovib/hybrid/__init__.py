@@ -1,6 +1,6 @@
 """Hybrid EMA + OMA statistical model of the robot FRF with Bayesian updating (thesis ch. 5)."""
 
-from .model import UPDATE_MODES, FRFPoseModel, UpdateReport
+from .model import UPDATE_MODES, FRFPoseModel, UpdateReport, frequency_grid
 from .oma import OMAQualityWarning, OMASegment, oma_frfs
 from .workflow import (
     INPUT_SETS,
@@ -21,6 +21,7 @@ __all__ = [
     "OMAQualityWarning",
     "OMASegment",
     "UpdateReport",
+    "frequency_grid",
     "frf_pose",
     "frfs_on_grid",
     "frfs_on_path_grid",

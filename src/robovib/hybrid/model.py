@@ -57,8 +57,40 @@ from sklearn.exceptions import NotFittedError
 
 from ..gp.regressor import BatchedGPRegressor, GPHyperparameters
 
-__all__ = ["FRFPoseModel", "UpdateReport"]
+__all__ = ["FRFPoseModel", "UpdateReport", "frequency_grid"]
 
+
+def frequency_grid(f_min_hz: float, f_max_hz: float, df_hz: float) -> np.ndarray:
+    """The model's frequency grid ``f_min_hz, f_min_hz + df_hz, ... <= f_max_hz`` [Hz], checked.
+
+    Raises
+    ------
+    ValueError
+        Non-finite values, ``f_min_hz`` < 0 Hz, ``f_min_hz >= f_max_hz``, ``df_hz <= 0`` Hz, or a
+        grid of fewer than 2 or more than 100000 bins.
+    """
+    from .._checks import check_number
+
+    lo = check_number("f_min_hz", f_min_hz, "Hz", lo=0.0)
+    hi = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
+    df = check_number("df_hz", df_hz, "Hz", lo=0.0, lo_open=True)
+    if lo >= hi:
+        raise ValueError(f"f_min_hz={lo:g} Hz must be below f_max_hz={hi:g} Hz")
+    n = int(np.floor((hi - lo) / df + 1e-9)) + 1
+    if not 2 <= n <= 100_000:
+        raise ValueError(
+            f"grid {lo:g}-{hi:g} Hz in steps of {df:g} Hz has {n} bins; need 2 to 100000"
+        )
+    return lo + df * np.arange(n)
+
+
+#: Units of the datasets of a saved model (compliance targets scaled to um/N).
+_DATASET_UNITS = {
+    "frequency_hz": "Hz", "X_train": "input units (input_names)", "Y_train": "um/N", "mask": "1",
+    "groups": "1 (0=EMA, 1=OMA)", "theta": "1 (log hyperparameters, scaled)",
+    "x_loc": "input units", "x_scale": "input units", "y_loc": "um/N", "y_scale": "um/N",
+    "pose_lo": "input units", "pose_hi": "input units",
+}  # fmt: skip
 _FORMAT = "robovib-frf-pose-model"
 _VERSION = 2
 _SCALE = 1e6  # m/N -> um/N: O(1) numbers inside the GPs
@@ -198,6 +230,67 @@ class FRFPoseModel(BaseEstimator):
         if not np.all(np.isfinite(p)):
             raise ValueError("poses contain NaN or inf")
         return p
+
+    # ------------------------------------------------------------------ FRF objects, checked
+    def fit_frfs(self, frfs) -> FRFPoseModel:
+        """Fit from FRF objects carrying their pose (:func:`robovib.hybrid.frf_pose`), checked.
+
+        All FRFs must be measured (EMA or OMA; the source sets the noise group) compliances of
+        one direction, stored as ``direction_`` and checked by :meth:`update_frfs`; bins
+        outside an FRF's range are an error.
+
+        Raises
+        ------
+        ValueError
+            Mixed directions, model-source FRFs, or see :func:`robovib.hybrid.frfs_on_grid`.
+        """
+        from .workflow import frfs_on_grid
+
+        frfs = list(frfs)
+        direction = _common_direction(frfs, None, "fit")
+        groups = _groups_of(frfs)
+        h, x, m, _ = frfs_on_grid(frfs, np.asarray(self.frequency_hz, float), self.input_names)
+        self.fit(x, h, mask=m, groups=groups)
+        self.direction_ = direction
+        return self
+
+    def update_frfs(
+        self,
+        frfs,
+        *,
+        mode: str = "robust",
+        reoptimize: bool = False,
+        expect_source: str | None = "OMA",
+    ) -> UpdateReport:
+        """Bayesian update from FRF objects, checked against the model (see :meth:`update`).
+
+        Each FRF's direction must be the model's (``hybrid update model_x.h5 oma_y.h5`` fails)
+        and, with ``expect_source`` (default ``"OMA"``), its source must be that one (EMA FRFs
+        given as OMA are refused rather than fitted with the OMA noise level). Grid bins
+        outside an FRF's range are missing; the FRFs' random errors floor the OMA noise.
+
+        Raises
+        ------
+        ValueError
+            Direction or source mismatch, or see :func:`robovib.hybrid.frfs_on_grid`.
+        """
+        from .workflow import frfs_on_grid
+
+        self._require_fitted()
+        frfs = list(frfs)
+        if expect_source is not None:
+            for i, f in enumerate(frfs):
+                if f.source != expect_source:
+                    raise ValueError(
+                        f"FRF {i} is a {f.source} FRF; this update expects {expect_source} FRFs "
+                        f"(e.g. from `hybrid oma`)"
+                    )
+        _common_direction(frfs, getattr(self, "direction_", None), "update")
+        groups = _groups_of(frfs)
+        h, x, m, err = frfs_on_grid(frfs, self.frequency_hz_, self.input_names, partial=True)
+        return self.update(
+            x, h, mask=m, groups=groups, mode=mode, noise_std=err, reoptimize=reoptimize
+        )
 
     @staticmethod
     def _groups(groups, sources, default: int, n: int) -> np.ndarray:
@@ -574,12 +667,11 @@ class FRFPoseModel(BaseEstimator):
         """HDF5 (atomic): training data, hyperparameters, scalers, units and provenance.
 
         Attributes: ``format``, ``version``, ``robovib_version``, ``kernel``,
-        ``input_names`` (units in the names), ``compliance_unit = "um/N"`` (training targets
-        and noise), ``frequency_unit = "Hz"``, ``groups = "0=EMA,1=OMA"``, and
-        ``provenance/<key>`` for the given dict (strings/numbers). Each dataset has a ``units``
-        attribute; the ``provenance`` group holds the command, settings and input SHA-256
-        (:func:`robovib.io.provenance.write_provenance`). Written through
-        :func:`robovib.io.atomic_output`: ``path`` must not be one of ``inputs`` unless ``force``.
+        ``input_names`` (units in the names), ``direction`` (x, y, z or empty),
+        ``compliance_unit = "um/N"`` (training targets and noise), ``frequency_unit = "Hz"``,
+        ``groups = "0=EMA,1=OMA"``, and ``provenance/<key>`` for the given dict
+        (strings/numbers). Written through :func:`robovib.io.atomic_output`: ``path`` must not
+        be one of ``inputs`` unless ``force``.
         """
         import h5py
 
@@ -589,18 +681,13 @@ class FRFPoseModel(BaseEstimator):
 
         self._require_fitted()
         gp = self.gp_
-        units = {
-            "frequency_hz": "Hz", "X_train": ", ".join(self.input_names), "Y_train": "um/N",
-            "mask": "1", "groups": "1 (0=EMA, 1=OMA)", "theta": "1 (log hyperparameters, scaled)",
-            "x_loc": "input units", "x_scale": "input units", "y_loc": "um/N", "y_scale": "um/N",
-            "pose_lo": "input units", "pose_hi": "input units",
-        }  # fmt: skip
         with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
             h5.attrs["format"] = _FORMAT
             h5.attrs["version"] = _VERSION
             h5.attrs["robovib_version"] = __version__
             h5.attrs["kernel"] = self.kernel
             h5.attrs["input_names"] = list(self.input_names)
+            h5.attrs["direction"] = getattr(self, "direction_", None) or ""
             h5.attrs["compliance_unit"] = "um/N"
             h5.attrs["frequency_unit"] = "Hz"
             h5.attrs["groups"] = "0=EMA,1=OMA"
@@ -613,7 +700,9 @@ class FRFPoseModel(BaseEstimator):
                 "x_scale": gp._x_scale, "y_loc": gp._y_loc, "y_scale": gp._y_scale,
                 "pose_lo": self.pose_range_[0], "pose_hi": self.pose_range_[1],
             }.items():  # fmt: skip
-                set_units(h5.create_dataset(name, data=value), units[name])
+                set_units(
+                    h5.create_dataset(name, data=value), _DATASET_UNITS.get(name, "input units")
+                )
             write_provenance(h5, inputs=inputs)
 
     @classmethod
@@ -637,6 +726,7 @@ class FRFPoseModel(BaseEstimator):
                 raise ValueError(f"{path}: not a robovib FRF pose model (version 1 or 2)")
             d = {k: h5[k][()] for k in h5 if isinstance(h5[k], h5py.Dataset)}
             kernel = str(h5.attrs["kernel"])
+            direction = str(h5.attrs.get("direction", "")) or None
             names = tuple(str(v) for v in h5.attrs.get("input_names", ["s_m"]))
         model = cls(d["frequency_hz"], kernel=kernel, input_names=names)
         gp = BatchedGPRegressor(kernel=kernel, n_noise_groups=2)
@@ -654,5 +744,30 @@ class FRFPoseModel(BaseEstimator):
         model.gp_ = gp
         model.frequency_hz_ = np.asarray(d["frequency_hz"], float)
         model.pose_range_ = (d["pose_lo"], d["pose_hi"])
+        model.direction_ = direction
         model.n_features_in_ = len(names)
         return model
+
+
+_GROUP = {"EMA": 0, "OMA": 1}
+
+
+def _groups_of(frfs) -> np.ndarray:
+    """Noise group per FRF from its source (0 = EMA, 1 = OMA); model FRFs are refused."""
+    for i, f in enumerate(frfs):
+        if f.source not in _GROUP:
+            raise ValueError(f"FRF {i} has source {f.source!r}; expected measured EMA or OMA")
+    return np.array([_GROUP[f.source] for f in frfs], int)
+
+
+def _common_direction(frfs, model_direction, what):
+    dirs = {f.direction for f in frfs} - {None}
+    if len(dirs) > 1:
+        raise ValueError(f"cannot {what} one model with FRFs of several directions {sorted(dirs)}")
+    direction = dirs.pop() if dirs else None
+    if model_direction is not None and direction is not None and direction != model_direction:
+        raise ValueError(
+            f"the model is of direction {model_direction!r} but the FRFs are {direction!r}: "
+            "a model must be updated with FRFs of its own direction"
+        )
+    return direction

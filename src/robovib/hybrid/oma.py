@@ -121,12 +121,20 @@ def oma_frfs(
     else:
         poses = None
         s = s_in
+    from .._checks import check_choice, check_int, check_number
+
+    check_choice("direction", direction, ("x", "y", "z"))
+    segment_length_m = check_number("segment_length_m", segment_length_m, "m", lo=0.0, lo_open=True)
+    nperseg = check_int("nperseg", nperseg, lo=8)
     if noverlap is not None and not 0 <= noverlap < nperseg:
         raise ValueError(f"noverlap must be in [0, nperseg={nperseg}) samples, got {noverlap}")
-    if segment_length_m <= 0:
-        raise ValueError(f"segment_length_m must be > 0 [m], got {segment_length_m}")
-    if direction not in ("x", "y", "z"):
-        raise ValueError(f"unknown direction {direction!r}")
+    f_min_hz = check_number("f_min_hz", f_min_hz, "Hz", lo=0.0)
+    f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
+    if f_min_hz >= f_max_hz:
+        raise ValueError(f"f_min_hz={f_min_hz:g} Hz must be below f_max_hz={f_max_hz:g} Hz")
+    check_number("min_coherence", min_coherence, "", lo=0.0, hi=1.0)
+    if spindle_rpm is not None:
+        check_number("spindle_rpm", spindle_rpm, "rpm", lo=0.0, lo_open=True)
     if not (
         t.ndim == 1 and f.shape == (t.size, 3) and x.shape == (t.size, 3) and s.shape == (t.size,)
     ):

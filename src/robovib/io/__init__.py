@@ -16,6 +16,7 @@ from .frf_files import (
 )
 from .json_safe import dumps as json_dumps
 from .json_safe import json_safe
+from .poses import read_pose_table
 from .recording import (
     HammerRecording,
     ReadReport,
@@ -26,7 +27,6 @@ from .recording import (
     read_recording_uff,
     sample_rate_from_time,
     select_channel,
-    write_recording_csv,
     write_recording_uff,
 )
 from .safe_write import OutputPathError, atomic_output, check_output_path, save_figure
@@ -64,6 +64,7 @@ __all__ = [
     "read_frfs_uff",
     "read_milling_record_csv",
     "read_path_modes_csv",
+    "read_pose_table",
     "read_recording",
     "read_recording_channels",
     "read_recording_csv",

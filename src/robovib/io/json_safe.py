@@ -20,8 +20,8 @@ __all__ = ["dumps", "json_safe"]
 
 def _reason(x: float) -> str:
     if math.isnan(x):
-        return "not a number (NaN): no value could be computed"
-    return f"{'+' if x > 0 else '-'}infinite: outside the representable range"
+        return "not a number: no value could be computed"
+    return f"{'+' if x > 0 else '-'}infinity: no finite value (unbounded)"
 
 
 def json_safe(obj: Any, _path: str = "", _reasons: dict | None = None) -> tuple[Any, dict]:

@@ -44,7 +44,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .safe_write import atomic_output
 from .units import si_factor
 
 __all__ = [
@@ -57,7 +56,6 @@ __all__ = [
     "read_recording_uff",
     "sample_rate_from_time",
     "select_channel",
-    "write_recording_csv",
     "write_recording_uff",
 ]
 
@@ -733,24 +731,3 @@ def write_recording_uff(
     from .uff58 import write_uff58
 
     write_uff58(path, _time_records(recording), inputs=inputs, force=force)
-
-
-def write_recording_csv(
-    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
-) -> None:
-    """Write a recording as CSV ``hit,time_s,force_n,<quantity>_<SI unit>`` (atomic).
-
-    The layout is the one :func:`read_recording_csv` reads (long format, one row per sample).
-    """
-    unit = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displacement": "m"}[
-        recording.response_quantity
-    ]
-    n = recording.forces.shape[1]
-    t = np.arange(n) / recording.sample_rate_hz
-    with atomic_output(path, inputs=inputs, force=force) as tmp, open(tmp, "w") as fh:
-        fh.write(f"hit,time_s,force_n,{recording.response_quantity}_{unit}\n")
-        for h in range(recording.n_hits):
-            for i in range(n):
-                fh.write(
-                    f"{h},{t[i]:.9g},{recording.forces[h, i]:.9g},{recording.responses[h, i]:.9g}\n"
-                )

@@ -12,8 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..modal.parameters import ModalParameters
-from .recording import HammerRecording, write_recording_csv, write_recording_uff
-from .safe_write import atomic_output
+from .recording import HammerRecording, write_recording_uff
 
 __all__ = [
     "FORCE_COLUMNS",
@@ -25,6 +24,7 @@ __all__ = [
     "read_path_modes_csv",
     "write_path_modes_csv",
     "write_recording",
+    "write_recording_csv",
 ]
 
 FORCE_COLUMNS = ("time_s", "force_x_n", "force_y_n", "force_z_n")
@@ -39,11 +39,15 @@ MILLING_RECORD_COLUMNS = (
     "displacement_z_m",
     "path_s_m",
 )
+_RESPONSE_UNIT = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displacement": "m"}
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    with atomic_output(path) as tmp:
-        Path(tmp).write_text(text)
+def _atomic_write_text(path: Path, text: str, *, inputs=(), force: bool = False) -> None:
+    """Atomic text output (:func:`robovib.io.atomic_output`): never output = input unless forced."""
+    from .safe_write import atomic_output
+
+    with atomic_output(path, inputs=inputs, force=force) as tmp:
+        tmp.write_text(text)
 
 
 def _read_table(path, columns: Sequence[str]):
@@ -60,7 +64,34 @@ def _read_table(path, columns: Sequence[str]):
     return df, data
 
 
-def write_recording(path: str | Path, recording: HammerRecording) -> None:
+def write_recording_csv(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
+    """Write a hammer recording as CSV (``hit, time_s, force_n, <quantity>_<SI unit>``).
+
+    The layout is the one :func:`robovib.io.read_recording_csv` reads.
+
+    Raises
+    ------
+    ValueError
+        Unknown response quantity.
+    """
+    rec = recording
+    if rec.response_quantity not in _RESPONSE_UNIT:
+        raise ValueError(f"unknown response quantity {rec.response_quantity!r}")
+    n = rec.forces.shape[1]
+    t = np.arange(n) / rec.sample_rate_hz
+    lines = [f"hit,time_s,force_n,{rec.response_quantity}_{_RESPONSE_UNIT[rec.response_quantity]}"]
+    for h in range(rec.n_hits):
+        lines.extend(
+            f"{h},{t[i]:.15g},{rec.forces[h, i]:.9g},{rec.responses[h, i]:.9g}" for i in range(n)
+        )
+    _atomic_write_text(Path(path), "\n".join(lines) + "\n", inputs=inputs, force=force)
+
+
+def write_recording(
+    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
+) -> None:
     """Write a hammer recording as UFF 58 (``.uff``/``.unv``) or CSV (``.csv``).
 
     Raises
@@ -70,9 +101,9 @@ def write_recording(path: str | Path, recording: HammerRecording) -> None:
     """
     suffix = Path(path).suffix.lower()
     if suffix in (".uff", ".unv"):
-        write_recording_uff(path, recording)
+        write_recording_uff(path, recording, inputs=inputs, force=force)
     elif suffix == ".csv":
-        write_recording_csv(path, recording)
+        write_recording_csv(path, recording, inputs=inputs, force=force)
     else:
         raise ValueError(f"unknown output format {suffix!r}; use .uff or .csv")
 
@@ -115,7 +146,9 @@ def read_path_modes_csv(path: str | Path) -> tuple[np.ndarray, list[ModalParamet
     return data[:, 0], [ModalParameters(fn, k, z) for _, fn, k, z in data]
 
 
-def write_path_modes_csv(path: str | Path, s_m, modes: Sequence[ModalParameters]) -> None:
+def write_path_modes_csv(
+    path: str | Path, s_m, modes: Sequence[ModalParameters], *, inputs=(), force: bool = False
+) -> None:
     """Write the table :func:`read_path_modes_csv` reads.
 
     Raises
@@ -131,7 +164,7 @@ def write_path_modes_csv(path: str | Path, s_m, modes: Sequence[ModalParameters]
         f"{si:.12g},{m.natural_frequency_hz:.12g},{m.stiffness_n_per_m:.12g},{m.damping_ratio:.12g}"
         for si, m in zip(s, modes, strict=True)
     )
-    _atomic_write_text(Path(path), "\n".join(lines) + "\n")
+    _atomic_write_text(Path(path), "\n".join(lines) + "\n", inputs=inputs, force=force)
 
 
 def read_milling_record_csv(path: str | Path) -> dict[str, np.ndarray]:

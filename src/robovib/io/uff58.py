@@ -41,15 +41,14 @@ class Record58:
 
 
 def _numbers(values: np.ndarray) -> str:
-    """E20.11 numbers, four per line."""
+    """E20.11 numbers, four per line (one C-level formatting call per record)."""
     if values.size == 0:
         return ""
-    text = np.char.mod("%20.11e", values)
-    n_full = values.size // 4
-    lines = ["".join(row) for row in text[: 4 * n_full].reshape(n_full, 4)]
-    if values.size % 4:
-        lines.append("".join(text[4 * n_full :]))
-    return "\n".join(lines) + "\n"
+    n_full, rem = divmod(values.size, 4)
+    text = ("%20.11e%20.11e%20.11e%20.11e\n" * n_full) % tuple(values[: 4 * n_full].tolist())
+    if rem:
+        text += ("%20.11e" * rem + "\n") % tuple(values[4 * n_full :].tolist())
+    return text
 
 
 def _e13(x: float) -> str:

@@ -216,6 +216,10 @@ def lobes_chart(
     """
     if method not in ("sdm", "zoa"):
         raise ValueError(f"method must be 'sdm' or 'zoa', got {method!r}")
+    from .._checks import check_int
+
+    steps_per_period = check_int("steps_per_period", steps_per_period, lo=2, hi=10_000)
+    n_samples = check_int("n_samples", n_samples, lo=0, hi=100_000)
     rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
     modes_x, modes_y = tuple(modes_x), tuple(modes_y)
     frfs = {}

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._checks import check_choice, check_increasing, check_int, check_number
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool, milling_forces
 from .prediction import convolve_force, summarise_vibration
@@ -25,17 +26,22 @@ from .stability import StabilityLobes, stability_lobes
 
 __all__ = [
     "DirectionPrediction",
+    "PoseLobes",
     "base_frame_forces",
+    "lobes_at_pose",
+    "pose_extrapolation",
     "pose_modes",
     "predict_at_pose",
     "workspace_lobe_map",
 ]
 
 DIRECTIONS = ("x", "y", "z")
+FEED_DIRECTIONS = ("x", "y")  #: feed along base +X or +Y (tool axis along Z)
 
 
 def base_frame_forces(local: np.ndarray, feed_direction: str) -> np.ndarray:
     """Tool-frame (feed, normal, axial) forces -> base X, Y, Z for feed along +X or +Y."""
+    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
     if feed_direction == "x":
         return np.column_stack([local[:, 0], local[:, 1], local[:, 2]])
     if feed_direction == "y":
@@ -47,8 +53,41 @@ def pose_modes(model, pose) -> dict:
     """Dominant mode per direction at one pose: ``{direction: PoseMode}`` (SI, with std).
 
     ``pose`` is one input row in the units of ``model.input_names`` (e.g. (x_mm, y_mm, rz_deg)).
+    Each :class:`PoseMode` says whether it is an extrapolation; see also
+    :func:`pose_extrapolation`.
+
+    Raises
+    ------
+    ValueError
+        A non-finite pose coordinate.
     """
-    return model.modes(np.asarray(pose, float)[None, :])[0]
+    pose = np.asarray(pose, float)
+    names = tuple(getattr(model, "input_names", ())) or tuple(
+        f"input {i}" for i in range(pose.size)
+    )
+    for name, v in zip(names, pose, strict=False):
+        if not np.isfinite(v):
+            unit = name.rsplit("_", 1)[-1] if "_" in name else "model units"
+            raise ValueError(f"pose coordinate {name} must be a finite number in {unit}, got {v}")
+    return model.modes(pose[None, :])[0]
+
+
+def pose_extrapolation(model, pose) -> tuple[str, ...]:
+    """Why a pose is outside the model's training data: the inputs outside their training
+    range (e.g. ``("x_mm",)``), or ``("hull",)`` for a pose inside every range but outside
+    the convex hull of the training poses; empty when the pose is inside.
+
+    Every prediction at such a pose is a GP extrapolation (towards the prior) and must be
+    flagged as such.
+    """
+    from ..gp.extrapolation import extrapolating, outside_inputs
+
+    pose = np.asarray(pose, float).reshape(-1)
+    names = tuple(getattr(model, "input_names", ("x_mm", "y_mm", "rz_deg")))
+    outside = outside_inputs(model, pose, names)
+    if not outside and bool(extrapolating(model, pose[None, :])[0]):
+        return ("hull",)
+    return outside
 
 
 @dataclass(frozen=True)
@@ -59,6 +98,14 @@ class DirectionPrediction:
     mean_deflection_band_m: tuple[float, float]
     peak_to_valley_band_m: tuple[float, float]
     mode: ModalParameters
+    #: why the pose is an extrapolation (see :func:`pose_extrapolation`; empty: interpolation)
+    extrapolation: tuple[str, ...] = ()
+    #: modal-parameter draws used for the bands (bands are NaN when 0)
+    n_draws_used: int = 0
+
+    @property
+    def extrapolating(self) -> bool:
+        return bool(self.extrapolation)
 
 
 def predict_at_pose(
@@ -85,6 +132,11 @@ def predict_at_pose(
     mechanistic model simulates ``duration_s`` of cutting with ``tool`` and ``coefficients``.
     The first ``skip_s`` (start-up transient from rest) is left out of the summaries.
     """
+    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
+    n_samples = check_int("n_samples", n_samples, lo=1, hi=100_000)
+    sample_rate_hz = check_number("sample_rate_hz", sample_rate_hz, "Hz", lo=0.0, lo_open=True)
+    duration_s = check_number("duration_s", duration_s, "s", lo=0.0, lo_open=True)
+    skip_s = check_number("skip_s", skip_s, "s", lo=0.0)
     tool = tool or MillingTool()
     if forces_n is None:
         if coefficients is None:
@@ -96,8 +148,11 @@ def predict_at_pose(
     forces_n = np.asarray(forces_n, float)
     if forces_n.ndim != 2 or forces_n.shape[1] != 3:
         raise ValueError(f"forces_n must be (n, 3) base-frame forces, got {forces_n.shape}")
+    if not np.all(np.isfinite(forces_n)):
+        raise ValueError("forces_n contains NaN or inf")
     pose = pose_modes(model, (x_mm, y_mm, rz_deg))
     modes = {d: pose[d].parameters for d in DIRECTIONS}
+    outside = pose_extrapolation(model, (x_mm, y_mm, rz_deg))
     gen = np.random.default_rng(rng)
     out = []
     for i, d in enumerate(DIRECTIONS):
@@ -142,7 +197,14 @@ def predict_at_pose(
 
         out.append(
             DirectionPrediction(
-                d, central.mean_deflection_m, central.peak_to_valley_m, band(md), band(pv), modes[d]
+                d,
+                central.mean_deflection_m,
+                central.peak_to_valley_m,
+                band(md),
+                band(pv),
+                modes[d],
+                outside,
+                len(pv),
             )
         )
     return out
@@ -168,6 +230,10 @@ def workspace_lobe_map(
     """
     xs = np.linspace(2100, 2700, 13) if x_mm is None else np.asarray(x_mm, float)
     ys = np.linspace(-300, 600, 10) if y_mm is None else np.asarray(y_mm, float)
+    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
+    xs = check_increasing("x_mm grid", xs, "mm", min_size=2)
+    ys = check_increasing("y_mm grid", ys, "mm", min_size=2)
+    check_number("rz_deg", rz_deg, "deg")
     grid = np.array([[x, y, rz_deg] for y in ys for x in xs])
     out = np.empty(len(grid))
     for j, pose in enumerate(model.modes(grid)):
@@ -237,3 +303,71 @@ def best_pose(x_mm, y_mm, critical_depth_m) -> dict:
         "best_depth_mm": 1e3 * float(grid[i, j]),
         "shallowest_depth_mm": 1e3 * float(np.min(grid)),
     }
+
+
+@dataclass(frozen=True)
+class PoseLobes:
+    """Stability lobes at a pose, sampled over a speed range, with the extrapolation flag."""
+
+    lobes: StabilityLobes
+    spindle_rpm: np.ndarray  #: (n,) speeds [rpm]
+    critical_depth_m: np.ndarray  #: (n,) lowest critical depth [m] (inf: no lobe there)
+    feed_direction: str
+    #: inputs of the pose outside the model's training range (empty: interpolation)
+    extrapolation: tuple[str, ...] = ()
+
+    @property
+    def extrapolating(self) -> bool:
+        return bool(self.extrapolation)
+
+
+def lobes_at_pose(
+    model,
+    x_mm: float,
+    y_mm: float,
+    rz_deg: float,
+    coefficients: CuttingCoefficients,
+    *,
+    radial_depth_m: float = 6e-3,
+    tool: MillingTool | None = None,
+    feed_direction: str = "x",
+    rpm_range: tuple[float, float] = (100.0, 3000.0),
+    n_speeds: int = 200,
+    n_lobes: int = 40,
+) -> PoseLobes:
+    """Zero-order stability lobes from the pose model's X/Y modes, checked at the door.
+
+    The feed direction picks which predicted mode is along the feed (x: X feed, Y normal;
+    y: Y feed, X normal). The result says whether the pose is outside the training data.
+
+    Raises
+    ------
+    ValueError
+        Unknown feed direction, non-finite pose, radial depth <= 0 m or beyond the tool
+        diameter, speed range not 0 < min < max (rpm), ``n_speeds`` < 2, ``n_lobes`` < 1.
+    """
+    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
+    lo = check_number("rpm_range[0]", rpm_range[0], "rpm", lo=0.0, lo_open=True)
+    hi = check_number("rpm_range[1]", rpm_range[1], "rpm", lo=0.0, lo_open=True)
+    if lo >= hi:
+        raise ValueError(f"speed range must have min < max, got {lo:g}-{hi:g} rpm")
+    n_speeds = check_int("n_speeds", n_speeds, lo=2, hi=100_000)
+    n_lobes = check_int("n_lobes", n_lobes, lo=1, hi=1000)
+    tool = tool or MillingTool()
+    radial_depth_m = check_number(
+        "radial_depth_m", radial_depth_m, "m", lo=0.0, lo_open=True, hi=tool.diameter_m
+    )
+    modes = {d: m.parameters for d, m in pose_modes(model, (x_mm, y_mm, rz_deg)).items()}
+    normal = "y" if feed_direction == "x" else "x"
+    cond = CuttingConditions(1000.0, 1e-4, 1e-3, radial_depth_m)
+    lobes = stability_lobes(
+        [modes[feed_direction]], [modes[normal]], tool, cond, coefficients, n_lobes=n_lobes
+    )
+    speeds = np.linspace(lo, hi, n_speeds)
+    return PoseLobes(
+        lobes,
+        speeds,
+        lobes.critical_depth(speeds),
+        feed_direction,
+        pose_extrapolation(model, (x_mm, y_mm, rz_deg)),
+    )

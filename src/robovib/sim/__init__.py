@@ -15,7 +15,7 @@ from .experiments import (
     simulate_milling,
     simulate_offset_mass,
 )
-from .plant import run_closed_loop
+from .plant import PURE_DELAY, CommandChannel, ConstantModesRobot, run_closed_loop
 from .regenerative import RegenerativeCut, simulate_regenerative_cut, simulated_stability_limit
 from .truth import (
     PATH_LENGTH_M,
@@ -33,7 +33,10 @@ __all__ = [
     "PATH_LENGTH_M",
     "POSITION_1_S_M",
     "POSITION_2_S_M",
+    "PURE_DELAY",
     "WORKSPACE_BOUNDS",
+    "CommandChannel",
+    "ConstantModesRobot",
     "LinearMove",
     "ModeSet",
     "MotionRecord",

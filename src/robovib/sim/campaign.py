@@ -46,6 +46,10 @@ class SimulatedCampaign:
 
 
 def _poses_array(poses) -> np.ndarray:
+    if isinstance(poses, str | Path):
+        from ..io import read_pose_table
+
+        poses = read_pose_table(poses, ("x_mm", "y_mm", "rz_deg"))
     if hasattr(poses, "columns"):
         missing = [c for c in ("x_mm", "y_mm", "rz_deg") if c not in poses.columns]
         if missing:
@@ -119,8 +123,8 @@ def simulate_campaign(
     Parameters
     ----------
     poses
-        (n, 3) array or DataFrame of ``x_mm, y_mm, rz_deg`` inside the virtual robot's
-        workspace (Z = 325 mm, tool axis vertical).
+        (n, 3) array, DataFrame or CSV path with ``x_mm, y_mm, rz_deg`` inside the virtual
+        robot's workspace (Z = 325 mm, tool axis vertical).
     out_dir
         Folder to create/fill: ``campaign.csv``, ``truth.csv``, ``recordings/``.
     rng

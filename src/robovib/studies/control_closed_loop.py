@@ -1,0 +1,840 @@
+"""Closed-loop studies on the virtual robot (thesis §4.2-4.4, Tables 7 and 10).
+
+1. :func:`path_modal_model`: hammer tests at points along the chapter-4 path (thesis: 20 points
+   56 mm apart), dominant-mode fits, and a GP over path distance — the pose model every
+   controller is designed from (the truth stays hidden from the design).
+2. :func:`fixed_pose_offset_mass` (§4.3.2): the thesis' own gains 0.079 / 0.0059 on the mode it
+   measured (8.5 Hz, 0.775 MN/m, 0.179) at 480 / 960 / 1440 rpm, open vs closed loop, through a
+   given command channel; :func:`calibrate_channel` searches the channel options against
+   §4.3.2 and Table 7; :func:`sensitivity_bound` is the best any non-amplifying channel allows.
+3. :func:`offset_mass_study` (Table 7 analogue): 1 kg at 50.8 mm while the robot moves 900 mm
+   toward the base at 84 mm/s; the controllers of :func:`build_controllers`.
+4. :func:`milling_study` (Table 10 analogue): the eight cuts at Positions 1 and 2, X and Z.
+
+Measurement realism comes from :func:`robovib.sim.run_closed_loop`: tracker at 1 kHz with
+noise and 0.01 mm resolution, force sensor with 0.5 N noise, commands at 250 Hz through a
+:class:`~robovib.sim.CommandChannel` (default: 32 ms pure delay).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..control.controllers import (
+    Combined,
+    DelayAwareFeedback,
+    ForceFeedforward,
+    RepetitiveFeedback,
+    ScheduledTable,
+    StateFeedback,
+    design_kalman,
+    design_tuned_state_feedback,
+    implemented_loop_matrix,
+    lqg_loop_matrix,
+    spectral_radius,
+)
+from ..control.lqr import design_delay_aware_lqr
+from ..control.schedule import GainSchedule, schedule_gains
+from ..frf.impact import impact_frf
+from ..gp import PoseModalModel
+from ..milling.forces import (
+    ACETAL,
+    CuttingCoefficients,
+    CuttingConditions,
+    MillingTool,
+    milling_forces,
+)
+from ..modal.parameters import ModalParameters
+from ..modal.sdof import fit_dominant_mode
+from ..sim import (
+    PATH_LENGTH_M,
+    POSITION_1_S_M,
+    POSITION_2_S_M,
+    PURE_DELAY,
+    CommandChannel,
+    ConstantModesRobot,
+    LinearMove,
+    ModeSet,
+    VirtualRobot,
+    offset_mass_force,
+    run_closed_loop,
+    simulate_hammer_test,
+)
+
+__all__ = [
+    "ACTUATORS",
+    "CALIBRATED_CHANNEL",
+    "CONTROLLERS",
+    "SECOND_MODE_HYPOTHESES",
+    "TABLE_10_CONDITIONS",
+    "THESIS_OFFSET_MASS_MODE",
+    "ControlSimulation",
+    "build_controllers",
+    "calibrate_channel",
+    "fixed_pose_offset_mass",
+    "milling_study",
+    "offset_mass_study",
+    "path_band",
+    "path_modal_model",
+    "path_mode",
+    "plot_milling",
+    "plot_offset_mass",
+    "sensitivity_bound",
+    "simulate_control",
+    "stability_over_band",
+    "virtual_path_modes",
+]
+
+#: The controllers compared in the studies (names used in the result rows and the CLI).
+CONTROLLERS = (
+    "thesis",
+    "constant-start",
+    "constant-end",
+    "tuned",
+    "lqg",
+    "robust",
+    "feedforward",
+    "feedforward+robust",
+    "repetitive",
+)
+
+#: §4.3.2: the Y-direction mode measured at the offset-mass pose (8.5 Hz, 0.775 MN/m, 0.179).
+THESIS_OFFSET_MASS_MODE = ModalParameters(8.5, 0.775e6, 0.179)
+#: §4.3.2 gains (w1, w2) the thesis computed for that mode.
+THESIS_OFFSET_MASS_GAINS = (0.079, 0.0059)
+
+#: Channel fitted by :func:`calibrate_channel` (``python benchmarks/study_control.py
+#: calibrate``) with the delay held at the 32 ms the thesis measured: over lag 0-40 ms,
+#: breakaway 0-50 µm, rate limit 0.02 m/s-inf and 0-1 extra RSI hold, the pure delay fits
+#: §4.3.2 best (RMS log error 0.78, i.e. a factor 2.2). No non-amplifying channel can do much
+#: better: :func:`sensitivity_bound` limits the closed/open ratio of the thesis' gains on the
+#: thesis' measured mode to >= 0.53 at 8 Hz and >= 0.81 at 16 Hz, against the thesis' 0.42
+#: and 0.42. (Freeing the delay, the best fit is no delay at all — contradicting the measured
+#: 32 ms — and still misses 960 rpm by a factor 2.5.)
+CALIBRATED_CHANNEL = CommandChannel(delay_s=0.032)
+
+
+def path_modal_model(
+    robot: VirtualRobot,
+    directions=("x", "z"),
+    n_points: int = 20,
+    *,
+    sample_rate_hz: float = 2048.0,
+    n_hits: int = 3,
+    rng=0,
+) -> PoseModalModel:
+    """EMA at ``n_points`` along the chapter-4 path (virtual hammer tests) and a GP over s.
+
+    Returns a :class:`~robovib.gp.PoseModalModel` with ``input_names=("s_m",)`` (path distance
+    [m]) of the dominant mode per direction (fn [Hz], k [N/m], c [N s/m]); read it with
+    :func:`path_mode` and :func:`path_band`.
+    """
+    s = np.linspace(0.0, PATH_LENGTH_M, n_points)
+    gen = np.random.default_rng(rng)
+    cols = []
+    for d in directions:
+        rows = []
+        for si in s:
+            rec = simulate_hammer_test(robot, si, d, domain="path", n_hits=n_hits, sample_rate_hz=sample_rate_hz,
+                                       duration_s=4.0, rng=gen)  # fmt: skip
+            fit = fit_dominant_mode(
+                impact_frf(rec.forces, rec.responses, rec.sample_rate_hz, f_max_hz=100).frf
+            )
+            p = fit.parameters
+            rows.append([p.natural_frequency_hz, p.stiffness_n_per_m, p.damping_ns_per_m])
+        cols.append(np.array(rows))
+    model = PoseModalModel(input_names=("s_m",), directions=tuple(directions), kernel="isotropic",
+                           mode_switch=False, rng=rng)  # fmt: skip
+    return model.fit(s[:, None], np.hstack(cols))
+
+
+def path_mode(model: PoseModalModel, s_m: float, direction: str) -> ModalParameters:
+    """Mean dominant mode of ``direction`` at path distance ``s_m`` [m]."""
+    return model.modes(np.array([[float(s_m)]]))[0][direction].parameters
+
+
+def path_band(
+    model: PoseModalModel, s_m: float, direction: str, z_score: float = 1.96
+) -> list[ModalParameters]:
+    """The 8 corners of the GP band at ``s_m`` [m]: mean ± ``z_score`` std in fn, k and c."""
+    pm = model.modes(np.array([[float(s_m)]]))[0][direction]
+    p = pm.parameters
+    out = []
+    for sf in (-1, 1):
+        for sk in (-1, 1):
+            for sc in (-1, 1):
+                fn = max(p.natural_frequency_hz + sf * z_score * pm.fn_std_hz, 0.1)
+                k = max(p.stiffness_n_per_m + sk * z_score * pm.stiffness_std_n_per_m, 1e3)
+                c = max(p.damping_ns_per_m + sc * z_score * pm.damping_std_ns_per_m, 0.0)
+                m = ModalParameters.from_fn_k_c(fn, k, c)
+                zeta = min(max(m.damping_ratio, 1e-3), 0.95)
+                out.append(ModalParameters(fn, k, zeta))
+    return out
+
+
+def virtual_path_modes(
+    robot: VirtualRobot | None = None, direction: str = "x", n_points: int = 20, rng=0
+) -> tuple[np.ndarray, list[ModalParameters]]:
+    """Dominant modes along the chapter-4 path from a virtual EMA (:func:`path_modal_model`).
+
+    Returns
+    -------
+    s_m
+        (n_points,) path coordinates [m], 0.335-1.235 m.
+    modes
+        One :class:`ModalParameters` per coordinate in ``direction``.
+    """
+    model = path_modal_model(robot or VirtualRobot(), directions=(direction,), rng=rng)
+    s = np.linspace(0.335, 1.235, n_points)
+    return s, [path_mode(model, si, direction) for si in s]
+
+
+# --------------------------------------------------------------------------- design
+#: Designs already made in this process (the studies design the same gains for every cut).
+_DESIGN_CACHE: dict = {}
+
+
+def _schedule(model: PoseModalModel, direction: str, s_grid) -> GainSchedule:
+    modes = tuple(path_mode(model, si, direction) for si in s_grid)
+    key = ("schedule", tuple(np.asarray(s_grid, float)), modes)  # keyed by the design inputs
+    if key not in _DESIGN_CACHE:
+        _DESIGN_CACHE[key] = schedule_gains(s_grid, list(modes))
+    return _DESIGN_CACHE[key]
+
+
+#: Unmodelled-dynamics hypotheses of the robust design: a second mode at (fn ratio, k ratio,
+#: zeta) relative to the dominant one. The hammer-test FRFs along the path show a second,
+#: lighter-damped mode at 2-3 x the dominant frequency that the dominant-mode GP drops; a
+#: design checked only on the dominant mode goes unstable on it with 32 ms of delay.
+SECOND_MODE_HYPOTHESES = ((2.0, 5.0, 0.03), (2.0, 20.0, 0.03), (3.0, 5.0, 0.03), (3.0, 20.0, 0.03))
+
+
+def _model_set(model: PoseModalModel, s_m: float, direction: str, second_modes=True):
+    """Plants the robust design must hold on: nominal (first) + band corners (x second modes)."""
+    singles = [path_mode(model, s_m, direction), *path_band(model, s_m, direction)]
+    out = [[m] for m in singles]
+    if second_modes:
+        for m in singles:
+            for fr, kr, z in SECOND_MODE_HYPOTHESES:
+                out.append(
+                    [m, ModalParameters(fr * m.natural_frequency_hz, kr * m.stiffness_n_per_m, z)]
+                )
+    return out
+
+
+def _robust_r(plants, nominal: ModalParameters, period_s, delay_s, r_grid, velocity="difference"):
+    """R whose delay-aware gains (designed on the nominal mode) minimise the worst spectral
+    radius of the implemented loop over ``plants`` (lists of modes). ``velocity="kalman"``:
+    the loop with the 1 kHz Kalman filter of :func:`design_kalman` (LQG)."""
+    d = round(delay_s / period_s)
+    key = (nominal, tuple(tuple(p) for p in plants), period_s, delay_s, tuple(r_grid), velocity)
+    if key in _DESIGN_CACHE:
+        return _DESIGN_CACHE[key]
+    kf = design_kalman(nominal) if velocity == "kalman" else None
+
+    def radius(p, g):
+        if kf is not None:
+            return spectral_radius(lqg_loop_matrix(p, g, kf, period_s, 1e-3, round(delay_s * 1e3)))
+        return spectral_radius(implemented_loop_matrix(p, g, period_s, d, velocity=velocity))
+
+    best = None
+    for r in r_grid:
+        g = design_delay_aware_lqr(nominal, period_s, delay_s, r=[[r]]).gains
+        rho = max(radius(p, g) for p in plants)
+        if best is None or rho < best[0]:
+            best = (rho, g, r)
+    _DESIGN_CACHE[key] = best
+    return best
+
+
+def build_controllers(
+    model: PoseModalModel,
+    axes: dict[int, str],
+    s_grid,
+    *,
+    names=CONTROLLERS,
+    excitation_period_s: float | None = None,
+    s_start: float | None = None,
+    s_end: float | None = None,
+    period_s: float = 0.004,
+    delay_s: float = 0.032,
+    lqg_r: float | None = None,
+    robust_r_grid=None,
+) -> dict[str, object]:
+    """Controllers designed from the pose model only, scheduled over ``s_grid`` [m].
+
+    Returns a name -> controller dict (fresh objects: they hold state). ``constant-start`` /
+    ``constant-end`` use the pose-dependent design at ``s_start`` / ``s_end``. The
+    feedforward controllers need ``excitation_period_s`` (the force's period).
+    """
+    grid = np.asarray(s_grid, float)
+    r_grid = np.logspace(-2, 3, 11) if robust_r_grid is None else np.asarray(robust_r_grid)
+    out: dict[str, object] = {}
+    need_sched = {"thesis", "constant-start", "constant-end"} & set(names)
+    sched = {a: _schedule(model, d, grid) for a, d in axes.items()} if need_sched else {}
+    if "thesis" in names:
+        out["thesis"] = StateFeedback(
+            {a: ScheduledTable(grid, np.column_stack([s.w1, s.w2])) for a, s in sched.items()}
+        )
+    for name, s_at in (("constant-start", s_start), ("constant-end", s_end)):
+        if name in names:
+            s_at = grid[0] if s_at is None else s_at
+            out[name] = StateFeedback({a: s.gains_at(s_at) for a, s in sched.items()})
+    if "lqg" in names:
+        gains, kal = {}, {}
+        for a, d in axes.items():
+            modes = [path_mode(model, si, d) for si in grid]
+            if lqg_r is None:  # R picked like the robust design, on the loop with the filter
+                rows = [_robust_r(_model_set(model, si, d), m, period_s, delay_s, r_grid, "kalman")[1]
+                        for si, m in zip(grid, modes, strict=True)]  # fmt: skip
+            else:
+                rows = [
+                    design_delay_aware_lqr(m, period_s, delay_s, r=[[lqg_r]]).gains for m in modes
+                ]
+            gains[a] = ScheduledTable(grid, np.array(rows))
+            kal[a] = (grid, [design_kalman(m) for m in modes])
+        out["lqg"] = DelayAwareFeedback(gains, kal, delay_samples=round(delay_s * 1000.0))
+    robust = None
+    if "robust" in names or "feedforward+robust" in names:
+        tabs = {}
+        for a, d in axes.items():
+            rows = [
+                _robust_r(
+                    _model_set(model, si, d), path_mode(model, si, d), period_s, delay_s, r_grid
+                )[1]
+                for si in grid
+            ]
+            tabs[a] = ScheduledTable(grid, np.array(rows))
+        robust = tabs
+        if "robust" in names:
+            out["robust"] = DelayAwareFeedback(robust)
+    if "feedforward" in names or "feedforward+robust" in names:
+        if excitation_period_s is None:
+            raise ValueError("feedforward controllers need excitation_period_s [s]")
+        stiff = {
+            a: ScheduledTable(grid, np.array([[path_mode(model, si, d).stiffness_n_per_m] for si in grid]))
+            for a, d in axes.items()
+        }  # fmt: skip
+        if "feedforward" in names:
+            out["feedforward"] = ForceFeedforward(stiff, excitation_period_s, delay_s)
+        if "feedforward+robust" in names:
+            out["feedforward+robust"] = Combined(
+                ForceFeedforward(stiff, excitation_period_s, delay_s), DelayAwareFeedback(robust)
+            )
+    if "tuned" in names:
+        if excitation_period_s is None:
+            raise ValueError("the tuned controller needs excitation_period_s [s]")
+        tab = {}
+        for a, d in axes.items():
+            rows = []
+            for si in grid:
+                plants = _model_set(model, si, d)
+                key = (
+                    "tuned",
+                    tuple(tuple(p) for p in plants),
+                    excitation_period_s,
+                    period_s,
+                    delay_s,
+                )
+                if key not in _DESIGN_CACHE:
+                    _DESIGN_CACHE[key] = design_tuned_state_feedback(
+                        plants, plants[0][0], 1.0 / excitation_period_s,
+                        period_s=period_s, delay_s=delay_s)[0]  # fmt: skip
+                rows.append(_DESIGN_CACHE[key])
+            tab[a] = ScheduledTable(grid, np.array(rows))
+        out["tuned"] = StateFeedback(tab)
+    if "repetitive" in names:
+        if excitation_period_s is None:
+            raise ValueError("the repetitive controller needs excitation_period_s [s]")
+        modes = {
+            a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
+                                              for m in (path_mode(model, si, d) for si in grid)]))
+            for a, d in axes.items()
+        }  # fmt: skip
+        out["repetitive"] = RepetitiveFeedback(modes, excitation_period_s, delay_s)
+    unknown = set(names) - set(CONTROLLERS)
+    if unknown:
+        raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
+    return out
+
+
+def _controller_gains(ctrl, axis: int, coords) -> np.ndarray | None:
+    """Feedback gains (n, m) of a controller along ``coords`` (None: no feedback)."""
+    if isinstance(ctrl, Combined):
+        for p in ctrl.parts:
+            g = _controller_gains(p, axis, coords)
+            if g is not None:
+                return g
+        return None
+    if isinstance(ctrl, StateFeedback | DelayAwareFeedback):
+        return ctrl.gains[axis].at(coords)
+    return None
+
+
+def stability_over_band(
+    model: PoseModalModel,
+    controllers: dict[str, object],
+    axes: dict[int, str],
+    s_points,
+    *,
+    period_s: float = 0.004,
+    delay_s: float = 0.032,
+    second_modes: bool = False,
+) -> dict[str, float]:
+    """Worst spectral radius of each feedback loop over the GP 95 % band at every pose.
+
+    The implemented loop (backward-difference velocity; the LQG with its 1 kHz Kalman filter,
+    :func:`~robovib.control.controllers.lqg_loop_matrix`) with the nominal delay, for the nominal mode and
+    the 8 band corners at each of ``s_points`` (``second_modes=True``: also with each
+    :data:`SECOND_MODE_HYPOTHESES` second mode). < 1: stable everywhere. NaN: no feedback.
+    The repetitive controller is checked through its phasor learning loop
+    (:meth:`~robovib.control.controllers.RepetitiveFeedback.loop_radius`).
+    """
+    d = round(delay_s / period_s)
+    s = np.asarray(s_points, float)
+    out = {}
+    for name, ctrl in controllers.items():
+        worst = np.nan
+        if isinstance(ctrl, RepetitiveFeedback):
+            for direction in axes.values():
+                for si in s:
+                    nominal = path_mode(model, si, direction)
+                    for p in _model_set(model, si, direction, second_modes):
+                        rho = ctrl.loop_radius(p, nominal, period_s)
+                        worst = rho if np.isnan(worst) else max(worst, rho)
+            out[name] = float(worst)
+            continue
+        for a, direction in axes.items():
+            g = _controller_gains(ctrl, a, s)
+            if g is None:
+                continue
+            lqg = isinstance(ctrl, DelayAwareFeedback) and ctrl.kalman is not None
+            for si, gi in zip(s, g, strict=True):
+                kf = design_kalman(path_mode(model, si, direction)) if lqg else None
+                for p in _model_set(model, si, direction, second_modes):
+                    m = (lqg_loop_matrix(p, gi, kf, period_s, 1e-3, round(delay_s * 1e3)) if lqg
+                         else implemented_loop_matrix(p, gi, period_s, d))  # fmt: skip
+                    rho = spectral_radius(m)
+                    worst = rho if np.isnan(worst) else max(worst, rho)
+        out[name] = float(worst)
+    return out
+
+
+# --------------------------------------------------------------------------- runs
+def _run(robot, move, force, controller, rng, channel):
+    try:
+        rec = run_closed_loop(robot, move, force, 1000.0, controller, channel=channel, rng=rng)
+        return rec.true_displacement_m, None
+    except ValueError as exc:
+        return None, str(exc)
+
+
+def fixed_pose_offset_mass(
+    channel: CommandChannel = PURE_DELAY,
+    speeds_rpm=(480.0, 960.0, 1440.0),
+    *,
+    mode: ModalParameters = THESIS_OFFSET_MASS_MODE,
+    gains=THESIS_OFFSET_MASS_GAINS,
+    duration_s: float = 2.0,
+    settle_s: float = 1.0,
+    rng=0,
+) -> list[dict]:
+    """§4.3.2: the offset mass at a fixed pose, open loop vs the thesis gains, in Y.
+
+    Amplitudes are peak-to-peak [mm] of the true Y vibration after ``settle_s``
+    (§4.3.2's 0.93 mm open loop at 480 rpm matches the peak-to-peak of the measured mode's
+    response, 2 x 0.46 mm; Table 7's numbers match half of it). Returns one row per speed.
+    """
+    robot = ConstantModesRobot(
+        {
+            "y": ModeSet(
+                np.array([[mode.natural_frequency_hz]]),
+                np.array([[mode.stiffness_n_per_m]]),
+                np.array([[mode.damping_ratio]]),
+            )
+        }
+    )
+    n = round(duration_s * 1000)
+    t = np.arange(n) / 1000.0
+    move = LinearMove("path", (0.0,), (0.04,))  # 20 mm/s for 2 s; the modes do not change
+    w = round(settle_s * 1000)
+    rows = []
+    for rpm in speeds_rpm:
+        force = offset_mass_force(t, rpm)
+        row = {"speed_rpm": rpm}
+        for name, ctrl in (("open", None), ("closed", StateFeedback({1: gains}))):
+            disp, err = _run(robot, move, force, ctrl, rng, channel)
+            row[f"{name}_ptp_mm"] = np.nan if disp is None else 1e3 * np.ptp(disp[w:, 1])
+            row[f"{name}_unstable"] = err
+        row["ratio"] = row["closed_ptp_mm"] / row["open_ptp_mm"]
+        rows.append(row)
+    return rows
+
+
+def sensitivity_bound(
+    speeds_hz,
+    mode: ModalParameters = THESIS_OFFSET_MASS_MODE,
+    gains=THESIS_OFFSET_MASS_GAINS,
+    period_s: float = 0.004,
+) -> np.ndarray:
+    """Smallest closed/open amplitude ratio ``|S|`` reachable at ``speeds_hz`` with ``gains``.
+
+    For a channel that does not amplify (``|G_a| <= 1``: any delay, lag, rate limit or
+    breakaway), ``|S| = 1 / |1 + P G_a C| >= 1 / (1 + |P| |C|)`` with ``P`` the mode's
+    correction-to-tip FRF and ``C`` the controller (w1 + w2 x backward difference, ZOH).
+    """
+    f = np.asarray(speeds_hz, float)
+    s = 2j * np.pi * f
+    wn, z = mode.omega_n, mode.damping_ratio
+    p = wn**2 / (s**2 + 2 * z * wn * s + wn**2)
+    c = (gains[0] + gains[1] * (1 - np.exp(-s * period_s)) / period_s) * np.exp(-s * period_s / 2)
+    return 1.0 / (1.0 + np.abs(p) * np.abs(c))
+
+
+def calibrate_channel(
+    delays_s=(0.0, 0.008, 0.016, 0.024, 0.032),
+    lags_s=(0.0, 0.01, 0.02, 0.04),
+    breakaways_m=(0.0, 2e-5),
+    rate_limits_m_per_s=(math.inf, 0.05),
+    holds=(0, 1),
+    *,
+    targets=((480.0, 0.39 / 0.93), (960.0, 0.15 / 0.36)),
+    rng=0,
+) -> list[dict]:
+    """Grid search of the channel options against the §4.3.2 closed/open ratios.
+
+    ``targets``: (rpm, thesis closed / open) pairs; the score is the RMS log error of the
+    simulated ratios; the 1440 rpm run is reported (the thesis: no suppression). Rows sorted
+    by score.
+    """
+    rows = []
+    for d in delays_s:
+        for lag in lags_s:
+            for b in breakaways_m:
+                for rl in rate_limits_m_per_s:
+                    for h in holds:
+                        ch = CommandChannel(d, lag_s=lag, rate_limit_m_per_s=rl, breakaway_m=b, hold_periods=h)  # fmt: skip
+                        res = fixed_pose_offset_mass(ch, rng=rng)
+                        by = {r["speed_rpm"]: r for r in res}
+                        err = [math.log(by[rpm]["ratio"] / tgt) for rpm, tgt in targets]
+                        rows.append({**ch.to_dict(),
+                                     **{f"ratio_{int(r['speed_rpm'])}": r["ratio"] for r in res},
+                                     "score": float(np.sqrt(np.mean(np.square(err))))})  # fmt: skip
+    rows.sort(key=lambda r: np.nan_to_num(r["score"], nan=np.inf))
+    return rows
+
+
+def _thesis_eq28(s_start: float):
+    """The thesis' printed schedule (Eq. 28-29, d = distance from the path start [mm])."""
+
+    def gains(coords):
+        d = np.abs(np.asarray(coords, float) - s_start) * 1e3
+        w1 = -4.3e-5 * d + 0.12
+        w2 = -3e-14 * d**4 + 7e-11 * d**3 - 6e-8 * d**2 + 1e-5 * d + 0.006
+        return np.column_stack([w1, w2])
+
+    return gains
+
+
+def offset_mass_study(
+    robot: VirtualRobot,
+    model: PoseModalModel,
+    speeds_rpm=(480.0, 960.0),
+    *,
+    controllers=(
+        "thesis",
+        "constant-start",
+        "constant-end",
+        "lqg",
+        "robust",
+        "feedforward",
+        "feedforward+robust",
+    ),
+    channel: CommandChannel = PURE_DELAY,
+    thesis_gains: bool = False,
+    s_start: float = PATH_LENGTH_M,
+    s_end: float = PATH_LENGTH_M - 0.9,
+    speed_m_per_s: float = 0.084,
+    window_s: float = 1.0,
+    keep_traces: bool = False,
+    rng=0,
+) -> list[dict]:
+    """Table 7 analogue: X vibration amplitude (half peak-to-peak) at the start and end.
+
+    ``thesis_gains=True`` adds the thesis' printed gains (Eq. 28-29 schedule and the constants
+    0.11 / 0.0065 and 0.06 / 0.005) as ``thesis-printed``, ``thesis-printed-start`` and
+    ``thesis-printed-end``. ``keep_traces=True`` adds the X displacement record
+    (``trace_x_m``, 1 kHz) to each row.
+    """
+    move = LinearMove("path", (s_start,), (s_end,))
+    n = round(move.length_m / speed_m_per_s * 1000.0)
+    t = np.arange(n) / 1000.0
+    grid = np.linspace(min(s_start, s_end), max(s_start, s_end), 20)
+    w = round(window_s * 1000)
+    rows = []
+    for rpm in speeds_rpm:
+        force = offset_mass_force(t, rpm)
+        ctrls = {"no-feedback": None}
+        ctrls.update(build_controllers(model, {0: "x"}, grid, names=controllers,
+                                       excitation_period_s=60.0 / rpm, s_start=s_start, s_end=s_end))  # fmt: skip
+        if thesis_gains:
+            tab = _thesis_eq28(s_start)(grid)
+            ctrls["thesis-printed"] = StateFeedback({0: ScheduledTable(grid, tab)})
+            ctrls["thesis-printed-start"] = StateFeedback({0: (0.11, 0.0065)})
+            ctrls["thesis-printed-end"] = StateFeedback({0: (0.06, 0.005)})
+        for name, ctrl in ctrls.items():
+            disp, err = _run(robot, move, force, ctrl, rng, channel)
+            row = {"speed_rpm": rpm, "controller": name, "start_mm": np.nan, "end_mm": np.nan,
+                   "unstable": err}  # fmt: skip
+            if disp is not None:
+                x = disp[:, 0]
+                row["start_mm"] = 1e3 * np.ptp(x[w : 2 * w]) / 2
+                row["end_mm"] = 1e3 * np.ptp(x[-w:]) / 2
+                if keep_traces:
+                    row["trace_x_m"] = x
+            rows.append(row)
+    return rows
+
+
+#: Table 10 cutting conditions: (spindle rpm, feed per tooth [m], axial depth [m]).
+TABLE_10_CONDITIONS = tuple(
+    (rpm, fz, ap) for rpm in (125.0, 250.0) for fz in (0.5e-3, 0.3e-3) for ap in (6e-3, 3e-3)
+)
+
+
+def milling_study(
+    robot: VirtualRobot,
+    model: PoseModalModel,
+    conditions=TABLE_10_CONDITIONS,
+    positions=(("Position 1", POSITION_1_S_M), ("Position 2", POSITION_2_S_M)),
+    *,
+    controllers=("thesis", "lqg", "robust", "feedforward", "feedforward+robust"),
+    channel: CommandChannel = PURE_DELAY,
+    tool: MillingTool | None = None,
+    coefficients: CuttingCoefficients = ACETAL,
+    radial_depth_m: float = 6e-3,
+    cut_length_m: float = 0.05,
+    background_noise_rel: float = 0.15,
+    keep_traces: bool = False,
+    rng=0,
+) -> list[dict]:
+    """Table 10 analogue: RMS X and Z vibration [mm] (about the mean) open vs each controller.
+
+    One row per cut, position and controller with ``x_rms_mm``, ``z_rms_mm``, the open-loop
+    values and the reductions [%] (NaN and ``unstable`` set when the loop went unstable).
+    The RMS is taken after the first fifth of the cut (start-up transient).
+    """
+    tool = tool or MillingTool()
+    gen = np.random.default_rng(rng)
+    rows = []
+    for pos_name, s_mid in positions:
+        move = LinearMove("path", (s_mid - cut_length_m / 2,), (s_mid + cut_length_m / 2,))
+        grid = np.linspace(move.start[0], move.end[0], 6)
+        for i, (rpm, fz, ap) in enumerate(conditions):
+            cond = CuttingConditions(rpm, fz, ap, radial_depth_m)
+            n = round(move.length_m / cond.feed_speed_m_per_s(tool) * 1000.0)
+            t = np.arange(n) / 1000.0
+            local = milling_forces(t, tool, cond, coefficients)
+            # Feed along the path (-Y); normal = Z x feed = +X; axial = Z.
+            force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
+            force += gen.normal(size=force.shape) * background_noise_rel * force.std(axis=0)
+            ctrls = {"open": None}
+            ctrls.update(build_controllers(model, {0: "x", 2: "z"}, grid, names=controllers,
+                                           excitation_period_s=1.0 / cond.tooth_passing_hz(tool)))  # fmt: skip
+            base = {"test": i + 1, "position": pos_name, "speed_rpm": rpm, "feed_mm": fz * 1e3,
+                    "axial_depth_mm": ap * 1e3}  # fmt: skip
+            open_rms = None
+            for name, ctrl in ctrls.items():
+                disp, err = _run(robot, move, force, ctrl, rng, channel)
+                row = {**base, "controller": name, "unstable": err}
+                for axis, d in ((0, "x"), (2, "z")):
+                    rms = np.nan if disp is None else 1e3 * np.std(disp[n // 5 :, axis])
+                    row[f"{d}_rms_mm"] = rms
+                    if open_rms is not None:
+                        row[f"{d}_open_rms_mm"] = open_rms[d]
+                        row[f"{d}_reduction_pct"] = 100 * (1 - rms / open_rms[d])
+                if keep_traces and disp is not None:
+                    row["trace_m"] = disp[:, [0, 2]]
+                if name == "open":
+                    open_rms = {"x": row["x_rms_mm"], "z": row["z_rms_mm"]}
+                    continue
+                rows.append(row)
+    return rows
+
+
+# --------------------------------------------------------------------------- figures
+def plot_offset_mass(rows: list[dict], speed_rpm: float | None = None, ax=None):
+    """Vibration envelope (moving max of |x| over 0.25 s) [mm] vs time per controller.
+
+    ``rows`` from :func:`offset_mass_study` with ``keep_traces=True``; one speed (default:
+    the first). Returns the matplotlib Figure.
+    """
+    import matplotlib.pyplot as plt
+    from scipy.ndimage import maximum_filter1d
+
+    traced = [r for r in rows if "trace_x_m" in r]
+    if not traced:
+        raise ValueError("no traces in the rows: run offset_mass_study(..., keep_traces=True)")
+    speed = traced[0]["speed_rpm"] if speed_rpm is None else speed_rpm
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(9, 4))
+    else:
+        fig = ax.figure
+    for r in traced:
+        if r["speed_rpm"] != speed:
+            continue
+        x = np.abs(r["trace_x_m"]) * 1e3
+        env = maximum_filter1d(x, size=250)
+        ax.plot(np.arange(x.size) / 1000.0, env, lw=1.0, label=r["controller"])
+    ax.set_xlabel("time [s] (robot moving from the extended end toward the base)")
+    ax.set_ylabel("X vibration envelope [mm]")
+    ax.set_title(f"offset mass at {speed:g} rpm on the virtual robot (Table 7 analogue)")
+    ax.legend(fontsize=8, ncol=2)
+    fig.tight_layout()
+    return fig
+
+
+def plot_milling(rows: list[dict], direction: str = "x", ax=None):
+    """RMS vibration [mm] per cut for each controller, both positions (Table 10 analogue).
+
+    ``rows`` from :func:`milling_study`. Open loop drawn as black ticks; unstable runs as
+    missing bars. Returns the matplotlib Figure.
+    """
+    import matplotlib.pyplot as plt
+
+    if direction not in ("x", "z"):
+        raise ValueError(f"direction must be 'x' or 'z', got {direction!r}")
+    if not rows:
+        raise ValueError("no milling rows to plot")
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(10, 4))
+    else:
+        fig = ax.figure
+    cuts = sorted({(r["position"], r["test"]) for r in rows})
+    names = list(dict.fromkeys(r["controller"] for r in rows))
+    width = 0.8 / max(len(names), 1)
+    x0 = np.arange(len(cuts))
+    for j, name in enumerate(names):
+        vals = []
+        for cut in cuts:
+            match = [
+                r for r in rows if (r["position"], r["test"]) == cut and r["controller"] == name
+            ]
+            vals.append(match[0][f"{direction}_rms_mm"] if match else np.nan)
+        ax.bar(x0 + (j - (len(names) - 1) / 2) * width, vals, width, label=name)
+    opens = []
+    for cut in cuts:
+        match = [r for r in rows if (r["position"], r["test"]) == cut]
+        opens.append(match[0][f"{direction}_open_rms_mm"])
+    ax.scatter(x0, opens, marker="_", s=400, color="k", label="open loop", zorder=3)
+    ax.set_xticks(x0, [f"{p[-1]}-T{t}" for p, t in cuts], fontsize=7)
+    ax.set_xlabel("position - test (Table 10 cuts)")
+    ax.set_ylabel(f"RMS {direction.upper()} vibration [mm]")
+    ax.set_title(f"milling on the virtual robot: {direction.upper()} vibration per controller")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    return fig
+
+
+# --------------------------------------------------------------------------- one entry point
+#: Command-channel choices of ``robovib control simulate --actuator``.
+ACTUATORS = {"pure-delay": PURE_DELAY, "calibrated": CALIBRATED_CHANNEL}
+
+
+@dataclass(frozen=True)
+class ControlSimulation:
+    """Result of :func:`simulate_control`: rows (one per run) and the settings used."""
+
+    experiment: str  #: "offset-mass" (Table 7 analogue) or "milling" (Table 10 analogue)
+    rows: tuple  #: dicts; traces (``trace_x_m`` / ``trace_m``) only with ``keep_traces``
+    settings: dict
+
+    def to_frame(self):
+        """pandas DataFrame of the rows without the traces."""
+        import pandas as pd
+
+        return pd.DataFrame(
+            [{k: v for k, v in r.items() if not k.startswith("trace")} for r in self.rows]
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: settings, rows (no traces) and the units of every column."""
+        rows = self.to_frame().replace({np.nan: None}).to_dict(orient="records")
+        units = {"speed_rpm": "rev/min", "start_mm": "mm (half peak-to-peak)",
+                 "end_mm": "mm (half peak-to-peak)", "feed_mm": "mm per tooth",
+                 "axial_depth_mm": "mm"}  # fmt: skip
+        for d in ("x", "z"):
+            units[f"{d}_rms_mm"] = units[f"{d}_open_rms_mm"] = "mm (RMS about the mean)"
+            units[f"{d}_reduction_pct"] = "% of the open-loop RMS"
+        return {
+            "experiment": self.experiment,
+            "settings": self.settings,
+            "rows": rows,
+            "units": units,
+        }
+
+    def plot(self, direction: str = "x", ax=None):
+        """:func:`plot_offset_mass` (needs traces) or :func:`plot_milling` of the rows."""
+        if self.experiment == "offset-mass":
+            return plot_offset_mass(list(self.rows), ax=ax)
+        return plot_milling(list(self.rows), direction, ax=ax)
+
+
+def simulate_control(
+    experiment: str,
+    controllers=None,
+    *,
+    actuator: str = "pure-delay",
+    speeds_rpm=(480.0, 960.0),
+    keep_traces: bool = False,
+    rng=0,
+) -> ControlSimulation:
+    """Closed-loop runs on the virtual robot with controllers designed from the path model.
+
+    Parameters
+    ----------
+    experiment
+        ``"offset-mass"`` (Table 7 analogue, X, 900 mm path) or ``"milling"`` (Table 10
+        analogue, X and Z, 8 cuts x 2 positions).
+    controllers
+        Names from :data:`CONTROLLERS` (default: all).
+    actuator
+        ``"pure-delay"`` (32 ms) or ``"calibrated"`` (:data:`CALIBRATED_CHANNEL`).
+    speeds_rpm
+        Offset-mass spindle speeds [rev/min].
+    keep_traces
+        Keep the displacement records (for :meth:`ControlSimulation.plot`).
+    rng
+        Seed of the virtual EMA and the sensor noise.
+
+    Raises
+    ------
+    ValueError
+        Unknown experiment, controller or actuator.
+    """
+    if experiment not in ("offset-mass", "milling"):
+        raise ValueError(f"unknown experiment {experiment!r}; expected 'offset-mass' or 'milling'")
+    if actuator not in ACTUATORS:
+        raise ValueError(f"unknown actuator {actuator!r}; expected one of {sorted(ACTUATORS)}")
+    names = tuple(CONTROLLERS if controllers is None else controllers)
+    unknown = set(names) - set(CONTROLLERS)
+    if unknown:
+        raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
+    channel = ACTUATORS[actuator]
+    robot = VirtualRobot()
+    model = path_modal_model(
+        robot, directions=("x",) if experiment == "offset-mass" else ("x", "z"), rng=rng
+    )
+    if experiment == "offset-mass":
+        rows = offset_mass_study(robot, model, speeds_rpm, controllers=names, channel=channel,
+                                 keep_traces=keep_traces, rng=rng)  # fmt: skip
+    else:
+        rows = milling_study(robot, model, controllers=names, channel=channel,
+                             keep_traces=keep_traces, rng=rng)  # fmt: skip
+    settings = {"controllers": list(names), "actuator": actuator, "channel": channel.to_dict(),
+                "command_period_s": 0.004, "sample_rate_hz": 1000.0, "seed": rng,
+                "speeds_rpm": list(speeds_rpm) if experiment == "offset-mass" else None}  # fmt: skip
+    return ControlSimulation(experiment, tuple(rows), settings)
