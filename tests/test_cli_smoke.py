@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from robovib.cli import app
+from robovib.datasets import example_path
 
 runner = CliRunner()
 
@@ -25,12 +26,43 @@ def _memoised_chapter3(chapter3_factory, chapter3_regressor_factory):
     mp.undo()
 
 
+#: Command paths whose --json document was checked in this session (see test_json_provenance).
+CHECKED: set[str] = set()
+
+
+def assert_self_describing(doc: dict, args: list[str]) -> None:
+    """Provenance and units keys every --json document must carry."""
+    import hashlib
+    import re
+
+    from robovib import __version__
+
+    assert doc["robovib_version"] == __version__
+    assert doc["command"] == ["robovib", *args]
+    settings, units = doc["settings"], doc["settings_units"]
+    assert isinstance(settings, dict) and "json_out" not in settings
+    for name, value in settings.items():
+        values = value if isinstance(value, list) else [value]
+        if any(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
+            assert units.get(name), f"setting {name} = {value} has no unit"
+    for item in doc["input_files"]:
+        with open(item["path"], "rb") as fh:
+            assert item["sha256"] == hashlib.sha256(fh.read()).hexdigest()
+    assert re.fullmatch(r"\d+\.\d+\.\d+.*", doc["robovib_version"])
+    unknown = [k for k, u in doc["units"].items() if not u or u == "unknown"]
+    assert not unknown, f"numbers without a unit: {unknown}"
+
+
 def run_json(*args: str) -> dict:
-    result = runner.invoke(app, [*args, "--json"])
+    argv = [*args, "--json"]
+    result = runner.invoke(app, argv)
     assert result.exit_code == 0, result.output
     text = result.stdout
     assert "NaN" not in text and "Infinity" not in text
-    return json.loads(text)
+    doc = json.loads(text)
+    assert_self_describing(doc, argv)
+    CHECKED.add(" ".join(a for a in args[:2] if not a.startswith("-")))
+    return doc
 
 
 @pytest.fixture(scope="module")
@@ -62,6 +94,35 @@ def test_library_error_is_one_line_exit_1(tmp_path):
     assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1
     result = runner.invoke(app, ["sim", "hammer", "-o", str(tmp_path / "x.foo")])
     assert result.exit_code == 1 and "unknown output format" in result.stderr
+
+
+def test_examples_listed_and_copied(tmp_path):
+    doc = run_json("examples")
+    assert len(doc["examples"]) >= 6
+    doc = run_json("examples", "--to", str(tmp_path / "ex"))
+    assert (tmp_path / "ex" / "hammer.uff").is_file()
+    doc = run_json(
+        "frf", "compute", str(tmp_path / "ex" / "hammer.uff"), "-o", str(tmp_path / "f.h5")
+    )
+    assert doc["direction"] == "x" and doc["input_files"][0]["path"].endswith("hammer.uff")
+    doc = run_json("modal", "fit", str(tmp_path / "ex" / "frf.csv"))
+    assert 10 < doc["frfs"][0]["dominant_mode"]["natural_frequency_hz"] < 25
+
+
+def test_plot_without_matplotlib_prints_results_then_one_line_error(tmp_path, monkeypatch):
+    import sys
+
+    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
+    frf = str(example_path("frf.csv"))
+    result = runner.invoke(app, ["modal", "fit", frf, "--plot", str(tmp_path / "f.png")])
+    assert result.exit_code == 1
+    assert "Dominant mode" in result.stdout and "16." in result.stdout  # the fit came first
+    assert result.stderr.count("\n") == 1 and "pip install 'robovib[plot]'" in result.stderr
+    result = runner.invoke(app, ["modal", "fit", frf, "--json", "--plot", str(tmp_path / "f.png")])
+    assert result.exit_code == 1 and json.loads(result.stdout)["frfs"][0]["dominant_mode"]
+    assert not (tmp_path / "f.png").exists()
 
 
 def test_gpr_predict():
@@ -189,5 +250,37 @@ def test_hybrid_fit_update_predict_next_poses(files, tmp_path):
 def test_slow_studies():
     assert len(run_json("control", "simulate", "milling")["rows"]) > 0
     assert len(run_json("control", "simulate", "offset-mass")["rows"]) > 0
-    assert set(run_json("hybrid", "study")) == {"x", "y", "z"}
+    assert {"x", "y", "z"} <= set(run_json("hybrid", "study"))
+    assert len(run_json("demo")["outputs"]) == 9
     assert len(run_json("control", "schedule")["w1"]) == 20
+
+
+#: Slow commands: their --json documents are checked in test_slow_studies (``-m slow``).
+SLOW_COMMANDS = {"demo", "control simulate", "hybrid study"}
+#: Checked with assert_self_describing in tests/test_report_kinds.py.
+ELSEWHERE = {"report chapter3", "report model", "report lobes", "report control"}
+
+
+def _leaf_commands() -> set[str]:
+    import typer
+
+    def walk(cmd, prefix):
+        subs = getattr(cmd, "commands", None)
+        if not subs:
+            return {" ".join(prefix)}
+        return set().union(*(walk(c, [*prefix, n]) for n, c in subs.items()))
+
+    return walk(typer.main.get_command(app), [])
+
+
+def test_json_provenance_on_every_command():
+    """Every command's --json document was checked by assert_self_describing (run_json) above.
+
+    Runs last in this module; run alone it checks only that no command is missing from the
+    tests (a new command must get a --json run here).
+    """
+    leaves = _leaf_commands()
+    fast = leaves - SLOW_COMMANDS - ELSEWHERE
+    assert SLOW_COMMANDS <= leaves and ELSEWHERE <= leaves
+    if CHECKED:
+        assert fast <= CHECKED, f"commands without a --json smoke run: {sorted(fast - CHECKED)}"

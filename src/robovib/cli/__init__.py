@@ -9,7 +9,21 @@ from typing import Annotated
 
 import typer
 
-from . import campaign, control, demo, frf, gpr, hybrid, mill, modal, model, robot, sim
+from . import (
+    campaign,
+    control,
+    demo,
+    examples,
+    frf,
+    gpr,
+    hybrid,
+    mill,
+    modal,
+    model,
+    report,
+    robot,
+    sim,
+)
 from ._common import ErrorHandlingGroup, set_debug
 
 __all__ = ["app", "main"]
@@ -48,6 +62,7 @@ def _root(
 
 
 app.command("demo")(demo.demo)
+app.command("examples")(examples.examples)
 app.add_typer(gpr.app, name="gpr")
 app.add_typer(frf.app, name="frf")
 app.add_typer(modal.app, name="modal")
@@ -58,6 +73,7 @@ app.add_typer(control.app, name="control")
 app.add_typer(hybrid.app, name="hybrid")
 app.add_typer(campaign.app, name="campaign")
 app.add_typer(model.app, name="model")
+app.add_typer(report.app, name="report")
 
 
 def main() -> None:

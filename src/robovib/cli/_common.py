@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import sys
 from pathlib import Path
 from typing import Annotated, Any
@@ -90,9 +91,26 @@ def workspace_model(path: Path | None, seed: int = 0):
     return load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg"))
 
 
+try:  # Typer >= 0.2x vendors Click as typer._click: its context stack and exceptions are those
+    from typer._click.exceptions import ClickException as _TyperClickException
+    from typer._click.globals import get_current_context as _current_context
+except ImportError:  # pragma: no cover - older Typer on the real Click
+    _TyperClickException = click.exceptions.ClickException
+    _current_context = click.get_current_context
+
+#: Exceptions that keep their own meaning (usage errors, exits) - never turned into "error: ...".
+_PASS_THROUGH = (
+    typer.Exit,
+    typer.Abort,
+    _TyperClickException,
+    click.exceptions.ClickException,
+    click.exceptions.Exit,
+    click.exceptions.Abort,
+)
+
 #: Library errors reported as one line ``error: ...`` with exit code 1.
 EXPECTED_ERRORS = (ValueError, OSError, RuntimeError, KeyError, ImportError)
-_STATE = {"debug": False}
+_STATE: dict[str, Any] = {"debug": False, "argv": []}
 
 
 def new_app(help: str, **kwargs) -> typer.Typer:
@@ -121,7 +139,14 @@ _PASSTHROUGH = _click_passthrough()
 class ErrorHandlingGroup(TyperGroup):
     """Root group: library errors become one line on stderr and exit code 1."""
 
+    def main(self, args=None, prog_name=None, *a, **kw):
+        _STATE["argv"] = [str(v) for v in (sys.argv[1:] if args is None else args)]
+        return super().main(args, prog_name, *a, **kw)
+
     def invoke(self, ctx: click.Context) -> Any:
+        from ..io.provenance import set_run_info_provider
+
+        set_run_info_provider(run_info)
         try:
             return super().invoke(ctx)
         except _PASSTHROUGH:  # typer.Exit is a RuntimeError in recent Typer: --help exits 0
@@ -182,12 +207,158 @@ def _plain(obj: Any) -> Any:
     return obj
 
 
-def emit_json(doc: dict) -> None:
-    """Print ``doc`` as one JSON document (strict: NaN and inf become null, with the reason
-    listed under ``null_reasons``; see :func:`robovib.io.json_dumps`)."""
-    from ..io import json_dumps
+#: Units of JSON keys whose names carry none (counts and ratios are "1").
+KEY_UNITS: dict[str, str] = {
+    "hits": "1 (count)",
+    "hit": "1 (index)",
+    "index": "1 (index)",
+    "samples": "1 (count)",
+    "samples_per_hit": "1 (count)",
+    "segments": "1 (count)",
+    "n_frfs": "1 (count)",
+    "n_hits": "1 (count)",
+    "test": "1 (Table A1 test number)",
+    "n_bins": "1 (count)",
+    "n_oma": "1 (count)",
+    "n_tests": "1 (count)",
+    "n_averaged": "1 (count)",
+    "n_oma_segments": "1 (count)",
+    "position": "1 (index)",
+    "mean_coherence": "1",
+    "relative_rms_error": "1",
+    "mean_rel_error": "1",
+    "mean_relative_error": "1",
+    "min": "1 (relative error)",
+    "max": "1 (relative error)",
+    "rotation": "1 (direction cosines)",
+    "principal_directions": "1 (unit vectors)",
+    "mode_directions": "1 (unit vectors)",
+    "jacobian_condition_number": "1",
+    "cartesian_stiffness_6x6": "N/m, N/rad, N m/m, N m/rad (blocks)",
+    "w1": "m/m (command offset per metre of displacement)",
+    "w2": "m/(m/s) = s (command offset per m/s of velocity)",
+    "thesis_w1": "m/m",
+    "thesis_w2": "s",
+    "w1_poly_high_to_low": "m/m per m^k (polynomial in s [m], highest power first)",
+    "w2_poly_high_to_low": "s per m^k (polynomial in s [m], highest power first)",
+    "gains": "[m/m, s, ...] (W over the delay-augmented state)",
+    "r": "1 (LQR input weight, Q = diag(1, 0.001))",
+    "spectral_radius": "1",
+    "spectral_radius_no_delay": "1",
+    "spectral_radius_with_delay": "1",
+    "gain_margins": "1 (factor)",
+    "iterations_mean": "1 (optimiser iterations per GP)",
+    "flagged_fraction": "1",
+    "n_flutes": "1 (count)",
+    "rtol": "1 (relative tolerance)",
+    "steps_per_period_min": "1 (count)",
+    "steps_per_vibration": "1 (count)",
+    "iterations_mean_per_gp": "1 (optimiser iterations per GP)",
+    "iterations_total": "1 (count)",
+    "n_observations": "1 (count)",
+    "n_rejected": "1 (count)",
+    "scale_real": "1 (noise scale factor)",
+    "scale_imag": "1 (noise scale factor)",
+    "scale_std": "1 (noise scale factor)",
+}
 
-    typer.echo(json_dumps(doc, indent=2))
+
+def unit_of_json_key(key: str) -> str | None:
+    """Unit of a JSON key: from its suffix (``_hz``, ``_n_per_m`` ...) or :data:`KEY_UNITS`."""
+    from ..io.provenance import unit_of_key
+
+    return unit_of_key(key) or KEY_UNITS.get(str(key))
+
+
+def _numeric_keys(obj: Any, key: str | None, out: set[str]) -> None:
+    """Keys whose values (or list items) are numbers, anywhere in ``obj``; a dict under a key
+    with a unit (``{"stiffness_n_per_m": {"x": ...}}``) or with a ``unit`` entry states its own."""
+    if isinstance(obj, dict):
+        if "unit" in obj or "units" in obj or (key is not None and unit_of_json_key(key)):
+            return
+        for k, v in obj.items():
+            _numeric_keys(v, str(k), out)
+    elif isinstance(obj, list):
+        for v in obj:
+            _numeric_keys(v, key, out)
+    elif isinstance(obj, int | float) and not isinstance(obj, bool) and key is not None:
+        out.add(key)
+
+
+def _unit_of_help(text: str | None) -> str | None:
+    m = re.search(r"\[([^\]]+)\]", text or "")
+    return m.group(1) if m else None
+
+
+def run_info() -> dict:
+    """Command (argv as run), settings and their units, and input files of the running command.
+
+    Settings are every parameter of the command (options and arguments) after parsing, defaults
+    included; their units come from the bracketed unit in each option's help (``[mm]``), numbers
+    without one are dimensionless (``"1"``).
+    """
+    ctx = _current_context(silent=True)
+    settings: dict[str, Any] = {}
+    units: dict[str, str] = {}
+    inputs: list[str] = []
+    if ctx is not None:
+        for p in ctx.command.params:
+            if p.name in ("json_out",) or p.name not in ctx.params:
+                continue
+            value = ctx.params[p.name]
+            settings[p.name] = _plain(list(value) if isinstance(value, tuple) else value)
+            unit = _unit_of_help(getattr(p, "help", None))
+            vals = value if isinstance(value, list | tuple) else [value]
+            if unit:
+                units[p.name] = unit
+            elif any(isinstance(v, int | float) and not isinstance(v, bool) for v in vals):
+                units[p.name] = "1"
+            if p.name not in ("output", "plot") and p.name != "output_dir":
+                inputs += [str(v) for v in vals if isinstance(v, Path) and v.is_file()]
+    return {"command": ["robovib", *_STATE["argv"]], "settings": settings, "units": units,
+            "inputs": inputs}  # fmt: skip
+
+
+def emit_json(doc: dict, *, units: dict[str, str] | None = None) -> None:
+    """Print ``doc`` as one self-describing JSON document (strict: NaN and inf become null,
+    the reason listed under ``null_reasons``; see :func:`robovib.io.json_dumps`).
+
+    Added to ``doc``: ``robovib_version``, ``command`` (argv as run), ``settings`` (every option
+    and argument, defaults included), ``settings_units`` (setting -> unit), ``input_files`` (path
+    and SHA-256 of each input file) and ``units`` (unit of every key of ``doc`` whose name has
+    no unit suffix: from :data:`KEY_UNITS` and ``units``).
+    """
+    from ..io import json_dumps
+    from ..io.json_safe import json_safe
+    from ..io.provenance import run_provenance
+
+    prov = run_provenance()
+    raw = dict(doc)
+    raw.pop("robovib_version", None)
+    for key in ("command", "settings", "settings_units", "input_files"):
+        if key in raw:  # the result's own: kept under result_<key>
+            raw[f"result_{key}"] = raw.pop(key)
+    body, _ = json_safe(raw)  # JSON-ready copy (NaN/inf -> null) to find the numbers
+    keys: set[str] = set()
+    _numeric_keys(body, None, keys)
+    extra = dict(units or {})
+    key_units = {}
+    for k in sorted(keys):
+        u = extra.get(k) or unit_of_json_key(k)
+        if u is not None and (k in extra or k in KEY_UNITS):
+            key_units[k] = u
+        elif u is None:
+            key_units[k] = "unknown"
+    out = {
+        "robovib_version": prov["robovib_version"],
+        "command": prov["command"],
+        "settings": prov["settings"],
+        "settings_units": prov["units"],
+        "input_files": prov["input_files"],
+        **raw,
+        "units": {**key_units, **_plain(body.get("units", {}))},
+    }
+    typer.echo(json_dumps(out, indent=2))
 
 
 def check_output(path: Path | None, inputs=(), force: bool = False) -> None:
@@ -212,8 +383,19 @@ def material(name: str):
 
 
 def use_agg() -> None:
-    """Pick matplotlib's file-only backend (the CLI never opens windows)."""
-    import matplotlib
+    """Pick matplotlib's file-only backend (the CLI never opens windows).
+
+    Raises
+    ------
+    ImportError
+        matplotlib is not installed (one line: how to install the extra).
+    """
+    try:
+        import matplotlib
+    except ImportError:
+        raise ImportError(
+            "--plot needs matplotlib: pip install 'robovib[plot]' (the results above are complete)"
+        ) from None
 
     matplotlib.use("Agg")
 

@@ -125,19 +125,24 @@ def schedule(
 
         s, modes = virtual_path_modes(direction=direction, rng=seed)
     sched = schedule_gains(s, modes, warn=warnings_seen.append)
-    if plot is not None:
-        use_agg()
-        sched.plot(plot)
+
+    def draw() -> None:
+        if plot is not None:
+            use_agg()
+            sched.plot(plot)
+
     doc = {"s_m": sched.s_m, "w1": sched.w1, "w2": sched.w2, "r": sched.r, "stable_with_delay": sched.stable_with_delay,
            "w1_poly_high_to_low": sched.w1_poly, "w2_poly_high_to_low": sched.w2_poly, "warnings": warnings_seen}  # fmt: skip
     if json_out:
         emit_json(doc)
+        draw()
         return
     for si, w1, w2 in zip(sched.s_m, sched.w1, sched.w2, strict=True):
-        typer.echo(f"s = {si * 1e3:7.1f} mm   w1 = {w1:9.5f}   w2 = {w2:9.5f}")
+        typer.echo(f"s = {si:6.3f} m   w1 = {w1:9.5f}   w2 = {w2:9.5f}")
     for w in warnings_seen:
         typer.echo(f"warning: {w}")
     if plot is not None:
+        draw()
         typer.echo(f"wrote {plot}")
 
 

@@ -53,7 +53,7 @@ def demo(
         frame = s.to_frame()
         emit_json(
             {
-                "settings": s.settings,
+                "study_settings": s.settings,
                 "outputs": frame.reset_index(names="output").to_dict(orient="records"),
             }
         )

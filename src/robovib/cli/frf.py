@@ -28,7 +28,14 @@ def compute(
     recording: Annotated[
         Path, typer.Argument(help="Hammer recording: .csv or .uff/.unv (dataset 58 time records).")
     ],
-    output: Annotated[Path, typer.Option("-o", "--output", help="FRF file to write: .h5 or .uff.")],
+    output: Annotated[
+        Path,
+        typer.Option(
+            "-o",
+            "--output",
+            help="FRF file to write: .h5, .uff or .csv (frequency_hz, real/imag in m_per_n).",
+        ),
+    ],
     direction: Annotated[
         str | None, typer.Option(help="Excitation/response direction x, y or z (robot base frame).")
     ] = None,

@@ -93,7 +93,9 @@ def oma(
     ],
     output: OutOpt,
     direction: Annotated[str, typer.Option(help="x, y or z.")] = "x",
-    segment_mm: Annotated[float, typer.Option(help="Path length per FRF [mm].")] = 50.0,
+    segment_m: Annotated[
+        float, typer.Option("--segment", help="Path length per FRF [m] (path coordinates in m).")
+    ] = 0.05,
     nperseg: Annotated[int, typer.Option(help="Welch window [samples].")] = 512,
     noverlap: Annotated[
         int | None, typer.Option(help="Welch overlap [samples] (default half a window).")
@@ -118,7 +120,7 @@ def oma(
 
     check_output(output, [record], force)
     frfs = oma_frfs_with_path(
-        read_milling_record_csv(record), direction=direction, segment_length_m=segment_mm / 1e3,
+        read_milling_record_csv(record), direction=direction, segment_length_m=segment_m,
         nperseg=nperseg, noverlap=noverlap, window=window, f_min_hz=fmin, f_max_hz=fmax,
         spindle_rpm=rpm, min_coherence=min_coherence,
     )  # fmt: skip
@@ -142,7 +144,10 @@ def fit(
         typer.Argument(help="EMA FRF files (.h5) with path coordinates (frf compute --path-s)."),
     ],
     output: OutOpt,
-    fmin: Annotated[float, typer.Option(help="Model grid start [Hz].")] = 2.0,
+    fmin: Annotated[
+        float | None,
+        typer.Option(help="Model grid start [Hz]; default: where all EMA FRFs have data (>= 2)."),
+    ] = None,
     fmax: Annotated[float, typer.Option(help="Model grid end [Hz].")] = 40.0,
     df_hz: Annotated[
         float, typer.Option("--df", help="Model grid step [Hz] (match the OMA resolution).")
@@ -167,8 +172,10 @@ def fit(
         raise ValueError(f"--inputs must be one of {list(INPUT_SETS)}, got {inputs!r}")
     check_output(output, ema, force)
     names = INPUT_SETS[inputs]
-    grid = frequency_grid(fmin, fmax, df_hz)
     frfs = [f for path in ema for f in read_frfs(path)]
+    if fmin is None:  # where all EMA FRFs have data
+        fmin = max([2.0, *(float(f.frequency_hz[0]) for f in frfs)])
+    grid = frequency_grid(fmin, fmax, df_hz)
     kernel = "isotropic" if inputs == "path" else "ard"
     model = FRFPoseModel(grid, kernel=kernel, input_names=names).fit_frfs(frfs)
     model.save(output, provenance={"ema_files": ",".join(str(p) for p in ema)}, inputs=ema,
@@ -253,7 +260,10 @@ def predict(
         Path | None, typer.Option(help="A measured FRF file to compare with (first FRF).")
     ] = None,
     plot: Annotated[
-        Path | None, typer.Option(help="PNG: predicted FRF with 95 % band (and the measured one).")
+        Path | None,
+        typer.Option(
+            help="PNG: predicted FRF (magnitude/unwrapped phase, real/imaginary) with 95 % band and the measured one."
+        ),
     ] = None,
     json_out: JsonFlag = False,
 ) -> None:
@@ -276,11 +286,15 @@ def predict(
     meas = read_frfs(measured)[0] if measured is not None else None
     pred = predict_frf_at(model, pose, meas)
     doc = pred.to_dict()
-    if plot is not None:
-        use_agg()
-        save_figure(plot_frf_prediction(pred), plot, inputs=[model_file, measured])
+
+    def draw() -> None:
+        if plot is not None:
+            use_agg()
+            save_figure(plot_frf_prediction(pred), plot, inputs=[model_file, measured])
+
     if json_out:
         emit_json(doc)
+        draw()
         return
     if pred.extrapolating:
         typer.echo("warning: the pose is outside the calibrated range: extrapolation")
@@ -292,6 +306,7 @@ def predict(
     if pred.rmse_um_per_n is not None:
         typer.echo(f"RMSE vs measured: {pred.rmse_um_per_n:.3f} um/N")
     if plot is not None:
+        draw()
         typer.echo(f"wrote {plot}")
 
 
@@ -318,9 +333,6 @@ def next_poses(
     check_output(plot)
     tested = path_s if path_s else [0.0, 0.585, 1.235]
     res = propose_next_poses(tested, k=k, direction=direction, rng=seed)
-    if plot is not None:
-        use_agg()
-        save_figure(plot_next_poses(res), plot)
     if json_out:
         emit_json({"tested_s_m": res.tested_s_m, "next_s_m": res.next_s_m})
     else:
@@ -328,3 +340,8 @@ def next_poses(
             "next hammer-test poses (path distance, m): "
             + ", ".join(f"{p:.3f}" for p in res.next_s_m)
         )
+    if plot is not None:
+        use_agg()
+        save_figure(plot_next_poses(res), plot)
+        if not json_out:
+            typer.echo(f"wrote {plot}")

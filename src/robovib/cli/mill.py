@@ -255,7 +255,7 @@ def lobes(
 
     outside = list(pose_extrapolation(model, pose)) if model is not None else []
     if json_out:
-        emit_json({"command": "mill lobes", "pose_mm_deg": pose, "material": material_name,
+        emit_json({"pose_mm_deg": pose, "material": material_name,
                    "extrapolation": outside, **doc})  # fmt: skip
         return
     env = chart.envelope
@@ -361,7 +361,6 @@ def lobe_map(
     vals = np.where(np.isfinite(at.values), at.values, np.nan)
     i, j = np.unravel_index(np.nanargmax(vals), vals.shape)
     doc = {
-        "command": "mill map",
         "method": method,
         "rz_deg": rz,
         "spindle_rpm": rpm,

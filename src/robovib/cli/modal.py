@@ -61,26 +61,12 @@ def fit(
         except (ValueError, RuntimeError) as exc:
             fail(f"FRF {i}: {exc}")
         results.append((frf, dom, multi))
-    if plot is not None:
-        use_agg()
-        from ..modal.plot import plot_frf_fit
-
-        frf, dom, multi = results[0]
-        shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
-        fitted = multi.modes if multi is not None else (dom.parameters,)
-        plot_frf_fit(
-            shown,
-            fitted,
-            plot,
-            residual=0j if multi else dom.residual_compliance,
-            title=f"{frf_file.name}, FRF 0",
-        )
     docs = []
     for i, (frf, dom, multi) in enumerate(results):
         doc = {
             "index": i,
             "direction": frf.direction,
-            "pose": frf.pose,
+            "pose_m_deg": frf.pose,
             "dominant_mode": dom.to_dict(),
         }
         if multi is not None:
@@ -94,6 +80,8 @@ def fit(
     ]
     if json_out:
         emit_json({"file": str(frf_file), "frfs": docs, "n_flagged": len(flagged)})
+        if plot is not None:
+            _plot(frf_file, results, plot, force)
         _flagged_exit(flagged, keep_flagged)
         return
     con = console()
@@ -138,6 +126,7 @@ def fit(
             )
         con.print(t)
     if plot is not None:
+        _plot(frf_file, results, plot, force)
         con.print(f"wrote {plot}")
     _flagged_exit(flagged, keep_flagged)
 
@@ -152,3 +141,28 @@ def _flagged_exit(flagged, keep_flagged: bool) -> None:
         typer.echo(f"warning: {len(flagged)} flagged fit(s) kept: {detail}{more}", err=True)
         return
     fail(f"{len(flagged)} fit(s) flagged: {detail}{more}; see the flags, or pass --keep-flagged")
+
+
+def _plot(frf_file: Path, results, plot: Path, force: bool) -> None:
+    """The first FRF with its fit (magnitude/unwrapped phase, Re/Im, coherence; flags in red),
+    drawn after the results are printed."""
+    use_agg()
+    import matplotlib.pyplot as plt
+
+    from ..io import save_figure
+    from ..modal.plot import plot_frf_fit
+
+    frf, dom, multi = results[0]
+    shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
+    fitted = multi.modes if multi is not None else (dom.parameters,)
+    fig = plot_frf_fit(
+        shown,
+        fitted,
+        residual=0j if multi else dom.residual_compliance,
+        title=f"{frf_file.name}, FRF 0",
+        flags=(*dom.flags, *(multi.flags if multi is not None else ())),
+    )
+    try:
+        save_figure(fig, plot, inputs=[frf_file], force=force)
+    finally:
+        plt.close(fig)

@@ -163,14 +163,18 @@ def compare(
     table = compare_with_table_a1().to_frame()
     summary = comparison_summary(table)
     gp = gp_input_comparison().to_frame() if gp_inputs else None
-    if plot is not None:
-        use_agg()
-        plot_comparison(table, plot)
+
+    def draw() -> None:
+        if plot is not None:
+            use_agg()
+            plot_comparison(table, plot)
+
     if json_out:
         doc = {"summary": summary, "poses": table.to_dict(orient="records")}
         if gp is not None:
             doc["gp_inputs"] = gp.to_dict(orient="records")
         emit_json(doc)
+        draw()
         return
     con = console()
     t = Table(
@@ -196,4 +200,5 @@ def compare(
             t.add_row(escape(out), *[f"{100 * v:.1f} %" for v in row])
         con.print(t)
     if plot is not None:
+        draw()
         con.print(f"wrote {plot}")

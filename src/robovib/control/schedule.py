@@ -49,14 +49,12 @@ class GainSchedule:
         fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
         dense = np.linspace(self.s_m.min(), self.s_m.max(), 200)
         for ax, w, poly, name in (
-            (axes[0], self.w1, self.w1_poly, "w1"),
-            (axes[1], self.w2, self.w2_poly, "w2"),
+            (axes[0], self.w1, self.w1_poly, "w1 [m/m]"),
+            (axes[1], self.w2, self.w2_poly, "w2 [s]"),
         ):
-            ax.plot(self.s_m * 1e3, w, "o", label="designed")
-            ax.plot(
-                dense * 1e3, np.polyval(poly, dense), "-", label="polynomial fit (Eq. 28-29 form)"
-            )
-            ax.set_xlabel("distance along the path [mm]")
+            ax.plot(self.s_m, w, "o", label="designed")
+            ax.plot(dense, np.polyval(poly, dense), "-", label="polynomial fit (Eq. 28-29 form)")
+            ax.set_xlabel("distance along the path s [m]")
             ax.set_ylabel(name)
             ax.legend(fontsize=8)
         fig.tight_layout()

@@ -28,8 +28,11 @@ import pandas as pd
 
 __all__ = [
     "DIRECTIONS",
+    "EXAMPLES",
     "MODAL_QUANTITIES",
     "REFERENCE_TABLES",
+    "copy_examples",
+    "example_path",
     "load_reference_table",
     "load_table_a1",
     "load_table_a2",
@@ -177,3 +180,64 @@ def load_reference_table(number: int | str) -> pd.DataFrame:
     if key not in REFERENCE_TABLES:
         raise ValueError(f"no reference table {number!r}; available: {', '.join(REFERENCE_TABLES)}")
     return _read_csv(REFERENCE_TABLES[key])
+
+
+#: Example recordings shipped for each workflow (``scripts/make_examples.py``, virtual robot).
+EXAMPLES: dict[str, str] = {
+    "hammer.uff": "impact-hammer recording, UFF 58, X, 3 hits at X 2400 mm, Y 0, Rz 45 deg "
+    "(robovib frf compute)",
+    "hammer.csv": "impact-hammer recording, CSV hit,time_s,force_n,acceleration_m_per_s2, X, "
+    "3 hits at X 2100 mm, Y 300 mm, Rz 90 deg (robovib frf compute)",
+    "frf.csv": "compliance FRF of hammer.uff: frequency_hz,x_real_um_per_n,x_imag_um_per_n,"
+    "x_coherence (robovib modal fit)",
+    "milling_record.csv": "100 mm acetal cut along the chapter-4 path: forces, displacements, "
+    "path_s_m (robovib hybrid oma)",
+    "cuts.csv": "test cuts spindle_rpm,depth_mm,result (stable/chatter) at X 2400 mm, Y 0, "
+    "Rz 45 deg, ae 6 mm, al7075",
+    "campaign.csv": "campaign manifest naming hammer.uff and hammer.csv with their poses "
+    "(robovib.campaign)",
+}
+
+
+def example_path(name: str):
+    """Path of a shipped example file (see :data:`EXAMPLES`), e.g. ``example_path("hammer.uff")``.
+
+    Returns
+    -------
+    pathlib.Path
+        The file inside the installed package (read it, copy it; do not write to it).
+
+    Raises
+    ------
+    ValueError
+        Unknown example name (the known ones are listed).
+    """
+    from pathlib import Path
+
+    if name not in EXAMPLES:
+        raise ValueError(f"unknown example {name!r}; shipped: {', '.join(EXAMPLES)}")
+    return Path(str(resources.files("robovib.datasets") / "examples" / name))
+
+
+def copy_examples(folder, names=None) -> list:
+    """Copy shipped examples into ``folder`` (created if missing); returns the new paths.
+
+    Raises
+    ------
+    ValueError
+        Unknown example name.
+    OSError
+        The folder cannot be created or written.
+    """
+    import shutil
+    from pathlib import Path
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for name in names or list(EXAMPLES):
+        src = example_path(name)
+        dst = folder / name
+        shutil.copyfile(src, dst)
+        out.append(dst)
+    return out

@@ -3,11 +3,13 @@
 from .core import FRF, RESPONSE_TO_QUANTITY, to_compliance
 from .estimate import SpectralDensities, estimate_frf, spectral_densities
 from .impact import HitReport, ImpactResult, check_hit, impact_frf
+from .plot import FRFCurve, plot_frf, unwrapped_phase_deg
 from .segment import HitSegmentation, segment_hits
 
 __all__ = [
     "FRF",
     "RESPONSE_TO_QUANTITY",
+    "FRFCurve",
     "HitReport",
     "HitSegmentation",
     "ImpactResult",
@@ -15,7 +17,9 @@ __all__ = [
     "check_hit",
     "estimate_frf",
     "impact_frf",
+    "plot_frf",
     "segment_hits",
     "spectral_densities",
     "to_compliance",
+    "unwrapped_phase_deg",
 ]

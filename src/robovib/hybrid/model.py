@@ -84,6 +84,13 @@ def frequency_grid(f_min_hz: float, f_max_hz: float, df_hz: float) -> np.ndarray
     return lo + df * np.arange(n)
 
 
+#: Units of the datasets of a saved model (compliance targets scaled to um/N).
+_DATASET_UNITS = {
+    "frequency_hz": "Hz", "X_train": "input units (input_names)", "Y_train": "um/N", "mask": "1",
+    "groups": "1 (0=EMA, 1=OMA)", "theta": "1 (log hyperparameters, scaled)",
+    "x_loc": "input units", "x_scale": "input units", "y_loc": "um/N", "y_scale": "um/N",
+    "pose_lo": "input units", "pose_hi": "input units",
+}  # fmt: skip
 _FORMAT = "robovib-frf-pose-model"
 _VERSION = 2
 _SCALE = 1e6  # m/N -> um/N: O(1) numbers inside the GPs
@@ -669,6 +676,7 @@ class FRFPoseModel(BaseEstimator):
         import h5py
 
         from .. import __version__
+        from ..io.provenance import set_units, write_provenance
         from ..io.safe_write import atomic_output
 
         self._require_fitted()
@@ -692,7 +700,10 @@ class FRFPoseModel(BaseEstimator):
                 "x_scale": gp._x_scale, "y_loc": gp._y_loc, "y_scale": gp._y_scale,
                 "pose_lo": self.pose_range_[0], "pose_hi": self.pose_range_[1],
             }.items():  # fmt: skip
-                h5.create_dataset(name, data=value)
+                set_units(
+                    h5.create_dataset(name, data=value), _DATASET_UNITS.get(name, "input units")
+                )
+            write_provenance(h5, inputs=inputs)
 
     @classmethod
     def load(cls, path) -> FRFPoseModel:
@@ -713,7 +724,7 @@ class FRFPoseModel(BaseEstimator):
         with h5:
             if h5.attrs.get("format") != _FORMAT or int(h5.attrs.get("version", -1)) not in (1, 2):
                 raise ValueError(f"{path}: not a robovib FRF pose model (version 1 or 2)")
-            d = {k: h5[k][()] for k in h5}
+            d = {k: h5[k][()] for k in h5 if isinstance(h5[k], h5py.Dataset)}
             kernel = str(h5.attrs["kernel"])
             direction = str(h5.attrs.get("direction", "")) or None
             names = tuple(str(v) for v in h5.attrs.get("input_names", ["s_m"]))

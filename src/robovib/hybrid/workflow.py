@@ -236,31 +236,36 @@ def predict_frf_at(model: FRFPoseModel, pose, measured: FRF | None = None) -> FR
     )  # fmt: skip
 
 
-def plot_frf_prediction(result: FRFPrediction, ax=None):
-    """Predicted |FRF| with its ±2σ band (and the measured one), log scale.
+def plot_frf_prediction(result: FRFPrediction, ax=None, *, view: str = "both"):
+    """Predicted compliance FRF with its ±2σ band (and the measured one).
+
+    Magnitude and unwrapped phase, and real and imaginary parts (``view``, see
+    :func:`robovib.frf.plot_frf`); extrapolation is stated in the title.
+
+    Parameters
+    ----------
+    result
+        A prediction from :func:`predict_frf_at`.
+    ax
+        Axes to draw into (2 or 4 depending on ``view``); a new figure when None.
+    view
+        ``"bode"``, ``"real-imag"`` or ``"both"``.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    import matplotlib.pyplot as plt
+    from ..frf import FRF, FRFCurve, plot_frf
 
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(7, 4))
-    else:
-        fig = ax.figure
-    f, h, sd = result.frequency_hz, result.compliance_m_per_n, result.std_m_per_n
-    ax.semilogy(f, np.abs(h), color="C0", label="predicted")
-    ax.fill_between(
-        f, np.maximum(np.abs(h) - 2 * sd, 1e-12), np.abs(h) + 2 * sd, color="C0", alpha=0.2,
-        label="±2σ",
-    )  # fmt: skip
+    f = result.frequency_hz
+    main = FRF(f, result.compliance_m_per_n, source="model", estimator="model")
+    overlays = [
+        FRFCurve("±2σ", f, result.compliance_m_per_n, std=result.std_m_per_n, style="", color="C0")
+    ]
     if result.measured_m_per_n is not None:
-        ax.semilogy(f, np.abs(result.measured_m_per_n), "k--", label="measured")
-    ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("|compliance| [m/N]")
+        overlays.append(FRFCurve("measured", f, result.measured_m_per_n, style="--", color="k"))
     where = ", ".join(f"{n} = {v:g}" for n, v in zip(result.input_names, result.pose, strict=False))
-    ax.set_title(f"prediction at {where or f's_m = {result.s_m:g}'}")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
+    title = f"prediction at {where or f's_m = {result.s_m:g}'}"
+    if result.extrapolating:
+        title += " (EXTRAPOLATION)"
+    return plot_frf(main, ax, view=view, overlays=overlays, title=title, coherence=False)

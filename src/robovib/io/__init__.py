@@ -5,6 +5,7 @@ Units and sensor sensitivities are converted to SI here, at the edge.
 
 from .atomic import atomic_path
 from .cuts import MeasuredCuts, read_cuts_csv
+from .frf_csv import FRF_CSV_UNITS, read_frf_csv, write_frf_csv
 from .frf_files import (
     read_frfs,
     read_frfs_hdf5,
@@ -36,12 +37,12 @@ from .tables import (
     read_path_modes_csv,
     write_path_modes_csv,
     write_recording,
-    write_recording_csv,
 )
 from .uff58 import Record58, write_uff58
 from .units import apply_sensitivity, si_factor
 
 __all__ = [
+    "FRF_CSV_UNITS",
     "HammerRecording",
     "MeasuredCuts",
     "OutputPathError",
@@ -57,6 +58,7 @@ __all__ = [
     "read_compliance_tests_csv",
     "read_cuts_csv",
     "read_force_csv",
+    "read_frf_csv",
     "read_frfs",
     "read_frfs_hdf5",
     "read_frfs_uff",
@@ -71,6 +73,7 @@ __all__ = [
     "save_figure",
     "select_channel",
     "si_factor",
+    "write_frf_csv",
     "write_frfs",
     "write_frfs_hdf5",
     "write_frfs_uff",

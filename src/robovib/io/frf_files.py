@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..frf.core import FRF
+from .provenance import set_units, unit_of_key, write_provenance
 from .safe_write import atomic_output
 
 __all__ = [
@@ -36,6 +37,8 @@ __all__ = [
 ]
 
 _FORMAT = "robovib-frf"
+#: Unit of the stored FRF values per quantity (SI).
+FRF_UNITS = {"compliance": "m/N", "mobility": "m/s/N", "accelerance": "m/s^2/N"}
 _QUANTITY_SPEC = {"compliance": 8, "mobility": 11, "accelerance": 12}
 _SPEC_QUANTITY = {v: k for k, v in _QUANTITY_SPEC.items()}
 _QUANTITY_LABEL = {"compliance": "m/N", "mobility": "m/s/N", "accelerance": "m/s^2/N"}
@@ -72,10 +75,10 @@ def write_frfs_hdf5(
         grp = h5.create_group("frf")
         for i, frf in enumerate(frfs):
             g = grp.create_group(f"{i:06d}")
-            g.create_dataset("frequency_hz", data=frf.frequency_hz)
-            g.create_dataset("values", data=frf.values)
+            set_units(g.create_dataset("frequency_hz", data=frf.frequency_hz), "Hz")
+            set_units(g.create_dataset("values", data=frf.values), FRF_UNITS[frf.quantity])
             if frf.coherence is not None:
-                g.create_dataset("coherence", data=frf.coherence)
+                set_units(g.create_dataset("coherence", data=frf.coherence), "1")
             g.attrs["quantity"] = frf.quantity
             g.attrs["direction"] = frf.direction or ""
             g.attrs["source"] = frf.source
@@ -89,13 +92,14 @@ def write_frfs_hdf5(
             )
             for key, value in frf.meta.items():
                 if isinstance(value, np.ndarray):
-                    g.create_dataset(f"meta_{key}", data=value)
+                    set_units(g.create_dataset(f"meta_{key}", data=value), unit_of_key(key) or "1")
                 elif isinstance(value, int | float | str | bool | np.generic):
                     g.attrs[f"meta_{key}"] = value
                 else:
                     raise ValueError(
                         f"FRF meta {key!r} of type {type(value).__name__} cannot be stored"
                     )
+        write_provenance(h5, inputs=inputs)
 
 
 def read_frfs_hdf5(path: str | Path) -> list[FRF]:
@@ -448,7 +452,11 @@ def write_frfs(
         return write_frfs_hdf5(path, frfs, inputs=inputs, force=force)
     if suffix in (".uff", ".unv"):
         return write_frfs_uff(path, frfs, inputs=inputs, force=force)
-    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff or .unv")
+    if suffix == ".csv":
+        from .frf_csv import write_frf_csv
+
+        return write_frf_csv(path, frfs, inputs=inputs, force=force)
+    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv")
 
 
 def read_frfs(path: str | Path) -> list[FRF]:
@@ -458,4 +466,8 @@ def read_frfs(path: str | Path) -> list[FRF]:
         return read_frfs_hdf5(path)
     if suffix in (".uff", ".unv"):
         return read_frfs_uff(path)
-    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff or .unv")
+    if suffix == ".csv":
+        from .frf_csv import read_frf_csv
+
+        return read_frf_csv(path)
+    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv")

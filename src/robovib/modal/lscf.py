@@ -26,6 +26,8 @@ from ..frf.core import FRF
 from .parameters import ModalParameters, remove_exponential_window_damping
 from .sdof import MAX_RELATIVE_RMS_ERROR
 
+_FRF_UNIT = {"compliance": "m/N", "mobility": "m/s/N", "accelerance": "m/s^2/N"}
+
 __all__ = [
     "ModalFitWarning",
     "MultiModeFit",
@@ -103,11 +105,11 @@ class StabilizationDiagram:
             ax.plot(fn[~st], np.full((~st).sum(), n), "x", color="0.6", ms=4)
             ax.plot(fn[st], np.full(st.sum(), n), "o", color="C0", ms=4, mfc="none")
         ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel("model order")
+        ax.set_ylabel("model order [-]")
         if frf is not None:
             ax2 = ax.twinx()
             ax2.semilogy(frf.frequency_hz, np.abs(frf.values), color="C3", lw=1)
-            ax2.set_ylabel("|H|")
+            ax2.set_ylabel(f"|H| [{_FRF_UNIT.get(frf.quantity, '?')}]")
         return ax
 
 

@@ -5,9 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
-
 from ..frf.core import FRF
+from ..frf.plot import FRFCurve, FRFView, plot_frf
 from .parameters import ModalParameters
 
 __all__ = ["plot_frf_fit"]
@@ -19,35 +18,53 @@ def plot_frf_fit(
     path: str | Path | None = None,
     residual: complex = 0j,
     title: str | None = None,
+    *,
+    flags: Sequence[str] = (),
+    view: FRFView = "both",
+    ax=None,
 ):
-    """Magnitude, phase and coherence of a compliance FRF with the fitted modes' curve."""
-    try:
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise ImportError("plots need matplotlib: pip install 'robovib[plot]'") from None
+    """A compliance FRF with the fitted modes' curve: magnitude, unwrapped phase, Re, Im, coherence.
 
-    n_rows = 3 if frf.coherence is not None else 2
-    fig, axes = plt.subplots(n_rows, 1, sharex=True, figsize=(7, 2.2 * n_rows + 0.6))
+    Parameters
+    ----------
+    frf
+        Measured compliance FRF [m/N] (the fit band).
+    fitted
+        Fitted modes; their summed compliance (+ ``residual``) is drawn dashed.
+    path
+        If given, the figure is written there (atomically) and closed.
+    residual
+        Constant residual compliance [m/N] of the fit.
+    title
+        Figure title.
+    flags
+        Reasons the fit should not be trusted (:attr:`robovib.modal.ModalFit.flags`): shown in
+        red on the figure, title prefixed "FLAGGED FIT".
+    view
+        ``"bode"``, ``"real-imag"`` or ``"both"`` (see :func:`robovib.frf.plot_frf`).
+    ax
+        Axes to draw into (see :func:`robovib.frf.plot_frf`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     f = frf.frequency_hz
-    label = "predicted" if frf.source == "model" else f"measured ({frf.source} {frf.estimator})"
-    axes[0].semilogy(f, np.abs(frf.values), color="C0", label=label)
-    axes[1].plot(f, np.degrees(np.angle(frf.values)), color="C0")
+    overlays = []
     if fitted:
         model = sum(m.compliance(f) for m in fitted) + residual
-        axes[0].semilogy(f, np.abs(model), "--", color="C3", label="fit")
-        axes[1].plot(f, np.degrees(np.angle(model)), "--", color="C3")
-    axes[0].set_ylabel("|H| [m/N]")
-    axes[1].set_ylabel("phase [deg]")
-    axes[0].legend(loc="best", fontsize=8)
-    if frf.coherence is not None:
-        axes[2].plot(f, frf.coherence, color="C2")
-        axes[2].set_ylim(0, 1.05)
-        axes[2].set_ylabel("coherence")
-    axes[-1].set_xlabel("frequency [Hz]")
-    if title:
-        axes[0].set_title(title)
-    fig.tight_layout()
+        overlays.append(FRFCurve("fit" if not flags else "fit (flagged)", f, model))
+    if flags:
+        title = f"FLAGGED FIT - {title}" if title else "FLAGGED FIT"
+    fig = plot_frf(frf, ax, view=view, overlays=overlays, title=title)
+    if flags:
+        fig.axes[0].title.set_color("C3")
+        fig.text(0.01, 0.005, "\n".join(f"flag: {r}" for r in flags), color="C3", fontsize=7,
+                 va="bottom", ha="left", wrap=True)  # fmt: skip
+        fig.subplots_adjust(bottom=min(0.35, 0.06 + 0.03 * len(flags)))
     if path is not None:
+        import matplotlib.pyplot as plt
+
         from ..io.safe_write import save_figure
 
         save_figure(fig, path)

@@ -151,12 +151,15 @@ def render_html(report: Report) -> str:
     return "".join(parts)
 
 
-def write_report(report: Report, path: str | Path) -> Path:
-    """Write the report's HTML atomically (temporary file in the target folder, then rename)."""
+def write_report(report: Report, path: str | Path, *, inputs=(), force: bool = False) -> Path:
+    """Write the report's HTML atomically (temporary file in the target folder, then rename).
+
+    ``path`` must not be one of ``inputs`` unless ``force`` (:func:`robovib.io.atomic_output`).
+    """
     from ..io.safe_write import atomic_output
 
     path = Path(path)
     text = render_html(report)
-    with atomic_output(path) as tmp:
+    with atomic_output(path, inputs=inputs, force=force) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return path

@@ -3,13 +3,24 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .html import Report, ReportSection
 
-__all__ = ["chapter3_report", "plot_cv_rmse_ratio", "result_report"]
+__all__ = [
+    "chapter3_report",
+    "chapter3_study_report",
+    "control_report",
+    "control_study_report",
+    "lobes_report",
+    "lobes_study_report",
+    "model_report",
+    "plot_cv_rmse_ratio",
+    "result_report",
+]
 
 
 def result_report(
@@ -92,6 +103,19 @@ def plot_cv_rmse_ratio(study, ax=None):
     return fig
 
 
+def _provenance(provenance, inputs=()) -> dict:
+    """The given provenance, or the run's (command, settings, input SHA-256) from robovib.io."""
+    if provenance is not None:
+        return dict(provenance)
+    from ..io.provenance import run_provenance
+
+    prov = run_provenance(inputs=inputs)
+    return {
+        "command": " ".join(prov["command"]),
+        "input_files": [f"{i['path']} (sha256 {i['sha256']})" for i in prov["input_files"]],
+    }
+
+
 def chapter3_report(study, provenance: Mapping[str, Any] | None = None) -> Report:
     """The chapter-3 study (GPR vs thesis Table 2, MLR, external validation) as a report."""
     frame = study.to_frame()
@@ -118,3 +142,348 @@ def chapter3_report(study, provenance: Mapping[str, Any] | None = None) -> Repor
         settings=dict(study.settings),
         provenance=dict(provenance or {}),
     )
+
+
+def chapter3_study_report(
+    *, kernel: str = "ard", n_splits: int = 5, mode_switch: bool = True, rng: int = 0
+) -> Report:
+    """Run the chapter-3 study (:func:`robovib.gp.study.chapter3_study`) and report it."""
+    from ..studies.chapter3 import chapter3_study
+
+    if kernel not in ("ard", "isotropic"):
+        raise ValueError(f"unknown kernel {kernel!r}; use 'ard' or 'isotropic'")
+    if int(n_splits) != n_splits or not 2 <= n_splits <= 20:
+        raise ValueError(
+            f"n_splits must be an integer in [2, 20] (cross-validation folds), got {n_splits}"
+        )
+    study = chapter3_study(kernel=kernel, n_splits=n_splits, mode_switch=mode_switch, rng=rng)
+    return chapter3_report(study, _provenance(None))
+
+
+# ----------------------------------------------------------------------------- pose models
+def _load_model(path):
+    """A saved pose model: robovib.gp.PoseModalModel when available, the campaign's
+    TablePoseModel, or the hybrid FRF model (by the file's format tag)."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as h5:
+            fmt = str(h5.attrs.get("format", ""))
+    except OSError as exc:
+        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+    if fmt == "robovib-frf-pose-model":
+        from ..hybrid import FRFPoseModel
+
+        return FRFPoseModel.load(path)
+    try:  # engineer "gp": the shared pose-model interface, once on main
+        from ..gp import PoseModalModel
+
+        return PoseModalModel.load(path)
+    except (ImportError, AttributeError, ValueError, KeyError):
+        pass
+    if fmt == "robovib-pose-modal":
+        from ..campaign.model import TablePoseModel
+
+        return TablePoseModel.load(path)
+    raise ValueError(
+        f"{path}: format {fmt!r} is not a robovib pose model (robovib-pose-modal) or hybrid "
+        "FRF model (robovib-frf-pose-model)"
+    )
+
+
+def _file_provenance(path) -> dict:
+    from ..io.provenance import read_provenance
+
+    try:
+        prov = read_provenance(path)
+    except KeyError:
+        return {"model file provenance": "none stored (written before robovib stored it)"}
+    return {
+        "model written by": " ".join(prov["command"]),
+        "model robovib_version": prov["robovib_version"],
+        "model settings": prov["settings"],
+        "model inputs": [f"{i['path']} (sha256 {i['sha256']})" for i in prov["input_files"]],
+    }
+
+
+def plot_pose_model_slice(model, ax=None, n: int = 60):
+    """Predicted natural frequency per direction along the first input (others at mid-range).
+
+    Parameters
+    ----------
+    model
+        A fitted pose model (``PoseModalModel`` interface: ``input_names``, ``directions``,
+        ``X_train_``, ``predict(X, return_std=True)``).
+    ax
+        Axes to draw into; a new figure when None.
+    n
+        Points along the first input.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7, 3.6))
+    else:
+        fig = ax.figure
+    X = np.asarray(model.X_train_, float)
+    lo, hi = X.min(axis=0), X.max(axis=0)
+    grid = np.tile((lo + hi) / 2, (n, 1))
+    grid[:, 0] = np.linspace(lo[0], hi[0], n)
+    mean, std = model.predict(grid, return_std=True)
+    names = list(model.output_names_)
+    for i, d in enumerate(model.directions):
+        j = names.index(f"{d}_fn_hz")
+        ax.plot(grid[:, 0], mean[:, j], color=f"C{i}", label=f"{d.upper()} fn")
+        ax.fill_between(grid[:, 0], mean[:, j] - 2 * std[:, j], mean[:, j] + 2 * std[:, j],
+                        color=f"C{i}", alpha=0.2)  # fmt: skip
+    name = model.input_names[0]
+    unit = name.rsplit("_", 1)[-1] if "_" in name else "-"
+    others = ", ".join(
+        f"{k} = {v:g}" for k, v in zip(model.input_names[1:], grid[0, 1:], strict=True)
+    )
+    ax.set_xlabel(f"{name} [{unit}]")
+    ax.set_ylabel("natural frequency [Hz]")
+    ax.set_title(f"prediction ±2σ ({others})" if others else "prediction ±2σ", fontsize=9)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
+    """Report of a saved pose model (campaign/user model, or a hybrid FRF model).
+
+    Raises
+    ------
+    ValueError
+        The file is not a robovib pose model.
+    """
+    import pandas as pd
+
+    from ..report.html import file_sha256
+
+    model = _load_model(path)
+    prov = {**_provenance(provenance, inputs=[path]), **_file_provenance(path)}
+    prov.setdefault("model file sha256", file_sha256(path))
+    if hasattr(model, "frequency_hz") and hasattr(model, "pose_range_"):
+        return _frf_model_report(model, path, prov)
+    X = np.asarray(model.X_train_, float)
+    Y = np.asarray(model.Y_train_, float)
+    inputs = pd.DataFrame({"input": list(model.input_names), "min": X.min(axis=0),
+                           "max": X.max(axis=0)}).set_index("input")  # fmt: skip
+    mean, std = model.predict(X, return_std=True)
+    names = list(model.output_names_)
+    resid = pd.DataFrame(
+        {
+            "training cells": np.isfinite(Y).sum(axis=0),
+            "mean (SI)": np.nanmean(Y, axis=0),
+            "RMS residual at training poses (SI)": np.sqrt(np.nanmean((mean - Y) ** 2, axis=0)),
+            "mean predictive std (SI)": std.mean(axis=0),
+        },
+        index=pd.Index(names, name="output (unit in the name)"),
+    )
+    section = ReportSection(
+        title="Pose model of the modal parameters",
+        paragraphs=(
+            f"{type(model).__name__} from {path}: {X.shape[0]} training rows, inputs "
+            f"{', '.join(model.input_names)}, outputs {', '.join(names)} (SI).",
+        ),
+        notes=(
+            "The shared robovib.gp.PoseModalModel (engineer 'gp') is used when available; "
+            "otherwise the campaign's TablePoseModel format is read.",
+        ),
+        tables=(("Training range of each input", inputs), ("Fit at the training poses", resid)),
+        figures=(
+            ("Predicted natural frequencies along the first input", plot_pose_model_slice(model)),
+        ),
+    )
+    settings = {k: v for k, v in model.get_params().items()} if hasattr(model, "get_params") else {}
+    return Report(f"robovib — pose model {Path(path).name}", (section,), settings=settings,
+                  provenance=prov)  # fmt: skip
+
+
+def _frf_model_report(model, path, prov) -> Report:
+    import pandas as pd
+
+    from ..frf import FRF, FRFCurve, plot_frf
+
+    lo, hi = float(np.min(model.pose_range_[0])), float(np.max(model.pose_range_[1]))
+    s = np.linspace(lo, hi, 5)
+    h, sd = model.predict(s, return_std=True)
+    f = np.asarray(model.frequency_hz)
+    peak = np.argmax(np.abs(h), axis=1)
+    table = pd.DataFrame({
+        "s_m": s,
+        "peak_frequency_hz": f[peak],
+        "peak_compliance_um_per_n": 1e6 * np.abs(h[np.arange(s.size), peak]),
+        "std_at_peak_um_per_n": 1e6 * sd[np.arange(s.size), peak],
+    })  # fmt: skip
+    main = FRF(f, h[0], source="model", estimator="model")
+    overlays = [
+        FRFCurve(f"s = {v:.3f} m", f, hv, std=sv, style="-")
+        for v, hv, sv in zip(s[1:], h[1:], sd[1:], strict=True)
+    ]
+    fig = plot_frf(main, view="both", overlays=overlays, labels=[f"s = {s[0]:.3f} m"],
+                   title="predicted compliance along the path (±2σ)")  # fmt: skip
+    section = ReportSection(
+        title="Hybrid EMA + OMA FRF model (thesis chapter 5)",
+        paragraphs=(
+            f"{path}: per-bin GP over the path coordinate s in [{lo:g}, {hi:g}] m, "
+            f"{f.size} bins {f[0]:g}-{f[-1]:g} Hz.",
+        ),
+        tables=(("Predicted peak along the path", table),),
+        figures=(("Predicted FRFs at five path coordinates", fig),),
+    )
+    return Report(f"robovib — FRF model {Path(path).name}", (section,),
+                  settings={"kernel": model.kernel, "direction": getattr(model, "direction_", None)},
+                  provenance=prov)  # fmt: skip
+
+
+# --------------------------------------------------------------------------------- lobes
+def lobes_report(chart, settings: Mapping[str, Any], provenance=None) -> Report:
+    """A stability chart (:class:`robovib.milling.chart.LobesChart`) as a report."""
+    import pandas as pd
+
+    from ..milling.chart import plot_lobes_chart
+
+    doc = chart.to_dict()
+
+    def mm(v):
+        return "-" if v is None else f"{1e3 * v:.3f}"
+
+    summary = pd.DataFrame({
+        "quantity": ["depth stable at every speed [mm]", "most stable speed [rpm]",
+                     "critical depth there [mm]", "method", "tool"],
+        "value": [mm(doc["minimum_depth_m"]),
+                  "-" if doc["most_stable_rpm"] is None else f"{doc['most_stable_rpm']:.0f}",
+                  mm(doc["most_stable_depth_m"]), doc["method"],
+                  f"{1e3 * chart.tool.diameter_m:g} mm, {chart.tool.n_flutes} flutes"],
+    }).set_index("quantity")  # fmt: skip
+    rpm = np.asarray(doc["rpm"], float)
+    depth = np.array([np.nan if v is None else v for v in doc["a_lim_m"]], float)
+    step = max(1, rpm.size // 25)
+    samples = pd.DataFrame({"spindle_rpm": rpm[::step], "critical_depth_mm": 1e3 * depth[::step],
+                            "limited_by": np.asarray(doc["kind"])[::step]})  # fmt: skip
+    section = ReportSection(
+        title="Chatter stability at the pose",
+        paragraphs=(chart.title.replace("\n", "; "),),
+        tables=(("Summary", summary), ("Critical axial depth vs spindle speed", samples)),
+        figures=(("Stability chart: envelope, unstable region shaded", plot_lobes_chart(chart)),),
+    )
+    return Report("robovib — stability lobes", (section,), settings=dict(settings),
+                  provenance=_provenance(provenance))  # fmt: skip
+
+
+def lobes_study_report(
+    x_mm: float,
+    y_mm: float,
+    rz_deg: float,
+    *,
+    ae_mm: float = 6.0,
+    material: str = "al7075",
+    feed: str = "x",
+    rpm_range: tuple[float, float] = (100.0, 3000.0),
+    n_speeds: int = 100,
+    method: str = "zoa",
+    model=None,
+    rng: int = 0,
+) -> Report:
+    """Lobes at a pose from the chapter-3 pose model (or ``model``) as a report.
+
+    Raises
+    ------
+    ValueError
+        Unknown material, feed direction or method; non-finite pose; bad speed range or radial
+        depth (checked by :func:`robovib.milling.chart.lobes_chart`).
+    """
+    from ..gp import get_chapter3_model
+    from ..milling import ACETAL, ALUMINIUM_7075, CuttingConditions, MillingTool
+    from ..milling.chart import lobes_chart
+
+    mats = {"al7075": ALUMINIUM_7075, "acetal": ACETAL}
+    if material not in mats:
+        raise ValueError(f"unknown material {material!r}; use one of {', '.join(mats)}")
+    if feed not in ("x", "y"):
+        raise ValueError(f"unknown feed direction {feed!r}; use x or y")
+    for name, v in (("x", x_mm), ("y", y_mm), ("rz", rz_deg), ("ae", ae_mm)):
+        if not np.isfinite(v):
+            raise ValueError(f"--{name} must be finite, got {v}")
+    if not ae_mm > 0:
+        raise ValueError(f"radial depth ae must be > 0 mm, got {ae_mm}")
+    if not 0 < rpm_range[0] < rpm_range[1] < np.inf:
+        raise ValueError(f"speed range must be 0 < min < max rpm, got {rpm_range}")
+    model = model if model is not None else get_chapter3_model(rng=rng)
+    tool = MillingTool()
+    chart = lobes_chart(
+        tool=tool, conditions=CuttingConditions(1000.0, 1e-4, 1e-3, ae_mm / 1e3),
+        coefficients=mats[material], spindle_rpm=np.linspace(*rpm_range, n_speeds), method=method,
+        pose_label=f"X {x_mm:g} mm, Y {y_mm:g} mm, Rz {rz_deg:g}°, feed {feed}",
+        material_label=material, pose_model=model, pose=(x_mm, y_mm, rz_deg), feed_direction=feed,
+    )  # fmt: skip
+    settings = {"x_mm": x_mm, "y_mm": y_mm, "z_mm": 325.0, "rz_deg": rz_deg, "ae_mm": ae_mm,
+                "material": material, "feed_direction": feed, "rpm_range_rpm": list(rpm_range),
+                "n_speeds": n_speeds, "method": method,
+                "tool": "25.4 mm, 2 flutes, 30° helix (thesis §3.5)"}  # fmt: skip
+    return lobes_report(chart, settings)
+
+
+# ------------------------------------------------------------------------------- control
+def control_report(schedule, table9_rows, settings: Mapping[str, Any], provenance=None) -> Report:
+    """Gain schedule along a path and the Table 9 comparison as a report."""
+    import pandas as pd
+
+    sched = pd.DataFrame({"s_m": schedule.s_m, "w1_m_per_m": schedule.w1, "w2_s": schedule.w2,
+                          "r": schedule.r, "stable_with_delay": schedule.stable_with_delay})  # fmt: skip
+    t9 = pd.DataFrame(table9_rows)
+    unstable = int(np.sum(~np.asarray(schedule.stable_with_delay, bool)))
+    notes = (f"{unstable} path points are unstable with the delay",) if unstable else ()
+    sections = (
+        ReportSection(
+            title="LQR gain schedule along the path (thesis §4.3, Fig. 23 analogue)",
+            paragraphs=(
+                "Gains W = [w1, w2] designed per path point with R tuned for the delay; "
+                "dashed: the Eq. 28-29 polynomial fits.",
+            ),
+            notes=notes,
+            tables=(("Gains along the path", sched),),
+            figures=(("w1 and w2 along the path", schedule.plot()),),
+        ),
+        ReportSection(
+            title="Plant formulations vs thesis Table 9",
+            tables=(("LQR gains from the Table 8 predictions (thesis values beside)", t9),),
+        ),
+    )
+    return Report("robovib — vibration control study", sections, settings=dict(settings),
+                  provenance=_provenance(provenance))  # fmt: skip
+
+
+def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) -> Report:
+    """Schedule from a path-modes CSV (or the virtual robot's EMA) + Table 9, as a report."""
+    from ..control.schedule import schedule_gains
+    from ..studies.table9 import table_9_comparison
+
+    if path_file is not None:
+        from ..io import read_path_modes_csv
+
+        s, modes = read_path_modes_csv(path_file)
+    else:
+        from ..control.studies import virtual_path_modes
+
+        s, modes = virtual_path_modes(direction=direction, rng=rng)
+    warnings: list[str] = []
+    sched = schedule_gains(s, modes, warn=warnings.append)
+    settings = {"path_file": str(path_file) if path_file else "virtual-robot EMA along the chapter-4 path",
+                "direction": direction, "period_ms": 4.0, "delay_ms": 32.0, "q": "diag(1, 0.001)"}  # fmt: skip
+    rep = control_report(sched, list(table_9_comparison().rows), settings,
+                         provenance=_provenance(None, inputs=[path_file] if path_file else []))  # fmt: skip
+    if warnings:
+        first = rep.sections[0]
+        from dataclasses import replace
+
+        rep = replace(
+            rep, sections=(replace(first, notes=(*first.notes, *warnings)), *rep.sections[1:])
+        )
+    return rep

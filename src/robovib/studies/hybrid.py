@@ -461,13 +461,13 @@ def plot_next_poses(result: NextPoses, ax=None):
         fig, ax = plt.subplots(figsize=(7, 3.5))
     else:
         fig = ax.figure
-    ax.plot(result.candidates_s_m * 1e3, result.integrated_variance, color="C0",
+    ax.plot(result.candidates_s_m, result.integrated_variance, color="C0",
             label="integrated predictive variance")  # fmt: skip
     for i, s_t in enumerate(result.tested_s_m):
-        ax.axvline(s_t * 1e3, color="k", lw=1, label="tested" if i == 0 else None)
+        ax.axvline(s_t, color="k", lw=1, label="tested" if i == 0 else None)
     for i, s_p in enumerate(result.next_s_m):
-        ax.axvline(s_p * 1e3, color="C3", ls="--", lw=1, label="proposed" if i == 0 else None)
-    ax.set_xlabel("distance along the path [mm]")
+        ax.axvline(s_p, color="C3", ls="--", lw=1, label="proposed" if i == 0 else None)
+    ax.set_xlabel("distance along the path s [m]")
     ax.set_ylabel("sum over bins of var [(um/N)^2]")
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -1,0 +1,118 @@
+"""``robovib report``: one self-contained HTML page to hand on (tables, figures, settings,
+provenance) for the chapter-3 study, a pose model, a lobes run or a control study."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ._common import JsonFlag, KernelOpt, ModeSwitchOpt, SeedOpt, check_kernel, emit_json, new_app
+
+app = new_app(
+    "Self-contained HTML reports (tables, figures, settings, provenance) to hand on: "
+    "chapter3, model, lobes, control."
+)
+HtmlOpt = Annotated[Path, typer.Option("-o", "--output", help="HTML file to write.")]
+
+
+def _check(output: Path, *inputs) -> None:
+    """Refuse a bad output path before any work (missing/read-only folder, output = input)."""
+    from ..io import check_output_path
+
+    check_output_path(output, inputs=inputs)
+
+
+def _done(report, output: Path, json_out: bool, *inputs) -> None:
+    from ..report import write_report
+
+    write_report(report, output, inputs=inputs)
+    if json_out:
+        emit_json({"output": str(output), "title": report.title})
+    else:
+        typer.echo(f"wrote {output}: {report.title}")
+
+
+@app.command("chapter3")
+def chapter3(
+    output: HtmlOpt,
+    kernel: KernelOpt = "ard",
+    n_splits: Annotated[int, typer.Option(help="Cross-validation folds (thesis: 5).")] = 5,
+    mode_switch: ModeSwitchOpt = True,
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """The chapter-3 study (GPR vs thesis Table 2, MLR, external validation) as a page."""
+    from ..report import chapter3_study_report
+
+    _check(output)
+    _done(chapter3_study_report(kernel=check_kernel(kernel), n_splits=n_splits,
+                                mode_switch=mode_switch, rng=seed), output, json_out)  # fmt: skip
+
+
+@app.command("model")
+def model(
+    model_file: Annotated[
+        Path,
+        typer.Argument(help="Pose model HDF5 (campaign/user pose model, or `hybrid fit` model)."),
+    ],
+    output: HtmlOpt,
+    json_out: JsonFlag = False,
+) -> None:
+    """A saved pose model: training range, fit at the training poses, predictions, provenance."""
+    from ..report import model_report
+
+    _check(output, model_file)
+    _done(model_report(model_file), output, json_out, model_file)
+
+
+@app.command("lobes")
+def lobes(
+    output: HtmlOpt,
+    x: Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")],
+    y: Annotated[float, typer.Option("--y", help="Tool-tip Y [mm].")],
+    rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")],
+    ae: Annotated[float, typer.Option("--ae", help="Radial depth of cut [mm].")] = 6.0,
+    material_name: Annotated[
+        str, typer.Option("--material", help="Cutting-coefficient preset: al7075 or acetal.")
+    ] = "al7075",
+    feed: Annotated[str, typer.Option(help="Feed direction in the base frame: x or y.")] = "x",
+    rpm_min: Annotated[float, typer.Option(help="Lowest speed [rpm].")] = 100.0,
+    rpm_max: Annotated[float, typer.Option(help="Highest speed [rpm].")] = 3000.0,
+    method: Annotated[
+        str, typer.Option(help="zoa (zero-order, fast) or sdm (semi-discretisation, flip lobes).")
+    ] = "zoa",
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """Stability lobes at a pose from the chapter-3 model, as a page."""
+    from ..report import lobes_study_report
+
+    _check(output)
+    _done(lobes_study_report(x, y, rz, ae_mm=ae, material=material_name, feed=feed,
+                             rpm_range=(rpm_min, rpm_max), method=method, rng=seed), output, json_out)  # fmt: skip
+
+
+@app.command("control")
+def control(
+    output: HtmlOpt,
+    path_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--path-file",
+            help="CSV of modes along a path: s_m, fn_hz, stiffness_n_per_m, damping_ratio. Default: virtual-robot EMA along the chapter-4 path.",
+        ),
+    ] = None,
+    direction: Annotated[
+        str, typer.Option(help="Direction of the virtual-robot path model.")
+    ] = "x",
+    seed: SeedOpt = 0,
+    json_out: JsonFlag = False,
+) -> None:
+    """LQR gain schedule along a path and the thesis Table 9 comparison, as a page."""
+    from ..report import control_study_report
+
+    _check(output, path_file)
+    _done(control_study_report(path_file, direction=direction, rng=seed), output, json_out,
+          *([path_file] if path_file else []))  # fmt: skip
