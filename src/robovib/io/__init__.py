@@ -1,85 +1,67 @@
 """File formats: hammer recordings (CSV, UFF 58) and FRF collections (HDF5, UFF 58).
 
 Units and sensor sensitivities are converted to SI here, at the edge.
+
+Names are imported on first use (PEP 562): ``robovib.io.provenance``, which every CLI
+command's JSON uses, must not pull in SciPy's signal processing through the FRF readers.
 """
 
-from .atomic import atomic_path
-from .cuts import MeasuredCuts, read_cuts_csv
-from .frf_csv import FRF_CSV_UNITS, read_frf_csv, write_frf_csv
-from .frf_files import (
-    read_frfs,
-    read_frfs_hdf5,
-    read_frfs_uff,
-    write_frfs,
-    write_frfs_hdf5,
-    write_frfs_uff,
-)
-from .json_safe import dumps as json_dumps
-from .json_safe import json_safe
-from .poses import read_pose_table
-from .recording import (
-    HammerRecording,
-    ReadReport,
-    Sensitivity,
-    read_recording,
-    read_recording_channels,
-    read_recording_csv,
-    read_recording_uff,
-    sample_rate_from_time,
-    select_channel,
-    write_recording_uff,
-)
-from .safe_write import OutputPathError, atomic_output, check_output_path, save_figure
-from .tables import (
-    read_compliance_tests_csv,
-    read_force_csv,
-    read_milling_record_csv,
-    read_path_modes_csv,
-    write_path_modes_csv,
-    write_recording,
-)
-from .uff58 import Record58, write_uff58
-from .units import apply_sensitivity, si_factor
+from importlib import import_module
 
-__all__ = [
-    "FRF_CSV_UNITS",
-    "HammerRecording",
-    "MeasuredCuts",
-    "OutputPathError",
-    "ReadReport",
-    "Record58",
-    "Sensitivity",
-    "apply_sensitivity",
-    "atomic_output",
-    "atomic_path",
-    "check_output_path",
-    "json_dumps",
-    "json_safe",
-    "read_compliance_tests_csv",
-    "read_cuts_csv",
-    "read_force_csv",
-    "read_frf_csv",
-    "read_frfs",
-    "read_frfs_hdf5",
-    "read_frfs_uff",
-    "read_milling_record_csv",
-    "read_path_modes_csv",
-    "read_pose_table",
-    "read_recording",
-    "read_recording_channels",
-    "read_recording_csv",
-    "read_recording_uff",
-    "sample_rate_from_time",
-    "save_figure",
-    "select_channel",
-    "si_factor",
-    "write_frf_csv",
-    "write_frfs",
-    "write_frfs_hdf5",
-    "write_frfs_uff",
-    "write_path_modes_csv",
-    "write_recording",
-    "write_recording_csv",
-    "write_recording_uff",
-    "write_uff58",
-]
+#: Public name -> (submodule, name in it).
+_WHERE = {
+    "FRF_CSV_UNITS": ("frf_csv", "FRF_CSV_UNITS"),
+    "HammerRecording": ("recording", "HammerRecording"),
+    "MeasuredCuts": ("cuts", "MeasuredCuts"),
+    "OutputPathError": ("safe_write", "OutputPathError"),
+    "ReadReport": ("recording", "ReadReport"),
+    "Record58": ("uff58", "Record58"),
+    "Sensitivity": ("recording", "Sensitivity"),
+    "apply_sensitivity": ("units", "apply_sensitivity"),
+    "atomic_output": ("safe_write", "atomic_output"),
+    "atomic_path": ("atomic", "atomic_path"),
+    "check_output_path": ("safe_write", "check_output_path"),
+    "json_dumps": ("json_safe", "dumps"),
+    "json_safe": ("json_safe", "json_safe"),
+    "read_compliance_tests_csv": ("tables", "read_compliance_tests_csv"),
+    "read_cuts_csv": ("cuts", "read_cuts_csv"),
+    "read_force_csv": ("tables", "read_force_csv"),
+    "read_frf_csv": ("frf_csv", "read_frf_csv"),
+    "read_frfs": ("frf_files", "read_frfs"),
+    "read_frfs_hdf5": ("frf_files", "read_frfs_hdf5"),
+    "read_frfs_uff": ("frf_files", "read_frfs_uff"),
+    "read_milling_record_csv": ("tables", "read_milling_record_csv"),
+    "read_path_modes_csv": ("tables", "read_path_modes_csv"),
+    "read_pose_table": ("poses", "read_pose_table"),
+    "read_recording": ("recording", "read_recording"),
+    "read_recording_channels": ("recording", "read_recording_channels"),
+    "read_recording_csv": ("recording", "read_recording_csv"),
+    "read_recording_uff": ("recording", "read_recording_uff"),
+    "sample_rate_from_time": ("recording", "sample_rate_from_time"),
+    "save_figure": ("safe_write", "save_figure"),
+    "select_channel": ("recording", "select_channel"),
+    "si_factor": ("units", "si_factor"),
+    "write_frf_csv": ("frf_csv", "write_frf_csv"),
+    "write_frfs": ("frf_files", "write_frfs"),
+    "write_frfs_hdf5": ("frf_files", "write_frfs_hdf5"),
+    "write_frfs_uff": ("frf_files", "write_frfs_uff"),
+    "write_path_modes_csv": ("tables", "write_path_modes_csv"),
+    "write_recording": ("tables", "write_recording"),
+    "write_recording_uff": ("recording", "write_recording_uff"),
+    "write_uff58": ("uff58", "write_uff58"),
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        module, attr = _WHERE[name]
+        value = getattr(import_module(f".{module}", __name__), attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))
