@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._threads import single_blas_thread
+
 __all__ = [
     "AMBIGUOUS_MODE_PROBABILITY",
     "PosePrediction",
@@ -296,16 +298,17 @@ class PosePredictor:
             self.n_outputs_ = len(self.output_names_)
             self._estimators = []
             try:
-                for i in range(len(h5["estimators"])):
-                    g = h5["estimators"][str(i)]
-                    kind = _str(g.attrs["kind"])
-                    cols = np.asarray(g.attrs["columns"], int)
-                    if kind == "BatchedGPRegressor":
-                        self._estimators.append((_GP(g), cols))
-                    elif kind == "ModeSwitchingGPRegressor":
-                        self._estimators.append((_Switching(g), cols))
-                    else:
-                        raise ValueError(f"{path}: unknown estimator kind {kind!r}")
+                with single_blas_thread():  # many small matrices: threads only contend
+                    estimators = [h5["estimators"][str(i)] for i in range(len(h5["estimators"]))]
+                    for g in estimators:
+                        kind = _str(g.attrs["kind"])
+                        cols = np.asarray(g.attrs["columns"], int)
+                        if kind == "BatchedGPRegressor":
+                            self._estimators.append((_GP(g), cols))
+                        elif kind == "ModeSwitchingGPRegressor":
+                            self._estimators.append((_Switching(g), cols))
+                        else:
+                            raise ValueError(f"{path}: unknown estimator kind {kind!r}")
             except _NeedsJitter as exc:
                 raise ValueError(f"{path}: {exc}; load it with PoseModalModel.load") from None
             self.mode_switches_ = {
@@ -344,9 +347,10 @@ class PosePredictor:
         X = self._check_X(X)
         mean = np.empty((X.shape[0], self.n_outputs_))
         std = np.empty_like(mean)
-        for est, cols in self._estimators:
-            m, s = est.predict(X)
-            mean[:, cols], std[:, cols] = m, s
+        with single_blas_thread():
+            for est, cols in self._estimators:
+                m, s = est.predict(X)
+                mean[:, cols], std[:, cols] = m, s
         return (mean, std) if return_std else mean
 
     def outside_inputs(self, X) -> np.ndarray:
