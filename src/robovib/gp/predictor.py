@@ -1,4 +1,4 @@
-"""Read-only predictor of a saved :class:`~robovib.gp.PoseModalModel`: NumPy, h5py, SciPy's qhull.
+"""Read-only predictor of a saved :class:`~robovib.gp.PoseModalModel` (NumPy and h5py only).
 
 ``robovib gpr predict`` starts, loads a pose model and answers in well under a second: what costs
 the time is not the prediction (microseconds) but importing scikit-learn and SciPy's optimisers
@@ -13,8 +13,12 @@ same posterior without them:
   3.1-3.2, as :class:`sklearn.gaussian_process.GaussianProcessClassifier` with ``optimizer=None``
   on the stored kernel): Newton iterations for the posterior mode, then the Williams-Barber
   five-erf approximation of the predictive probability;
-* extrapolation: outside the box of the training inputs or outside the Delaunay triangulation
-  of the standardised unique training poses (as :meth:`PoseModalModel.extrapolating`).
+* extrapolation: outside the box of the training inputs or outside the convex hull of the
+  standardised unique training poses (as :meth:`PoseModalModel.extrapolating`, which uses SciPy's
+  Delaunay triangulation; here a non-negative least-squares test, :func:`_in_hull`).
+
+:func:`predict_at` is the one prediction at a pose of both (``robovib gpr predict`` with or
+without ``--model``): SI outputs with ±2σ, extrapolation and mode-switch flags.
 
 The tests check it against :meth:`PoseModalModel.load` to 1e-10. A file whose covariance
 needed jitter to factorise is refused (``ValueError``); :func:`load_pose_predictor` then falls
