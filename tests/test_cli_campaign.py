@@ -14,7 +14,12 @@ pytest.importorskip("pyuff")
 
 
 def run(*args):
-    res = CliRunner().invoke(app, [str(a) for a in args])
+    from test_cli_smoke import assert_self_describing
+
+    argv = [str(a) for a in args]
+    res = CliRunner().invoke(app, argv)
+    if "--json" in argv and res.exit_code == 0:
+        assert_self_describing(json.loads(res.stdout), argv)
     return res
 
 

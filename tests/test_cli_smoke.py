@@ -257,8 +257,9 @@ def test_slow_studies():
 
 #: Slow commands: their --json documents are checked in test_slow_studies (``-m slow``).
 SLOW_COMMANDS = {"demo", "control simulate", "hybrid study"}
-#: Checked with assert_self_describing in tests/test_report_kinds.py.
-ELSEWHERE = {"report chapter3", "report model", "report lobes", "report control"}
+#: Checked with assert_self_describing in tests/test_report_kinds.py and test_cli_campaign.py.
+ELSEWHERE = {"report chapter3", "report model", "report lobes", "report control",
+             "sim campaign", "campaign process", "model fit", "model next-poses"}  # fmt: skip
 
 
 def _leaf_commands() -> set[str]:

@@ -58,7 +58,7 @@ def test_control_report(tmp_path):
 
 def test_model_report_pose_model(tmp_path):
     """A user's pose model (campaign format) fitted on a known smooth truth."""
-    from robovib.campaign.model import TablePoseModel
+    from robovib.gp import PoseModalModel
 
     rng = np.random.default_rng(0)
     X = np.column_stack(
@@ -66,7 +66,7 @@ def test_model_report_pose_model(tmp_path):
     )
     fn = 10 + X[:, 0] / 300.0
     Y = np.column_stack([fn, 2e6 * (1 + X[:, 1] / 3000), 1e3 * (1 + X[:, 2] / 900)])
-    model = TablePoseModel(directions=("x",)).fit(X, Y)
+    model = PoseModalModel(directions=("x",), mode_switch=False).fit(X, Y)
     model.save(tmp_path / "pose.h5")
     out, text = report(tmp_path, "model", str(tmp_path / "pose.h5"))
     assert "x_fn_hz" in text and "x_mm" in text

@@ -250,6 +250,15 @@ KEY_UNITS: dict[str, str] = {
     "iterations_mean": "1 (optimiser iterations per GP)",
     "flagged_fraction": "1",
     "n_flutes": "1 (count)",
+    "hits_formed": "1 (count)",
+    "recordings": "1 (count)",
+    "replicate": "1 (index)",
+    "candidate_index": "1 (index)",
+    "k": "1 (count)",
+    "total_normalised_variance_before": "1 (variance / prior variance, summed)",
+    "variance_reduction_normalised": "1 (variance / prior variance)",
+    "row": "1 (manifest row number)",
+    "records_read": "1 (count)",
     "rtol": "1 (relative tolerance)",
     "steps_per_period_min": "1 (count)",
     "steps_per_vibration": "1 (count)",
@@ -264,17 +273,27 @@ KEY_UNITS: dict[str, str] = {
 
 
 def unit_of_json_key(key: str) -> str | None:
-    """Unit of a JSON key: from its suffix (``_hz``, ``_n_per_m`` ...) or :data:`KEY_UNITS`."""
+    """Unit of a JSON key: from its suffix (``_hz``, ``_n_per_m`` ...), ``n_*`` (a count) or
+    :data:`KEY_UNITS`."""
     from ..io.provenance import unit_of_key
 
-    return unit_of_key(key) or KEY_UNITS.get(str(key))
+    key = str(key)
+    if key.startswith("n_"):  # n_hits, n_flagged, ...: counts
+        return "1 (count)"
+    if key.endswith("_std") and len(key) > 4:  # damping_ratio_std: the unit of damping_ratio
+        return unit_of_json_key(key[:-4])
+    return unit_of_key(key) or KEY_UNITS.get(key)
 
 
 def _numeric_keys(obj: Any, key: str | None, out: set[str]) -> None:
     """Keys whose values (or list items) are numbers, anywhere in ``obj``; a dict under a key
-    with a unit (``{"stiffness_n_per_m": {"x": ...}}``) or with a ``unit`` entry states its own."""
+    with a unit (``{"stiffness_n_per_m": {"x": ...}}``), with a ``unit`` entry or an ``output``
+    whose name has a unit (``{"output": "x_fn_hz", "mean": ...}``) states its own."""
     if isinstance(obj, dict):
         if "unit" in obj or "units" in obj or (key is not None and unit_of_json_key(key)):
+            return
+        named = obj.get("output")  # a record of one output whose name says its unit
+        if isinstance(named, str) and unit_of_json_key(named):
             return
         for k, v in obj.items():
             _numeric_keys(v, str(k), out)

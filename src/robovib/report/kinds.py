@@ -162,9 +162,11 @@ def chapter3_study_report(
 
 # ----------------------------------------------------------------------------- pose models
 def _load_model(path):
-    """A saved pose model: robovib.gp.PoseModalModel when available, the campaign's
-    TablePoseModel, or the hybrid FRF model (by the file's format tag)."""
+    """A saved pose model (:class:`robovib.gp.PoseModalModel`: the chapter-3 model, a campaign's
+    or a user's) or a hybrid FRF model, by the file's format tag."""
     import h5py
+
+    from ..gp.pose_model import FORMAT as POSE_FORMAT
 
     try:
         with h5py.File(path, "r") as h5:
@@ -175,18 +177,12 @@ def _load_model(path):
         from ..hybrid import FRFPoseModel
 
         return FRFPoseModel.load(path)
-    try:  # engineer "gp": the shared pose-model interface, once on main
+    if fmt == POSE_FORMAT:
         from ..gp import PoseModalModel
 
         return PoseModalModel.load(path)
-    except (ImportError, AttributeError, ValueError, KeyError):
-        pass
-    if fmt == "robovib-pose-modal":
-        from ..campaign.model import TablePoseModel
-
-        return TablePoseModel.load(path)
     raise ValueError(
-        f"{path}: format {fmt!r} is not a robovib pose model (robovib-pose-modal) or hybrid "
+        f"{path}: format {fmt!r} is not a robovib pose model ({POSE_FORMAT}) or hybrid "
         "FRF model (robovib-frf-pose-model)"
     )
 
@@ -235,7 +231,7 @@ def plot_pose_model_slice(model, ax=None, n: int = 60):
     grid[:, 0] = np.linspace(lo[0], hi[0], n)
     mean, std = model.predict(grid, return_std=True)
     names = list(model.output_names_)
-    for i, d in enumerate(model.directions):
+    for i, d in enumerate(getattr(model, "directions_", model.directions)):
         j = names.index(f"{d}_fn_hz")
         ax.plot(grid[:, 0], mean[:, j], color=f"C{i}", label=f"{d.upper()} fn")
         ax.fill_between(grid[:, 0], mean[:, j] - 2 * std[:, j], mean[:, j] + 2 * std[:, j],
@@ -290,10 +286,6 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
         paragraphs=(
             f"{type(model).__name__} from {path}: {X.shape[0]} training rows, inputs "
             f"{', '.join(model.input_names)}, outputs {', '.join(names)} (SI).",
-        ),
-        notes=(
-            "The shared robovib.gp.PoseModalModel (engineer 'gp') is used when available; "
-            "otherwise the campaign's TablePoseModel format is read.",
         ),
         tables=(("Training range of each input", inputs), ("Fit at the training poses", resid)),
         figures=(
@@ -470,7 +462,7 @@ def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) 
 
         s, modes = read_path_modes_csv(path_file)
     else:
-        from ..control.studies import virtual_path_modes
+        from ..studies.control_closed_loop import virtual_path_modes
 
         s, modes = virtual_path_modes(direction=direction, rng=rng)
     warnings: list[str] = []
