@@ -278,6 +278,8 @@ def unit_of_json_key(key: str) -> str | None:
     from ..io.provenance import unit_of_key
 
     key = str(key)
+    if key in KEY_UNITS:
+        return KEY_UNITS[key]
     if key.startswith("n_"):  # n_hits, n_flagged, ...: counts
         return "1 (count)"
     if key.endswith("_std") and len(key) > 4:  # damping_ratio_std: the unit of damping_ratio
