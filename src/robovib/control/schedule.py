@@ -43,10 +43,28 @@ class GainSchedule:
             return float(np.polyval(self.w1_poly, s_m)), float(np.polyval(self.w2_poly, s_m))
         raise ValueError(f"unknown method {method!r}; expected 'interp' or 'poly'")
 
-    def plot(self, path=None):
+    def plot(self, ax=None):
+        """Designed gains w1, w2 along the path with their polynomial fits (thesis Fig. 23).
+
+        Parameters
+        ----------
+        ax : sequence of two matplotlib.axes.Axes, optional
+            Axes for w1 [m/m] and w2 [s]; a new figure when omitted.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure (saving is the caller's: ``robovib.io.save_figure``).
+        """
         import matplotlib.pyplot as plt
 
-        fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+        if ax is None:
+            fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+        else:
+            axes = list(ax)
+            if len(axes) != 2:
+                raise ValueError(f"ax must be two Axes (w1, w2), got {len(axes)}")
+            fig = axes[0].figure
         dense = np.linspace(self.s_m.min(), self.s_m.max(), 200)
         for ax, w, poly, name in (
             (axes[0], self.w1, self.w1_poly, "w1"),
@@ -60,11 +78,6 @@ class GainSchedule:
             ax.set_ylabel(name)
             ax.legend(fontsize=8)
         fig.tight_layout()
-        if path is not None:
-            from ..io.safe_write import save_figure
-
-            save_figure(fig, path)
-            plt.close(fig)
         return fig
 
 

@@ -77,7 +77,21 @@ class StabilityLobes:
     def minimum_depth_m(self) -> float:
         return float(min(np.min(d) for d in self.depth_m))
 
-    def plot(self, ax=None, path=None, rpm_range=None):
+    def plot(self, ax=None, rpm_range=None):
+        """Critical axial depth vs spindle speed, one line per lobe.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw into; a new figure when omitted.
+        rpm_range : tuple of float, optional
+            Spindle-speed limits of the x axis [rpm].
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure holding the axes (saving is the caller's: ``robovib.io.save_figure``).
+        """
         import matplotlib.pyplot as plt
 
         if ax is None:
@@ -90,13 +104,8 @@ class StabilityLobes:
         ax.set_xlabel("spindle speed [rpm]")
         ax.set_ylabel("critical axial depth [mm]")
         ax.set_title("stability lobes (zero-order method)")
-        if path is not None:
-            ax.figure.tight_layout()
-            from ..io.safe_write import save_figure
-
-            save_figure(ax.figure, path)
-            plt.close(ax.figure)
-        return ax
+        ax.figure.tight_layout()
+        return ax.figure
 
 
 def stability_lobes(
