@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from . import _mill_options as opt
 from ._common import (
     JsonFlag,
     ModelOpt,
@@ -26,33 +27,19 @@ from ._common import (
 )
 
 app = new_app("Milling vibration and chatter stability at a pose (thesis §3.5).")
-XOpt = Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")]
-YOpt = Annotated[float, typer.Option("--y", help="Tool-tip Y [mm].")]
-RzOpt = Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")]
-RpmOpt = Annotated[float, typer.Option(help="Spindle speed [rpm].")]
-FzOpt = Annotated[float, typer.Option("--fz", help="Feed per tooth [mm].")]
-ApOpt = Annotated[float, typer.Option("--ap", help="Axial depth of cut [mm].")]
-AeOpt = Annotated[
-    float,
-    typer.Option("--ae", help="Radial depth of cut [mm] (25.4 = slotting with the 25.4 mm tool)."),
-]
-MaterialOpt = Annotated[
-    str, typer.Option("--material", help="Cutting-coefficient preset: al7075 or acetal.")
-]
-FeedOpt = Annotated[str, typer.Option(help="Feed direction in the base frame: x or y.")]
 
 
 @app.command("predict")
 def predict(
-    x: XOpt,
-    y: YOpt,
-    rz: RzOpt,
-    rpm: RpmOpt = 1750.0,
-    fz: FzOpt = 0.058,
-    ap: ApOpt = 3.0,
-    ae: AeOpt = 25.4,
-    material_name: MaterialOpt = "al7075",
-    feed: FeedOpt = "x",
+    x: opt.XOpt,
+    y: opt.YOpt,
+    rz: opt.RzOpt,
+    rpm: opt.RpmOpt = 1750.0,
+    fz: opt.FzOpt = 0.058,
+    ap: opt.ApOpt = 3.0,
+    ae: opt.AeOpt = 25.4,
+    material_name: opt.MaterialOpt = "al7075",
+    feed: opt.FeedOpt = "x",
     forces: Annotated[
         Path | None,
         typer.Option(
@@ -111,57 +98,13 @@ def predict(
         )
 
 
-TeethOpt = Annotated[int, typer.Option("--teeth", help="Number of teeth (flutes) of the tool.")]
-DiameterOpt = Annotated[float, typer.Option("--diameter", help="Tool diameter [mm].")]
-HelixOpt = Annotated[
-    float,
-    typer.Option("--helix", help="Helix angle [deg] (forces; the stability methods ignore it)."),
-]
-KtOpt = Annotated[
-    float | None,
-    typer.Option("--kt", help="Tangential cutting coefficient [N/m²] (overrides --material)."),
-]
-KnOpt = Annotated[
-    float | None,
-    typer.Option("--kn", help="Radial (normal) cutting coefficient [N/m²] (overrides --material)."),
-]
-RadialOpt = Annotated[
-    float | None,
-    typer.Option("--radial-immersion", help="Radial immersion a/D [-] (instead of --ae)."),
-]
-MillingOpt = Annotated[str, typer.Option("--milling", help="up or down milling.")]
-StepsOpt = Annotated[
-    int,
-    typer.Option("--steps", help="SDM steps across the cut (40; 20 is ~4x faster, <1 % change)."),
-]
-MethodOpt = Annotated[
-    str,
-    typer.Option("--method", help="sdm (semi-discretization, flip lobes) or zoa (zero-order)."),
-]
-
-
 def _cutting(material_name, kt, kn, diameter, teeth, helix, ae, radial_immersion, milling):
-    """Tool, conditions and coefficients from the shared options (SI)."""
-    from dataclasses import replace
+    """Tool, conditions and coefficients from the shared options (mm -> SI at the edge)."""
+    from ..milling.chart import cutting_setup
 
-    from ..milling import CuttingConditions, MillingTool
-
-    if milling not in ("up", "down"):
-        raise ValueError(f"--milling must be 'up' or 'down', got {milling!r}")
-    tool = MillingTool(diameter_m=diameter / 1e3, n_flutes=teeth, helix_deg=helix)
-    if radial_immersion is not None:
-        if not 0 < radial_immersion <= 1:
-            raise ValueError(f"--radial-immersion is a/D in (0, 1], got {radial_immersion}")
-        ae_m = radial_immersion * tool.diameter_m
-    else:
-        ae_m = ae / 1e3
-    cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae_m, down_milling=milling == "down")
-    coef = material(material_name)
-    if kt is not None:
-        coef = replace(coef, ktc=kt)
-    if kn is not None:
-        coef = replace(coef, krc=kn)
-    return tool, cond, coef
+    return cutting_setup(material(material_name), diameter_m=diameter / 1e3, n_flutes=teeth,
+                         helix_deg=helix, radial_depth_m=ae / 1e3, radial_immersion=radial_immersion,
+                         milling=milling, ktc_n_per_m2=kt, krc_n_per_m2=kn)  # fmt: skip
 
 
 @app.command("lobes")
@@ -171,7 +114,7 @@ def lobes(
     rz: Annotated[
         float | None, typer.Option("--rz", help="Rotation about the tool axis [deg].")
     ] = None,
-    method: MethodOpt = "sdm",
+    method: opt.MethodOpt = "sdm",
     mode: Annotated[
         list[str] | None,
         typer.Option(
@@ -185,16 +128,16 @@ def lobes(
             help="Measured tool-tip FRFs: .h5, .uff or .csv (frequency_hz, x_real_<unit>, ...).",
         ),
     ] = None,
-    teeth: TeethOpt = 2,
-    diameter: DiameterOpt = 25.4,
-    helix: HelixOpt = 30.0,
-    ae: AeOpt = 6.0,
-    radial_immersion: RadialOpt = None,
-    milling: MillingOpt = "down",
-    material_name: MaterialOpt = "al7075",
-    kt: KtOpt = None,
-    kn: KnOpt = None,
-    feed: FeedOpt = "x",
+    teeth: opt.TeethOpt = 2,
+    diameter: opt.DiameterOpt = 25.4,
+    helix: opt.HelixOpt = 30.0,
+    ae: opt.AeOpt = 6.0,
+    radial_immersion: opt.RadialOpt = None,
+    milling: opt.MillingOpt = "down",
+    material_name: opt.MaterialOpt = "al7075",
+    kt: opt.KtOpt = None,
+    kn: opt.KnOpt = None,
+    feed: opt.FeedOpt = "x",
     rpm_range: Annotated[
         str, typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm].")
     ] = "100:3000:200",
@@ -212,7 +155,7 @@ def lobes(
             help="Pose model only: samples of its predictive distribution (shaded lobes)."
         ),
     ] = 0,
-    steps: StepsOpt = 40,
+    steps: opt.StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
     model_path: ModelOpt = None,
@@ -292,22 +235,22 @@ def lobes(
 @app.command("map")
 def lobe_map(
     rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")] = 0.0,
-    rpm: RpmOpt = 1750.0,
+    rpm: opt.RpmOpt = 1750.0,
     rpm_range: Annotated[
         str | None,
         typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm] (default: --rpm only)."),
     ] = None,
     method: Annotated[str, typer.Option("--method", help="zoa (fast) or sdm.")] = "zoa",
-    teeth: TeethOpt = 2,
-    diameter: DiameterOpt = 25.4,
-    helix: HelixOpt = 30.0,
-    ae: AeOpt = 6.0,
-    radial_immersion: RadialOpt = None,
-    milling: MillingOpt = "down",
-    material_name: MaterialOpt = "al7075",
-    kt: KtOpt = None,
-    kn: KnOpt = None,
-    feed: FeedOpt = "x",
+    teeth: opt.TeethOpt = 2,
+    diameter: opt.DiameterOpt = 25.4,
+    helix: opt.HelixOpt = 30.0,
+    ae: opt.AeOpt = 6.0,
+    radial_immersion: opt.RadialOpt = None,
+    milling: opt.MillingOpt = "down",
+    material_name: opt.MaterialOpt = "al7075",
+    kt: opt.KtOpt = None,
+    kn: opt.KnOpt = None,
+    feed: opt.FeedOpt = "x",
     nx: Annotated[int, typer.Option(help="Grid points in X.")] = 13,
     ny: Annotated[int, typer.Option(help="Grid points in Y.")] = 10,
     scheduler: Annotated[
@@ -320,7 +263,7 @@ def lobe_map(
         int | None, typer.Option(help="Local Dask workers (default: all cores).")
     ] = None,
     chunk: Annotated[int, typer.Option(help="Poses per Dask task.")] = 4,
-    steps: StepsOpt = 40,
+    steps: opt.StepsOpt = 40,
     output: Annotated[
         Path | None, typer.Option("-o", "--output", help="NetCDF (.nc) of the map.")
     ] = None,
@@ -333,7 +276,15 @@ def lobe_map(
     from rich.progress import Progress
 
     from ..milling.chart import parse_rpm_range
-    from ..milling.maps import plot_lobe_map, save_lobe_map, workspace_lobe_map
+    from ..milling.maps import (
+        WORKSPACE_X_MM,
+        WORKSPACE_Y_MM,
+        best_pose,
+        map_speeds,
+        plot_lobe_map,
+        save_lobe_map,
+        workspace_lobe_map,
+    )
 
     check_output(plot, [model_path])
     for name, n in (("--nx", nx), ("--ny", ny)):
@@ -341,8 +292,8 @@ def lobe_map(
             fail(f"{name} must be at least 2 grid points, got {n}")
     tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
-    speeds = np.array([rpm]) if rpm_range is None else np.union1d(parse_rpm_range(rpm_range), [rpm])
-    xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
+    speeds = map_speeds(rpm, None if rpm_range is None else parse_rpm_range(rpm_range))
+    xs, ys = np.linspace(*WORKSPACE_X_MM, nx), np.linspace(*WORKSPACE_Y_MM, ny)
     model = workspace_model(model_path, seed)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task(f"{method.upper()} lobes over the workspace", total=None)
@@ -357,9 +308,7 @@ def lobe_map(
     if plot is not None:
         use_agg()
         save_figure(plot_lobe_map(ds, spindle_rpm=rpm), plot)
-    at = ds["a_lim_m"].sel(spindle_rpm=rpm, rz_deg=rz)
-    vals = np.where(np.isfinite(at.values), at.values, np.nan)
-    i, j = np.unravel_index(np.nanargmax(vals), vals.shape)
+    best = best_pose(ds, rpm, rz)
     doc = {
         "command": "mill map",
         "method": method,
@@ -367,10 +316,7 @@ def lobe_map(
         "spindle_rpm": rpm,
         "x_mm": xs,
         "y_mm": ys,
-        "critical_depth_m": vals.T,
-        "best_pose_mm": [float(xs[i]), float(ys[j])],
-        "best_depth_m": float(vals[i, j]),
-        "shallowest_depth_m": float(np.nanmin(vals)),
+        **best,
         "netcdf": None if output is None else str(output),
         "settings": ds.attrs["settings"],
         "robovib_version": ds.attrs["robovib_version"],
@@ -379,8 +325,9 @@ def lobe_map(
         emit_json(doc)
         return
     typer.echo(
-        f"deepest stable cut at {rpm:g} rpm: X={xs[i]:.0f}, Y={ys[j]:.0f} mm: {1e3 * vals[i, j]:.2f} mm; "
-        f"shallowest: {1e3 * np.nanmin(vals):.2f} mm ({method.upper()})"
+        f"deepest stable cut at {rpm:g} rpm: X={best['best_pose_mm'][0]:.0f}, "
+        f"Y={best['best_pose_mm'][1]:.0f} mm: {1e3 * best['best_depth_m']:.2f} mm; "
+        f"shallowest: {1e3 * best['shallowest_depth_m']:.2f} mm ({method.upper()})"
     )
     for path in (output, plot):
         if path is not None:

@@ -85,7 +85,7 @@ def stiffness(
     robot, q = _workspace_pose(x, y, z, rz)
     k = cartesian_stiffness(robot, q)
     modes = cartesian_modes(robot, q)
-    kt_vals, kt_vecs = np.linalg.eigh(modes.stiffness_n_per_m)
+    kt_vals, kt_vecs = modes.principal_stiffness()
     doc = {
         "joints_deg": q,
         "directional_stiffness_n_per_m": dict(

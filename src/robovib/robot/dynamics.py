@@ -229,6 +229,19 @@ class CartesianModes:
         """Stiffness along base X, Y, Z: 1 / (K_t^-1)_ii [N/m]."""
         return 1.0 / np.diag(np.linalg.inv(self.stiffness_n_per_m))
 
+    def principal_stiffness(self) -> tuple[np.ndarray, np.ndarray]:
+        """Principal stiffnesses of K_t and their directions.
+
+        Returns
+        -------
+        values : numpy.ndarray
+            (3,) eigenvalues of the translational stiffness K_t [N/m], ascending.
+        directions : numpy.ndarray
+            (3, 3) unit eigenvectors (columns), base frame.
+        """
+        values, vectors = np.linalg.eigh(self.stiffness_n_per_m)
+        return values, vectors
+
 
 def cartesian_modes(
     robot: KR500, joints_deg, k_theta=TABLE_4_JOINT_STIFFNESS, links=LINK_SOLIDS

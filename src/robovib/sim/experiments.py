@@ -92,6 +92,11 @@ class MotionRecord:
     true_force_n: np.ndarray  #: (n, 3) force acting on the tool (cutting + background)
     meta: dict = field(default_factory=dict)
 
+    @property
+    def peak_vibration_m(self) -> np.ndarray:
+        """(3,) largest absolute noise-free tool-tip displacement per axis X, Y, Z [m]."""
+        return np.abs(self.true_displacement_m).max(axis=0)
+
     def to_csv(self, path, *, inputs=(), force: bool = False) -> None:
         """CSV with ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m`` and the pose columns."""
         import pandas as pd
