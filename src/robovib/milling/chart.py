@@ -371,10 +371,7 @@ def lobes_chart(
             out = []
             for d in ("x", "y"):
                 if d in frfs:
-                    g = frfs[d]
-                    re = np.interp(f_hz, g.frequency_hz, g.values.real, left=0, right=0)
-                    im = np.interp(f_hz, g.frequency_hz, g.values.imag, left=0, right=0)
-                    out.append(re + 1j * im)
+                    out.append(frfs[d].interpolate(f_hz, outside="zero").values)
                 else:
                     out.append(np.zeros_like(f_hz, complex))
             return tuple(out)

@@ -222,6 +222,8 @@ def workspace_lobe_map(
     for name, ax in zip(("x_mm", "y_mm", "rz_deg", "spindle_rpm"), axes, strict=True):
         if ax.ndim != 1 or ax.size == 0 or not np.all(np.isfinite(ax)):
             raise ValueError(f"{name} must be a non-empty 1-D array of finite values")
+        if np.any(np.diff(ax) <= 0):
+            raise ValueError(f"the {name} grid must be sorted and unique (ascending), got {ax}")
     xs, ys, rzs, rpm = axes
     if np.any(rpm <= 0):
         raise ValueError("spindle_rpm must be positive [rpm]")
