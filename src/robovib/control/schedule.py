@@ -91,11 +91,48 @@ def schedule_gains(
     r: float | None = None,
     warn: Callable[[str], None] | None = None,
 ) -> GainSchedule:
-    """Gains along a path from the modes predicted at the path distances ``s_m``.
+    """Gains along a path from the modes predicted at the path distances ``s_m`` (Eq. 28-29).
 
-    ``r=None``: R tuned per point for stability with the delay (:func:`tune_r_for_delay`);
-    a number: that R everywhere (points whose delayed loop is unstable are flagged, and
-    reported through ``warn``).
+    See ``docs/methods.md`` section 6 (pose-dependent vibration control).
+
+    Parameters
+    ----------
+    s_m : sequence of float, shape (n,)
+        Path coordinates [m], strictly increasing, at least 5.
+    modes : sequence of ModalParameters, shape (n,)
+        The mode at each path coordinate.
+    period_s : float
+        Command period [s].
+    delay_s : float
+        Loop delay [s] the gains must stay stable with.
+    q : array_like, shape (2, 2)
+        State weight of the LQR.
+    r : float, optional
+        ``None``: R tuned per point for stability with the delay (:func:`tune_r_for_delay`);
+        a number: that R everywhere (points whose delayed loop is unstable are flagged).
+    warn : callable(str), optional
+        Receives a message for each flagged point (default: :func:`warnings.warn`).
+
+    Returns
+    -------
+    GainSchedule
+        ``s_m``, gains ``w1`` [m/m] and ``w2`` [s], ``r``, ``stable_with_delay`` and the
+        polynomial fits ``w1_poly``, ``w2_poly`` (highest power first).
+
+    Raises
+    ------
+    ValueError
+        Lengths differ, ``s_m`` not increasing, fewer than 5 points, bad weights or delay.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.control.schedule import schedule_gains
+    >>> from robovib.modal import ModalParameters
+    >>> s = np.linspace(0.335, 1.235, 5)
+    >>> sched = schedule_gains(s, [ModalParameters(14 + 4 * v, 2e6, 0.05) for v in s])
+    >>> sched.w1.shape
+    (5,)
     """
     from .._checks import check_increasing
 

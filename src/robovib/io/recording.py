@@ -645,7 +645,41 @@ def read_recording_csv(
     response_sensitivity: Sensitivity | None = None,
     **segment_kw,
 ) -> HammerRecording:
-    """Read a hammer recording from CSV (layout in the module docstring)."""
+    """Read a hammer recording of one or more hits from CSV (layout in the module docstring).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    direction : {"x", "y", "z"}, optional
+        Response channel to return; needed when the file holds several.
+    force_sensitivity, response_sensitivity : Sensitivity, optional
+        Sensor sensitivities converting voltage channels (V or mV) to N and m/s² (SI).
+    **segment_kw
+        Passed to :func:`read_recording_channels` (how a continuous record is cut into hits).
+
+    Returns
+    -------
+    HammerRecording
+        ``forces`` and ``responses`` (n_hits, n_samples) in SI, ``sample_rate_hz``,
+        ``response_quantity``, direction, pose and a ``report`` of how hits were formed.
+
+    Raises
+    ------
+    ValueError
+        Unreadable or inconsistent file, voltage channels without a sensitivity, mismatched
+        sample rates, or ``direction`` missing from / contradicting the file.
+
+    See ``docs/data.md`` and ``docs/methods.md`` section 1.
+
+    Examples
+    --------
+    >>> from robovib.datasets import example_path
+    >>> from robovib.io import read_recording_csv
+    >>> rec = read_recording_csv(example_path("hammer.csv"))
+    >>> rec.forces.shape == rec.responses.shape
+    True
+    """
     if Path(path).suffix.lower() != ".csv":
         raise ValueError(f"{path}: expected a .csv file")
     return read_recording(path, direction, force_sensitivity, response_sensitivity, **segment_kw)
@@ -658,7 +692,41 @@ def read_recording_uff(
     response_sensitivity: Sensitivity | None = None,
     **segment_kw,
 ) -> HammerRecording:
-    """Read force/response time records (UFF dataset 58, function type 1) of one or more hits."""
+    """Read a hammer recording of one or more hits from UFF dataset 58 (function type 1) time records.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    direction : {"x", "y", "z"}, optional
+        Response channel to return; needed when the file holds several.
+    force_sensitivity, response_sensitivity : Sensitivity, optional
+        Sensor sensitivities converting voltage channels (V or mV) to N and m/s² (SI).
+    **segment_kw
+        Passed to :func:`read_recording_channels` (how a continuous record is cut into hits).
+
+    Returns
+    -------
+    HammerRecording
+        ``forces`` and ``responses`` (n_hits, n_samples) in SI, ``sample_rate_hz``,
+        ``response_quantity``, direction, pose and a ``report`` of how hits were formed.
+
+    Raises
+    ------
+    ValueError
+        Unreadable or inconsistent file, voltage channels without a sensitivity, mismatched
+        sample rates, or ``direction`` missing from / contradicting the file.
+
+    See ``docs/data.md`` and ``docs/methods.md`` section 1.
+
+    Examples
+    --------
+    >>> from robovib.datasets import example_path
+    >>> from robovib.io import read_recording_uff
+    >>> rec = read_recording_uff(example_path("hammer.uff"))
+    >>> rec.forces.shape == rec.responses.shape
+    True
+    """
     if Path(path).suffix.lower() not in (".uff", ".unv"):
         raise ValueError(f"{path}: expected a .uff or .unv file")
     return read_recording(path, direction, force_sensitivity, response_sensitivity, **segment_kw)

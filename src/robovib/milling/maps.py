@@ -208,6 +208,19 @@ def workspace_lobe_map(
         ``a_lim_m``, ``chatter_hz``, ``kind`` (x_mm, y_mm, rz_deg, spindle_rpm);
         ``minimum_depth_m``, ``best_rpm``, ``best_depth_m`` (x_mm, y_mm, rz_deg); the modal
         parameters used; attributes ``robovib_version``, ``method``, ``settings`` (JSON).
+
+    See ``docs/methods.md`` section 5.
+
+    Examples
+    --------
+    >>> from robovib.gp import load_chapter3_model
+    >>> from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    >>> from robovib.milling.maps import workspace_lobe_map
+    >>> ds = workspace_lobe_map(load_chapter3_model(), [2100, 2700], [0, 300], [0.0], [1750.0],
+    ...                         MillingTool(0.0254, 2), CuttingConditions(1750.0, 1e-4, 1e-3, 6e-3),
+    ...                         ALUMINIUM_7075, method="zoa", scheduler="sync")
+    >>> ds["a_lim_m"].dims
+    ('x_mm', 'y_mm', 'rz_deg', 'spindle_rpm')
     """
     import dask
     import xarray as xr

@@ -144,7 +144,52 @@ def simulate_hammer_test(
     """Impact-hammer test at a fixed pose: half-sine pulses, accelerometer with noise.
 
     The response noise is white with power ``snr_db`` below the response's mean power over the
-    record; the force channel gets 0.05 % of the peak as noise.
+    record; the force channel gets 0.05 % of the peak as noise. See ``docs/methods.md`` section 8
+    (virtual robot).
+
+    Parameters
+    ----------
+    robot : VirtualRobot
+        The simulated robot (pose-dependent tool-tip modes).
+    coords : tuple of float
+        The pose: (x [m], y [m], rz [deg]) for ``domain="workspace"``, (s [m],) for ``"path"``.
+    direction : {"x", "y", "z"}
+        Hit and response direction.
+    domain : {"workspace", "path"}
+        How ``coords`` is read.
+    n_hits : int
+        Number of hits (one record each).
+    sample_rate_hz : float
+        Sample rate [Hz] of both channels.
+    duration_s : float
+        Record length per hit [s].
+    pulse_width_s : float
+        Width of the half-sine force pulse [s].
+    peak_force_n : tuple of float
+        Range (low, high) [N] the peak force of each hit is drawn from.
+    snr_db : float
+        Response signal-to-noise ratio [dB].
+    allow_extrapolation : bool
+        Allow poses outside the robot's calibrated range (otherwise an error).
+    rng : int or numpy.random.Generator, optional
+        Seed of the forces and the noise.
+
+    Returns
+    -------
+    HammerRecording
+        ``forces`` [N] and ``responses`` [m/s²], (n_hits, n_samples), with direction and pose.
+
+    Raises
+    ------
+    ValueError
+        Unknown direction or domain, a pose outside the range, non-positive rates or durations.
+
+    Examples
+    --------
+    >>> from robovib.sim import VirtualRobot, simulate_hammer_test
+    >>> rec = simulate_hammer_test(VirtualRobot(), (2.4, 0.0, 45.0), "x", n_hits=2, rng=0)
+    >>> rec.forces.shape[0]
+    2
     """
     _check_positive(
         sample_rate_hz=sample_rate_hz, duration_s=duration_s, pulse_width_s=pulse_width_s
