@@ -670,15 +670,17 @@ def read_recording_csv(
         Unreadable or inconsistent file, voltage channels without a sensitivity, mismatched
         sample rates, or ``direction`` missing from / contradicting the file.
 
-    See ``docs/data.md`` and ``docs/methods.md`` section 1.
+    See ``docs/methods.md`` section 1.
 
     Examples
     --------
-    >>> from robovib.datasets import example_path
-    >>> from robovib.io import read_recording_csv
-    >>> rec = read_recording_csv(example_path("hammer.csv"))
-    >>> rec.forces.shape == rec.responses.shape
-    True
+    >>> import pathlib, tempfile
+    >>> from robovib.io import read_recording_csv, write_recording_csv
+    >>> from robovib.sim import VirtualRobot, simulate_hammer_test
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "hammer.csv"
+    >>> write_recording_csv(path, simulate_hammer_test(VirtualRobot(), (2.4, 0.0, 45.0), "x", n_hits=2, rng=0))
+    >>> read_recording_csv(path).forces.shape[0]
+    2
     """
     if Path(path).suffix.lower() != ".csv":
         raise ValueError(f"{path}: expected a .csv file")
@@ -717,15 +719,17 @@ def read_recording_uff(
         Unreadable or inconsistent file, voltage channels without a sensitivity, mismatched
         sample rates, or ``direction`` missing from / contradicting the file.
 
-    See ``docs/data.md`` and ``docs/methods.md`` section 1.
+    See ``docs/methods.md`` section 1.
 
     Examples
     --------
-    >>> from robovib.datasets import example_path
-    >>> from robovib.io import read_recording_uff
-    >>> rec = read_recording_uff(example_path("hammer.uff"))
-    >>> rec.forces.shape == rec.responses.shape
-    True
+    >>> import pathlib, tempfile
+    >>> from robovib.io import read_recording_uff, write_recording_uff
+    >>> from robovib.sim import VirtualRobot, simulate_hammer_test
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "hammer.uff"
+    >>> write_recording_uff(path, simulate_hammer_test(VirtualRobot(), (2.4, 0.0, 45.0), "x", n_hits=2, rng=0))
+    >>> read_recording_uff(path).forces.shape[0]
+    2
     """
     if Path(path).suffix.lower() not in (".uff", ".unv"):
         raise ValueError(f"{path}: expected a .uff or .unv file")
