@@ -12,11 +12,10 @@ from ._common import (
     JsonFlag,
     OutOpt,
     SeedOpt,
-    Table,
     check_output,
-    console,
     emit_json,
     new_app,
+    print_table,
     save_figure,
     use_agg,
 )
@@ -59,16 +58,13 @@ def study(
         emit_json(res.to_dict())
         return
     summ = res.summary()
-    t = Table(title="FRF RMSE at the validation pose vs truth (um/N), change vs EMA (mean / worst "
-                    "seed), peak error vs hammer FRF, iterations per GP - Table 12/13 analogues")  # fmt: skip
-    for col in ("dir", "model", "RMSE", "change", "worst", "peak err", "rejected", "iter/GP"):
-        t.add_column(col, justify="right")
-    for r in summ.to_dict(orient="records"):
-        t.add_row(r["direction"].upper(), r["model"], f"{r['rmse_vs_truth_um_per_n']:.3f}",
+    print_table("FRF RMSE at the validation pose vs truth (um/N), change vs EMA (mean / worst seed), "
+                "peak error vs hammer FRF, iterations per GP - Table 12/13 analogues",
+                ("dir", "model", "RMSE", "change", "worst", "peak err", "rejected", "iter/GP"),
+                [(r["direction"].upper(), r["model"], f"{r['rmse_vs_truth_um_per_n']:.3f}",
                   f"{r['change_pct']:+.0f} %", f"{r['worst_change_pct']:+.0f} %",
                   f"{r['peak_error_pct']:.1f} %", f"{100 * r['rejected_fraction']:.0f} %",
-                  f"{r['iterations_mean']:.1f}")  # fmt: skip
-    console().print(t)
+                  f"{r['iterations_mean']:.1f}") for r in summ.to_dict(orient="records")])  # fmt: skip
     typer.echo(f"default (robust) update meets issue 17's rule: {res.rule_met()}")
 
 

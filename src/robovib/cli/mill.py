@@ -13,14 +13,13 @@ from ._common import (
     JsonFlag,
     ModelOpt,
     SeedOpt,
-    Table,
     check_output,
     console,
     emit_json,
-    escape,
     fail,
     material,
     new_app,
+    print_table,
     save_figure,
     use_agg,
     workspace_model,
@@ -78,33 +77,18 @@ def predict(
         emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm,
                    "extrapolation": outside, "predictions": rows})  # fmt: skip
         return
-    con = console()
-    t = Table(
-        title=f"Milling vibration at X={x:g}, Y={y:g} mm, Rz={rz:g}° ({rpm:g} rpm, fz {fz} mm, ap {ap} mm, ae {ae} mm)"
-    )
-    for col in ("dir", "mode fn [Hz]", "mean deflection [mm]", "95 % band", "P-V / rev [mm]",
-                "95 % band"):  # fmt: skip
-        t.add_column(escape(col), justify="right")
-    for r in rows:
-        t.add_row(
-            r["direction"].upper(), f"{r['mode']['natural_frequency_hz']:.2f}", f"{r['mean_deflection_mm']:.4f}",
-            escape(f"[{r['mean_deflection_band_mm'][0]:.4f}, {r['mean_deflection_band_mm'][1]:.4f}]"),
-            f"{r['peak_to_valley_mm']:.4f}", escape(f"[{r['peak_to_valley_band_mm'][0]:.4f}, {r['peak_to_valley_band_mm'][1]:.4f}]"),
-        )  # fmt: skip
-    con.print(t)
+    band = "[{:.4f}, {:.4f}]".format
+    print_table(
+        f"Milling vibration at X={x:g}, Y={y:g} mm, Rz={rz:g}° ({rpm:g} rpm, fz {fz} mm, ap {ap} mm, ae {ae} mm)",
+        ("dir", "mode fn [Hz]", "mean deflection [mm]", "95 % band", "P-V / rev [mm]", "95 % band"),
+        [(r["direction"].upper(), f"{r['mode']['natural_frequency_hz']:.2f}", f"{r['mean_deflection_mm']:.4f}",
+          band(*r["mean_deflection_band_mm"]), f"{r['peak_to_valley_mm']:.4f}", band(*r["peak_to_valley_band_mm"]))
+         for r in rows],
+    )  # fmt: skip
     if outside:
-        con.print(
+        console().print(
             f"[yellow]warning:[/] {', '.join(outside)} outside the calibrated workspace: extrapolation"
         )
-
-
-def _cutting(material_name, kt, kn, diameter, teeth, helix, ae, radial_immersion, milling):
-    """Tool, conditions and coefficients from the shared options (mm -> SI at the edge)."""
-    from ..milling.chart import cutting_setup
-
-    return cutting_setup(material(material_name), diameter_m=diameter / 1e3, n_flutes=teeth,
-                         helix_deg=helix, radial_depth_m=ae / 1e3, radial_immersion=radial_immersion,
-                         milling=milling, ktc_n_per_m2=kt, krc_n_per_m2=kn)  # fmt: skip
 
 
 @app.command("lobes")
@@ -171,7 +155,7 @@ def lobes(
     )
 
     check_output(plot, [model_path, frf, cuts])
-    tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
+    tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     parsed = [parse_mode_spec(m) for m in (mode or [])]
     modes_x = [m for d, m in parsed if d == "x"]
@@ -290,7 +274,7 @@ def lobe_map(
     for name, n in (("--nx", nx), ("--ny", ny)):
         if n < 2:
             fail(f"{name} must be at least 2 grid points, got {n}")
-    tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
+    tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     speeds = map_speeds(rpm, None if rpm_range is None else parse_rpm_range(rpm_range))
     xs, ys = np.linspace(*WORKSPACE_X_MM, nx), np.linspace(*WORKSPACE_Y_MM, ny)
