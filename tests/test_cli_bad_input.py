@@ -262,6 +262,22 @@ bad_options("hybrid-next-poses", "hybrid next-poses", {
 })  # fmt: skip
 bad_outputs("hybrid-next-poses-plot", "hybrid next-poses --plot {OUT}", ".png", None)
 
+# examples / report
+case("examples-to-is-a-file", "examples --to {rec}")
+bad_inputs("report-model", "report model {IN} -o {out:.html}", ".h5")
+bad_outputs("report-model", "report model {model} -o {OUT}", ".html", "model")
+case("report-model-not-a-model", "report model {frf} -o {out:.html}")
+bad_inputs("report-control", "report control --path-file {IN} -o {out:.html}", ".csv")
+bad_outputs("report-control", "report control --path-file {sched} -o {OUT}", ".html", "sched")
+bad_options("report-lobes", "report lobes --x 2400 --y 0 --rz 0 -o {out:.html}", {
+    "--ae": ["nan", "-1"], "--material": ["bogus"], "--feed": ["z"], "--x": ["nan"],
+})  # fmt: skip
+bad_outputs("report-lobes", "report lobes --x 2400 --y 0 --rz 0 -o {OUT}", ".html", None)
+bad_options("report-chapter3", "report chapter3 -o {out:.html}", {
+    "--kernel": ["bogus"], "--n-splits": ["1"],
+})  # fmt: skip
+bad_outputs("report-chapter3", "report chapter3 -o {OUT}", ".html", None)
+
 # campaign / model (engineer "campaign"): inputs, outputs and options
 bad_inputs("campaign-process", "campaign process {IN} -o {out:}", ".csv")
 bad_options("campaign-process", "campaign process {missing:.csv} -o {out:}", {

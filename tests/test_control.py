@@ -451,7 +451,7 @@ def test_cli_control_simulate_offset_mass_feedforward(tmp_path):
     by = {(r["speed_rpm"], r["controller"]): r for r in doc["rows"]}
     assert set(by) == {(480.0, "no-feedback"), (480.0, "feedforward"), (960.0, "no-feedback"), (960.0, "feedforward")}  # fmt: skip
     assert by[(480.0, "feedforward")]["start_mm"] < 0.3 * by[(480.0, "no-feedback")]["start_mm"]
-    assert doc["settings"]["channel"]["delay_s"] == 0.032 and "start_mm" in doc["units"]
+    assert doc["result_settings"]["channel"]["delay_s"] == 0.032 and "start_mm" in doc["units"]
     assert png.stat().st_size > 0
     res = CliRunner().invoke(app, ["control", "simulate", "milling", "--actuator", "magic"])
     assert res.exit_code == 1 and "unknown actuator" in res.output

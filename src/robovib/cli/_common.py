@@ -278,6 +278,8 @@ def unit_of_json_key(key: str) -> str | None:
     from ..io.provenance import unit_of_key
 
     key = str(key)
+    if key in KEY_UNITS:
+        return KEY_UNITS[key]
     if key.startswith("n_"):  # n_hits, n_flagged, ...: counts
         return "1 (count)"
     if key.endswith("_std") and len(key) > 4:  # damping_ratio_std: the unit of damping_ratio
@@ -429,3 +431,13 @@ def save_figure(fig, path: Path, dpi: int = 120, inputs=(), force: bool = False)
         _save(fig, path, dpi=dpi, inputs=inputs, force=force)
     finally:
         plt.close(fig)
+
+
+def print_table(title: str, columns, rows) -> None:
+    """One rich table: ``columns`` (headers, units in brackets are escaped) and rows of strings."""
+    t = Table(title=escape(title))
+    for col in columns:
+        t.add_column(escape(col), justify="right")
+    for row in rows:
+        t.add_row(*(escape(str(v)) for v in row))
+    console().print(t)

@@ -13,12 +13,11 @@ deflection.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_choice, check_increasing, check_int, check_number
+from .._checks import check_choice, check_int, check_number
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool, milling_forces
 from .prediction import convolve_force, summarise_vibration
@@ -32,7 +31,6 @@ __all__ = [
     "pose_extrapolation",
     "pose_modes",
     "predict_at_pose",
-    "workspace_lobe_map",
 ]
 
 DIRECTIONS = ("x", "y", "z")
@@ -127,10 +125,61 @@ def predict_at_pose(
 ) -> list[DirectionPrediction]:
     """Predicted mean deflection and peak-to-valley per revolution in X, Y, Z at a pose.
 
-    ``forces_n`` (n, 3) in the base frame at ``sample_rate_hz`` (measured, e.g. read and
-    resampled with :func:`robovib.milling.prediction.resample_force`); otherwise the
-    mechanistic model simulates ``duration_s`` of cutting with ``tool`` and ``coefficients``.
-    The first ``skip_s`` (start-up transient from rest) is left out of the summaries.
+    The pose model's modes at the pose (with their uncertainty) filter the cutting forces:
+    measured ones, or the mechanistic model's. See ``docs/methods.md`` section 5.
+
+    Parameters
+    ----------
+    model : PoseModalModel
+        Pose model with inputs (x_mm, y_mm, rz_deg), e.g. :func:`robovib.gp.load_chapter3_model`.
+    x_mm, y_mm : float
+        Tool-tip position [mm].
+    rz_deg : float
+        Rotation about the tool axis [deg].
+    conditions : CuttingConditions
+        Spindle speed [rpm], feed per tooth [m], axial and radial depth [m], milling mode.
+    tool : MillingTool, optional
+        Tool of the simulated forces (default: ``MillingTool()``).
+    coefficients : CuttingCoefficients, optional
+        Cutting coefficients [N/m², N/m]; needed unless ``forces_n`` is given.
+    forces_n : numpy.ndarray, shape (n, 3), optional
+        Measured base-frame forces [N] at ``sample_rate_hz`` (e.g. resampled with
+        :func:`robovib.milling.prediction.resample_force`); replaces the simulated forces.
+    sample_rate_hz : float
+        Sample rate of the forces [Hz].
+    duration_s : float
+        Simulated cutting time [s] (without ``forces_n``).
+    feed_direction : {"x", "y"}
+        Base-frame feed direction.
+    n_samples : int
+        Draws of the modes from the model's predictive distribution for the 95 % bands (>= 1).
+    skip_s : float
+        Start-up transient from rest left out of the summaries [s].
+    rng : int or numpy.random.Generator
+        Seed of the draws.
+
+    Returns
+    -------
+    list of DirectionPrediction
+        One per direction X, Y, Z: mean deflection [m], peak-to-valley per revolution [m],
+        their 95 % bands [m] and the mode used.
+
+    Raises
+    ------
+    ValueError
+        Non-finite pose, unknown feed direction, ``n_samples < 1``, forces of the wrong shape,
+        neither ``forces_n`` nor ``coefficients``.
+
+    Examples
+    --------
+    >>> from robovib.gp import load_chapter3_model
+    >>> from robovib.milling import ALUMINIUM_7075, CuttingConditions
+    >>> from robovib.milling.workflow import predict_at_pose
+    >>> cond = CuttingConditions(1750.0, 58e-6, 3e-3, 25.4e-3)
+    >>> res = predict_at_pose(load_chapter3_model(), 2400.0, 0.0, 45.0, cond,
+    ...                       coefficients=ALUMINIUM_7075, n_samples=5)
+    >>> [r.direction for r in res]
+    ['x', 'y', 'z']
     """
     check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
     n_samples = check_int("n_samples", n_samples, lo=1, hi=100_000)
@@ -208,101 +257,6 @@ def predict_at_pose(
             )
         )
     return out
-
-
-def workspace_lobe_map(
-    model,
-    rz_deg: float,
-    tool: MillingTool,
-    conditions: CuttingConditions,
-    coefficients: CuttingCoefficients,
-    *,
-    x_mm=None,
-    y_mm=None,
-    feed_direction: str = "x",
-    at_speed: bool = True,
-    progress: Callable[[int, int], None] | None = None,
-) -> np.ndarray:
-    """Critical axial depth [m] over an X-Y grid at ``rz_deg`` (shape (len(y), len(x))).
-
-    ``at_speed=True``: at the conditions' spindle speed; ``False``: the minimum over all
-    speeds (the unconditionally stable depth). ``progress(done, total)`` is called per pose.
-    """
-    xs = np.linspace(2100, 2700, 13) if x_mm is None else np.asarray(x_mm, float)
-    ys = np.linspace(-300, 600, 10) if y_mm is None else np.asarray(y_mm, float)
-    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
-    xs = check_increasing("x_mm grid", xs, "mm", min_size=2)
-    ys = check_increasing("y_mm grid", ys, "mm", min_size=2)
-    check_number("rz_deg", rz_deg, "deg")
-    grid = np.array([[x, y, rz_deg] for y in ys for x in xs])
-    out = np.empty(len(grid))
-    for j, pose in enumerate(model.modes(grid)):
-        modes = {d: m.parameters for d, m in pose.items()}
-        feed, normal = ("x", "y") if feed_direction == "x" else ("y", "x")
-        lobes: StabilityLobes = stability_lobes(
-            [modes[feed]], [modes[normal]], tool, conditions, coefficients
-        )
-        out[j] = (
-            lobes.critical_depth(conditions.spindle_rpm)[0] if at_speed else lobes.minimum_depth_m
-        )
-        if progress is not None:
-            progress(j + 1, len(grid))
-    return out.reshape(len(ys), len(xs))
-
-
-def plot_lobe_map(x_mm, y_mm, critical_depth_m, *, title: str | None = None, ax=None):
-    """Heat map of the critical axial depth over the workspace (from :func:`workspace_lobe_map`).
-
-    Parameters
-    ----------
-    x_mm, y_mm
-        (n_x,), (n_y,) grid coordinates [mm].
-    critical_depth_m
-        (n_y, n_x) critical axial depth [m]; shown in mm, clipped for the colour scale at 10x
-        the shallowest depth so that near-unconditionally stable poses do not wash it out.
-    title
-        Axes title.
-    ax
-        Matplotlib axes to draw into; a new figure if None.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
-    import matplotlib.pyplot as plt
-
-    grid = np.asarray(critical_depth_m, float)
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(7, 5))
-    else:
-        fig = ax.figure
-    im = ax.pcolormesh(
-        x_mm, y_mm, np.minimum(grid, 10 * np.nanmin(grid)) * 1e3, shading="auto", cmap="viridis"
-    )
-    fig.colorbar(im, ax=ax, label="critical axial depth [mm]")
-    ax.set_xlabel("X [mm]")
-    ax.set_ylabel("Y [mm]")
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    return fig
-
-
-def best_pose(x_mm, y_mm, critical_depth_m) -> dict:
-    """Deepest and shallowest critical depth of a :func:`workspace_lobe_map` grid.
-
-    Returns
-    -------
-    dict
-        ``best_pose_mm`` [x, y], ``best_depth_mm``, ``shallowest_depth_mm``.
-    """
-    grid = np.asarray(critical_depth_m, float)
-    i, j = np.unravel_index(np.argmax(grid), grid.shape)
-    return {
-        "best_pose_mm": [float(x_mm[j]), float(y_mm[i])],
-        "best_depth_mm": 1e3 * float(grid[i, j]),
-        "shallowest_depth_mm": 1e3 * float(np.min(grid)),
-    }
 
 
 @dataclass(frozen=True)

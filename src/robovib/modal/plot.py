@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 from ..frf.core import FRF
 from ..frf.plot import FRFCurve, FRFView, plot_frf
@@ -15,7 +14,6 @@ __all__ = ["plot_frf_fit"]
 def plot_frf_fit(
     frf: FRF,
     fitted: Sequence[ModalParameters] = (),
-    path: str | Path | None = None,
     residual: complex = 0j,
     title: str | None = None,
     *,
@@ -27,27 +25,26 @@ def plot_frf_fit(
 
     Parameters
     ----------
-    frf
+    frf : FRF
         Measured compliance FRF [m/N] (the fit band).
-    fitted
+    fitted : sequence of ModalParameters
         Fitted modes; their summed compliance (+ ``residual``) is drawn dashed.
-    path
-        If given, the figure is written there (atomically) and closed.
-    residual
+    residual : complex
         Constant residual compliance [m/N] of the fit.
-    title
+    title : str, optional
         Figure title.
-    flags
+    flags : sequence of str
         Reasons the fit should not be trusted (:attr:`robovib.modal.ModalFit.flags`): shown in
         red on the figure, title prefixed "FLAGGED FIT".
-    view
-        ``"bode"``, ``"real-imag"`` or ``"both"`` (see :func:`robovib.frf.plot_frf`).
-    ax
-        Axes to draw into (see :func:`robovib.frf.plot_frf`).
+    view : {"bode", "real-imag", "both"}
+        Panels (see :func:`robovib.frf.plot_frf`).
+    ax : sequence of matplotlib.axes.Axes, optional
+        Axes to draw into (see :func:`robovib.frf.plot_frf`); a new figure when omitted.
 
     Returns
     -------
     matplotlib.figure.Figure
+        The figure (saving is the caller's: ``robovib.io.save_figure``).
     """
     f = frf.frequency_hz
     overlays = []
@@ -62,11 +59,4 @@ def plot_frf_fit(
         fig.text(0.01, 0.005, "\n".join(f"flag: {r}" for r in flags), color="C3", fontsize=7,
                  va="bottom", ha="left", wrap=True)  # fmt: skip
         fig.subplots_adjust(bottom=min(0.35, 0.06 + 0.03 * len(flags)))
-    if path is not None:
-        import matplotlib.pyplot as plt
-
-        from ..io.safe_write import save_figure
-
-        save_figure(fig, path)
-        plt.close(fig)
     return fig
