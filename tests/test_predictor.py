@@ -133,3 +133,13 @@ def test_prediction_imports_neither_scikit_learn_nor_scipy_nor_pandas():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_gpr_predict_command_imports_neither_scikit_learn_nor_scipy_nor_pandas():
+    """The whole command (options, prediction, JSON provenance): what keeps it under 1 s."""
+    cmd = [sys.executable, "-X", "importtime", "-m", "robovib.cli", "gpr", "predict",
+           "--x", "2400", "--y", "0", "--rz", "45", "--json"]  # fmt: skip
+    out = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    imported = {line.rsplit("|", 1)[-1].strip() for line in out.stderr.splitlines()}
+    assert "robovib.gp.predictor" in imported
+    assert not imported & {"sklearn", "scipy", "pandas", "matplotlib"}
