@@ -37,6 +37,7 @@ from .tables import (
     read_path_modes_csv,
     write_path_modes_csv,
     write_recording,
+    write_recording_csv,
 )
 from .uff58 import Record58, write_uff58
 from .units import apply_sensitivity, si_factor
