@@ -3,7 +3,6 @@
 Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
-from .atomic import atomic_path
 from .cuts import MeasuredCuts, read_cuts_csv
 from .frf_files import (
     read_frfs,
@@ -50,7 +49,6 @@ __all__ = [
     "Sensitivity",
     "apply_sensitivity",
     "atomic_output",
-    "atomic_path",
     "check_output_path",
     "json_dumps",
     "json_safe",
