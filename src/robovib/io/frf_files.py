@@ -67,8 +67,15 @@ def write_frfs_hdf5(
     import h5py
 
     with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
+        from .. import __version__
+
         h5.attrs["format"] = _FORMAT
         h5.attrs["version"] = 1
+        h5.attrs["robovib_version"] = __version__
+        h5.attrs["units"] = (
+            "frequency_hz Hz; values SI per quantity (compliance m/N, mobility m/s/N, "
+            "accelerance m/s^2/N); pose X, Y, Z m, Rx, Ry, Rz deg; exp_window_tau_s s"
+        )
         grp = h5.create_group("frf")
         for i, frf in enumerate(frfs):
             g = grp.create_group(f"{i:06d}")
