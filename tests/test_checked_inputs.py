@@ -92,7 +92,8 @@ def test_fmin_inside_the_measured_band():
 
 
 def test_feed_samples_and_grid_checked():
-    from robovib.milling.workflow import base_frame_forces, predict_at_pose, workspace_lobe_map
+    from robovib.milling.maps import workspace_lobe_map
+    from robovib.milling.workflow import base_frame_forces, predict_at_pose
 
     with pytest.raises(ValueError, match="unknown feed_direction 'z'"):
         base_frame_forces(np.ones((4, 3)), "z")
@@ -107,12 +108,11 @@ def test_feed_samples_and_grid_checked():
         predict_at_pose(model, 2400, 0, 0, cond, forces_n=forces, n_samples=0)
     with pytest.raises(ValueError, match="x_mm must be a finite number in mm"):
         predict_at_pose(model, float("nan"), 0, 0, cond, forces_n=forces)
-    with pytest.raises(ValueError, match=r"x_mm grid \[mm\] needs at least 2 values"):
-        workspace_lobe_map(model, 0.0, None, cond, None, x_mm=[2400.0])
-    with pytest.raises(ValueError, match="sorted and unique"):
-        workspace_lobe_map(model, 0.0, None, cond, None, x_mm=[2400.0, 2300.0], y_mm=[0, 1])
-    with pytest.raises(ValueError, match="unknown feed_direction"):
-        workspace_lobe_map(model, 0.0, None, cond, None, feed_direction="z")
+    with pytest.raises(ValueError, match="x_mm must be a non-empty 1-D array of finite values"):
+        workspace_lobe_map(model, [[2400.0]], [0.0], [0.0], [2700.0], None, cond, None)
+    with pytest.raises(ValueError, match="feed_direction must be 'x' or 'y'"):
+        workspace_lobe_map(model, [2400.0], [0.0], [0.0], [2700.0], None, cond, None,
+                           feed_direction="z")  # fmt: skip
 
 
 def test_delay_rounding_and_path_checked():

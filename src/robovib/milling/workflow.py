@@ -1,4 +1,6 @@
-"""Milling at a pose: forces -> pose-model dynamics -> vibration with a band; lobes; workspace map.
+"""Milling at a pose: forces -> pose-model dynamics -> vibration with a band; lobes.
+
+The workspace stability map is :func:`robovib.milling.maps.workspace_lobe_map`.
 
 The pose model is a fitted :class:`robovib.gp.PoseModalModel` over chapter-3 poses
 ``(x_mm, y_mm, rz_deg)`` with directions x, y, z (SI), e.g.
@@ -13,12 +15,11 @@ deflection.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_choice, check_increasing, check_int, check_number
+from .._checks import check_choice, check_int, check_number
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool, milling_forces
 from .prediction import convolve_force, summarise_vibration
@@ -32,7 +33,6 @@ __all__ = [
     "pose_extrapolation",
     "pose_modes",
     "predict_at_pose",
-    "workspace_lobe_map",
 ]
 
 DIRECTIONS = ("x", "y", "z")
@@ -208,101 +208,6 @@ def predict_at_pose(
             )
         )
     return out
-
-
-def workspace_lobe_map(
-    model,
-    rz_deg: float,
-    tool: MillingTool,
-    conditions: CuttingConditions,
-    coefficients: CuttingCoefficients,
-    *,
-    x_mm=None,
-    y_mm=None,
-    feed_direction: str = "x",
-    at_speed: bool = True,
-    progress: Callable[[int, int], None] | None = None,
-) -> np.ndarray:
-    """Critical axial depth [m] over an X-Y grid at ``rz_deg`` (shape (len(y), len(x))).
-
-    ``at_speed=True``: at the conditions' spindle speed; ``False``: the minimum over all
-    speeds (the unconditionally stable depth). ``progress(done, total)`` is called per pose.
-    """
-    xs = np.linspace(2100, 2700, 13) if x_mm is None else np.asarray(x_mm, float)
-    ys = np.linspace(-300, 600, 10) if y_mm is None else np.asarray(y_mm, float)
-    check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
-    xs = check_increasing("x_mm grid", xs, "mm", min_size=2)
-    ys = check_increasing("y_mm grid", ys, "mm", min_size=2)
-    check_number("rz_deg", rz_deg, "deg")
-    grid = np.array([[x, y, rz_deg] for y in ys for x in xs])
-    out = np.empty(len(grid))
-    for j, pose in enumerate(model.modes(grid)):
-        modes = {d: m.parameters for d, m in pose.items()}
-        feed, normal = ("x", "y") if feed_direction == "x" else ("y", "x")
-        lobes: StabilityLobes = stability_lobes(
-            [modes[feed]], [modes[normal]], tool, conditions, coefficients
-        )
-        out[j] = (
-            lobes.critical_depth(conditions.spindle_rpm)[0] if at_speed else lobes.minimum_depth_m
-        )
-        if progress is not None:
-            progress(j + 1, len(grid))
-    return out.reshape(len(ys), len(xs))
-
-
-def plot_lobe_map(x_mm, y_mm, critical_depth_m, *, title: str | None = None, ax=None):
-    """Heat map of the critical axial depth over the workspace (from :func:`workspace_lobe_map`).
-
-    Parameters
-    ----------
-    x_mm, y_mm
-        (n_x,), (n_y,) grid coordinates [mm].
-    critical_depth_m
-        (n_y, n_x) critical axial depth [m]; shown in mm, clipped for the colour scale at 10x
-        the shallowest depth so that near-unconditionally stable poses do not wash it out.
-    title
-        Axes title.
-    ax
-        Matplotlib axes to draw into; a new figure if None.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
-    import matplotlib.pyplot as plt
-
-    grid = np.asarray(critical_depth_m, float)
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(7, 5))
-    else:
-        fig = ax.figure
-    im = ax.pcolormesh(
-        x_mm, y_mm, np.minimum(grid, 10 * np.nanmin(grid)) * 1e3, shading="auto", cmap="viridis"
-    )
-    fig.colorbar(im, ax=ax, label="critical axial depth [mm]")
-    ax.set_xlabel("X [mm]")
-    ax.set_ylabel("Y [mm]")
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    return fig
-
-
-def best_pose(x_mm, y_mm, critical_depth_m) -> dict:
-    """Deepest and shallowest critical depth of a :func:`workspace_lobe_map` grid.
-
-    Returns
-    -------
-    dict
-        ``best_pose_mm`` [x, y], ``best_depth_mm``, ``shallowest_depth_mm``.
-    """
-    grid = np.asarray(critical_depth_m, float)
-    i, j = np.unravel_index(np.argmax(grid), grid.shape)
-    return {
-        "best_pose_mm": [float(x_mm[j]), float(y_mm[i])],
-        "best_depth_mm": 1e3 * float(grid[i, j]),
-        "shallowest_depth_mm": 1e3 * float(np.min(grid)),
-    }
 
 
 @dataclass(frozen=True)
