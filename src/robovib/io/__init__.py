@@ -6,6 +6,7 @@ Units and sensor sensitivities are converted to SI here, at the edge.
 from .cuts import MeasuredCuts, read_cuts_csv
 from .frf_files import (
     read_frfs,
+    read_frfs_csv,
     read_frfs_hdf5,
     read_frfs_uff,
     write_frfs,
@@ -56,6 +57,7 @@ __all__ = [
     "read_cuts_csv",
     "read_force_csv",
     "read_frfs",
+    "read_frfs_csv",
     "read_frfs_hdf5",
     "read_frfs_uff",
     "read_milling_record_csv",

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.frf_files import read_frfs_csv as read_frf_csv  # the reader lives in robovib.io
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool
 from .lobes import LobeEnvelope, lobes_title, plot_lobes, zoa_envelope
@@ -85,52 +86,11 @@ def parse_rpm_range(spec: str) -> np.ndarray:
     return np.linspace(lo, hi, count)
 
 
-_CSV_UNITS = {"m_per_n": 1.0, "mm_per_n": 1e-3, "um_per_n": 1e-6}
-
-
-def read_frf_csv(path: str | Path):
-    """Tool-tip compliance FRFs from CSV: ``frequency_hz`` then ``<d>_real_<unit>``,
-    ``<d>_imag_<unit>`` for d in x, y (unit ``m_per_n``, ``mm_per_n`` or ``um_per_n``).
-
-    Returns a list of :class:`robovib.frf.FRF` (compliance, SI), one per direction found.
-    """
-    from ..frf import FRF
-
-    p = Path(path)
-    with p.open() as fh:
-        header = [h.strip().lower() for h in fh.readline().split(",")]
-    if not header or header[0] != "frequency_hz":
-        raise ValueError(f"{p}: first column must be frequency_hz, got {header[:1]}")
-    data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
-    if data.shape[1] != len(header):
-        raise ValueError(f"{p}: {data.shape[1]} columns of data, {len(header)} in the header")
-    out = []
-    for d in ("x", "y"):
-        cols = {}
-        for part in ("real", "imag"):
-            hit = [(i, h) for i, h in enumerate(header) if h.startswith(f"{d}_{part}_")]
-            if hit:
-                i, h = hit[0]
-                unit = h[len(f"{d}_{part}_") :]
-                if unit not in _CSV_UNITS:
-                    raise ValueError(
-                        f"{p}: unknown unit {unit!r} in {h!r}; use {sorted(_CSV_UNITS)}"
-                    )
-                cols[part] = data[:, i] * _CSV_UNITS[unit]
-        if len(cols) == 1:
-            raise ValueError(f"{p}: direction {d} needs both {d}_real_<unit> and {d}_imag_<unit>")
-        if cols:
-            out.append(FRF(data[:, 0], cols["real"] + 1j * cols["imag"], direction=d,
-                           source="EMA", estimator="H1", coherence=None))  # fmt: skip
-    if not out:
-        raise ValueError(f"{p}: no x_real_<unit>/x_imag_<unit> or y_... columns in {header}")
-    return out
-
-
 def _read_frfs(path: Path):
+    from ..io import read_frfs
+
     if path.suffix.lower() == ".csv":
         return read_frf_csv(path)
-    from ..io import read_frfs
 
     return read_frfs(path)
 
