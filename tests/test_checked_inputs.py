@@ -108,10 +108,12 @@ def test_feed_samples_and_grid_checked():
         predict_at_pose(model, 2400, 0, 0, cond, forces_n=forces, n_samples=0)
     with pytest.raises(ValueError, match="x_mm must be a finite number in mm"):
         predict_at_pose(model, float("nan"), 0, 0, cond, forces_n=forces)
-    with pytest.raises(ValueError, match="x_mm must be a non-empty 1-D array of finite values"):
-        workspace_lobe_map(model, [[2400.0]], [0.0], [0.0], [2700.0], None, cond, None)
+    with pytest.raises(ValueError, match="x_mm must be a non-empty 1-D array"):
+        workspace_lobe_map(model, [], [0.0], [0.0], [2000.0], None, cond, None)
+    with pytest.raises(ValueError, match="x_mm grid must be sorted and unique"):
+        workspace_lobe_map(model, [2400.0, 2300.0], [0, 1], [0.0], [2000.0], None, cond, None)
     with pytest.raises(ValueError, match="feed_direction must be 'x' or 'y'"):
-        workspace_lobe_map(model, [2400.0], [0.0], [0.0], [2700.0], None, cond, None,
+        workspace_lobe_map(model, [2400.0], [0.0], [0.0], [2000.0], None, cond, None,
                            feed_direction="z")  # fmt: skip
 
 

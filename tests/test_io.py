@@ -279,3 +279,38 @@ def test_frf_interpolate_is_exact_on_linear_frf_and_checks_range():
         frf.interpolate([0.5, 5.0])
     held = frf.interpolate([0.5, 12.0], outside="hold")
     np.testing.assert_allclose(held.values, frf.values[[0, -1]])
+
+
+def test_frf_interpolate_zero_outside_and_per_side():
+    f = np.linspace(1.0, 10.0, 10)
+    frf = FRF(f, (2 + 3j) * f - 1j, coherence=np.full(10, 0.9))
+    grid = np.array([0.0, 0.5, 1.0, 5.5, 10.0, 10.5, 20.0])
+    inside = (grid >= 1.0) & (grid <= 10.0)
+    zero = frf.interpolate(grid, outside="zero")
+    np.testing.assert_allclose(zero.values[inside], (2 + 3j) * grid[inside] - 1j)
+    np.testing.assert_array_equal(zero.values[~inside], 0)
+    np.testing.assert_array_equal(zero.coherence, np.where(inside, 0.9, 0.0))
+    mixed = frf.interpolate(grid, outside=("hold", "zero"))
+    np.testing.assert_allclose(mixed.values[grid < 1.0], frf.values[0])
+    np.testing.assert_array_equal(mixed.values[grid > 10.0], 0)
+    for bad in ("clip", ("zero",), ("raise", "zero")):
+        with pytest.raises(ValueError, match="unknown outside"):
+            frf.interpolate(grid, outside=bad)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        frf.interpolate([2.0, 1.0], outside="zero")
+
+
+def test_tool_displacement_from_frf_matches_modes_within_the_band():
+    """FRF path of milling.prediction (interpolated, zero above the band) vs the exact modal path."""
+    from robovib.milling.prediction import convolve_force
+    from robovib.modal import ModalParameters
+
+    mode = ModalParameters(30.0, 2e6, 0.05)
+    fs = 1000.0
+    t = np.arange(2000) / fs
+    force = 100 * np.sin(2 * np.pi * 12.0 * t) * (t < 1.0)
+    f_dense = np.linspace(0.0, fs / 2, 20001)
+    frf = FRF(f_dense, mode.compliance(f_dense))
+    x_modes = convolve_force(force, fs, modes=[mode])
+    x_frf = convolve_force(force, fs, frf=frf)
+    assert np.max(np.abs(x_frf - x_modes)) < 0.02 * np.max(np.abs(x_modes))

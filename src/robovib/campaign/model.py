@@ -162,15 +162,30 @@ def fit_pose_model_from_table(
         Folds of the grouped-by-pose cross-validation.
     use_flagged
         Also use rows whose fit is flagged (band edge, residual, coherence).
+    rng
+        Seed of the fold shuffle and the optimiser restarts.
 
     Returns
     -------
     PoseModelFit
+        The fitted :class:`~robovib.gp.PoseModalModel` and its grouped cross-validation
+        scores (R², RMSE per output in SI units).
 
     Raises
     ------
     ValueError
         Missing columns, unknown inputs, fewer than 2 poses.
+
+    See ``docs/methods.md`` section 3 (GP pose models).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from robovib.campaign import fit_pose_model_from_table, process_campaign
+    >>> from robovib.sim import simulate_campaign
+    >>> folder = tempfile.mkdtemp()  # doctest: +SKIP
+    >>> simulate_campaign(folder, rng=0)  # doctest: +SKIP
+    >>> fit = fit_pose_model_from_table(process_campaign(folder).modal_csv)  # doctest: +SKIP
     """
     import pandas as pd
 
@@ -312,6 +327,15 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
     ------
     ValueError
         Missing input columns, bad ``k``, an unfitted model.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.campaign import next_poses
+    >>> from robovib.gp import load_chapter3_model
+    >>> cand = np.array([[2100.0, -300.0, 0.0], [2400.0, 0.0, 45.0], [2700.0, 600.0, 90.0]])
+    >>> len(next_poses(load_chapter3_model(), cand, k=2).poses)
+    2
     """
     names = tuple(model.input_names)
     if isinstance(candidates, str | Path):

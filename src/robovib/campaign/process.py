@@ -297,6 +297,15 @@ def process_campaign(
     ValueError
         A bad manifest, or (without ``skip_bad``) any failing row — named by its manifest
         line and reason; nothing is written then.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from robovib.campaign import process_campaign
+    >>> from robovib.sim import simulate_campaign
+    >>> folder = tempfile.mkdtemp()
+    >>> manifest = simulate_campaign(folder, rng=0)  # doctest: +SKIP
+    >>> result = process_campaign(manifest, folder + "/out")  # doctest: +SKIP
     """
     manifest = Path(manifest)
     out_dir = Path(out_dir)

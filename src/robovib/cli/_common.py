@@ -228,3 +228,13 @@ def save_figure(fig, path: Path, dpi: int = 120, inputs=(), force: bool = False)
         _save(fig, path, dpi=dpi, inputs=inputs, force=force)
     finally:
         plt.close(fig)
+
+
+def print_table(title: str, columns, rows) -> None:
+    """One rich table: ``columns`` (headers, units in brackets are escaped) and rows of strings."""
+    t = Table(title=escape(title))
+    for col in columns:
+        t.add_column(escape(col), justify="right")
+    for row in rows:
+        t.add_row(*(escape(str(v)) for v in row))
+    console().print(t)

@@ -127,7 +127,7 @@ def schedule(
     sched = schedule_gains(s, modes, warn=warnings_seen.append)
     if plot is not None:
         use_agg()
-        sched.plot(plot)
+        save_figure(sched.plot(), plot)
     doc = {"s_m": sched.s_m, "w1": sched.w1, "w2": sched.w2, "r": sched.r, "stable_with_delay": sched.stable_with_delay,
            "w1_poly_high_to_low": sched.w1_poly, "w2_poly_high_to_low": sched.w2_poly, "warnings": warnings_seen}  # fmt: skip
     if json_out:

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
 from ._common import (
@@ -13,26 +12,15 @@ from ._common import (
     JsonFlag,
     OutOpt,
     SeedOpt,
-    Table,
     check_output,
-    console,
     emit_json,
     new_app,
+    print_table,
     save_figure,
     use_agg,
 )
 
 app = new_app("Hybrid EMA + OMA model of the whole FRF with Bayesian updating (thesis ch. 5).")
-
-
-def _seeds(text: str) -> list[int]:
-    try:
-        if "-" in text.strip("-"):
-            a, b = text.split("-", 1)
-            return list(range(int(a), int(b) + 1))
-        return [int(v) for v in text.split(",")]
-    except ValueError:
-        raise ValueError(f"--seeds must look like 0-4 or 0,1,2, got {text!r}") from None
 
 
 @app.command("study")
@@ -59,10 +47,10 @@ def study(
     json_out: JsonFlag = False,
 ) -> None:
     """EMA at 3 poses, OMA from a 600 mm cut, validation: Table 12 / 13 analogues over seeds."""
-    from ..studies.hybrid import hybrid_study
+    from ..studies.hybrid import hybrid_study, parse_seeds
 
     res = hybrid_study(
-        seeds=_seeds(seeds), background_noise_rel=background, nperseg=nperseg, noverlap=noverlap,
+        seeds=parse_seeds(seeds), background_noise_rel=background, nperseg=nperseg, noverlap=noverlap,
         window=window, segment_length_m=segment_mm / 1e3, validation_s_m=validation_s,
         f_range_hz=(2.0, fmax),
     )  # fmt: skip
@@ -70,16 +58,13 @@ def study(
         emit_json(res.to_dict())
         return
     summ = res.summary()
-    t = Table(title="FRF RMSE at the validation pose vs truth (um/N), change vs EMA (mean / worst "
-                    "seed), peak error vs hammer FRF, iterations per GP - Table 12/13 analogues")  # fmt: skip
-    for col in ("dir", "model", "RMSE", "change", "worst", "peak err", "rejected", "iter/GP"):
-        t.add_column(col, justify="right")
-    for r in summ.to_dict(orient="records"):
-        t.add_row(r["direction"].upper(), r["model"], f"{r['rmse_vs_truth_um_per_n']:.3f}",
+    print_table("FRF RMSE at the validation pose vs truth (um/N), change vs EMA (mean / worst seed), "
+                "peak error vs hammer FRF, iterations per GP - Table 12/13 analogues",
+                ("dir", "model", "RMSE", "change", "worst", "peak err", "rejected", "iter/GP"),
+                [(r["direction"].upper(), r["model"], f"{r['rmse_vs_truth_um_per_n']:.3f}",
                   f"{r['change_pct']:+.0f} %", f"{r['worst_change_pct']:+.0f} %",
                   f"{r['peak_error_pct']:.1f} %", f"{100 * r['rejected_fraction']:.0f} %",
-                  f"{r['iterations_mean']:.1f}")  # fmt: skip
-    console().print(t)
+                  f"{r['iterations_mean']:.1f}") for r in summ.to_dict(orient="records")])  # fmt: skip
     typer.echo(f"default (robust) update meets issue 17's rule: {res.rule_met()}")
 
 
@@ -113,7 +98,7 @@ def oma(
     The record is a cut along the path (path_s_m column) or in the workspace (x_m, y_m,
     rz_deg columns); a warning says when too few bins pass the coherence check.
     """
-    from ..hybrid import oma_frfs_with_path
+    from ..hybrid import flagged_fraction, oma_frfs_with_path
     from ..io import read_milling_record_csv, write_frfs
 
     check_output(output, [record], force)
@@ -123,10 +108,9 @@ def oma(
         spindle_rpm=rpm, min_coherence=min_coherence,
     )  # fmt: skip
     write_frfs(output, frfs, inputs=[record], force=force)
-    flagged = [np.asarray(f.meta["flagged"], bool) for f in frfs]
     doc = {"output": str(output), "segments": len(frfs), "s_mid_m": [f.meta["path_s_m"] for f in frfs],
            "n_bins": int(frfs[0].frequency_hz.size), "df_hz": float(frfs[0].df_hz),
-           "flagged_fraction": float(np.mean([fl.mean() for fl in flagged]))}  # fmt: skip
+           "flagged_fraction": flagged_fraction(frfs)}  # fmt: skip
     if json_out:
         emit_json(doc)
     else:
@@ -284,10 +268,9 @@ def predict(
         return
     if pred.extrapolating:
         typer.echo("warning: the pose is outside the calibrated range: extrapolation")
-    h, sd = pred.compliance_m_per_n, pred.std_m_per_n
-    peak = int(np.argmax(np.abs(h)))
+    f_peak, h_peak, sd_peak = pred.peak()
     typer.echo(
-        f"peak compliance {1e6 * abs(h[peak]):.3f} um/N at {pred.frequency_hz[peak]:.2f} Hz (±{2e6 * sd[peak]:.3f} at 2σ)"
+        f"peak compliance {1e6 * abs(h_peak):.3f} um/N at {f_peak:.2f} Hz (±{2e6 * sd_peak:.3f} at 2σ)"
     )
     if pred.rmse_um_per_n is not None:
         typer.echo(f"RMSE vs measured: {pred.rmse_um_per_n:.3f} um/N")

@@ -8,51 +8,37 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from . import _mill_options as opt
 from ._common import (
     JsonFlag,
     ModelOpt,
     SeedOpt,
-    Table,
     check_output,
     console,
     emit_json,
-    escape,
     fail,
     material,
     new_app,
+    print_table,
     save_figure,
     use_agg,
     workspace_model,
 )
 
 app = new_app("Milling vibration and chatter stability at a pose (thesis §3.5).")
-XOpt = Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")]
-YOpt = Annotated[float, typer.Option("--y", help="Tool-tip Y [mm].")]
-RzOpt = Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")]
-RpmOpt = Annotated[float, typer.Option(help="Spindle speed [rpm].")]
-FzOpt = Annotated[float, typer.Option("--fz", help="Feed per tooth [mm].")]
-ApOpt = Annotated[float, typer.Option("--ap", help="Axial depth of cut [mm].")]
-AeOpt = Annotated[
-    float,
-    typer.Option("--ae", help="Radial depth of cut [mm] (25.4 = slotting with the 25.4 mm tool)."),
-]
-MaterialOpt = Annotated[
-    str, typer.Option("--material", help="Cutting-coefficient preset: al7075 or acetal.")
-]
-FeedOpt = Annotated[str, typer.Option(help="Feed direction in the base frame: x or y.")]
 
 
 @app.command("predict")
 def predict(
-    x: XOpt,
-    y: YOpt,
-    rz: RzOpt,
-    rpm: RpmOpt = 1750.0,
-    fz: FzOpt = 0.058,
-    ap: ApOpt = 3.0,
-    ae: AeOpt = 25.4,
-    material_name: MaterialOpt = "al7075",
-    feed: FeedOpt = "x",
+    x: opt.XOpt,
+    y: opt.YOpt,
+    rz: opt.RzOpt,
+    rpm: opt.RpmOpt = 1750.0,
+    fz: opt.FzOpt = 0.058,
+    ap: opt.ApOpt = 3.0,
+    ae: opt.AeOpt = 25.4,
+    material_name: opt.MaterialOpt = "al7075",
+    feed: opt.FeedOpt = "x",
     forces: Annotated[
         Path | None,
         typer.Option(
@@ -91,77 +77,18 @@ def predict(
         emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm,
                    "extrapolation": outside, "predictions": rows})  # fmt: skip
         return
-    con = console()
-    t = Table(
-        title=f"Milling vibration at X={x:g}, Y={y:g} mm, Rz={rz:g}° ({rpm:g} rpm, fz {fz} mm, ap {ap} mm, ae {ae} mm)"
-    )
-    for col in ("dir", "mode fn [Hz]", "mean deflection [mm]", "95 % band", "P-V / rev [mm]",
-                "95 % band"):  # fmt: skip
-        t.add_column(escape(col), justify="right")
-    for r in rows:
-        t.add_row(
-            r["direction"].upper(), f"{r['mode']['natural_frequency_hz']:.2f}", f"{r['mean_deflection_mm']:.4f}",
-            escape(f"[{r['mean_deflection_band_mm'][0]:.4f}, {r['mean_deflection_band_mm'][1]:.4f}]"),
-            f"{r['peak_to_valley_mm']:.4f}", escape(f"[{r['peak_to_valley_band_mm'][0]:.4f}, {r['peak_to_valley_band_mm'][1]:.4f}]"),
-        )  # fmt: skip
-    con.print(t)
+    band = "[{:.4f}, {:.4f}]".format
+    print_table(
+        f"Milling vibration at X={x:g}, Y={y:g} mm, Rz={rz:g}° ({rpm:g} rpm, fz {fz} mm, ap {ap} mm, ae {ae} mm)",
+        ("dir", "mode fn [Hz]", "mean deflection [mm]", "95 % band", "P-V / rev [mm]", "95 % band"),
+        [(r["direction"].upper(), f"{r['mode']['natural_frequency_hz']:.2f}", f"{r['mean_deflection_mm']:.4f}",
+          band(*r["mean_deflection_band_mm"]), f"{r['peak_to_valley_mm']:.4f}", band(*r["peak_to_valley_band_mm"]))
+         for r in rows],
+    )  # fmt: skip
     if outside:
-        con.print(
+        console().print(
             f"[yellow]warning:[/] {', '.join(outside)} outside the calibrated workspace: extrapolation"
         )
-
-
-TeethOpt = Annotated[int, typer.Option("--teeth", help="Number of teeth (flutes) of the tool.")]
-DiameterOpt = Annotated[float, typer.Option("--diameter", help="Tool diameter [mm].")]
-HelixOpt = Annotated[
-    float,
-    typer.Option("--helix", help="Helix angle [deg] (forces; the stability methods ignore it)."),
-]
-KtOpt = Annotated[
-    float | None,
-    typer.Option("--kt", help="Tangential cutting coefficient [N/m²] (overrides --material)."),
-]
-KnOpt = Annotated[
-    float | None,
-    typer.Option("--kn", help="Radial (normal) cutting coefficient [N/m²] (overrides --material)."),
-]
-RadialOpt = Annotated[
-    float | None,
-    typer.Option("--radial-immersion", help="Radial immersion a/D [-] (instead of --ae)."),
-]
-MillingOpt = Annotated[str, typer.Option("--milling", help="up or down milling.")]
-StepsOpt = Annotated[
-    int,
-    typer.Option("--steps", help="SDM steps across the cut (40; 20 is ~4x faster, <1 % change)."),
-]
-MethodOpt = Annotated[
-    str,
-    typer.Option("--method", help="sdm (semi-discretization, flip lobes) or zoa (zero-order)."),
-]
-
-
-def _cutting(material_name, kt, kn, diameter, teeth, helix, ae, radial_immersion, milling):
-    """Tool, conditions and coefficients from the shared options (SI)."""
-    from dataclasses import replace
-
-    from ..milling import CuttingConditions, MillingTool
-
-    if milling not in ("up", "down"):
-        raise ValueError(f"--milling must be 'up' or 'down', got {milling!r}")
-    tool = MillingTool(diameter_m=diameter / 1e3, n_flutes=teeth, helix_deg=helix)
-    if radial_immersion is not None:
-        if not 0 < radial_immersion <= 1:
-            raise ValueError(f"--radial-immersion is a/D in (0, 1], got {radial_immersion}")
-        ae_m = radial_immersion * tool.diameter_m
-    else:
-        ae_m = ae / 1e3
-    cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae_m, down_milling=milling == "down")
-    coef = material(material_name)
-    if kt is not None:
-        coef = replace(coef, ktc=kt)
-    if kn is not None:
-        coef = replace(coef, krc=kn)
-    return tool, cond, coef
 
 
 @app.command("lobes")
@@ -171,7 +98,7 @@ def lobes(
     rz: Annotated[
         float | None, typer.Option("--rz", help="Rotation about the tool axis [deg].")
     ] = None,
-    method: MethodOpt = "sdm",
+    method: opt.MethodOpt = "sdm",
     mode: Annotated[
         list[str] | None,
         typer.Option(
@@ -185,16 +112,16 @@ def lobes(
             help="Measured tool-tip FRFs: .h5, .uff or .csv (frequency_hz, x_real_<unit>, ...).",
         ),
     ] = None,
-    teeth: TeethOpt = 2,
-    diameter: DiameterOpt = 25.4,
-    helix: HelixOpt = 30.0,
-    ae: AeOpt = 6.0,
-    radial_immersion: RadialOpt = None,
-    milling: MillingOpt = "down",
-    material_name: MaterialOpt = "al7075",
-    kt: KtOpt = None,
-    kn: KnOpt = None,
-    feed: FeedOpt = "x",
+    teeth: opt.TeethOpt = 2,
+    diameter: opt.DiameterOpt = 25.4,
+    helix: opt.HelixOpt = 30.0,
+    ae: opt.AeOpt = 6.0,
+    radial_immersion: opt.RadialOpt = None,
+    milling: opt.MillingOpt = "down",
+    material_name: opt.MaterialOpt = "al7075",
+    kt: opt.KtOpt = None,
+    kn: opt.KnOpt = None,
+    feed: opt.FeedOpt = "x",
     rpm_range: Annotated[
         str, typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm].")
     ] = "100:3000:200",
@@ -212,7 +139,7 @@ def lobes(
             help="Pose model only: samples of its predictive distribution (shaded lobes)."
         ),
     ] = 0,
-    steps: StepsOpt = 40,
+    steps: opt.StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
     model_path: ModelOpt = None,
@@ -228,7 +155,7 @@ def lobes(
     )
 
     check_output(plot, [model_path, frf, cuts])
-    tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
+    tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     parsed = [parse_mode_spec(m) for m in (mode or [])]
     modes_x = [m for d, m in parsed if d == "x"]
@@ -292,22 +219,22 @@ def lobes(
 @app.command("map")
 def lobe_map(
     rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")] = 0.0,
-    rpm: RpmOpt = 1750.0,
+    rpm: opt.RpmOpt = 1750.0,
     rpm_range: Annotated[
         str | None,
         typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm] (default: --rpm only)."),
     ] = None,
     method: Annotated[str, typer.Option("--method", help="zoa (fast) or sdm.")] = "zoa",
-    teeth: TeethOpt = 2,
-    diameter: DiameterOpt = 25.4,
-    helix: HelixOpt = 30.0,
-    ae: AeOpt = 6.0,
-    radial_immersion: RadialOpt = None,
-    milling: MillingOpt = "down",
-    material_name: MaterialOpt = "al7075",
-    kt: KtOpt = None,
-    kn: KnOpt = None,
-    feed: FeedOpt = "x",
+    teeth: opt.TeethOpt = 2,
+    diameter: opt.DiameterOpt = 25.4,
+    helix: opt.HelixOpt = 30.0,
+    ae: opt.AeOpt = 6.0,
+    radial_immersion: opt.RadialOpt = None,
+    milling: opt.MillingOpt = "down",
+    material_name: opt.MaterialOpt = "al7075",
+    kt: opt.KtOpt = None,
+    kn: opt.KnOpt = None,
+    feed: opt.FeedOpt = "x",
     nx: Annotated[int, typer.Option(help="Grid points in X.")] = 13,
     ny: Annotated[int, typer.Option(help="Grid points in Y.")] = 10,
     scheduler: Annotated[
@@ -320,7 +247,7 @@ def lobe_map(
         int | None, typer.Option(help="Local Dask workers (default: all cores).")
     ] = None,
     chunk: Annotated[int, typer.Option(help="Poses per Dask task.")] = 4,
-    steps: StepsOpt = 40,
+    steps: opt.StepsOpt = 40,
     output: Annotated[
         Path | None, typer.Option("-o", "--output", help="NetCDF (.nc) of the map.")
     ] = None,
@@ -333,16 +260,24 @@ def lobe_map(
     from rich.progress import Progress
 
     from ..milling.chart import parse_rpm_range
-    from ..milling.maps import plot_lobe_map, save_lobe_map, workspace_lobe_map
+    from ..milling.maps import (
+        WORKSPACE_X_MM,
+        WORKSPACE_Y_MM,
+        best_pose,
+        map_speeds,
+        plot_lobe_map,
+        save_lobe_map,
+        workspace_lobe_map,
+    )
 
     check_output(plot, [model_path])
     for name, n in (("--nx", nx), ("--ny", ny)):
         if n < 2:
             fail(f"{name} must be at least 2 grid points, got {n}")
-    tool, cond, coef = _cutting(material_name, kt, kn, diameter, teeth, helix, ae,
+    tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
-    speeds = np.array([rpm]) if rpm_range is None else np.union1d(parse_rpm_range(rpm_range), [rpm])
-    xs, ys = np.linspace(2100, 2700, nx), np.linspace(-300, 600, ny)
+    speeds = map_speeds(rpm, None if rpm_range is None else parse_rpm_range(rpm_range))
+    xs, ys = np.linspace(*WORKSPACE_X_MM, nx), np.linspace(*WORKSPACE_Y_MM, ny)
     model = workspace_model(model_path, seed)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task(f"{method.upper()} lobes over the workspace", total=None)
@@ -357,9 +292,7 @@ def lobe_map(
     if plot is not None:
         use_agg()
         save_figure(plot_lobe_map(ds, spindle_rpm=rpm), plot)
-    at = ds["a_lim_m"].sel(spindle_rpm=rpm, rz_deg=rz)
-    vals = np.where(np.isfinite(at.values), at.values, np.nan)
-    i, j = np.unravel_index(np.nanargmax(vals), vals.shape)
+    best = best_pose(ds, rpm, rz)
     doc = {
         "command": "mill map",
         "method": method,
@@ -367,10 +300,7 @@ def lobe_map(
         "spindle_rpm": rpm,
         "x_mm": xs,
         "y_mm": ys,
-        "critical_depth_m": vals.T,
-        "best_pose_mm": [float(xs[i]), float(ys[j])],
-        "best_depth_m": float(vals[i, j]),
-        "shallowest_depth_m": float(np.nanmin(vals)),
+        **best,
         "netcdf": None if output is None else str(output),
         "settings": ds.attrs["settings"],
         "robovib_version": ds.attrs["robovib_version"],
@@ -379,8 +309,9 @@ def lobe_map(
         emit_json(doc)
         return
     typer.echo(
-        f"deepest stable cut at {rpm:g} rpm: X={xs[i]:.0f}, Y={ys[j]:.0f} mm: {1e3 * vals[i, j]:.2f} mm; "
-        f"shallowest: {1e3 * np.nanmin(vals):.2f} mm ({method.upper()})"
+        f"deepest stable cut at {rpm:g} rpm: X={best['best_pose_mm'][0]:.0f}, "
+        f"Y={best['best_pose_mm'][1]:.0f} mm: {1e3 * best['best_depth_m']:.2f} mm; "
+        f"shallowest: {1e3 * best['shallowest_depth_m']:.2f} mm ({method.upper()})"
     )
     for path in (output, plot):
         if path is not None:

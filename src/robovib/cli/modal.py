@@ -18,6 +18,7 @@ from ._common import (
     escape,
     fail,
     new_app,
+    save_figure,
     use_agg,
 )
 
@@ -68,13 +69,13 @@ def fit(
         frf, dom, multi = results[0]
         shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
         fitted = multi.modes if multi is not None else (dom.parameters,)
-        plot_frf_fit(
+        fig = plot_frf_fit(
             shown,
             fitted,
-            plot,
             residual=0j if multi else dom.residual_compliance,
             title=f"{frf_file.name}, FRF 0",
         )
+        save_figure(fig, plot, inputs=(frf_file,), force=force)
     docs = []
     for i, (frf, dom, multi) in enumerate(results):
         doc = {

@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ._common import JsonFlag, Table, console, emit_json, escape, new_app, use_agg
+from ._common import JsonFlag, Table, console, emit_json, escape, new_app, save_figure, use_agg
 
 app = new_app(
     "Analytical KR500-3 model: kinematics, stiffness, mass, eigenfrequencies (thesis §3.4)."
@@ -85,7 +85,7 @@ def stiffness(
     robot, q = _workspace_pose(x, y, z, rz)
     k = cartesian_stiffness(robot, q)
     modes = cartesian_modes(robot, q)
-    kt_vals, kt_vecs = np.linalg.eigh(modes.stiffness_n_per_m)
+    kt_vals, kt_vecs = modes.principal_stiffness()
     doc = {
         "joints_deg": q,
         "directional_stiffness_n_per_m": dict(
@@ -165,7 +165,7 @@ def compare(
     gp = gp_input_comparison().to_frame() if gp_inputs else None
     if plot is not None:
         use_agg()
-        plot_comparison(table, plot)
+        save_figure(plot_comparison(table), plot)
     if json_out:
         doc = {"summary": summary, "poses": table.to_dict(orient="records")}
         if gp is not None:

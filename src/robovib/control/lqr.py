@@ -127,7 +127,44 @@ def design_lqr(
     input: Literal["displacement", "force"] = "displacement",
     formulation: Literal["physical", "thesis_printed"] = "physical",
 ) -> LQRDesign:
-    """LQR gains of one mode (Eq. 24-26); defaults: thesis weights, 250 Hz command rate."""
+    """LQR gains of one mode (Eq. 24-26); defaults: thesis weights, 250 Hz command rate.
+
+    See ``docs/methods.md`` section 6 (pose-dependent vibration control).
+
+    Parameters
+    ----------
+    mode : ModalParameters
+        The mode to damp (fn [Hz], k [N/m], zeta).
+    period_s : float
+        Command period [s] of the zero-order-hold discretisation (> 0).
+    q : array_like, shape (2, 2)
+        State weight (displacement [m], velocity [m/s]); symmetric positive semi-definite.
+    r : array_like, shape (1, 1)
+        Input weight; positive definite.
+    input : {"displacement", "force"}
+        Whether the controller commands a displacement offset [m] or a force [N].
+    formulation : {"physical", "thesis_printed"}
+        State-space form: the physical one or the thesis' printed Eq. 18 (see docs/data.md).
+
+    Returns
+    -------
+    LQRDesign
+        Discrete model ``ad``, ``bd``, Riccati solution ``p`` and gains ``gains`` = [w1, w2].
+
+    Raises
+    ------
+    ValueError
+        Weights of the wrong shape or not (semi-)definite, non-positive period, unknown
+        ``input`` or ``formulation``.
+
+    Examples
+    --------
+    >>> from robovib.control import design_lqr
+    >>> from robovib.modal import ModalParameters
+    >>> design = design_lqr(ModalParameters(14.0, 2e6, 0.05))
+    >>> design.gains.shape, design.spectral_radius < 1
+    ((2,), True)
+    """
     q, r = _check_weights(q, r)
     a, b = continuous_model(mode, input=input, formulation=formulation)
     ad, bd = discretize(a, b, period_s)

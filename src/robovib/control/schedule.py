@@ -43,10 +43,28 @@ class GainSchedule:
             return float(np.polyval(self.w1_poly, s_m)), float(np.polyval(self.w2_poly, s_m))
         raise ValueError(f"unknown method {method!r}; expected 'interp' or 'poly'")
 
-    def plot(self, path=None):
+    def plot(self, ax=None):
+        """Designed gains w1, w2 along the path with their polynomial fits (thesis Fig. 23).
+
+        Parameters
+        ----------
+        ax : sequence of two matplotlib.axes.Axes, optional
+            Axes for w1 [m/m] and w2 [s]; a new figure when omitted.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure (saving is the caller's: ``robovib.io.save_figure``).
+        """
         import matplotlib.pyplot as plt
 
-        fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+        if ax is None:
+            fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+        else:
+            axes = list(ax)
+            if len(axes) != 2:
+                raise ValueError(f"ax must be two Axes (w1, w2), got {len(axes)}")
+            fig = axes[0].figure
         dense = np.linspace(self.s_m.min(), self.s_m.max(), 200)
         for ax, w, poly, name in (
             (axes[0], self.w1, self.w1_poly, "w1"),
@@ -60,11 +78,6 @@ class GainSchedule:
             ax.set_ylabel(name)
             ax.legend(fontsize=8)
         fig.tight_layout()
-        if path is not None:
-            from ..io.safe_write import save_figure
-
-            save_figure(fig, path)
-            plt.close(fig)
         return fig
 
 
@@ -78,11 +91,48 @@ def schedule_gains(
     r: float | None = None,
     warn: Callable[[str], None] | None = None,
 ) -> GainSchedule:
-    """Gains along a path from the modes predicted at the path distances ``s_m``.
+    """Gains along a path from the modes predicted at the path distances ``s_m`` (Eq. 28-29).
 
-    ``r=None``: R tuned per point for stability with the delay (:func:`tune_r_for_delay`);
-    a number: that R everywhere (points whose delayed loop is unstable are flagged, and
-    reported through ``warn``).
+    See ``docs/methods.md`` section 6 (pose-dependent vibration control).
+
+    Parameters
+    ----------
+    s_m : sequence of float, shape (n,)
+        Path coordinates [m], strictly increasing, at least 5.
+    modes : sequence of ModalParameters, shape (n,)
+        The mode at each path coordinate.
+    period_s : float
+        Command period [s].
+    delay_s : float
+        Loop delay [s] the gains must stay stable with.
+    q : array_like, shape (2, 2)
+        State weight of the LQR.
+    r : float, optional
+        ``None``: R tuned per point for stability with the delay (:func:`tune_r_for_delay`);
+        a number: that R everywhere (points whose delayed loop is unstable are flagged).
+    warn : callable(str), optional
+        Receives a message for each flagged point (default: :func:`warnings.warn`).
+
+    Returns
+    -------
+    GainSchedule
+        ``s_m``, gains ``w1`` [m/m] and ``w2`` [s], ``r``, ``stable_with_delay`` and the
+        polynomial fits ``w1_poly``, ``w2_poly`` (highest power first).
+
+    Raises
+    ------
+    ValueError
+        Lengths differ, ``s_m`` not increasing, fewer than 5 points, bad weights or delay.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.control.schedule import schedule_gains
+    >>> from robovib.modal import ModalParameters
+    >>> s = np.linspace(0.335, 1.235, 5)
+    >>> sched = schedule_gains(s, [ModalParameters(14 + 4 * v, 2e6, 0.05) for v in s])
+    >>> sched.w1.shape
+    (5,)
     """
     from .._checks import check_increasing
 

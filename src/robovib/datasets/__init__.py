@@ -6,7 +6,7 @@ The loaders return tidy :class:`pandas.DataFrame` objects with the unit in every
 Modal tables (A1, A2) come in SI units by default (``units="si"``: m, Hz, N/m, N·s/m) or in the
 thesis' units (``units="thesis"``: mm, Hz, MN/m, kN·s/m). Rz stays in degrees (``rz_deg``).
 
-Known problems of Table A1 (see ``shared/notes/thesis-notes.md``):
+Known problems of Table A1 (see ``docs/data.md``, "Table A1"):
 
 * **Stiffness-column shift**, test 59 replicate 3 and test 60 (all replicates): the three
   stiffness cells read (Y, Z, Z) — the X cell is missing, the printed X cell holds Y and the
@@ -141,6 +141,13 @@ def load_table_a1(
     pandas.DataFrame
         Columns ``test, replicate, x_*, y_*, z_*, rx_deg, ry_deg, rz_deg``, the 9 modal outputs
         (see :func:`modal_output_columns`), ``stiffness_shift_flag`` and ``x_high_mode``.
+
+    Examples
+    --------
+    >>> from robovib.datasets import load_table_a1
+    >>> a1 = load_table_a1()
+    >>> "x_fn_hz" in a1.columns or len(a1.columns) > 0
+    True
     """
     if stiffness_reading not in ("corrected", "printed"):
         raise ValueError(

@@ -166,7 +166,12 @@ class FRF:
         return replace(self, frequency_hz=f, values=v, coherence=coh, quantity="compliance")
 
     def interpolate(
-        self, grid_hz, *, outside: Literal["raise", "hold"] = "raise", tolerance_hz: float = 1e-3
+        self,
+        grid_hz,
+        *,
+        outside: Literal["raise", "hold", "zero"]
+        | tuple[Literal["hold", "zero"], Literal["hold", "zero"]] = "raise",
+        tolerance_hz: float = 1e-3,
     ) -> FRF:
         """This FRF linearly interpolated (real and imaginary parts) on another frequency grid.
 
@@ -176,10 +181,14 @@ class FRF:
             (n_g,) strictly increasing frequencies [Hz].
         outside
             ``"raise"``: a grid point more than ``tolerance_hz`` outside this FRF's range is an
-            error; ``"hold"``: such points take the value of the nearest end bin (callers mask
-            them).
+            error; ``"hold"``: points outside the range take the value of the nearest end bin
+            (callers mask them); ``"zero"``: points outside the range are 0 (values and
+            coherence), e.g. an FRF applied to a wider FFT grid. A pair ``(below, above)`` of
+            ``"hold"``/``"zero"`` treats the two ends differently (``("hold", "zero")``: the
+            first bin held down to 0 Hz, nothing above the measured band).
         tolerance_hz
-            Slack [Hz] at both ends of the range before a point counts as outside.
+            Slack [Hz] at both ends of the range before a point counts as outside
+            (``outside="raise"`` only).
 
         Returns
         -------
@@ -195,16 +204,33 @@ class FRF:
         g = np.asarray(grid_hz, float)
         if g.ndim != 1 or g.size == 0 or not np.all(np.isfinite(g)):
             raise ValueError("grid_hz must be a non-empty 1-D array of finite frequencies [Hz]")
-        if outside not in ("raise", "hold"):
-            raise ValueError(f"unknown outside={outside!r}; expected 'raise' or 'hold'")
+        if g.size > 1 and np.any(np.diff(g) <= 0):
+            raise ValueError("grid_hz must be strictly increasing [Hz]")
+        sides = ("hold", "zero")
+        if isinstance(outside, tuple):
+            if len(outside) != 2 or any(o not in sides for o in outside):
+                raise ValueError(
+                    f"unknown outside={outside!r}; a pair must be (below, above) of 'hold'/'zero'"
+                )
+            below, above = outside
+        elif outside in ("raise", *sides):
+            below = above = "hold" if outside == "raise" else outside
+        else:
+            raise ValueError(f"unknown outside={outside!r}; expected 'raise', 'hold' or 'zero'")
         f = self.frequency_hz
         beyond = (g < f[0] - tolerance_hz) | (g > f[-1] + tolerance_hz)
         if outside == "raise" and np.any(beyond):
             raise ValueError(
                 f"FRF covers {f[0]:g}-{f[-1]:g} Hz, not the grid {g[0]:g}-{g[-1]:g} Hz"
             )
-        v = np.interp(g, f, self.values.real) + 1j * np.interp(g, f, self.values.imag)
-        coh = None if self.coherence is None else np.interp(g, f, self.coherence)
+        lo = {"left": 0.0} if below == "zero" else {}
+        hi = {"right": 0.0} if above == "zero" else {}
+
+        def interp(y):
+            return np.interp(g, f, y, **lo, **hi)
+
+        v = interp(self.values.real) + 1j * interp(self.values.imag)
+        coh = None if self.coherence is None else interp(self.coherence)
         return replace(self, frequency_hz=g, values=v, coherence=coh)
 
     def band(self, f_min_hz: float, f_max_hz: float) -> FRF:

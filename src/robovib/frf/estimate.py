@@ -116,7 +116,37 @@ def estimate_frf(
     nperseg, window, noverlap
         Welch segmentation (SciPy's meaning); default: one Hann segment over the record.
     f_max_hz
-        Keep bins up to this frequency; must not exceed Nyquist.
+        Keep bins up to this frequency [Hz]; must not exceed Nyquist.
+    direction
+        ``"x"``, ``"y"`` or ``"z"``: stored on the FRF.
+    pose
+        Tool-tip pose (X, Y, Z [m], Rx, Ry, Rz [deg]) stored on the FRF.
+    source
+        ``"EMA"`` (hammer) or ``"OMA"`` (operational): stored on the FRF.
+
+    Returns
+    -------
+    FRF
+        (n_f,) H1 or H2 estimate with coherence and ``n_averages`` (Welch segments).
+
+    Raises
+    ------
+    ValueError
+        Records not 1-D, of different length or with NaN; unknown quantity or estimator;
+        ``f_max_hz`` above Nyquist.
+
+    See ``docs/methods.md`` section 1 (Eq. 5).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.frf import estimate_frf
+    >>> rng = np.random.default_rng(0)
+    >>> force = rng.normal(size=4096)
+    >>> frf = estimate_frf(force, 2e-6 * force, 1000.0, response_quantity="displacement",
+    ...                    nperseg=512)
+    >>> bool(np.allclose(frf.values, 2e-6))
+    True
     """
     if response_quantity not in RESPONSE_TO_QUANTITY:
         raise ValueError(

@@ -165,6 +165,8 @@ def impact_frf(
         Common sample rate of both channels.
     response_quantity
         ``"acceleration"`` (accelerometer), ``"velocity"`` or ``"displacement"``.
+    estimator
+        ``"H1"`` (noise on the response, default) or ``"H2"`` (noise on the force).
     pretrigger_s
         Signal kept before the trigger; each hit is aligned to trigger at this time.
     force_window_s
@@ -174,8 +176,43 @@ def impact_frf(
         added damping is recorded on the FRF, to be removed from fitted modes.
     reject
         Drop flagged hits (default) or keep them and only report.
+    trigger_level
+        Trigger: first sample where |force| reaches this fraction of the hit's peak, in (0, 1].
+    double_hit_level
+        A second force pulse above this fraction of the peak flags a double hit, in (0, 1].
+    clip_run
+        This many equal samples at the extreme of a channel flag an overload.
+    force_full_scale, response_full_scale
+        Input ranges [N], [response SI unit]; reaching 99.9 % of them flags an overload.
     f_max_hz
-        Highest frequency kept (must not exceed Nyquist).
+        Highest frequency kept [Hz] (must not exceed Nyquist).
+    direction
+        ``"x"``, ``"y"`` or ``"z"``: stored on the FRF.
+    pose
+        Tool-tip pose (X, Y, Z [m], Rx, Ry, Rz [deg]) stored on the FRF.
+
+    Returns
+    -------
+    ImpactResult
+        ``frf`` (H1 or H2 over the kept hits, coherence, ``n_averages``) and ``hits`` (the
+        quality report of every hit: trigger, double hit, overload, kept).
+
+    Raises
+    ------
+    ValueError
+        Shapes differ, unknown quantity or estimator, non-positive rate, windows longer than
+        the record, ``f_max_hz`` above Nyquist, or no hit left after rejection.
+
+    See ``docs/methods.md`` section 1 (FRFs from impact tests, Eq. 3-5).
+
+    Examples
+    --------
+    >>> from robovib.frf import impact_frf
+    >>> from robovib.sim import VirtualRobot, simulate_hammer_test
+    >>> rec = simulate_hammer_test(VirtualRobot(), (2.4, 0.0, 45.0), "x", n_hits=3, rng=0)
+    >>> res = impact_frf(rec.forces, rec.responses, rec.sample_rate_hz, f_max_hz=200.0)
+    >>> res.frf.quantity
+    'accelerance'
     """
     forces = np.atleast_2d(np.asarray(forces, float))
     responses = np.atleast_2d(np.asarray(responses, float))

@@ -92,6 +92,14 @@ def load_chapter3_model() -> PoseModalModel:
     ------
     FileNotFoundError
         If the package data is missing (run ``python scripts/build_chapter3_model.py``).
+
+    See ``docs/methods.md`` section 3 and ``docs/data.md`` (Table A1).
+
+    Examples
+    --------
+    >>> from robovib.gp import load_chapter3_model
+    >>> load_chapter3_model().input_names
+    ('x_mm', 'y_mm', 'rz_deg')
     """
     ref = resources.files("robovib.datasets").joinpath("data", _FILE)
     with resources.as_file(ref) as path:

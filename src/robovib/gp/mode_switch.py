@@ -2,7 +2,7 @@
 
 At X = 2700 mm with Rz = 0°/180° Table A1 reports a 61-65 Hz dominant X mode (damping ≈ 1 kN·s/m)
 next to 15-23 Hz everywhere else: another mode of the arm has become the most compliant one
-(see ``shared/notes/thesis-notes.md``). A single smooth GP over the pose averages the two modes
+(see ``docs/data.md``, "Mode switch in X"). A single smooth GP over the pose averages the two modes
 and predicts physically meaningless 40 Hz modes in between. This model instead keeps
 
 * a *low-mode* GP of all outputs, fitted with the switching outputs of the high-mode rows

@@ -299,6 +299,13 @@ class PoseModalModel(BaseEstimator):
     Notes
     -----
     Noise groups are given per sample as ``groups`` (as everywhere in robovib).
+
+    Examples
+    --------
+    >>> from robovib.gp import load_chapter3_model
+    >>> model = load_chapter3_model()
+    >>> model.output_names_[:3]
+    ('x_fn_hz', 'x_stiffness_n_per_m', 'x_damping_ns_per_m')
     """
 
     def __init__(
@@ -397,6 +404,17 @@ class PoseModalModel(BaseEstimator):
         ValueError
             On bad shapes, NaN/inf inputs, non-positive fn or k, negative c, bad parameters, or
             ``mode_switch=True`` when no switch is found.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from robovib.gp import PoseModalModel
+        >>> rng = np.random.default_rng(0)
+        >>> X = rng.uniform([2100, -300, 0], [2700, 600, 90], (30, 3))
+        >>> Y = np.column_stack([15 + X[:, 0] / 1e3, 2e6 + 1e3 * X[:, 1], 400 + X[:, 2]])
+        >>> model = PoseModalModel(directions=("x",), mode_switch=False).fit(X, Y)
+        >>> model.predict(X[:2]).shape
+        (2, 3)
         """
         names, dirs = self._check_params()
         X, Y, mask, obs, groups = self._validated(X, Y, mask, groups, names, dirs)
@@ -624,6 +642,13 @@ class PoseModalModel(BaseEstimator):
         Raises
         ------
         NotFittedError, ValueError
+
+        Examples
+        --------
+        >>> from robovib.gp import load_chapter3_model
+        >>> mean, std = load_chapter3_model().predict([[2400.0, 0.0, 45.0]], return_std=True)
+        >>> mean.shape == std.shape == (1, 9)
+        True
         """
         X = self._check_X(X)
         mean = np.empty((X.shape[0], self.n_outputs_))
@@ -670,11 +695,32 @@ class PoseModalModel(BaseEstimator):
     def modes(self, X) -> list[dict[str, PoseMode]]:
         """The dominant mode of each direction at each pose (one dict per row of ``X``).
 
+        See ``docs/methods.md`` section 3 (GP pose models).
+
+        Parameters
+        ----------
+        X : array_like, shape (n, n_inputs)
+            Poses in the units named by ``input_names`` (e.g. x [mm], y [mm], rz [deg]).
+
+        Returns
+        -------
+        list of dict
+            One ``{direction: PoseMode}`` per pose: the mean :class:`~robovib.modal.ModalParameters`
+            (SI), the standard deviations of fn [Hz], k [N/m] and c [N s/m], the extrapolation flag
+            and the mode-switch probability (or None).
+
         Raises
         ------
         ValueError
             If a predicted mean is not a physical mode (fn or k <= 0, c < 0), which happens only
-            far outside the calibrated workspace.
+            far outside the calibrated workspace; wrong shape or NaN in ``X``.
+
+        Examples
+        --------
+        >>> from robovib.gp import load_chapter3_model
+        >>> mode = load_chapter3_model().modes([[2400.0, 0.0, 45.0]])[0]["x"]
+        >>> mode.parameters.natural_frequency_hz > 0
+        True
         """
         X = self._check_X(X)
         mean, std = self.predict(X, return_std=True)
@@ -726,6 +772,14 @@ class PoseModalModel(BaseEstimator):
         Raises
         ------
         NotFittedError, ValueError
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from robovib.gp import load_chapter3_model
+        >>> path = load_chapter3_model().save(pathlib.Path(tempfile.mkdtemp()) / "m.h5")
+        >>> path.suffix
+        '.h5'
         """
         from . import _h5
 
@@ -743,11 +797,30 @@ class PoseModalModel(BaseEstimator):
     def load(cls, path) -> PoseModalModel:
         """Read a model written by :meth:`save`; predictions match the saved model to ~1e-12.
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+            HDF5 file (format tag ``robovib.PoseModalModel``); never unpickled.
+
+        Returns
+        -------
+        PoseModalModel
+            The fitted model, with ``cv_`` and ``provenance_`` when the file has them.
+
         Raises
         ------
         ValueError
             If the file is not readable HDF5, not a ``robovib.PoseModalModel`` or of a newer
             format version.
+
+        Examples
+        --------
+        >>> from robovib.gp import PoseModalModel, load_chapter3_model
+        >>> import tempfile, pathlib
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "model.h5"
+        >>> _ = load_chapter3_model().save(path)
+        >>> PoseModalModel.load(path).input_names
+        ('x_mm', 'y_mm', 'rz_deg')
         """
         from . import _h5
 

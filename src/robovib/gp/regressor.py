@@ -172,6 +172,17 @@ class BatchedGPRegressor(BaseEstimator):
     converged_ : ndarray (B,) of bool
     jitter_ : ndarray (B,)
         Jitter added to the diagonal (scaled units) to factorise each covariance.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.base import clone
+    >>> from robovib.gp import BatchedGPRegressor
+    >>> X = np.linspace(0, 1, 15)[:, None]
+    >>> gp = clone(BatchedGPRegressor(kernel="ard", rng=0)).fit(X, np.sin(4 * X))
+    >>> mean, std = gp.predict(X[:3], return_std=True)
+    >>> mean.shape, std.shape
+    ((3, 1), (3, 1))
     """
 
     def __init__(
@@ -578,14 +589,37 @@ class BatchedGPRegressor(BaseEstimator):
     def fit(self, X, Y, mask=None, groups=None) -> BatchedGPRegressor:
         """Fit one GP per column of ``Y`` (hyperparameters by maximising Eq. 33).
 
+        See ``docs/methods.md`` section 3 (GP pose models).
+
         Parameters
         ----------
-        X
-            (n_samples, n_features) inputs (e.g. poses).
-        Y
-            (n_samples,) or (n_samples, n_outputs) targets.
-        mask
-            Optional boolean array like ``Y``: ``True`` where the target is observed.
+        X : array_like, shape (n_samples, n_features)
+            Inputs (e.g. poses, in the units the caller chose: the model scales them itself).
+        Y : array_like, shape (n_samples,) or (n_samples, n_outputs)
+            Targets, one GP per column, any unit.
+        mask : array_like of bool, shape like ``Y``, optional
+            ``True`` where the target is observed; NaN targets must be masked.
+        groups : array_like of int, shape (n_samples,), optional
+            Noise group of each sample in ``0 .. n_noise_groups - 1`` (e.g. 0 = EMA, 1 = OMA).
+
+        Returns
+        -------
+        BatchedGPRegressor
+            ``self``, fitted (``hyperparameters_``, ``n_iter_``, ``log_marginal_likelihood_value_``).
+
+        Raises
+        ------
+        ValueError
+            Wrong shapes, NaN inputs, unmasked NaN targets, bad groups or constructor arguments.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from robovib.gp import BatchedGPRegressor
+        >>> X = np.linspace(0, 1, 20)[:, None]
+        >>> gp = BatchedGPRegressor(rng=0).fit(X, np.column_stack([np.sin(6 * X[:, 0]), X[:, 0]]))
+        >>> gp.predict(X[:2]).shape
+        (2, 2)
         """
         with single_blas_thread():
             return self._fit(X, Y, mask, groups)
@@ -722,6 +756,15 @@ class BatchedGPRegressor(BaseEstimator):
         -------
         mean : ndarray (n_query, n_outputs) — or (n_query,) if fitted on a 1-D ``Y``
         std : ndarray, same shape, if ``return_std``
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from robovib.gp import BatchedGPRegressor
+        >>> X = np.linspace(0, 1, 15)[:, None]
+        >>> gp = BatchedGPRegressor(rng=0).fit(X, 2 * X[:, 0])
+        >>> bool(abs(gp.predict([[0.5]])[0] - 1.0) < 1e-2)
+        True
         """
         with single_blas_thread():
             return self._predict(X, return_std, include_noise)

@@ -5,6 +5,7 @@ from .oma import OMAQualityWarning, OMASegment, oma_frfs
 from .workflow import (
     INPUT_SETS,
     FRFPrediction,
+    flagged_fraction,
     frf_pose,
     frfs_on_grid,
     frfs_on_path_grid,
@@ -21,6 +22,7 @@ __all__ = [
     "OMAQualityWarning",
     "OMASegment",
     "UpdateReport",
+    "flagged_fraction",
     "frequency_grid",
     "frf_pose",
     "frfs_on_grid",

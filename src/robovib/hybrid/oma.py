@@ -99,6 +99,11 @@ def oma_frfs(
         A path interval left out (e.g. 50 mm around a validation pose) [m].
     min_usable_fraction
         Warn (:class:`OMAQualityWarning`) when fewer bins than this pass on average.
+    direction : {"x", "y", "z"}
+        Direction of the FRFs (force and displacement component).
+    force_transform, displacement_transform : array_like (3, 3), optional
+        Constant matrices taking the measured force / displacement to the tool tip
+        (thesis §5.3.2), applied as ``record @ T.T``.
 
     Returns
     -------
@@ -109,6 +114,19 @@ def oma_frfs(
     ValueError
         Unsynchronised or non-uniform records, NaN, unknown direction, segments shorter than
         one Welch window, bad overlap.
+
+    See ``docs/methods.md`` section 7 (hybrid EMA + OMA model).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.hybrid import oma_frfs
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(20000) / 1000.0
+    >>> f = rng.normal(size=(t.size, 3))
+    >>> segs = oma_frfs(t, f, 1e-6 * f, 0.01 * t, segment_length_m=0.1, nperseg=256)
+    >>> len(segs) >= 1
+    True
     """
     t = np.asarray(time_s, float)
     f = np.asarray(force_n, float)

@@ -15,6 +15,7 @@ from .oma import oma_frfs
 __all__ = [
     "INPUT_SETS",
     "FRFPrediction",
+    "flagged_fraction",
     "frf_pose",
     "frfs_on_grid",
     "frfs_on_path_grid",
@@ -163,6 +164,27 @@ def oma_frfs_with_path(record: dict, **kwargs) -> list[FRF]:
     return out
 
 
+def flagged_fraction(frfs: list[FRF]) -> float:
+    """Mean fraction of flagged bins (``meta["flagged"]``, 0 where absent) over FRFs, in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        No FRFs, or a ``flagged`` array whose length is not the FRF's number of bins.
+    """
+    if not frfs:
+        raise ValueError("no FRFs given")
+    fractions = []
+    for i, f in enumerate(frfs):
+        fl = np.asarray(f.meta.get("flagged", np.zeros(f.frequency_hz.size, bool)), bool)
+        if fl.shape != f.frequency_hz.shape:
+            raise ValueError(
+                f"FRF {i}: flagged has {fl.size} entries for {f.frequency_hz.size} bins"
+            )
+        fractions.append(fl.mean())
+    return float(np.mean(fractions))
+
+
 @dataclass(frozen=True)
 class FRFPrediction:
     """Predicted compliance FRF at a pose (optionally with a measurement).
@@ -188,6 +210,22 @@ class FRFPrediction:
         return float(
             1e6 * np.sqrt(np.mean(np.abs(self.compliance_m_per_n - self.measured_m_per_n) ** 2))
         )
+
+    def peak(self) -> tuple[float, complex, float]:
+        """The largest predicted compliance magnitude.
+
+        Returns
+        -------
+        frequency_hz : float
+            Frequency of the peak [Hz].
+        compliance_m_per_n : complex
+            Predicted compliance there [m/N].
+        std_m_per_n : float
+            Its predictive standard deviation [m/N].
+        """
+        i = int(np.argmax(np.abs(self.compliance_m_per_n)))
+        return (float(self.frequency_hz[i]), complex(self.compliance_m_per_n[i]),
+                float(self.std_m_per_n[i]))  # fmt: skip
 
     def to_dict(self) -> dict:
         """JSON-friendly summary (magnitudes in um/N)."""

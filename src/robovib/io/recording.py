@@ -645,7 +645,43 @@ def read_recording_csv(
     response_sensitivity: Sensitivity | None = None,
     **segment_kw,
 ) -> HammerRecording:
-    """Read a hammer recording from CSV (layout in the module docstring)."""
+    """Read a hammer recording of one or more hits from CSV (layout in the module docstring).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    direction : {"x", "y", "z"}, optional
+        Response channel to return; needed when the file holds several.
+    force_sensitivity, response_sensitivity : Sensitivity, optional
+        Sensor sensitivities converting voltage channels (V or mV) to N and m/s² (SI).
+    **segment_kw
+        Passed to :func:`read_recording_channels` (how a continuous record is cut into hits).
+
+    Returns
+    -------
+    HammerRecording
+        ``forces`` and ``responses`` (n_hits, n_samples) in SI, ``sample_rate_hz``,
+        ``response_quantity``, direction, pose and a ``report`` of how hits were formed.
+
+    Raises
+    ------
+    ValueError
+        Unreadable or inconsistent file, voltage channels without a sensitivity, mismatched
+        sample rates, or ``direction`` missing from / contradicting the file.
+
+    See ``docs/methods.md`` section 1.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from robovib.io import read_recording_csv, write_recording_csv
+    >>> from robovib.sim import VirtualRobot, simulate_hammer_test
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "hammer.csv"
+    >>> write_recording_csv(path, simulate_hammer_test(VirtualRobot(), (2.4, 0.0, 45.0), "x", n_hits=2, rng=0))
+    >>> read_recording_csv(path).forces.shape[0]
+    2
+    """
     if Path(path).suffix.lower() != ".csv":
         raise ValueError(f"{path}: expected a .csv file")
     return read_recording(path, direction, force_sensitivity, response_sensitivity, **segment_kw)
@@ -658,7 +694,43 @@ def read_recording_uff(
     response_sensitivity: Sensitivity | None = None,
     **segment_kw,
 ) -> HammerRecording:
-    """Read force/response time records (UFF dataset 58, function type 1) of one or more hits."""
+    """Read a hammer recording of one or more hits from UFF dataset 58 (function type 1) time records.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    direction : {"x", "y", "z"}, optional
+        Response channel to return; needed when the file holds several.
+    force_sensitivity, response_sensitivity : Sensitivity, optional
+        Sensor sensitivities converting voltage channels (V or mV) to N and m/s² (SI).
+    **segment_kw
+        Passed to :func:`read_recording_channels` (how a continuous record is cut into hits).
+
+    Returns
+    -------
+    HammerRecording
+        ``forces`` and ``responses`` (n_hits, n_samples) in SI, ``sample_rate_hz``,
+        ``response_quantity``, direction, pose and a ``report`` of how hits were formed.
+
+    Raises
+    ------
+    ValueError
+        Unreadable or inconsistent file, voltage channels without a sensitivity, mismatched
+        sample rates, or ``direction`` missing from / contradicting the file.
+
+    See ``docs/methods.md`` section 1.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from robovib.io import read_recording_uff, write_recording_uff
+    >>> from robovib.sim import VirtualRobot, simulate_hammer_test
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "hammer.uff"
+    >>> write_recording_uff(path, simulate_hammer_test(VirtualRobot(), (2.4, 0.0, 45.0), "x", n_hits=2, rng=0))
+    >>> read_recording_uff(path).forces.shape[0]
+    2
+    """
     if Path(path).suffix.lower() not in (".uff", ".unv"):
         raise ValueError(f"{path}: expected a .uff or .unv file")
     return read_recording(path, direction, force_sensitivity, response_sensitivity, **segment_kw)

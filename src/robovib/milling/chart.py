@@ -27,6 +27,7 @@ from .stability import stability_lobes
 
 __all__ = [
     "LobesChart",
+    "cutting_setup",
     "lobes_chart",
     "parse_mode_spec",
     "parse_operating_point",
@@ -34,6 +35,72 @@ __all__ = [
     "plot_lobes_chart",
     "read_frf_csv",
 ]
+
+
+def cutting_setup(
+    coefficients,
+    *,
+    diameter_m: float,
+    n_flutes: int,
+    helix_deg: float,
+    radial_depth_m: float | None = None,
+    radial_immersion: float | None = None,
+    milling: str = "down",
+    ktc_n_per_m2: float | None = None,
+    krc_n_per_m2: float | None = None,
+):
+    """Tool, cutting conditions and coefficients of a stability chart (SI).
+
+    Parameters
+    ----------
+    coefficients : CuttingCoefficients
+        Material preset (e.g. :data:`robovib.milling.ALUMINIUM_7075`).
+    diameter_m : float
+        Tool diameter [m].
+    n_flutes : int
+        Number of teeth.
+    helix_deg : float
+        Helix angle [deg] (forces only; the stability methods ignore it).
+    radial_depth_m : float, optional
+        Radial depth of cut [m]; ignored when ``radial_immersion`` is given.
+    radial_immersion : float, optional
+        Radial immersion a/D in (0, 1].
+    milling : {"down", "up"}
+        Milling mode.
+    ktc_n_per_m2, krc_n_per_m2 : float, optional
+        Tangential / radial cutting coefficients [N/m²] replacing the preset's.
+
+    Returns
+    -------
+    tool : MillingTool
+    conditions : CuttingConditions
+        Placeholder speed, feed and axial depth (the chart sweeps them); radial depth and mode set.
+    coefficients : CuttingCoefficients
+
+    Raises
+    ------
+    ValueError
+        Unknown milling mode, immersion outside (0, 1], or neither radial input given.
+    """
+    from dataclasses import replace
+
+    if milling not in ("up", "down"):
+        raise ValueError(f"milling must be 'up' or 'down', got {milling!r}")
+    tool = MillingTool(diameter_m=diameter_m, n_flutes=n_flutes, helix_deg=helix_deg)
+    if radial_immersion is not None:
+        if not 0 < radial_immersion <= 1:
+            raise ValueError(f"radial immersion is a/D in (0, 1], got {radial_immersion}")
+        ae_m = radial_immersion * tool.diameter_m
+    elif radial_depth_m is not None:
+        ae_m = radial_depth_m
+    else:
+        raise ValueError("give the radial depth of cut [m] or the radial immersion a/D")
+    cond = CuttingConditions(1000.0, 1e-4, 1e-3, ae_m, down_milling=milling == "down")
+    if ktc_n_per_m2 is not None:
+        coefficients = replace(coefficients, ktc=ktc_n_per_m2)
+    if krc_n_per_m2 is not None:
+        coefficients = replace(coefficients, krc=krc_n_per_m2)
+    return tool, cond, coefficients
 
 
 def parse_mode_spec(spec: str) -> tuple[str, ModalParameters]:
@@ -264,10 +331,7 @@ def lobes_chart(
             out = []
             for d in ("x", "y"):
                 if d in frfs:
-                    g = frfs[d]
-                    re = np.interp(f_hz, g.frequency_hz, g.values.real, left=0, right=0)
-                    im = np.interp(f_hz, g.frequency_hz, g.values.imag, left=0, right=0)
-                    out.append(re + 1j * im)
+                    out.append(frfs[d].interpolate(f_hz, outside="zero").values)
                 else:
                     out.append(np.zeros_like(f_hz, complex))
             return tuple(out)

@@ -27,6 +27,10 @@ from .stability import stability_lobes
 
 __all__ = [
     "KIND_CODES",
+    "WORKSPACE_X_MM",
+    "WORKSPACE_Y_MM",
+    "best_pose",
+    "map_speeds",
     "mean_modes_at_poses",
     "plot_lobe_map",
     "save_lobe_map",
@@ -34,6 +38,73 @@ __all__ = [
 ]
 
 KIND_CODES = {"none": 0, "hopf": 1, "flip": 2, "fold": 3}
+#: X and Y extent of the chapter-3 workspace (Table A1 poses) [mm].
+WORKSPACE_X_MM = (2100.0, 2700.0)
+WORKSPACE_Y_MM = (-300.0, 600.0)
+
+
+def map_speeds(spindle_rpm: float, rpm_grid=None) -> np.ndarray:
+    """Spindle speeds of a map: ``rpm_grid`` (sorted, unique) with ``spindle_rpm`` included [rpm].
+
+    Parameters
+    ----------
+    spindle_rpm : float
+        The speed the map is read at [rpm], > 0.
+    rpm_grid : array_like, optional
+        (n,) further speeds [rpm], > 0; only ``spindle_rpm`` when omitted.
+
+    Returns
+    -------
+    numpy.ndarray
+        (m,) ascending speeds [rpm].
+
+    Raises
+    ------
+    ValueError
+        A speed that is not finite and positive.
+    """
+    speeds = np.atleast_1d(np.asarray([spindle_rpm] if rpm_grid is None else rpm_grid, float))
+    speeds = np.union1d(speeds, [float(spindle_rpm)])
+    if not np.all(np.isfinite(speeds) & (speeds > 0)):
+        raise ValueError(f"spindle speeds must be finite and > 0 rpm, got {speeds}")
+    return speeds
+
+
+def best_pose(ds, spindle_rpm: float, rz_deg: float) -> dict:
+    """Deepest and shallowest stable cut of a lobe map at one speed and tool rotation.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Map from :func:`workspace_lobe_map` (``a_lim_m`` over x_mm, y_mm, rz_deg, spindle_rpm).
+    spindle_rpm : float
+        Speed on the map's ``spindle_rpm`` axis [rpm].
+    rz_deg : float
+        Tool rotation on the map's ``rz_deg`` axis [deg].
+
+    Returns
+    -------
+    dict
+        ``critical_depth_m`` (n_y, n_x) [m] (NaN where no lobe was found), ``best_pose_mm``
+        [x, y] [mm], ``best_depth_m`` and ``shallowest_depth_m`` [m].
+
+    Raises
+    ------
+    ValueError
+        No finite critical depth at that speed and rotation.
+    """
+    at = ds["a_lim_m"].sel(spindle_rpm=spindle_rpm, rz_deg=rz_deg).transpose("x_mm", "y_mm")
+    vals = np.where(np.isfinite(at.values), at.values, np.nan)
+    if not np.any(np.isfinite(vals)):
+        raise ValueError(f"no finite critical depth at {spindle_rpm:g} rpm, rz = {rz_deg:g} deg")
+    i, j = np.unravel_index(np.nanargmax(vals), vals.shape)
+    xs, ys = at["x_mm"].values, at["y_mm"].values
+    return {
+        "critical_depth_m": vals.T,
+        "best_pose_mm": [float(xs[i]), float(ys[j])],
+        "best_depth_m": float(vals[i, j]),
+        "shallowest_depth_m": float(np.nanmin(vals)),
+    }
 
 
 def mean_modes_at_poses(model, poses: np.ndarray) -> np.ndarray:
@@ -136,6 +207,19 @@ def workspace_lobe_map(
         ``a_lim_m``, ``chatter_hz``, ``kind`` (x_mm, y_mm, rz_deg, spindle_rpm);
         ``minimum_depth_m``, ``best_rpm``, ``best_depth_m`` (x_mm, y_mm, rz_deg); the modal
         parameters used; attributes ``robovib_version``, ``method``, ``settings`` (JSON).
+
+    See ``docs/methods.md`` section 5.
+
+    Examples
+    --------
+    >>> from robovib.gp import load_chapter3_model
+    >>> from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    >>> from robovib.milling.maps import workspace_lobe_map
+    >>> ds = workspace_lobe_map(load_chapter3_model(), [2100, 2700], [0, 300], [0.0], [1750.0],
+    ...                         MillingTool(0.0254, 2), CuttingConditions(1750.0, 1e-4, 1e-3, 6e-3),
+    ...                         ALUMINIUM_7075, method="zoa", scheduler="sync")
+    >>> ds["a_lim_m"].dims
+    ('x_mm', 'y_mm', 'rz_deg', 'spindle_rpm')
     """
     import dask
     import xarray as xr
@@ -150,6 +234,8 @@ def workspace_lobe_map(
     for name, ax in zip(("x_mm", "y_mm", "rz_deg", "spindle_rpm"), axes, strict=True):
         if ax.ndim != 1 or ax.size == 0 or not np.all(np.isfinite(ax)):
             raise ValueError(f"{name} must be a non-empty 1-D array of finite values")
+        if np.any(np.diff(ax) <= 0):
+            raise ValueError(f"the {name} grid must be sorted and unique (ascending), got {ax}")
     xs, ys, rzs, rpm = axes
     if np.any(rpm <= 0):
         raise ValueError("spindle_rpm must be positive [rpm]")

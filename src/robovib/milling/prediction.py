@@ -99,9 +99,7 @@ def convolve_force(
             raise ValueError("frf must be a compliance FRF (use FRF.to_compliance())")
         n_fft = 1 << math.ceil(math.log2(max(4 * n, 2)))
         freq = np.fft.rfftfreq(n_fft, 1.0 / sample_rate_hz)
-        re = np.interp(freq, frf.frequency_hz, frf.values.real, right=0.0)
-        im = np.interp(freq, frf.frequency_hz, frf.values.imag, right=0.0)
-        h = re + 1j * im
+        h = frf.interpolate(freq, outside=("hold", "zero")).values.copy()
         h[0] = h[0].real
     x = np.fft.irfft(np.fft.rfft(f, n_fft) * h, n_fft)[:n]
     return x

@@ -552,12 +552,28 @@ def sdm_lobes(
         Geometric scan points before refinement.
     rtol : float
         Relative tolerance on the critical depth.
+    max_iter : int
+        Bisection steps of the refinement at most.
 
     Returns
     -------
     LobeEnvelope
         ``a_lim_m`` (n,), the critical multiplier's kind (``hopf``/``flip``/``fold``) and the
         chatter frequency [Hz] at each speed.
+
+    See ``docs/methods.md`` section 5.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    >>> from robovib.milling.sdm import sdm_lobes
+    >>> from robovib.modal import ModalParameters
+    >>> env = sdm_lobes([ModalParameters(30.0, 2e6, 0.05)], [], MillingTool(0.0254, 2),
+    ...                 CuttingConditions(1750.0, 1e-4, 1e-3, 6e-3), ALUMINIUM_7075,
+    ...                 np.linspace(1000, 3000, 5))
+    >>> env.a_lim_m.shape
+    (5,)
     """
     rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
     if rpm.ndim != 1 or not (np.all(np.isfinite(rpm)) and np.all(rpm > 0)):

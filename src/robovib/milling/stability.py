@@ -77,7 +77,21 @@ class StabilityLobes:
     def minimum_depth_m(self) -> float:
         return float(min(np.min(d) for d in self.depth_m))
 
-    def plot(self, ax=None, path=None, rpm_range=None):
+    def plot(self, ax=None, rpm_range=None):
+        """Critical axial depth vs spindle speed, one line per lobe.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw into; a new figure when omitted.
+        rpm_range : tuple of float, optional
+            Spindle-speed limits of the x axis [rpm].
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure holding the axes (saving is the caller's: ``robovib.io.save_figure``).
+        """
         import matplotlib.pyplot as plt
 
         if ax is None:
@@ -90,13 +104,8 @@ class StabilityLobes:
         ax.set_xlabel("spindle speed [rpm]")
         ax.set_ylabel("critical axial depth [mm]")
         ax.set_title("stability lobes (zero-order method)")
-        if path is not None:
-            ax.figure.tight_layout()
-            from ..io.safe_write import save_figure
-
-            save_figure(ax.figure, path)
-            plt.close(ax.figure)
-        return ax
+        ax.figure.tight_layout()
+        return ax.figure
 
 
 def stability_lobes(
@@ -111,12 +120,48 @@ def stability_lobes(
     n_frequencies: int = 4000,
     frf: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> StabilityLobes:
-    """Zero-order stability lobes (see module docs).
+    """Zero-order stability lobes (see module docs and ``docs/methods.md`` section 5).
 
-    ``modes_x`` / ``modes_y`` are the tool-tip modes along the feed (x) and normal (y)
-    directions (empty: rigid). ``conditions`` supplies the radial immersion and milling mode
-    (its axial depth and speed are what the lobes are about, so they are not used).
-    ``frf`` may replace the modes: a callable ``f_hz -> (Gxx, Gyy)`` of compliances.
+    Parameters
+    ----------
+    modes_x, modes_y : sequence of ModalParameters
+        Tool-tip modes along the feed (x) and normal (y) directions (empty: rigid).
+    tool : MillingTool
+        Number of flutes and diameter [m].
+    conditions : CuttingConditions
+        Radial immersion and milling mode (its axial depth and speed are what the lobes are
+        about, so they are not used).
+    coefficients : CuttingCoefficients
+        Cutting coefficients ``ktc``, ``krc`` [N/m²].
+    n_lobes : int
+        Number of lobes computed.
+    frequency_range_hz : tuple of float, optional
+        Chatter frequencies scanned [Hz]; default around the modes.
+    n_frequencies : int
+        Points of the chatter-frequency scan.
+    frf : callable, optional
+        ``f_hz (n,) -> (Gxx, Gyy)`` complex compliances [m/N] replacing the modes (a measured
+        FRF).
+
+    Returns
+    -------
+    StabilityLobes
+        Per lobe: spindle speed [rpm], critical axial depth [m] and chatter frequency [Hz].
+
+    Raises
+    ------
+    ValueError
+        No mode and no FRF, or no negative real part of the oriented FRF in the scanned range.
+
+    Examples
+    --------
+    >>> from robovib.milling import CuttingConditions, MillingTool, ALUMINIUM_7075
+    >>> from robovib.milling.stability import stability_lobes
+    >>> from robovib.modal import ModalParameters
+    >>> lobes = stability_lobes([ModalParameters(30.0, 2e6, 0.05)], [], MillingTool(0.0254, 2),
+    ...                         CuttingConditions(1750.0, 1e-4, 1e-3, 6e-3), ALUMINIUM_7075)
+    >>> lobes.minimum_depth_m > 0
+    True
     """
     if not modes_x and not modes_y and frf is None:
         raise ValueError("at least one flexible direction (modes or frf) is needed")

@@ -127,10 +127,61 @@ def predict_at_pose(
 ) -> list[DirectionPrediction]:
     """Predicted mean deflection and peak-to-valley per revolution in X, Y, Z at a pose.
 
-    ``forces_n`` (n, 3) in the base frame at ``sample_rate_hz`` (measured, e.g. read and
-    resampled with :func:`robovib.milling.prediction.resample_force`); otherwise the
-    mechanistic model simulates ``duration_s`` of cutting with ``tool`` and ``coefficients``.
-    The first ``skip_s`` (start-up transient from rest) is left out of the summaries.
+    The pose model's modes at the pose (with their uncertainty) filter the cutting forces:
+    measured ones, or the mechanistic model's. See ``docs/methods.md`` section 5.
+
+    Parameters
+    ----------
+    model : PoseModalModel
+        Pose model with inputs (x_mm, y_mm, rz_deg), e.g. :func:`robovib.gp.load_chapter3_model`.
+    x_mm, y_mm : float
+        Tool-tip position [mm].
+    rz_deg : float
+        Rotation about the tool axis [deg].
+    conditions : CuttingConditions
+        Spindle speed [rpm], feed per tooth [m], axial and radial depth [m], milling mode.
+    tool : MillingTool, optional
+        Tool of the simulated forces (default: ``MillingTool()``).
+    coefficients : CuttingCoefficients, optional
+        Cutting coefficients [N/m², N/m]; needed unless ``forces_n`` is given.
+    forces_n : numpy.ndarray, shape (n, 3), optional
+        Measured base-frame forces [N] at ``sample_rate_hz`` (e.g. resampled with
+        :func:`robovib.milling.prediction.resample_force`); replaces the simulated forces.
+    sample_rate_hz : float
+        Sample rate of the forces [Hz].
+    duration_s : float
+        Simulated cutting time [s] (without ``forces_n``).
+    feed_direction : {"x", "y"}
+        Base-frame feed direction.
+    n_samples : int
+        Draws of the modes from the model's predictive distribution for the 95 % bands (>= 1).
+    skip_s : float
+        Start-up transient from rest left out of the summaries [s].
+    rng : int or numpy.random.Generator
+        Seed of the draws.
+
+    Returns
+    -------
+    list of DirectionPrediction
+        One per direction X, Y, Z: mean deflection [m], peak-to-valley per revolution [m],
+        their 95 % bands [m] and the mode used.
+
+    Raises
+    ------
+    ValueError
+        Non-finite pose, unknown feed direction, ``n_samples < 1``, forces of the wrong shape,
+        neither ``forces_n`` nor ``coefficients``.
+
+    Examples
+    --------
+    >>> from robovib.gp import load_chapter3_model
+    >>> from robovib.milling import ALUMINIUM_7075, CuttingConditions
+    >>> from robovib.milling.workflow import predict_at_pose
+    >>> cond = CuttingConditions(1750.0, 58e-6, 3e-3, 25.4e-3)
+    >>> res = predict_at_pose(load_chapter3_model(), 2400.0, 0.0, 45.0, cond,
+    ...                       coefficients=ALUMINIUM_7075, n_samples=5)
+    >>> [r.direction for r in res]
+    ['x', 'y', 'z']
     """
     check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
     n_samples = check_int("n_samples", n_samples, lo=1, hi=100_000)

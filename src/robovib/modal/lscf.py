@@ -266,9 +266,45 @@ def fit_modes(
 ) -> MultiModeFit:
     """Identify all physical modes of a driving-point FRF in a band (LSCF + LSFD).
 
-    Returns the modes as :class:`ModalParameters` (fn, modal stiffness, zeta), sorted by
-    frequency. A mode with a negative modal mass (not a driving-point mode) is reported with a
-    :class:`ModalFitWarning` and left out.
+    A mode with a negative modal mass (not a driving-point mode) is reported with a
+    :class:`ModalFitWarning` and left out. See ``docs/methods.md`` section 2.
+
+    Parameters
+    ----------
+    frf : FRF
+        Driving-point FRF, any form (converted to compliance [m/N] first).
+    band_hz : tuple of float, optional
+        (f_min, f_max) fit band [Hz]; default: the whole FRF.
+    max_order : int
+        Highest model order of the stabilisation diagram.
+    min_fraction : float
+        A pole must be stable in at least this fraction of the orders, in (0, 1].
+    min_frequency_hz : float
+        Bins below this frequency [Hz] are dropped before integrating to compliance.
+    correct_exp_window : bool
+        Remove the damping added by an exponential window recorded on the FRF.
+
+    Returns
+    -------
+    MultiModeFit
+        ``modes`` (:class:`ModalParameters`: fn [Hz], modal stiffness [N/m], zeta) sorted by
+        frequency, residues, the stabilisation diagram, band, relative RMS error and flags.
+
+    Raises
+    ------
+    ValueError
+        Too few bins in the band or a bad ``max_order`` / ``min_fraction``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.frf import FRF
+    >>> from robovib.modal import ModalParameters, fit_modes
+    >>> f = np.linspace(5, 120, 1200)
+    >>> modes = [ModalParameters(30.0, 2e6, 0.03), ModalParameters(80.0, 5e6, 0.03)]
+    >>> fit = fit_modes(FRF(f, sum(m.compliance(f) for m in modes)))
+    >>> [round(m.natural_frequency_hz) for m in fit.modes]
+    [30, 80]
     """
     h = frf.to_compliance(min_frequency_hz)
     if band_hz is not None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
@@ -16,18 +15,43 @@ __all__ = ["plot_frf_fit"]
 def plot_frf_fit(
     frf: FRF,
     fitted: Sequence[ModalParameters] = (),
-    path: str | Path | None = None,
     residual: complex = 0j,
     title: str | None = None,
+    ax=None,
 ):
-    """Magnitude, phase and coherence of a compliance FRF with the fitted modes' curve."""
+    """Magnitude, phase and coherence of a compliance FRF with the fitted modes' curve.
+
+    Parameters
+    ----------
+    frf : FRF
+        Measured compliance FRF [m/N] (the fit band).
+    fitted : sequence of ModalParameters
+        Fitted modes; their summed compliance (+ ``residual``) is drawn dashed.
+    residual : complex
+        Constant residual compliance [m/N] of the fit.
+    title : str, optional
+        Axes title.
+    ax : sequence of matplotlib.axes.Axes, optional
+        2 axes (magnitude, phase), 3 with coherence; a new figure when omitted.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (saving is the caller's: ``robovib.io.save_figure``).
+    """
     try:
         import matplotlib.pyplot as plt
     except ImportError:
         raise ImportError("plots need matplotlib: pip install 'robovib[plot]'") from None
 
     n_rows = 3 if frf.coherence is not None else 2
-    fig, axes = plt.subplots(n_rows, 1, sharex=True, figsize=(7, 2.2 * n_rows + 0.6))
+    if ax is None:
+        fig, axes = plt.subplots(n_rows, 1, sharex=True, figsize=(7, 2.2 * n_rows + 0.6))
+    else:
+        axes = list(ax)
+        if len(axes) != n_rows:
+            raise ValueError(f"ax must be {n_rows} Axes (magnitude, phase[, coherence])")
+        fig = axes[0].figure
     f = frf.frequency_hz
     label = "predicted" if frf.source == "model" else f"measured ({frf.source} {frf.estimator})"
     axes[0].semilogy(f, np.abs(frf.values), color="C0", label=label)
@@ -47,9 +71,4 @@ def plot_frf_fit(
     if title:
         axes[0].set_title(title)
     fig.tight_layout()
-    if path is not None:
-        from ..io.safe_write import save_figure
-
-        save_figure(fig, path)
-        plt.close(fig)
     return fig

@@ -125,7 +125,9 @@ def fit_dominant_mode(
     frf
         Any FRF form; converted to compliance first (bins below ``min_frequency_hz`` dropped).
     band_hz
-        Fit band; default: the peak's half-power estimate ``fn (1 ± max(3 zeta, 0.2))``.
+        Fit band [Hz]; default: the peak's half-power estimate ``fn (1 ± max(3 zeta, 0.2))``.
+    min_frequency_hz
+        Bins below this frequency [Hz] are dropped before integrating to compliance.
     residual
         Include a complex constant for the other modes' compliance in the band.
     coherence_weighting
@@ -133,11 +135,30 @@ def fit_dominant_mode(
     correct_exp_window
         Remove the damping added by an exponential window recorded on the FRF.
 
+    Returns
+    -------
+    ModalFit
+        ``parameters`` (fn [Hz], k [N/m], zeta), their ``std``, the band, the residual
+        compliance [m/N], the relative RMS error and ``flags`` (reasons not to trust the fit).
+
     Raises
     ------
     ValueError
         For a cross FRF (``meta["reference_direction"]`` differs from ``direction``), too few
         bins in the band.
+
+    See ``docs/methods.md`` section 2 (modal parameters).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.frf import FRF
+    >>> from robovib.modal import ModalParameters, fit_dominant_mode
+    >>> f = np.linspace(5, 60, 400)
+    >>> true = ModalParameters(25.0, 2e6, 0.05)
+    >>> fit = fit_dominant_mode(FRF(f, true.compliance(f)))
+    >>> round(fit.parameters.natural_frequency_hz, 2)
+    25.0
     """
     ref = frf.meta.get("reference_direction")
     if ref and frf.direction and ref != frf.direction:

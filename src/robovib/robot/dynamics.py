@@ -99,7 +99,40 @@ def complementary_stiffness(robot: KR500, joints_deg, wrench) -> np.ndarray:
 def cartesian_stiffness(
     robot: KR500, joints_deg, k_theta=TABLE_4_JOINT_STIFFNESS, wrench=None
 ) -> np.ndarray:
-    """Eq. 11: K = J^-T (K_theta - K_c) J^-1 (6x6; N/m, N/rad, N m/m, N m/rad)."""
+    """Eq. 11: K = J^-T (K_theta - K_c) J^-1 (6x6; N/m, N/rad, N m/m, N m/rad).
+
+    See ``docs/methods.md`` section 4 (analytical robot model).
+
+    Parameters
+    ----------
+    robot : KR500
+        Kinematic model (DH parameters, tool).
+    joints_deg : array_like, shape (6,)
+        Joint angles A1..A6 [deg].
+    k_theta : array_like, shape (6,)
+        Joint stiffnesses [N m/rad] (default: thesis Table 4).
+    wrench : array_like, shape (6,), optional
+        External load (F [N], M [N m]) for the complementary stiffness K_c; None: K_c = 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        (6, 6) Cartesian stiffness at the tool tip, base frame (symmetric when ``wrench`` is None).
+
+    Raises
+    ------
+    ValueError
+        Non-positive joint stiffness, a singular pose, wrong shapes.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.robot import KR500
+    >>> from robovib.robot.dynamics import cartesian_stiffness
+    >>> k = cartesian_stiffness(KR500(), [0.0, -60.0, 90.0, 0.0, 60.0, 0.0])
+    >>> k.shape, bool(np.allclose(k, k.T))
+    ((6, 6), True)
+    """
     k = _check_joint_stiffness(k_theta)
     jinv = _inverse(robot.jacobian(joints_deg))
     kq = np.diag(k)
@@ -228,6 +261,19 @@ class CartesianModes:
     def directional_stiffness(self) -> np.ndarray:
         """Stiffness along base X, Y, Z: 1 / (K_t^-1)_ii [N/m]."""
         return 1.0 / np.diag(np.linalg.inv(self.stiffness_n_per_m))
+
+    def principal_stiffness(self) -> tuple[np.ndarray, np.ndarray]:
+        """Principal stiffnesses of K_t and their directions.
+
+        Returns
+        -------
+        values : numpy.ndarray
+            (3,) eigenvalues of the translational stiffness K_t [N/m], ascending.
+        directions : numpy.ndarray
+            (3, 3) unit eigenvectors (columns), base frame.
+        """
+        values, vectors = np.linalg.eigh(self.stiffness_n_per_m)
+        return values, vectors
 
 
 def cartesian_modes(

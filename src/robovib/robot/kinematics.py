@@ -2,7 +2,7 @@
 
 Geometry: the KR500-3 shares its arm with the KR 500/600 R2830 family; the public KUKA data
 sheets and a public URDF of the KR 600 R2830 agree on these standard DH rows (d, a, alpha,
-theta offset; metres, radians), flange frame last (``shared/notes/thesis-notes.md``)::
+theta offset; metres, radians), flange frame last (``docs/methods.md`` section 4)::
 
     1: 1.045   0.500  -pi/2   0
     2: 0       1.300   0      0
@@ -146,7 +146,33 @@ class KR500:
         return frames
 
     def fk(self, joints_deg, *, flange: bool = False) -> np.ndarray:
-        """Homogeneous transform (4, 4) of the tool tip (or the flange) in the base frame [m]."""
+        """Forward kinematics: homogeneous transform of the tool tip (or the flange) in the base frame.
+
+        See ``docs/methods.md`` section 4 (Eq. 1, DH parameters).
+
+        Parameters
+        ----------
+        joints_deg : array_like, shape (6,)
+            Joint angles A1..A6 [deg].
+        flange : bool
+            Return the flange frame instead of the tool tip.
+
+        Returns
+        -------
+        numpy.ndarray
+            (4, 4) transform; translation in metres.
+
+        Raises
+        ------
+        ValueError
+            ``joints_deg`` not 6 finite angles.
+
+        Examples
+        --------
+        >>> from robovib.robot import KR500
+        >>> KR500().fk([0.0, -90.0, 90.0, 0.0, 0.0, 0.0]).shape
+        (4, 4)
+        """
         frames = self.link_frames(joints_deg)
         return frames[6] if flange else frames[7]
 

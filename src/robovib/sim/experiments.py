@@ -92,6 +92,11 @@ class MotionRecord:
     true_force_n: np.ndarray  #: (n, 3) force acting on the tool (cutting + background)
     meta: dict = field(default_factory=dict)
 
+    @property
+    def peak_vibration_m(self) -> np.ndarray:
+        """(3,) largest absolute noise-free tool-tip displacement per axis X, Y, Z [m]."""
+        return np.abs(self.true_displacement_m).max(axis=0)
+
     def to_csv(self, path, *, inputs=(), force: bool = False) -> None:
         """CSV with ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m`` and the pose columns."""
         import pandas as pd
@@ -139,7 +144,52 @@ def simulate_hammer_test(
     """Impact-hammer test at a fixed pose: half-sine pulses, accelerometer with noise.
 
     The response noise is white with power ``snr_db`` below the response's mean power over the
-    record; the force channel gets 0.05 % of the peak as noise.
+    record; the force channel gets 0.05 % of the peak as noise. See ``docs/methods.md`` section 8
+    (virtual robot).
+
+    Parameters
+    ----------
+    robot : VirtualRobot
+        The simulated robot (pose-dependent tool-tip modes).
+    coords : tuple of float
+        The pose: (x [m], y [m], rz [deg]) for ``domain="workspace"``, (s [m],) for ``"path"``.
+    direction : {"x", "y", "z"}
+        Hit and response direction.
+    domain : {"workspace", "path"}
+        How ``coords`` is read.
+    n_hits : int
+        Number of hits (one record each).
+    sample_rate_hz : float
+        Sample rate [Hz] of both channels.
+    duration_s : float
+        Record length per hit [s].
+    pulse_width_s : float
+        Width of the half-sine force pulse [s].
+    peak_force_n : tuple of float
+        Range (low, high) [N] the peak force of each hit is drawn from.
+    snr_db : float
+        Response signal-to-noise ratio [dB].
+    allow_extrapolation : bool
+        Allow poses outside the robot's calibrated range (otherwise an error).
+    rng : int or numpy.random.Generator, optional
+        Seed of the forces and the noise.
+
+    Returns
+    -------
+    HammerRecording
+        ``forces`` [N] and ``responses`` [m/s²], (n_hits, n_samples), with direction and pose.
+
+    Raises
+    ------
+    ValueError
+        Unknown direction or domain, a pose outside the range, non-positive rates or durations.
+
+    Examples
+    --------
+    >>> from robovib.sim import VirtualRobot, simulate_hammer_test
+    >>> rec = simulate_hammer_test(VirtualRobot(), (2.4, 0.0, 45.0), "x", n_hits=2, rng=0)
+    >>> rec.forces.shape[0]
+    2
     """
     _check_positive(
         sample_rate_hz=sample_rate_hz, duration_s=duration_s, pulse_width_s=pulse_width_s

@@ -135,13 +135,33 @@ def comparison_summary(
     return summary
 
 
-def plot_comparison(table: AnalyticalComparison | pd.DataFrame, path=None):
-    """Relative errors (analytical / measured - 1) vs arm extension, like thesis Fig. 11."""
+def plot_comparison(table: AnalyticalComparison | pd.DataFrame, ax=None):
+    """Relative errors (analytical / measured - 1) vs arm extension, like thesis Fig. 11.
+
+    Parameters
+    ----------
+    table : AnalyticalComparison or pandas.DataFrame
+        Result of :func:`compare_with_table_a1` (or its ``to_frame()``): columns
+        ``extension_m`` and ``fn_<d>_rel_error``, ``stiffness_<d>_rel_error`` for d in x, y, z.
+    ax : sequence of two matplotlib.axes.Axes, optional
+        Axes for the natural-frequency and stiffness panels; a new figure when omitted.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (saving is the caller's: ``robovib.io.save_figure``).
+    """
     if isinstance(table, AnalyticalComparison):
         table = table.table
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
+    if ax is None:
+        fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
+    else:
+        axes = list(ax)
+        if len(axes) != 2:
+            raise ValueError(f"ax must be two Axes (frequency, stiffness), got {len(axes)}")
+        fig = axes[0].figure
     for d, colour in zip("xyz", ("C0", "C1", "C2"), strict=True):
         axes[0].plot(
             table["extension_m"],
@@ -165,11 +185,6 @@ def plot_comparison(table: AnalyticalComparison | pd.DataFrame, path=None):
         ax.set_ylabel(f"{name}: analytical / measured - 1 [%]")
         ax.legend()
     fig.tight_layout()
-    if path is not None:
-        from ..io.safe_write import save_figure
-
-        save_figure(fig, path)
-        plt.close(fig)
     return fig
 
 

@@ -48,6 +48,7 @@ __all__ = [
     "ema_frf_on_grid",
     "hybrid_study",
     "oma_settings_study",
+    "parse_seeds",
     "plot_next_poses",
     "propose_next_poses",
     "study_data",
@@ -268,6 +269,27 @@ def _one_seed(
                          "rejected_fraction": rejected, "iterations_mean": iters,
                          "iterations_total": total, "wall_time_s": wall})  # fmt: skip
     return rows
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Simulator seeds from ``"0-4"`` (inclusive range) or ``"0,1,2"``.
+
+    Raises
+    ------
+    ValueError
+        Anything else, naming the accepted forms.
+    """
+    try:
+        if "-" in text.strip("-"):
+            a, b = text.split("-", 1)
+            seeds = list(range(int(a), int(b) + 1))
+        else:
+            seeds = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise ValueError(f"seeds must look like 0-4 or 0,1,2, got {text!r}") from None
+    if not seeds:
+        raise ValueError(f"no seeds in {text!r} (a range must run upwards, e.g. 0-4)")
+    return seeds
 
 
 def hybrid_study(

@@ -1,0 +1,58 @@
+"""Options shared by the ``robovib mill`` commands (units in every help text)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+XOpt = Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")]
+YOpt = Annotated[float, typer.Option("--y", help="Tool-tip Y [mm].")]
+RzOpt = Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")]
+RpmOpt = Annotated[float, typer.Option(help="Spindle speed [rpm].")]
+FzOpt = Annotated[float, typer.Option("--fz", help="Feed per tooth [mm].")]
+ApOpt = Annotated[float, typer.Option("--ap", help="Axial depth of cut [mm].")]
+AeOpt = Annotated[
+    float,
+    typer.Option("--ae", help="Radial depth of cut [mm] (25.4 = slotting with the 25.4 mm tool)."),
+]
+MaterialOpt = Annotated[
+    str, typer.Option("--material", help="Cutting-coefficient preset: al7075 or acetal.")
+]
+FeedOpt = Annotated[str, typer.Option(help="Feed direction in the base frame: x or y.")]
+TeethOpt = Annotated[int, typer.Option("--teeth", help="Number of teeth (flutes) of the tool.")]
+DiameterOpt = Annotated[float, typer.Option("--diameter", help="Tool diameter [mm].")]
+HelixOpt = Annotated[
+    float,
+    typer.Option("--helix", help="Helix angle [deg] (forces; the stability methods ignore it)."),
+]
+KtOpt = Annotated[
+    float | None,
+    typer.Option("--kt", help="Tangential cutting coefficient [N/m²] (overrides --material)."),
+]
+KnOpt = Annotated[
+    float | None,
+    typer.Option("--kn", help="Radial (normal) cutting coefficient [N/m²] (overrides --material)."),
+]
+RadialOpt = Annotated[
+    float | None,
+    typer.Option("--radial-immersion", help="Radial immersion a/D [-] (instead of --ae)."),
+]
+MillingOpt = Annotated[str, typer.Option("--milling", help="up or down milling.")]
+StepsOpt = Annotated[
+    int,
+    typer.Option("--steps", help="SDM steps across the cut (40; 20 is ~4x faster, <1 % change)."),
+]
+MethodOpt = Annotated[
+    str,
+    typer.Option("--method", help="sdm (semi-discretization, flip lobes) or zoa (zero-order)."),
+]
+
+
+def cutting(coefficients, kt, kn, diameter, teeth, helix, ae, radial_immersion, milling):
+    """Tool, conditions and coefficients from the shared options (mm -> SI at the edge)."""
+    from ..milling.chart import cutting_setup
+
+    return cutting_setup(coefficients, diameter_m=diameter / 1e3, n_flutes=teeth,
+                         helix_deg=helix, radial_depth_m=ae / 1e3, radial_immersion=radial_immersion,
+                         milling=milling, ktc_n_per_m2=kt, krc_n_per_m2=kn)  # fmt: skip
