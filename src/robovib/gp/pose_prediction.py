@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..datasets import X_HIGH_MODE_THRESHOLD_HZ
+from .extrapolation import outside_inputs
 
 __all__ = ["PosePrediction", "predict_pose"]
 
@@ -51,13 +52,7 @@ def predict_pose(model, x_mm: float, y_mm: float, rz_deg: float, labels) -> Pose
     if not np.all(np.isfinite(pose)):
         raise ValueError("pose coordinates must be finite numbers")
     switching = hasattr(model, "low_model_")
-    base = model.low_model_ if switching else model
-    lo, hi = base.X_train_.min(axis=0), base.X_train_.max(axis=0)
-    outside = tuple(
-        name
-        for name, v, a, b in zip(("x", "y", "rz"), pose[0], lo, hi, strict=True)
-        if v < a or v > b
-    )
+    outside = outside_inputs(model, pose[0], ("x", "y", "rz"))  # one range rule for all models
     mean, std = model.predict(pose, return_std=True)
     mean, std = mean[0], std[0]
     records = tuple(

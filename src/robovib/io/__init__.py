@@ -3,11 +3,11 @@
 Units and sensor sensitivities are converted to SI here, at the edge.
 """
 
-from .atomic import atomic_path
 from .cuts import MeasuredCuts, read_cuts_csv
 from .frf_csv import FRF_CSV_UNITS, read_frf_csv, write_frf_csv
 from .frf_files import (
     read_frfs,
+    read_frfs_csv,
     read_frfs_hdf5,
     read_frfs_uff,
     write_frfs,
@@ -52,7 +52,6 @@ __all__ = [
     "Sensitivity",
     "apply_sensitivity",
     "atomic_output",
-    "atomic_path",
     "check_output_path",
     "json_dumps",
     "json_safe",
@@ -61,6 +60,7 @@ __all__ = [
     "read_force_csv",
     "read_frf_csv",
     "read_frfs",
+    "read_frfs_csv",
     "read_frfs_hdf5",
     "read_frfs_uff",
     "read_milling_record_csv",
