@@ -57,18 +57,36 @@ def test_zero_spread_gives_the_deterministic_envelope():
     np.testing.assert_array_equal(res.p_stable, expected.astype(float))
 
 
+class _PoseModel:
+    """Stands for a fitted PoseModalModel: modes(X) in SI with predictive stds."""
+
+    output_names_ = ("x_fn_hz",)
+
+    def modes(self, x):
+        from robovib.gp import PoseMode
+        from robovib.modal import ModalParameters
+
+        m = {d: ModalParameters.from_fn_k_c(fn, k, c) for d, fn, k, c in
+             (("x", 20.0, 4e6, 3e3), ("y", 10.0, 2e6, 1.5e3), ("z", 30.0, 8e6, 2e3))}  # fmt: skip
+        return [{d: PoseMode(p, 0.1 * p.natural_frequency_hz, 0.1 * p.stiffness_n_per_m,
+                             0.1 * p.damping_ns_per_m, False, None) for d, p in m.items()}] * len(x)  # fmt: skip
+
+
 class _ThesisUnitsModel:
     def predict(self, x, return_std=False):
         mean = np.tile([20.0, 4.0, 3.0, 10.0, 2.0, 1.5, 30.0, 8.0, 2.0], (len(x), 1))
         return (mean, 0.1 * mean) if return_std else mean
 
 
-def test_distribution_from_a_thesis_units_model_and_errors():
-    d = mode_distribution_at_pose(_ThesisUnitsModel(), [2400, 0, 45])
+def test_distribution_from_a_pose_model_and_errors():
+    d = mode_distribution_at_pose(_PoseModel(), [2400, 0, 45])
     assert d["x"].stiffness_n_per_m == pytest.approx(4e6) and d[
         "y"
     ].damping_ns_per_m == pytest.approx(1.5e3)
     assert d["x"].stiffness_std_n_per_m == pytest.approx(4e5)
+    # A bare regressor's units cannot be told (thesis MN/m or SI N/m): refused, never guessed.
+    with pytest.raises(TypeError, match="not a pose model"):
+        mode_distribution_at_pose(_ThesisUnitsModel(), [2400, 0, 45])
     with pytest.raises(ValueError, match="method"):
         stability_probability(d, TOOL, SLOT, ALUMINIUM_7075, [3000.0], method="fdm")
     with pytest.raises(ValueError, match="std"):

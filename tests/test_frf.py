@@ -134,3 +134,9 @@ def test_frf_object_validation():
         FRF(f, np.full(10, np.nan))
     with pytest.raises(ValueError, match="fewer than 2 bins"):
         FRF(f, np.ones(10)).band(100, 200)
+    # Coherence is a fraction in [0, 1]: out of range or NaN is an error, never clipped later.
+    with pytest.raises(ValueError, match=r"coherence must lie in \[0, 1\].*1.5 at 4 Hz"):
+        FRF(f, np.ones(10), coherence=np.r_[np.ones(3), 1.5, np.ones(6)])
+    with pytest.raises(ValueError, match="coherence contains NaN"):
+        FRF(f, np.ones(10), coherence=np.full(10, np.nan))
+    assert FRF(f, np.ones(10), coherence=np.ones(10)).coherence.max() == 1.0

@@ -140,6 +140,12 @@ def test_frf_collection_round_trip(tmp_path):
             np.testing.assert_allclose(b.values, a.values, rtol=1e-9)
     back = read_frfs(tmp_path / "c.h5")
     assert back[1].source == "OMA" and back[1].n_averages == 12 and back[1].exp_window_tau_s == 0.3
+    import h5py
+
+    import robovib
+
+    with h5py.File(tmp_path / "c.h5") as h5:  # every HDF5 output says its units and version
+        assert h5.attrs["robovib_version"] == robovib.__version__ and "m/N" in h5.attrs["units"]
 
 
 def test_cli_frf_compute_and_modal_fit(tmp_path, recording):

@@ -232,7 +232,7 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
     import pandas as pd
 
     from .. import __version__
-    from ..io import atomic_path, write_frfs_hdf5
+    from ..io import atomic_output, json_dumps, write_frfs_hdf5
 
     good = [r for r in results if r.modal is not None]
     table = pd.DataFrame([r.modal for r in good])
@@ -248,9 +248,9 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
         "reports": [{"line": r.row, **(r.report or {})} for r in good],
     }
     with (
-        atomic_path(out_dir / "frfs.h5") as t_h5,
-        atomic_path(out_dir / "modal.csv") as t_csv,
-        atomic_path(out_dir / "campaign.json") as t_json,
+        atomic_output(out_dir / "frfs.h5") as t_h5,
+        atomic_output(out_dir / "modal.csv") as t_csv,
+        atomic_output(out_dir / "campaign.json") as t_json,
     ):
         write_frfs_hdf5(t_h5, frfs)
         with h5py.File(t_h5, "a") as h5:
@@ -259,7 +259,7 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
             h5.attrs["manifest"] = str(manifest)
             h5.attrs["units"] = "SI (frequency Hz, compliance m/N); pose (m, m, m, deg, deg, deg)"
         table.to_csv(t_csv, index=False, float_format="%.9g")
-        t_json.write_text(json.dumps(doc, indent=2, default=float))
+        t_json.write_text(json_dumps(doc, indent=2))  # NaN -> null + reason
     return table, len(frfs)
 
 

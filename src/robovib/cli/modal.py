@@ -161,6 +161,7 @@ def _plot(frf_file: Path, results, plot: Path, force: bool) -> None:
         residual=0j if multi else dom.residual_compliance,
         title=f"{frf_file.name}, FRF 0",
         flags=(*dom.flags, *(multi.flags if multi is not None else ())),
+        view="both",
     )
     try:
         save_figure(fig, plot, inputs=[frf_file], force=force)

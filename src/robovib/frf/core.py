@@ -116,8 +116,19 @@ class FRF:
             raise ValueError("FRF frequency axis or values contain NaN or inf")
         if f.size > 1 and np.any(np.diff(f) <= 0):
             raise ValueError("frequency_hz must be strictly increasing")
-        if self.coherence is not None and np.shape(self.coherence) != f.shape:
-            raise ValueError("coherence must have the same shape as frequency_hz")
+        if self.coherence is not None:
+            coh = np.asarray(self.coherence, float)
+            if coh.shape != f.shape:
+                raise ValueError("coherence must have the same shape as frequency_hz")
+            if not np.all(np.isfinite(coh)):
+                raise ValueError("FRF coherence contains NaN or inf (dimensionless, 0..1)")
+            bad = (coh < -1e-9) | (coh > 1 + 1e-9)
+            if np.any(bad):
+                i = int(np.argmax(bad))
+                raise ValueError(
+                    f"FRF coherence must lie in [0, 1] (dimensionless), got {coh[i]:g} at "
+                    f"{f[i]:g} Hz"
+                )
         if self.quantity not in ("compliance", "mobility", "accelerance"):
             raise ValueError(f"unknown FRF quantity {self.quantity!r}")
         if self.direction is not None and self.direction not in _DIRECTIONS:

@@ -33,8 +33,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
@@ -788,17 +786,11 @@ class PoseModalModel(BaseEstimator):
         self._require_fitted()
         cv = getattr(self, "cv_", None) if cv is None else cv
         provenance = getattr(self, "provenance_", None) if provenance is None else provenance
+        from ..io.safe_write import atomic_output
+
         path = Path(path)
-        if not path.parent.is_dir():
-            raise ValueError(f"{path.parent}: folder does not exist")
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        os.close(fd)
-        try:
+        with atomic_output(path) as tmp:  # OutputPathError (a ValueError) names a bad folder
             _h5.write_pose_model(self, tmp, cv=cv, provenance=provenance)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
         return path
 
     @classmethod

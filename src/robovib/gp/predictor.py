@@ -539,9 +539,9 @@ def predict_at(model, pose) -> PosePrediction:
         }
         for name, unit, m, s in zip(model.output_names_, units, mean[0], std[0], strict=True)
     )
-    X = np.asarray(model.X_train_, float)
-    lo, hi = X.min(axis=0), X.max(axis=0)
-    outside = tuple(n for n, v, a, b in zip(names, x[0], lo, hi, strict=True) if v < a or v > b)
+    from .extrapolation import outside_inputs
+
+    outside = outside_inputs(model, x[0], names)  # same range and tolerance as extrapolating()
     p = model.mode_switch_probability(x)
     dirs = tuple(getattr(model, "directions_", getattr(model, "directions", ())))
     high = (

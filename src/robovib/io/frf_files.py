@@ -70,8 +70,15 @@ def write_frfs_hdf5(
     import h5py
 
     with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
+        from .. import __version__
+
         h5.attrs["format"] = _FORMAT
         h5.attrs["version"] = 1
+        h5.attrs["robovib_version"] = __version__
+        h5.attrs["units"] = (
+            "frequency_hz Hz; values SI per quantity (compliance m/N, mobility m/s/N, "
+            "accelerance m/s^2/N); pose X, Y, Z m, Rx, Ry, Rz deg; exp_window_tau_s s"
+        )
         grp = h5.create_group("frf")
         for i, frf in enumerate(frfs):
             g = grp.create_group(f"{i:06d}")
@@ -441,6 +448,20 @@ def _attach_companions(frfs: list[FRF], companions, lc_index, path) -> list[FRF]
             value = np.rint(value)
         frfs[i] = replace(frf, meta={**frf.meta, key: value.astype(dt)})
     return frfs
+
+
+def read_frfs_csv(path: str | Path) -> list[FRF]:
+    """FRFs from CSV (``frequency_hz``, ``[x_|y_|z_]real_<unit>``, ``[x_|y_|z_]imag_<unit>``):
+    :func:`robovib.io.read_frf_csv`, converted to SI compliance.
+
+    Raises
+    ------
+    ValueError
+        See :func:`robovib.io.read_frf_csv` (errors name the column and line).
+    """
+    from .frf_csv import read_frf_csv
+
+    return read_frf_csv(path)
 
 
 def write_frfs(

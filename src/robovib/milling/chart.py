@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.frf_files import read_frfs_csv as read_frf_csv  # the reader lives in robovib.io
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool
 from .lobes import LobeEnvelope, lobes_title, plot_lobes, zoa_envelope
@@ -150,14 +151,6 @@ def parse_rpm_range(spec: str) -> np.ndarray:
     if not (0 < lo < hi and math.isfinite(hi)) or count < 2:
         raise ValueError(f"rpm range needs 0 < MIN_RPM < MAX_RPM and N >= 2, got {spec!r}")
     return np.linspace(lo, hi, count)
-
-
-def read_frf_csv(path: str | Path):
-    """Tool-tip compliance FRFs from CSV: :func:`robovib.io.read_frf_csv` (``frequency_hz``,
-    ``[x_|y_]real_<unit>``, ``[x_|y_]imag_<unit>``; compliance, mobility or accelerance units)."""
-    from ..io.frf_csv import read_frf_csv as _read
-
-    return _read(path)
 
 
 def _read_frfs(path: Path):

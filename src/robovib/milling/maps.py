@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -361,15 +360,11 @@ def save_lobe_map(ds, path: str | Path) -> Path:
     target = Path(path)
     if target.suffix.lower() not in (".nc", ".netcdf", ".nc4"):
         raise ValueError(f"lobe maps are written as NetCDF (.nc), got {target.name!r}")
+    from ..io.safe_write import atomic_output
+
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
+    with atomic_output(target) as tmp:
         ds.to_netcdf(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return target
 
 

@@ -77,9 +77,21 @@ class ModeDistribution:
 def mode_distribution_at_pose(model, pose) -> dict[str, ModeDistribution]:
     """Predictive distribution per direction at one pose from a pose model.
 
-    Accepts a :class:`robovib.gp.PoseModalModel` (``modes(X)`` with ``PoseMode`` std fields, SI)
-    or any model whose ``predict(X, return_std=True)`` returns the 9 chapter-3 outputs in thesis
-    units (fn [Hz], k [MN/m], c [kN·s/m] for X, Y, Z).
+    Parameters
+    ----------
+    model
+        A fitted :class:`robovib.gp.PoseModalModel` (``modes(X)`` with ``PoseMode`` std fields,
+        SI). Models without ``modes`` are refused: their output units cannot be told apart
+        (a thesis-unit and an SI regressor both have 9 outputs).
+    pose
+        One input row in the units of ``model.input_names``.
+
+    Raises
+    ------
+    TypeError
+        The model has no ``modes``/``output_names_`` (not a pose model).
+    ValueError
+        More than one pose.
     """
     x = np.atleast_2d(np.asarray(pose, float))
     if x.shape[0] != 1:
@@ -95,15 +107,10 @@ def mode_distribution_at_pose(model, pose) -> dict[str, ModeDistribution]:
                 float(pm.damping_std_ns_per_m),
             )  # fmt: skip
         return out
-    mean, std = model.predict(x, return_std=True)
-    mean, std = np.asarray(mean)[0], np.asarray(std)[0]
-    if mean.size != 9:
-        raise ValueError(f"expected 9 chapter-3 outputs (fn, k, c for X, Y, Z), got {mean.size}")
-    scale = np.array([1.0, 1e6, 1e3])
-    return {
-        d: ModeDistribution(*(mean[3 * i : 3 * i + 3] * scale), *(std[3 * i : 3 * i + 3] * scale))
-        for i, d in enumerate(("x", "y", "z"))
-    }
+    raise TypeError(
+        f"{type(model).__name__} is not a pose model: mode_distribution_at_pose needs "
+        "modes(X) in SI (a robovib.gp.PoseModalModel); output units are never guessed"
+    )
 
 
 @dataclass(frozen=True)

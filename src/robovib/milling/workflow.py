@@ -1,4 +1,6 @@
-"""Milling at a pose: forces -> pose-model dynamics -> vibration with a band; lobes; workspace map.
+"""Milling at a pose: forces -> pose-model dynamics -> vibration with a band; lobes.
+
+The workspace stability map is :func:`robovib.milling.maps.workspace_lobe_map`.
 
 The pose model is a fitted :class:`robovib.gp.PoseModalModel` over chapter-3 poses
 ``(x_mm, y_mm, rz_deg)`` with directions x, y, z (SI), e.g.

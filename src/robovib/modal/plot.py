@@ -18,7 +18,7 @@ def plot_frf_fit(
     title: str | None = None,
     *,
     flags: Sequence[str] = (),
-    view: FRFView = "both",
+    view: FRFView = "bode",
     ax=None,
 ):
     """A compliance FRF with the fitted modes' curve: magnitude, unwrapped phase, Re, Im, coherence.
@@ -37,7 +37,7 @@ def plot_frf_fit(
         Reasons the fit should not be trusted (:attr:`robovib.modal.ModalFit.flags`): shown in
         red on the figure, title prefixed "FLAGGED FIT".
     view : {"bode", "real-imag", "both"}
-        Panels (see :func:`robovib.frf.plot_frf`).
+        Panels (see :func:`robovib.frf.plot_frf`); ``modal fit --plot`` draws ``"both"``.
     ax : sequence of matplotlib.axes.Axes, optional
         Axes to draw into (see :func:`robovib.frf.plot_frf`); a new figure when omitted.
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.safe_write import atomic_output
 from ..io.uff58 import Record58, write_uff58
 from .dynamics import modal_response
 from .experiments import _rng, simulate_hammer_test
@@ -208,16 +209,19 @@ def simulate_campaign(
                     f"{ti:.6f},{fi:.6g},{ai:.6g}"
                     for ti, fi, ai in zip(t, f_all, a_all, strict=True)
                 )
-                path.write_text(f"time_s,force_n,acceleration_{d}_g\n{body}\n")
+                with atomic_output(path) as tmp:
+                    tmp.write_text(f"time_s,force_n,acceleration_{d}_g\n{body}\n")
             paths.append(path)
             rows.append({
                 "file": str(path.relative_to(out)), "direction": d, "x_mm": x_mm, "y_mm": y_mm,
                 "z_mm": _Z_MM, "rz_deg": rz, "replicate": 0,
             })  # fmt: skip
     manifest = out / "campaign.csv"
-    pd.DataFrame(rows).to_csv(manifest, index=False, float_format="%.6g")
+    with atomic_output(manifest) as tmp:
+        pd.DataFrame(rows).to_csv(tmp, index=False, float_format="%.6g")
     lo, hi = p.min(axis=0), p.max(axis=0)
     unseen = lo + (hi - lo) * gen.uniform(size=(int(n_truth), 3))
     truth = out / "truth.csv"
-    truth_table(robot, unseen).to_csv(truth, index=False, float_format="%.9g")
+    with atomic_output(truth) as tmp:
+        truth_table(robot, unseen).to_csv(tmp, index=False, float_format="%.9g")
     return SimulatedCampaign(manifest, truth, tuple(paths))
