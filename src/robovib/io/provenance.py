@@ -102,13 +102,14 @@ def file_sha256(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
     return h.hexdigest()
 
 
-def _plain(value: Any) -> Any:
+def plain_json(value: Any) -> Any:
+    """JSON-ready copy: arrays to lists, NumPy scalars to Python, paths to str, NaN/inf to None."""
     if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain_json(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
+        return [plain_json(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
+        return plain_json(value.tolist())
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, Path):
@@ -155,7 +156,7 @@ def run_provenance(
     return {
         "robovib_version": __version__,
         "command": [str(a) for a in command],
-        "settings": _plain(merged),
+        "settings": plain_json(merged),
         "units": dict(info.get("units", {})),
         "input_files": [{"path": p, "sha256": file_sha256(p)} for p in paths],
     }
@@ -175,7 +176,7 @@ def write_provenance(h5, provenance: Mapping | None = None, **kwargs) -> None:
     g = h5.create_group("provenance")
     g.attrs["robovib_version"] = prov["robovib_version"]
     g.attrs["command"] = json.dumps(prov["command"])
-    g.attrs["settings"] = json.dumps(_plain(prov.get("settings", {})), allow_nan=False)
+    g.attrs["settings"] = json.dumps(plain_json(prov.get("settings", {})), allow_nan=False)
     g.attrs["units"] = json.dumps(prov.get("units", {}))
     ins = g.create_group("inputs")
     for i, item in enumerate(prov.get("input_files", [])):
