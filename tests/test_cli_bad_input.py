@@ -231,7 +231,7 @@ OMA_T = "hybrid oma {IN} -o {OUT}"
 bad_inputs("hybrid-oma", OMA_T.replace("{OUT}", "{out:.h5}"), ".csv")
 bad_outputs("hybrid-oma", OMA_T.replace("{IN}", "{cut}"), ".csv", "cut")
 bad_options("hybrid-oma", "hybrid oma {cut} -o {out:.h5} --nperseg 256", {
-    "--segment-mm": ["0", "-50", "nan"], "--nperseg": ["0"], "--direction": ["q"],
+    "--segment": ["0", "-0.05", "nan"], "--nperseg": ["0"], "--direction": ["q"],
     "--rpm": ["-1", "nan"], "--fmin": ["nan"], "--fmax": ["inf"],
 })  # fmt: skip
 case("hybrid-oma-band-reversed", "hybrid oma {cut} -o {out:.h5} --fmin 50 --fmax 40")
@@ -383,6 +383,9 @@ def test_bad_input_fails_cleanly(argv, inputs, tmp_path):
     assert not r["traceback"], r["exception"]
     assert r["exit_code"] != 0, r["text"]
     assert len(r["error_lines"]) == 1, r["text"]
+    # a misspelt option would "fail cleanly" without testing anything: the option must exist
+    if "--bogus" not in argv:
+        assert "No such option" not in r["text"], r["text"]
     assert r["changed"] == [] and r["created"] == [], (r["changed"], r["created"])
 
 

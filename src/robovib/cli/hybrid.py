@@ -39,7 +39,9 @@ def study(
     window: Annotated[
         str, typer.Option(help="OMA window (SciPy name: hann, boxcar, ...).")
     ] = "hann",
-    segment_mm: Annotated[float, typer.Option(help="Path length per OMA FRF [mm].")] = 50.0,
+    segment_m: Annotated[
+        float, typer.Option("--segment", help="Path length per OMA FRF [m].")
+    ] = 0.05,
     validation_s: Annotated[
         float, typer.Option("--validation-s", help="Validation path coordinate [m].")
     ] = 0.91,
@@ -51,7 +53,7 @@ def study(
 
     res = hybrid_study(
         seeds=parse_seeds(seeds), background_noise_rel=background, nperseg=nperseg, noverlap=noverlap,
-        window=window, segment_length_m=segment_mm / 1e3, validation_s_m=validation_s,
+        window=window, segment_length_m=segment_m, validation_s_m=validation_s,
         f_range_hz=(2.0, fmax),
     )  # fmt: skip
     if json_out:
