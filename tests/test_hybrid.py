@@ -324,3 +324,23 @@ def test_hybrid_workspace_cli(tmp_path):
     assert doc["x_m"] == 2.4 and not doc["extrapolating"]
     res = run(app, ["hybrid", "predict", str(updated), "--path-s", "0.5"])
     assert res.exit_code == 1 and "--x [mm]" in res.output
+
+
+def test_fit_frf_model_grid_starts_where_every_frf_has_data_and_checks_inputs():
+    from robovib.frf.core import FRF
+    from robovib.hybrid import fit_frf_model
+
+    def frf(s_m, f0_hz):
+        f = np.arange(f0_hz, 45.0, 0.5)
+        fn_hz = 18.0 + 4.0 * s_m  # one mode that stiffens along the path
+        h = 1e-6 / (1 - (f / fn_hz) ** 2 + 0.1j * f / fn_hz)
+        return FRF(f, h, quantity="compliance", direction="x", source="EMA", meta={"path_s_m": s_m})
+
+    frfs = [frf(0.0, 1.0), frf(0.6, 3.0), frf(1.2, 1.5)]
+    model = fit_frf_model(frfs, "path", f_max_hz=40.0, df_hz=1.0)
+    assert model.frequency_hz_[0] == pytest.approx(3.0)  # the latest first bin
+    assert model.frequency_hz_[-1] <= 40.0
+    with pytest.raises(ValueError, match="inputs must be one of"):
+        fit_frf_model(frfs, "joints")
+    with pytest.raises(ValueError, match="no EMA FRFs"):
+        fit_frf_model([], "path")

@@ -151,33 +151,28 @@ def fit(
 
     All FRFs must be of one direction (kept in the model and checked by ``hybrid update``).
     """
-    from ..hybrid import INPUT_SETS, FRFPoseModel, frequency_grid
+    from ..hybrid import fit_frf_model
     from ..io import read_frfs
 
-    if inputs not in INPUT_SETS:
-        raise ValueError(f"--inputs must be one of {list(INPUT_SETS)}, got {inputs!r}")
     check_output(output, ema, force)
-    names = INPUT_SETS[inputs]
     frfs = [f for path in ema for f in read_frfs(path)]
-    if fmin is None:  # where all EMA FRFs have data
-        fmin = max([2.0, *(float(f.frequency_hz[0]) for f in frfs)])
-    grid = frequency_grid(fmin, fmax, df_hz)
-    kernel = "isotropic" if inputs == "path" else "ard"
-    model = FRFPoseModel(grid, kernel=kernel, input_names=names).fit_frfs(frfs)
+    model = fit_frf_model(frfs, inputs, fmin, fmax, df_hz)
     model.save(output, provenance={"ema_files": ",".join(str(p) for p in ema)}, inputs=ema,
                force=force)  # fmt: skip
     doc = {
         "output": str(output),
         "direction": model.direction_,
         "n_frfs": len(frfs),
-        "n_bins": int(grid.size),
-        "input_names": list(names),
+        "n_bins": int(model.frequency_hz_.size),
+        "input_names": list(model.input_names),
         "iterations_mean": model.last_report_.iterations_mean_per_gp,
     }
     if json_out:
         emit_json(doc)
     else:
-        typer.echo(f"wrote {output}: {len(frfs)} EMA FRFs ({model.direction_}), {grid.size} bins")
+        typer.echo(
+            f"wrote {output}: {len(frfs)} EMA FRFs ({model.direction_}), {model.frequency_hz_.size} bins"
+        )
 
 
 @app.command("update")
@@ -218,12 +213,7 @@ def update(
             f"wrote {output}: updated with {len(s)} OMA FRFs ({mode}, {rep.iterations_mean_per_gp:.1f} iterations per GP)"
         )
         if mode == "robust":
-            typer.echo(
-                f"rejected {rep.n_rejected} of {rep.n_observations} OMA bins "
-                f"({100 * rep.rejected_fraction:.0f} %); whole bins: "
-                f"{', '.join(f'{f:.2f}' for f in rep.rejected_bins_hz) or 'none'} Hz; source scale "
-                f"{abs(rep.scale):.3f} ({'applied' if rep.scale_applied else 'not applied'})"
-            )
+            typer.echo(rep.describe())
 
 
 @app.command("predict")

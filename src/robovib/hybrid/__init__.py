@@ -5,6 +5,7 @@ from .oma import OMAQualityWarning, OMASegment, oma_frfs
 from .workflow import (
     INPUT_SETS,
     FRFPrediction,
+    fit_frf_model,
     flagged_fraction,
     frf_pose,
     frfs_on_grid,
@@ -22,6 +23,7 @@ __all__ = [
     "OMAQualityWarning",
     "OMASegment",
     "UpdateReport",
+    "fit_frf_model",
     "flagged_fraction",
     "frequency_grid",
     "frf_pose",

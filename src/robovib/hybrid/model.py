@@ -139,6 +139,16 @@ class UpdateReport:
     def rejected_fraction(self) -> float:
         return self.n_rejected / self.n_observations if self.n_observations else 0.0
 
+    def describe(self) -> str:
+        """One line on what the bias check rejected (robust mode) for a person to read."""
+        bins = ", ".join(f"{f:.2f}" for f in self.rejected_bins_hz) or "none"
+        applied = "applied" if self.scale_applied else "not applied"
+        return (
+            f"rejected {self.n_rejected} of {self.n_observations} OMA bins "
+            f"({100 * self.rejected_fraction:.0f} %); whole bins: {bins} Hz; source scale "
+            f"{abs(self.scale):.3f} ({applied})"
+        )
+
     def to_dict(self) -> dict:
         """JSON-friendly (complex scale as real/imag)."""
         d = asdict(self)

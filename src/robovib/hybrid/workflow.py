@@ -15,6 +15,7 @@ from .oma import oma_frfs
 __all__ = [
     "INPUT_SETS",
     "FRFPrediction",
+    "fit_frf_model",
     "flagged_fraction",
     "frf_pose",
     "frfs_on_grid",
@@ -27,6 +28,50 @@ __all__ = [
 
 #: Pose inputs the file workflow understands: the path coordinate or the workspace pose.
 INPUT_SETS = {"path": ("s_m",), "workspace": ("x_m", "y_m", "rz_deg")}
+
+
+def fit_frf_model(
+    frfs: Sequence[FRF],
+    inputs: str = "path",
+    f_min_hz: float | None = None,
+    f_max_hz: float = 40.0,
+    df_hz: float = 1.953125,
+) -> FRFPoseModel:
+    """The initial per-bin GP model of the compliance from EMA FRFs (thesis ch. 5).
+
+    Parameters
+    ----------
+    frfs
+        EMA FRFs of one direction, with path coordinates (``inputs="path"``) or poses.
+    inputs
+        ``"path"`` (the path coordinate s [m], isotropic kernel) or ``"workspace"`` (x, y [m],
+        rz [deg] from each FRF's pose, ARD kernel); see :data:`INPUT_SETS`.
+    f_min_hz
+        Model grid start [Hz]; default where all FRFs have data, at least 2 Hz.
+    f_max_hz, df_hz
+        Model grid end and step [Hz] (match the OMA resolution).
+
+    Returns
+    -------
+    FRFPoseModel
+        Fitted; ``last_report_`` says how many optimiser iterations it took.
+
+    Raises
+    ------
+    ValueError
+        Unknown ``inputs``, no FRFs, or FRFs the model refuses (mixed directions, missing poses).
+    """
+    from .model import frequency_grid
+
+    if inputs not in INPUT_SETS:
+        raise ValueError(f"inputs must be one of {list(INPUT_SETS)}, got {inputs!r}")
+    if not frfs:
+        raise ValueError("no EMA FRFs given")
+    if f_min_hz is None:  # where all EMA FRFs have data
+        f_min_hz = max([2.0, *(float(f.frequency_hz[0]) for f in frfs)])
+    grid = frequency_grid(f_min_hz, f_max_hz, df_hz)
+    kernel = "isotropic" if inputs == "path" else "ard"
+    return FRFPoseModel(grid, kernel=kernel, input_names=INPUT_SETS[inputs]).fit_frfs(frfs)
 
 
 def frf_pose(frf: FRF, input_names=("s_m",)) -> tuple[float, ...]:
