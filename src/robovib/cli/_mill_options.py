@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -56,3 +57,30 @@ def cutting(coefficients, kt, kn, diameter, teeth, helix, ae, radial_immersion, 
     return cutting_setup(coefficients, diameter_m=diameter / 1e3, n_flutes=teeth,
                          helix_deg=helix, radial_depth_m=ae / 1e3, radial_immersion=radial_immersion,
                          milling=milling, ktc_n_per_m2=kt, krc_n_per_m2=kn)  # fmt: skip
+
+
+ModeSpecOpt = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--mode", help="Explicit mode DIR:FN_HZ,K_N_PER_M,ZETA (repeat; DIR x=feed, y=normal)."
+    ),
+]
+FrfFileOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--frf",
+        help="Measured tool-tip FRFs: .h5, .uff or .csv (frequency_hz, x_real_<unit>, ...).",
+    ),
+]
+CutsOpt = Annotated[
+    Path | None,
+    typer.Option("--cuts", help="Test cuts CSV: spindle_rpm,depth_mm,result (stable/chatter)."),
+]
+OperatingPointOpt = Annotated[
+    str | None,
+    typer.Option("--operating-point", help="RPM,DEPTH_MM drawn on the chart and checked."),
+]
+LobeSamplesOpt = Annotated[
+    int,
+    typer.Option(help="Pose model only: samples of its predictive distribution (shaded lobes)."),
+]

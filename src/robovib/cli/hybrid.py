@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from . import _hybrid_options as hopt
 from ._common import (
     ForceOpt,
     JsonFlag,
@@ -25,23 +26,12 @@ app = new_app("Hybrid EMA + OMA model of the whole FRF with Bayesian updating (t
 
 @app.command("study")
 def study(
-    background: Annotated[
-        float,
-        typer.Option(
-            help="Broadband force content of the OMA cut (x spread of the periodic force)."
-        ),
-    ] = 1.0,
+    background: hopt.BackgroundOpt = 1.0,
     seeds: Annotated[str, typer.Option(help="Simulator seeds: a range 0-4 or a list 0,1,2.")] = "0",
-    nperseg: Annotated[int, typer.Option(help="OMA Welch window [samples].")] = 1024,
-    noverlap: Annotated[
-        int | None, typer.Option(help="OMA Welch overlap [samples] (default half a window).")
-    ] = None,
-    window: Annotated[
-        str, typer.Option(help="OMA window (SciPy name: hann, boxcar, ...).")
-    ] = "hann",
-    segment_m: Annotated[
-        float, typer.Option("--segment", help="Path length per OMA FRF [m].")
-    ] = 0.05,
+    nperseg: hopt.NpersegOpt = 1024,
+    noverlap: hopt.NoverlapOpt = None,
+    window: hopt.WindowOpt = "hann",
+    segment_m: hopt.SegmentOpt = 0.05,
     validation_s: Annotated[
         float, typer.Option("--validation-s", help="Validation path coordinate [m].")
     ] = 0.91,
@@ -72,22 +62,13 @@ def study(
 
 @app.command("oma")
 def oma(
-    record: Annotated[
-        Path,
-        typer.Argument(
-            help="Synchronised CSV: time_s, force_{x,y,z}_n, displacement_{x,y,z}_m, path_s_m (e.g. from `robovib sim mill`/`sim offset-mass`)."
-        ),
-    ],
+    record: hopt.RecordArg,
     output: OutOpt,
     direction: Annotated[str, typer.Option(help="x, y or z.")] = "x",
-    segment_m: Annotated[
-        float, typer.Option("--segment", help="Path length per FRF [m] (path coordinates in m).")
-    ] = 0.05,
-    nperseg: Annotated[int, typer.Option(help="Welch window [samples].")] = 512,
-    noverlap: Annotated[
-        int | None, typer.Option(help="Welch overlap [samples] (default half a window).")
-    ] = None,
-    window: Annotated[str, typer.Option(help="Window (SciPy name: hann, boxcar, ...).")] = "hann",
+    segment_m: hopt.SegmentOpt = 0.05,
+    nperseg: hopt.NpersegOpt = 512,
+    noverlap: hopt.NoverlapOpt = None,
+    window: hopt.WindowOpt = "hann",
     fmin: Annotated[float, typer.Option(help="Lowest frequency [Hz].")] = 2.0,
     fmax: Annotated[float, typer.Option(help="Highest frequency [Hz].")] = 40.0,
     rpm: Annotated[
@@ -180,12 +161,7 @@ def update(
     model_file: Annotated[Path, typer.Argument(help="Model from `hybrid fit`.")],
     oma_file: Annotated[Path, typer.Argument(help="OMA FRFs from `hybrid oma`.")],
     output: OutOpt,
-    mode: Annotated[
-        str,
-        typer.Option(
-            help="robust (bias check and rejection, OMA noise by marginal likelihood), posterior, or warm (re-optimise from the current hyperparameters)."
-        ),
-    ] = "robust",
+    mode: hopt.UpdateModeOpt = "robust",
     reoptimize: Annotated[
         bool, typer.Option(help="robust only: then re-optimise all hyperparameters (warm start).")
     ] = False,

@@ -99,19 +99,8 @@ def lobes(
         float | None, typer.Option("--rz", help="Rotation about the tool axis [deg].")
     ] = None,
     method: opt.MethodOpt = "sdm",
-    mode: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--mode", help="Explicit mode DIR:FN_HZ,K_N_PER_M,ZETA (repeat; DIR x=feed, y=normal)."
-        ),
-    ] = None,
-    frf: Annotated[
-        Path | None,
-        typer.Option(
-            "--frf",
-            help="Measured tool-tip FRFs: .h5, .uff or .csv (frequency_hz, x_real_<unit>, ...).",
-        ),
-    ] = None,
+    mode: opt.ModeSpecOpt = None,
+    frf: opt.FrfFileOpt = None,
     teeth: opt.TeethOpt = 2,
     diameter: opt.DiameterOpt = 25.4,
     helix: opt.HelixOpt = 30.0,
@@ -125,20 +114,9 @@ def lobes(
     rpm_range: Annotated[
         str, typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm].")
     ] = "100:3000:200",
-    cuts: Annotated[
-        Path | None,
-        typer.Option("--cuts", help="Test cuts CSV: spindle_rpm,depth_mm,result (stable/chatter)."),
-    ] = None,
-    operating_point: Annotated[
-        str | None,
-        typer.Option("--operating-point", help="RPM,DEPTH_MM drawn on the chart and checked."),
-    ] = None,
-    samples: Annotated[
-        int,
-        typer.Option(
-            help="Pose model only: samples of its predictive distribution (shaded lobes)."
-        ),
-    ] = 0,
+    cuts: opt.CutsOpt = None,
+    operating_point: opt.OperatingPointOpt = None,
+    samples: opt.LobeSamplesOpt = 0,
     steps: opt.StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
