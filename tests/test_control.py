@@ -97,6 +97,15 @@ def test_schedule_interpolates_designed_points():
     assert sched.gains_at(0.6, "poly")[0] == pytest.approx(
         np.interp(0.6, s, sched.w1), rel=0.05, abs=1e-3
     )
+    # Outside the designed path the gains were never checked: an error, unless asked to hold.
+    with pytest.raises(ValueError, match=r"outside the designed range \[0, 1.2\] m"):
+        sched.gains_at(1.3)
+    with pytest.raises(ValueError, match="finite"):
+        sched.gains_at(float("nan"))
+    assert sched.gains_at(1.3, outside="hold") == pytest.approx((sched.w1[-1], sched.w2[-1]))
+    assert sched.gains_at(-0.1, "poly", outside="hold") == pytest.approx(
+        sched.gains_at(0.0, "poly")
+    )
 
 
 def test_bad_input():
@@ -272,6 +281,70 @@ def test_thesis_gains_sensitivity_bound_and_fixed_pose_run():
     r = 480.0 / 60 / 8.5
     amp = 0.0508 * (2 * np.pi * 8.0) ** 2 / 0.775e6 / np.hypot(1 - r**2, 2 * 0.179 * r)
     assert rows[0]["open_ptp_mm"] == pytest.approx(2e3 * amp, rel=0.02)
+
+
+def test_operating_mode_recovers_a_mode_from_simulated_open_loop_amplitudes():
+    """Open-loop offset-mass runs of a known mode on the virtual robot give that mode back."""
+    from robovib.studies.control_closed_loop import fixed_pose_offset_mass, operating_mode
+
+    truth = ModalParameters(8.5, 1.3e6, 0.12)
+    rows = fixed_pose_offset_mass(speeds_rpm=(480.0, 960.0, 1440.0), mode=truth,
+                                  duration_s=3.0, settle_s=2.0)  # fmt: skip
+    fitted = operating_mode({r["speed_rpm"]: r["open_ptp_mm"] for r in rows})
+    assert fitted.stiffness_n_per_m == pytest.approx(truth.stiffness_n_per_m, rel=0.02)
+    assert fitted.damping_ratio == pytest.approx(truth.damping_ratio, rel=0.03)
+    with pytest.raises(ValueError, match="two or more speeds"):
+        operating_mode({480.0: 0.93})
+    with pytest.raises(ValueError, match="finite and > 0"):
+        operating_mode({480.0: 0.93, 960.0: float("nan")})
+
+
+def test_required_channel_gain_is_the_gain_at_which_the_best_phase_reaches_the_target():
+    """§4.3.2 asks the channel to amplify ~1.6x at 8 Hz and ~6x at 16 Hz; scanning the phase of
+    a channel of exactly that gain reaches the target ratio and no smaller one."""
+    from robovib.sim import CommandChannel
+    from robovib.studies.control_closed_loop import (
+        THESIS_OFFSET_MASS_GAINS,
+        THESIS_OFFSET_MASS_MODE,
+        required_channel_gain,
+        sensitivity_bound,
+    )
+
+    targets = np.array([0.39 / 0.93, 0.15 / 0.36])
+    need = required_channel_gain([8.0, 16.0], targets)
+    assert need[0] > 1.4 and need[1] > 5.0
+    wn, z = THESIS_OFFSET_MASS_MODE.omega_n, THESIS_OFFSET_MASS_MODE.damping_ratio
+    w1, w2 = THESIS_OFFSET_MASS_GAINS
+    for f, g, tgt in zip((8.0, 16.0), need, targets, strict=True):
+        s = 2j * np.pi * f
+        p = wn**2 / (s**2 + 2 * z * wn * s + wn**2)
+        c = (w1 + w2 * (1 - np.exp(-s * 0.004)) / 0.004) * np.exp(-s * 0.002)
+        phases = np.exp(1j * np.linspace(-np.pi, np.pi, 20001))
+        assert np.min(1 / np.abs(1 + p * c * g * phases)) == pytest.approx(tgt, rel=1e-4)
+    # The pure delay is one such phase at unit gain: its ratio sits above the floor.
+    floor = sensitivity_bound([8.0, 16.0])
+    assert np.all(sensitivity_bound([8.0, 16.0], channel=CommandChannel()) >= floor - 1e-12)
+    with pytest.raises(ValueError, match="target ratios"):
+        required_channel_gain([8.0], [1.5])
+
+
+@pytest.mark.parametrize(
+    "channel_kw",
+    [
+        {},
+        {"delay_s": 0.016, "servo_hz": 16.5, "servo_damping": 0.3},
+        {"delay_s": 0.008, "lag_s": 0.01},
+    ],
+)
+def test_simulated_closed_loop_ratio_matches_the_loop_frequency_response(channel_kw):
+    """Steady-state closed/open ratio of the sampled loop vs 1 / |1 + P G_a C| (frequency domain)."""
+    from robovib.sim import CommandChannel
+    from robovib.studies.control_closed_loop import fixed_pose_offset_mass, sensitivity_bound
+
+    ch = CommandChannel(**channel_kw)
+    rows = fixed_pose_offset_mass(ch, duration_s=5.0, settle_s=3.5)
+    expected = sensitivity_bound([8.0, 16.0, 24.0], channel=ch)
+    np.testing.assert_allclose([r["ratio"] for r in rows], expected, rtol=0.04)
 
 
 def test_short_milling_study_and_plots(path_model):

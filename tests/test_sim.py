@@ -208,6 +208,7 @@ def test_determinism_and_bad_input(robot):
         CommandChannel(
             delay_s=0.03, lag_s=0.01, rate_limit_m_per_s=0.05, breakaway_m=2e-5, hold_periods=1
         ),
+        CommandChannel(delay_s=0.016, servo_hz=16.0, servo_damping=0.3),
     ],
 )
 def test_blocked_closed_loop_equals_per_sample_loop(robot, channel):
@@ -243,9 +244,45 @@ def test_command_channel_stages_and_bad_input(robot):
     assert np.flatnonzero(hold.meta["commands_m"][:, 0])[0] == 32 + 8
     with pytest.raises(ValueError, match="lag_s"):
         CommandChannel(lag_s=-1.0)
+    with pytest.raises(ValueError, match="servo_hz"):
+        CommandChannel(servo_hz=0.0)
+    with pytest.raises(ValueError, match="servo_damping"):
+        CommandChannel(servo_hz=16.0, servo_damping=1.5)
     with pytest.raises(ValueError, match="hold_periods"):
         CommandChannel(hold_periods=0.5)
     with pytest.raises(ValueError, match="either delay_s or channel"):
         run_closed_loop(robot, move, zero, 1000.0, step, delay_s=0.0, channel=CommandChannel())
     with pytest.raises(ValueError, match="method"):
         run_closed_loop(robot, move, zero, 1000.0, step, method="fast")
+
+
+def test_servo_stage_matches_scipy_lsim_and_its_frequency_response(robot):
+    """The second-order servo stage is SciPy's ZOH-driven w^2 / (s^2 + 2 z w s + w^2)."""
+    from scipy import signal
+
+    move = LinearMove("path", (0.5,), (0.5001,))
+    n = 600
+    zero = np.zeros((n, 3))
+    cmd = np.random.default_rng(4).normal(size=n // 4) * 1e-4  # one value per command period
+    ctrl = lambda t, d, v, c: np.array([cmd[round(t * 250)], 0.0, 0.0])  # noqa: E731
+    fs_hz, zeta = 16.0, 0.07
+    ch = CommandChannel(delay_s=0.008, servo_hz=fs_hz, servo_damping=zeta)
+    rec = run_closed_loop(robot, move, zero, 1000.0, ctrl, channel=ch)
+    held = np.zeros(n)
+    held[8:] = np.repeat(cmd, 4)[: n - 8]  # the delayed, held command the servo sees
+    w = 2 * np.pi * fs_hz
+    a, b = np.array([[0.0, 1.0], [-(w**2), -2 * zeta * w]]), np.array([[0.0], [w**2]])
+    ad, bd, cd, dd, _ = signal.cont2discrete((a, b, np.eye(2)[:1], np.zeros((1, 1))), 1e-3)
+    # The applied value at sample i is the servo output after the sample's held command.
+    ref = signal.dlsim((ad, bd, cd, dd, 1e-3), np.append(held, 0.0))[1][1:, 0]
+    np.testing.assert_allclose(rec.meta["commands_m"][:, 0], ref, atol=1e-12)
+    # The linear part: peak gain 1 / (2 zeta sqrt(1 - zeta^2)) near servo_hz, the delay's phase.
+    f = np.linspace(1.0, 40.0, 4001)
+    g = ch.frequency_response(f)
+    peak = 1 / (2 * zeta * np.sqrt(1 - zeta**2))
+    assert abs(np.max(np.abs(g)) - peak) < 1e-3 * peak
+    np.testing.assert_allclose(
+        g,
+        np.exp(-2j * np.pi * f * 0.008)
+        * signal.freqs([w**2], [1.0, 2 * zeta * w, w**2], 2 * np.pi * f)[1],
+    )

@@ -33,15 +33,54 @@ class GainSchedule:
     w2_poly: np.ndarray
 
     def gains_at(
-        self, s_m: float, method: Literal["interp", "poly"] = "interp"
+        self,
+        s_m: float,
+        method: Literal["interp", "poly"] = "interp",
+        *,
+        outside: Literal["raise", "hold"] = "raise",
     ) -> tuple[float, float]:
-        if method == "interp":
-            return float(np.interp(s_m, self.s_m, self.w1)), float(
-                np.interp(s_m, self.s_m, self.w2)
+        """Gains (w1 [m/m], w2 [s]) at path distance ``s_m`` [m].
+
+        Parameters
+        ----------
+        s_m : float
+            Path distance [m].
+        method : {"interp", "poly"}
+            Linear interpolation of the designed points, or the thesis' polynomial fits
+            (Eq. 28-29).
+        outside : {"raise", "hold"}
+            Outside the designed range ``[s_m[0], s_m[-1]]``: raise (default; the gains there
+            were never checked for stability) or hold the end gains.
+
+        Returns
+        -------
+        tuple of float
+            ``(w1, w2)``.
+
+        Raises
+        ------
+        ValueError
+            ``s_m`` not finite, outside the designed range with ``outside="raise"``, or an
+            unknown ``method`` / ``outside``.
+        """
+        if method not in ("interp", "poly"):
+            raise ValueError(f"unknown method {method!r}; expected 'interp' or 'poly'")
+        if outside not in ("raise", "hold"):
+            raise ValueError(f"unknown outside {outside!r}; expected 'raise' or 'hold'")
+        s = float(s_m)
+        lo, hi = float(self.s_m[0]), float(self.s_m[-1])
+        if not np.isfinite(s):
+            raise ValueError(f"path distance s_m must be finite [m], got {s_m!r}")
+        tol = 1e-9 * max(1.0, abs(hi - lo))
+        if outside == "raise" and not (lo - tol <= s <= hi + tol):
+            raise ValueError(
+                f"path distance {s:g} m lies outside the designed range [{lo:g}, {hi:g}] m; "
+                "design the schedule over the whole path or pass outside='hold'"
             )
-        if method == "poly":
-            return float(np.polyval(self.w1_poly, s_m)), float(np.polyval(self.w2_poly, s_m))
-        raise ValueError(f"unknown method {method!r}; expected 'interp' or 'poly'")
+        s = min(max(s, lo), hi)
+        if method == "interp":
+            return float(np.interp(s, self.s_m, self.w1)), float(np.interp(s, self.s_m, self.w2))
+        return float(np.polyval(self.w1_poly, s)), float(np.polyval(self.w2_poly, s))
 
     def plot(self, ax=None):
         """Designed gains w1, w2 along the path with their polynomial fits (thesis Fig. 23).

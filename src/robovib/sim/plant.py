@@ -64,10 +64,15 @@ class CommandChannel:
        the command leaves a band of half-width ``breakaway_m`` around the applied correction,
        then it is dragged along (backlash-like hysteresis of static friction);
     3. rate limit ``rate_limit_m_per_s`` on the applied correction;
-    4. first-order lag with time constant ``lag_s`` (servo bandwidth ``1 / (2 pi lag_s)``).
+    4. first-order lag with time constant ``lag_s`` (servo bandwidth ``1 / (2 pi lag_s)``);
+    5. second-order servo response ``w_s^2 / (s^2 + 2 zeta_s w_s s + w_s^2)`` with
+       ``w_s = 2 pi servo_hz`` and ``zeta_s = servo_damping`` (unit static gain; exact
+       zero-order-hold step per sample). ``servo_hz = inf`` (default) leaves it out. A lightly
+       damped servo *amplifies* near ``servo_hz``, the only kind of channel that can make the
+       thesis' gains reduce more than ``1 / (1 + |P||C|)`` (see
+       :func:`robovib.studies.control_closed_loop.sensitivity_bound`).
 
-    ``CommandChannel()`` is the pure 32 ms transport delay used before calibration
-    (:data:`PURE_DELAY`).
+    ``CommandChannel()`` is the pure 32 ms transport delay (:data:`PURE_DELAY`).
     """
 
     delay_s: float = 0.032
@@ -75,6 +80,8 @@ class CommandChannel:
     rate_limit_m_per_s: float = math.inf
     breakaway_m: float = 0.0
     hold_periods: int = 0
+    servo_hz: float = math.inf
+    servo_damping: float = 0.7
 
     def __post_init__(self) -> None:
         for name in ("delay_s", "lag_s", "breakaway_m"):
@@ -85,13 +92,40 @@ class CommandChannel:
             raise ValueError(
                 f"rate_limit_m_per_s must be > 0 (inf for none), got {self.rate_limit_m_per_s!r}"
             )
+        if not self.servo_hz > 0 or math.isnan(self.servo_hz):
+            raise ValueError(f"servo_hz must be > 0 [Hz] (inf for none), got {self.servo_hz!r}")
+        if not (math.isfinite(self.servo_damping) and 0 < self.servo_damping < 1):
+            raise ValueError(
+                f"servo_damping must lie in (0, 1) (underdamped), got {self.servo_damping!r}"
+            )
         if int(self.hold_periods) != self.hold_periods or self.hold_periods < 0:
             raise ValueError(f"hold_periods must be a whole number >= 0, got {self.hold_periods!r}")
 
     @property
     def dynamic(self) -> bool:
-        """True when the channel has state beyond the delay line (lag, rate limit, breakaway)."""
-        return self.lag_s > 0 or math.isfinite(self.rate_limit_m_per_s) or self.breakaway_m > 0
+        """True when the channel has state beyond the delay line (lag, rate limit, breakaway,
+        servo)."""
+        return (
+            self.lag_s > 0
+            or math.isfinite(self.rate_limit_m_per_s)
+            or self.breakaway_m > 0
+            or math.isfinite(self.servo_hz)
+        )
+
+    def frequency_response(self, frequency_hz, command_period_s: float = 0.004) -> np.ndarray:
+        """Linear part of the channel, applied / commanded correction at ``frequency_hz``.
+
+        ``exp(-s (delay + hold periods)) / (1 + s lag) * servo(s)``; the breakaway band and the
+        rate limit are amplitude dependent and left out (they only reduce the gain).
+        """
+        f = np.asarray(frequency_hz, float)
+        s = 2j * np.pi * f
+        total = self.delay_s + int(self.hold_periods) * command_period_s
+        g = np.exp(-s * total) / (1.0 + s * self.lag_s)
+        if math.isfinite(self.servo_hz):
+            ws = 2 * np.pi * self.servo_hz
+            g = g * ws**2 / (s**2 + 2 * self.servo_damping * ws * s + ws**2)
+        return g
 
     def to_dict(self) -> dict:
         return {
@@ -100,6 +134,8 @@ class CommandChannel:
             "rate_limit_m_per_s": self.rate_limit_m_per_s,
             "breakaway_m": self.breakaway_m,
             "hold_periods": int(self.hold_periods),
+            "servo_hz": self.servo_hz,
+            "servo_damping": self.servo_damping,
         }
 
 
@@ -116,6 +152,10 @@ class _ChannelState:
         self.applied = np.zeros(3)
         self.step_max = channel.rate_limit_m_per_s * dt
         self.alpha = math.exp(-dt / channel.lag_s) if channel.lag_s > 0 else 0.0
+        self.servo = None
+        if math.isfinite(channel.servo_hz):
+            self.servo = [float(c) for c in zoh_transition(channel.servo_hz, 1.0, channel.servo_damping, dt)]  # fmt: skip
+            self.servo_state = np.zeros((2, 3))
 
     def advance(self, delayed: np.ndarray) -> np.ndarray:
         """Applied corrections (m, 3) for the delayed commands (m, 3), in order."""
@@ -134,7 +174,15 @@ class _ChannelState:
                 self.applied = self.alpha * self.applied + (1 - self.alpha) * c
             elif not math.isfinite(self.step_max):
                 self.applied = c
-            out[i] = self.applied
+            if self.servo is not None:
+                p00, p01, p10, p11, g0, g1 = self.servo
+                y, v = self.servo_state
+                self.servo_state = np.array(
+                    [p00 * y + p01 * v + g0 * self.applied, p10 * y + p11 * v + g1 * self.applied]
+                )
+                out[i] = self.servo_state[0]
+            else:
+                out[i] = self.applied
         return out
 
 
