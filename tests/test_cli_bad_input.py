@@ -222,6 +222,17 @@ bad_inputs("control-schedule", "control schedule --path-file {IN}", ".csv")
 bad_outputs("control-schedule-plot", "control schedule --path-file {sched} --plot {OUT}", ".png",
             "sched")  # fmt: skip
 case("control-schedule-direction", "control schedule --direction q")
+LINE = "control schedule --start 2400,-200,0 --end 2400,400,0"
+bad_inputs("control-schedule-model", LINE + " --model {IN}", ".h5")
+bad_outputs("control-schedule-line-plot", LINE + " --plot {OUT}", ".png", None)
+case("control-schedule-start-only", "control schedule --start 2400,0,0")
+case("control-schedule-start-text", "control schedule --start 2400,a,0 --end 2400,400,0")
+case("control-schedule-start-short", "control schedule --start 2400,0 --end 2400,400,0")
+case("control-schedule-start-nan", "control schedule --start 2400,nan,0 --end 2400,400,0")
+case("control-schedule-same-position", "control schedule --start 2400,0,0 --end 2400,0,30")
+case("control-schedule-line-and-file", LINE + " --path-file {sched}")
+case("control-schedule-model-without-line", "control schedule --model {model}")
+bad_options("control-schedule-line", LINE, {"--points": ["3", "-1"], "--direction": ["q"]})
 case("control-table9-unknown-option", "control table9 --bogus")
 case("control-simulate-unknown", "control simulate bogus-experiment")
 

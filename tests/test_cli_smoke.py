@@ -220,6 +220,15 @@ def test_control_gains_table9_and_schedule_file(tmp_path):
     doc = run_json("control", "schedule", "--path-file", str(tmp_path / "m.csv"))
     np.testing.assert_allclose(doc["s_m"], s)
     assert len(doc["w1"]) == 6
+    # A line through a pose model (here the shipped chapter-3 model, saved as a user's file).
+    from robovib.gp import get_chapter3_model
+
+    get_chapter3_model().save(tmp_path / "robot.h5")
+    line = ["--start", "2400,-200,0", "--end", "2400,400,0", "--points", "7"]
+    doc = run_json("control", "schedule", *line, "--model", str(tmp_path / "robot.h5"))
+    np.testing.assert_allclose(doc["s_m"], np.linspace(0.0, 0.6, 7))
+    assert doc["input_names"] == ["x_mm", "y_mm", "rz_deg"] and len(doc["extrapolating"]) == 7
+    assert doc["w1"] == run_json("control", "schedule", *line)["w1"]  # default: the same model
 
 
 def test_hybrid_fit_update_predict_next_poses(files, tmp_path):

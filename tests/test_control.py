@@ -528,3 +528,44 @@ def test_cli_control_simulate_offset_mass_feedforward(tmp_path):
     assert png.stat().st_size > 0
     res = CliRunner().invoke(app, ["control", "simulate", "milling", "--actuator", "magic"])
     assert res.exit_code == 1 and "unknown actuator" in res.output
+
+
+class _LineModel:
+    """A stand-in pose model: fn rises 2 Hz per 100 mm of y, extrapolating beyond y = 300 mm."""
+
+    input_names = ("x_mm", "y_mm", "rz_deg")
+    directions_ = ("x", "y", "z")
+
+    def modes(self, X):
+        from robovib.gp import PoseMode
+
+        out = []
+        for _x_mm, y_mm, _rz in np.asarray(X, float):
+            m = ModalParameters(12.0 + 0.02 * y_mm, 1.5e6, 0.12)
+            pm = PoseMode(m, 0.1, 1e4, 10.0, bool(y_mm > 300.0), None)
+            out.append(dict.fromkeys(self.directions_, pm))
+        return out
+
+
+def test_schedule_along_line_designs_at_the_model_modes_along_the_travel():
+    from robovib.control.schedule import schedule_along_line
+
+    res = schedule_along_line(_LineModel(), (2400.0, -200.0, 0.0), (2400.0, 400.0, 30.0), "x", 7)
+    np.testing.assert_allclose(res.schedule.s_m, np.linspace(0.0, 0.6, 7))  # 600 mm of travel
+    np.testing.assert_allclose(res.poses[:, 1], np.linspace(-200.0, 400.0, 7))
+    np.testing.assert_allclose(res.poses[:, 2], np.linspace(0.0, 30.0, 7))
+    assert res.extrapolating.tolist() == [False] * 6 + [True]
+    modes = [ModalParameters(12.0 + 0.02 * y, 1.5e6, 0.12) for y in res.poses[:, 1]]
+    direct = schedule_gains(np.linspace(0.0, 0.6, 7), modes)
+    np.testing.assert_allclose(res.schedule.w1, direct.w1)
+    np.testing.assert_allclose(res.schedule.w2, direct.w2)
+    for bad, match in (
+        (dict(start=(1.0, 2.0), end=(1.0, 2.0, 3.0)), "3 coordinates"),
+        (dict(start=(1.0, 2.0, 3.0), end=(1.0, 2.0, 9.0)), "same position"),
+        (dict(start=(1.0, np.nan, 3.0), end=(1.0, 2.0, 3.0)), "finite"),
+        (dict(start=(1.0, 2.0, 3.0), end=(1.0, 9.0, 3.0), direction="w"), "unknown direction"),
+        (dict(start=(1.0, 2.0, 3.0), end=(1.0, 9.0, 3.0), n_points=3), "n_points"),
+    ):
+        kw = {"direction": "x", **bad}
+        with pytest.raises(ValueError, match=match):
+            schedule_along_line(_LineModel(), **kw)

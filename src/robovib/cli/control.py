@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 
 from ._common import (
@@ -105,6 +106,17 @@ def schedule(
     direction: Annotated[
         str, typer.Option(help="Direction of the virtual-robot path model (x, y, z).")
     ] = "x",
+    start: Annotated[
+        str | None,
+        typer.Option(
+            help="Line start pose in the model's input units, comma-separated (e.g. 2400,0,45 for x_mm,y_mm,rz_deg); with --end, gains from the pose model along the line."
+        ),
+    ] = None,
+    end: Annotated[str | None, typer.Option(help="Line end pose (as --start).")] = None,
+    points: Annotated[
+        int, typer.Option(help="Design points along the --start/--end line (>= 5).")
+    ] = 20,
+    model_path: ModelOpt = None,
     plot: Annotated[
         Path | None, typer.Option(help="PNG of w1, w2 vs path distance (thesis Fig. 23).")
     ] = None,
@@ -114,8 +126,17 @@ def schedule(
     """Gains along a path (R tuned for the 32 ms delay), with the Eq. 28-29 polynomial fits."""
     from ..control.schedule import schedule_gains
 
-    check_output(plot, [path_file])
+    check_output(plot, [p for p in (path_file, model_path) if p is not None])
     warnings_seen: list[str] = []
+    if (start is None) != (end is None):
+        fail("give both --start and --end (a line through the pose model), or neither")
+    if start is not None and path_file is not None:
+        fail("give either --path-file or --start/--end, not both")
+    if start is not None:
+        _schedule_line(start, end, points, direction, model_path, seed, plot, json_out)
+        return
+    if model_path is not None:
+        fail("--model needs --start and --end (the line to schedule along)")
     if path_file is not None:
         from ..io import read_path_modes_csv
 
@@ -144,6 +165,53 @@ def schedule(
     if plot is not None:
         draw()
         typer.echo(f"wrote {plot}")
+
+
+def _pose(text: str, option: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        fail(f"{option} must be comma-separated numbers, got {text!r}")
+    return values
+
+
+def _schedule_line(start, end, points, direction, model_path, seed, plot, json_out) -> None:
+    from ..control.schedule import schedule_along_line
+
+    if model_path is None:
+        from ..gp import get_chapter3_model
+
+        model = get_chapter3_model(rng=seed)
+    else:
+        from ..campaign import load_pose_model
+
+        model = load_pose_model(model_path)
+    warnings_seen: list[str] = []
+    result = schedule_along_line(model, _pose(start, "--start"), _pose(end, "--end"), direction,
+                                 points, warn=warnings_seen.append)  # fmt: skip
+    sched = result.schedule
+    outside = [int(i) for i in np.flatnonzero(result.extrapolating)]
+    if outside:
+        warnings_seen.append(f"{len(outside)} of {points} poses lie outside the model's training data: their modes are GP extrapolations")  # fmt: skip
+    doc = {"input_names": list(result.input_names), "poses": result.poses, "s_m": sched.s_m,
+           "mode": [m.to_dict() for m in result.modes], "w1": sched.w1, "w2": sched.w2,
+           "r": sched.r, "stable_with_delay": sched.stable_with_delay,
+           "extrapolating": result.extrapolating, "w1_poly_high_to_low": sched.w1_poly,
+           "w2_poly_high_to_low": sched.w2_poly, "warnings": warnings_seen}  # fmt: skip
+    if json_out:
+        units = ", ".join(result.input_names)
+        emit_json(doc, units={"poses": f"model input units ({units}), one row per point"})
+    else:
+        for si, pose, m, w1, w2, ex in zip(sched.s_m, result.poses, result.modes, sched.w1, sched.w2, result.extrapolating, strict=True):  # fmt: skip
+            flag = "  (extrapolation)" if ex else ""
+            typer.echo(f"s = {si:6.3f} m  pose {', '.join(f'{v:g}' for v in pose)}  fn {m.natural_frequency_hz:6.2f} Hz  w1 = {w1:9.5f}  w2 = {w2:9.5f}{flag}")  # fmt: skip
+        for w in warnings_seen:
+            typer.echo(f"warning: {w}")
+    if plot is not None:
+        use_agg()
+        save_figure(sched.plot(), plot)
+        if not json_out:
+            typer.echo(f"wrote {plot}")
 
 
 @app.command("table9")

@@ -17,7 +17,7 @@ import numpy as np
 from ..modal.parameters import ModalParameters
 from .lqr import THESIS_Q, LQRDesign, delay_analysis, design_lqr, tune_r_for_delay
 
-__all__ = ["GainSchedule", "schedule_gains"]
+__all__ = ["GainSchedule", "ModelSchedule", "schedule_along_line", "schedule_gains"]
 
 
 @dataclass(frozen=True)
@@ -196,3 +196,94 @@ def schedule_gains(
     return GainSchedule(
         s, w1, w2, np.array(rs), np.array(ok), np.polyfit(s, w1, 1), np.polyfit(s, w2, 4)
     )
+
+
+@dataclass(frozen=True)
+class ModelSchedule:
+    """Gains along a straight line through a pose model's workspace."""
+
+    schedule: GainSchedule
+    poses: np.ndarray  #: (n, n_inputs) poses in the model's input units
+    input_names: tuple[str, ...]
+    modes: tuple[ModalParameters, ...]  #: the predicted mode at each pose (SI)
+    extrapolating: np.ndarray  #: bool (n,): pose outside the model's training data
+
+
+def schedule_along_line(
+    model,
+    start,
+    end,
+    direction: str,
+    n_points: int = 20,
+    **schedule_kwargs,
+) -> ModelSchedule:
+    """Gains along the straight line from ``start`` to ``end`` from a pose model (§4.3.3).
+
+    The thesis designs W at 20 equally spaced points of the path from the GP's predicted modes
+    and schedules them by path distance. Here the poses are interpolated linearly between
+    ``start`` and ``end`` (in the model's input units, e.g. (x_mm, y_mm, rz_deg)); the path
+    distance ``s`` [m] is the tool-tip travel in the inputs named ``x_mm``, ``y_mm`` (``z_mm``),
+    or, for a path model with input ``s_m``, that input itself.
+
+    Parameters
+    ----------
+    model : PoseModalModel
+        Any fitted pose model with ``modes(X)`` and ``input_names``.
+    start, end : array_like, shape (n_inputs,)
+        End poses of the line, in the model's input units.
+    direction : str
+        The direction whose dominant mode is controlled (one of the model's directions).
+    n_points : int
+        Design points (at least 5).
+    **schedule_kwargs
+        Passed to :func:`schedule_gains` (``period_s``, ``delay_s``, ``q``, ``r``, ``warn``).
+
+    Returns
+    -------
+    ModelSchedule
+        The :class:`GainSchedule` over ``s`` [m], the poses, the predicted modes and a flag per
+        pose that is outside the model's training data (its mode is a GP extrapolation).
+
+    Raises
+    ------
+    ValueError
+        Wrong pose length or non-finite pose, start equal to end, an unknown direction, a
+        model without position inputs, or fewer than 5 points.
+    """
+    names = tuple(getattr(model, "input_names", ()))
+    a = np.asarray(start, float).reshape(-1)
+    b = np.asarray(end, float).reshape(-1)
+    if a.size != len(names) or b.size != len(names):
+        raise ValueError(
+            f"start and end need {len(names)} coordinates ({', '.join(names)}), "
+            f"got {a.size} and {b.size}"
+        )
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise ValueError("start and end poses must be finite")
+    if int(n_points) != n_points or n_points < 5:
+        raise ValueError(f"n_points must be a whole number >= 5, got {n_points!r}")
+    directions = tuple(getattr(model, "directions_", ("x", "y", "z")))
+    if direction not in directions:
+        raise ValueError(f"unknown direction {direction!r}; the model has {', '.join(directions)}")
+    if "s_m" in names:
+        pos = [names.index("s_m")]
+        to_m = 1.0
+    else:
+        pos = [names.index(n) for n in ("x_mm", "y_mm", "z_mm") if n in names]
+        to_m = 1e-3
+    if not pos:
+        raise ValueError(
+            f"the model's inputs ({', '.join(names)}) have no position (x_mm, y_mm, z_mm or s_m) "
+            "to measure the path distance in"
+        )
+    travel_m = float(np.linalg.norm((b - a)[pos])) * to_m
+    if not travel_m > 0:
+        raise ValueError("start and end are the same position: no path to schedule along")
+    frac = np.linspace(0.0, 1.0, int(n_points))
+    poses = a + frac[:, None] * (b - a)
+    s = frac * travel_m
+    rows = model.modes(poses)
+    modes = tuple(row[direction].parameters for row in rows)
+    flags = np.array([bool(row[direction].extrapolating) for row in rows])
+    sched = schedule_gains(s, list(modes), **schedule_kwargs)
+    return ModelSchedule(sched, poses, names, modes, flags)
