@@ -276,6 +276,13 @@ def test_servo_stage_matches_scipy_lsim_and_its_frequency_response(robot):
     # The applied value at sample i is the servo output after the sample's held command.
     ref = signal.dlsim((ad, bd, cd, dd, 1e-3), np.append(held, 0.0))[1][1:, 0]
     np.testing.assert_allclose(rec.meta["commands_m"][:, 0], ref, atol=1e-12)
+    # Stage order: the lag (a discrete first-order filter) feeds the servo.
+    lagged_ch = CommandChannel(delay_s=0.008, lag_s=0.01, servo_hz=fs_hz, servo_damping=zeta)
+    lagged = run_closed_loop(robot, move, zero, 1000.0, ctrl, channel=lagged_ch)
+    alpha = np.exp(-1e-3 / 0.01)
+    after_lag = signal.lfilter([1 - alpha], [1.0, -alpha], held)
+    ref2 = signal.dlsim((ad, bd, cd, dd, 1e-3), np.append(after_lag, 0.0))[1][1:, 0]
+    np.testing.assert_allclose(lagged.meta["commands_m"][:, 0], ref2, atol=1e-12)
     # The linear part: peak gain 1 / (2 zeta sqrt(1 - zeta^2)) near servo_hz, the delay's phase.
     f = np.linspace(1.0, 40.0, 4001)
     g = ch.frequency_response(f)

@@ -104,7 +104,10 @@ def schedule(
         ),
     ] = None,
     direction: Annotated[
-        str, typer.Option(help="Direction of the virtual-robot path model (x, y, z).")
+        str,
+        typer.Option(
+            help="Direction whose mode is controlled (x, y, z): of the virtual-robot path model, or of the pose model with --start/--end."
+        ),
     ] = "x",
     start: Annotated[
         str | None,
@@ -114,8 +117,9 @@ def schedule(
     ] = None,
     end: Annotated[str | None, typer.Option(help="Line end pose (as --start).")] = None,
     points: Annotated[
-        int, typer.Option(help="Design points along the --start/--end line (>= 5).")
-    ] = 20,
+        int | None,
+        typer.Option(help="Design points along the --start/--end line (>= 5; default 20)."),
+    ] = None,
     model_path: ModelOpt = None,
     plot: Annotated[
         Path | None, typer.Option(help="PNG of w1, w2 vs path distance (thesis Fig. 23).")
@@ -133,10 +137,13 @@ def schedule(
     if start is not None and path_file is not None:
         fail("give either --path-file or --start/--end, not both")
     if start is not None:
+        points = 20 if points is None else points
+        if points < 5:
+            fail(f"--points must be at least 5 (design points along the line), got {points}")
         _schedule_line(start, end, points, direction, model_path, seed, plot, json_out)
         return
-    if model_path is not None:
-        fail("--model needs --start and --end (the line to schedule along)")
+    if model_path is not None or points is not None:
+        fail("--model and --points need --start and --end (the line to schedule along)")
     if path_file is not None:
         from ..io import read_path_modes_csv
 

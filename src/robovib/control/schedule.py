@@ -8,6 +8,7 @@ control cycle they are looked up by path distance either from (a) the thesis' po
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -186,8 +187,12 @@ def schedule_gains(
             design: LQRDesign = design_lqr(mode, period_s, q, [[r]])
             ri = float(r)
         stable = delay_analysis(design, delay_s, rounding="round", max_search_steps=0).stable
-        if not stable and warn is not None:
-            warn(f"gains at s = {si:.3f} m are unstable with the {delay_s * 1e3:g} ms delay")
+        if not stable:
+            message = f"gains at s = {si:.3f} m are unstable with the {delay_s * 1e3:g} ms delay"
+            if warn is None:
+                warnings.warn(message, RuntimeWarning, stacklevel=2)
+            else:
+                warn(message)
         w1.append(design.gains[0])
         w2.append(design.gains[1])
         rs.append(ri)
@@ -222,8 +227,9 @@ def schedule_along_line(
     The thesis designs W at 20 equally spaced points of the path from the GP's predicted modes
     and schedules them by path distance. Here the poses are interpolated linearly between
     ``start`` and ``end`` (in the model's input units, e.g. (x_mm, y_mm, rz_deg)); the path
-    distance ``s`` [m] is the tool-tip travel in the inputs named ``x_mm``, ``y_mm`` (``z_mm``),
-    or, for a path model with input ``s_m``, that input itself.
+    distance ``s`` [m] is the tool-tip travel from ``start`` in the inputs named ``x_mm``,
+    ``y_mm`` (``z_mm``), or, for a path model with input ``s_m``, that input itself (then the
+    design points are returned in increasing ``s_m`` whichever way the line runs).
 
     Parameters
     ----------
@@ -282,6 +288,10 @@ def schedule_along_line(
     frac = np.linspace(0.0, 1.0, int(n_points))
     poses = a + frac[:, None] * (b - a)
     s = frac * travel_m
+    if "s_m" in names:  # the path coordinate is an input: schedule on it, increasing
+        s = poses[:, pos[0]]
+        if s[-1] < s[0]:
+            poses, s = poses[::-1], s[::-1]
     rows = model.modes(poses)
     modes = tuple(row[direction].parameters for row in rows)
     flags = np.array([bool(row[direction].extrapolating) for row in rows])

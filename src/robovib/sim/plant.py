@@ -3,8 +3,8 @@
 The robot controller accepts position corrections ``u`` (per direction, metres) at the command
 rate (KUKA RSI: 250 Hz) and applies them through a *command channel*
 (:class:`CommandChannel`): a transport delay (the thesis measured 32 ms, §4.3.2), optionally an
-extra RSI hold of whole command periods, a first-order lag, a rate limit and a stiction /
-breakaway band (the causes the thesis names for its delay). The applied correction enters like a
+extra RSI hold of whole command periods, a first-order lag, a rate limit, a stiction /
+breakaway band (the causes the thesis names for its delay) and a second-order servo response. The applied correction enters like a
 force ``k_s u`` with the direction's static stiffness ``k_s = 1 / sum(1 / k_r)``, so a held
 correction ``u`` moves the tool tip by ``u`` once transients decay.
 
@@ -72,6 +72,10 @@ class CommandChannel:
        thesis' gains reduce more than ``1 / (1 + |P||C|)`` (see
        :func:`robovib.studies.control_closed_loop.sensitivity_bound`).
 
+    The lag and the servo are exact discretisations with the stage's input held over each
+    1 kHz sample; the value applied over sample ``i`` is the stage state at the end of that
+    sample (about half a sample of phase lead against the continuous stage).
+
     ``CommandChannel()`` is the pure 32 ms transport delay (:data:`PURE_DELAY`).
     """
 
@@ -115,9 +119,20 @@ class CommandChannel:
     def frequency_response(self, frequency_hz, command_period_s: float = 0.004) -> np.ndarray:
         """Linear part of the channel, applied / commanded correction at ``frequency_hz``.
 
-        ``exp(-s (delay + hold periods)) / (1 + s lag) * servo(s)``; the breakaway band and the
-        rate limit are amplitude dependent and left out (they only reduce the gain).
+        ``exp(-s (delay + hold periods)) / (1 + s lag) * servo(s)``, continuous time: the
+        simulator's rounding of the delay to whole samples and the half sample of lead of its
+        discrete stages are left out, and so are the breakaway band and the rate limit (they
+        are amplitude dependent and only reduce the gain).
+
+        Raises
+        ------
+        ValueError
+            ``command_period_s`` not a finite number > 0.
         """
+        if not (math.isfinite(command_period_s) and command_period_s > 0):
+            raise ValueError(
+                f"command_period_s must be a finite number > 0 [s], got {command_period_s!r}"
+            )
         f = np.asarray(frequency_hz, float)
         s = 2j * np.pi * f
         total = self.delay_s + int(self.hold_periods) * command_period_s
@@ -144,7 +159,7 @@ PURE_DELAY = CommandChannel()
 
 
 class _ChannelState:
-    """Per-sample stiction / rate-limit / lag stages of a :class:`CommandChannel` (3 axes)."""
+    """Per-sample stiction / rate-limit / lag / servo stages of a :class:`CommandChannel` (3 axes)."""
 
     def __init__(self, channel: CommandChannel, dt: float):
         self.ch = channel
