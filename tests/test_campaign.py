@@ -112,17 +112,19 @@ def test_next_poses_matches_brute_force_refit(campaign):
     nx = next_poses(fit.model, cand, k=2)
     from robovib.campaign.model import _gps_of
 
-    (gp,) = _gps_of(fit.model)  # no mode switch here: one batched GP for all outputs
-    prior = gp.hyperparameters_.signal_std**2
-    _, s0 = gp.predict(cand, return_std=True)
-    best = []
     import copy
 
-    for i in range(len(cand)):
-        g = copy.deepcopy(gp)
-        g.add_observations(cand[i : i + 1], g.predict(cand[i : i + 1]))
-        _, s1 = g.predict(cand, return_std=True)
-        best.append(np.sum((s0**2 - s1**2) / prior))
+    # One GP per covariance family (no mode switch here), each output weighted by its band
+    # calibration c² (the calibrated band, issue 24).
+    best = np.zeros(len(cand))
+    for gp, c in _gps_of(fit.model):
+        prior = gp.hyperparameters_.signal_std**2
+        _, s0 = gp.predict(cand, return_std=True)
+        for i in range(len(cand)):
+            g = copy.deepcopy(gp)
+            g.add_observations(cand[i : i + 1], g.predict(cand[i : i + 1]))
+            _, s1 = g.predict(cand, return_std=True)
+            best[i] += np.sum(c**2 * (s0**2 - s1**2) / prior)
     assert nx.indices[0] == int(np.argmax(best))
     assert nx.variance_reduction[0] == pytest.approx(max(best), rel=0.02)
     assert nx.indices[1] != nx.indices[0]

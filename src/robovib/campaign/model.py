@@ -10,7 +10,8 @@
   integrated posterior variance over all candidates the most (thesis Eq. 10: the GP variance
   does not depend on the measured values, so the reduction is known before measuring):
   ``sum_j Sigma[j, c]^2 / (Sigma[c, c] + sigma_n^2)``, summed over outputs each normalised by
-  its prior variance, followed by the rank-one update of ``Sigma``.
+  its prior variance and weighted by its band calibration ``c²`` (the same calibrated band as
+  every prediction), followed by the rank-one update of ``Sigma``.
 """
 
 from __future__ import annotations
@@ -97,41 +98,28 @@ def _training_table(table, inputs, directions, use_flagged):
     return X, Y, np.ravel(groups), tuple(excluded)
 
 
-def _cv(model_cls, params, X, Y, groups, n_folds):
+def _cv_table(model, Y):
+    """Grouped-CV table of a calibrated model (its out-of-fold predictions, per output)."""
     import pandas as pd
 
-    n_groups = np.unique(groups).size
-    k = min(n_folds, n_groups)
-    if k < 2:
-        raise ValueError(f"cross-validation needs at least 2 poses, got {n_groups}")
-    order = np.random.default_rng(0).permutation(np.unique(groups))
-    fold_of_group = {g: i % k for i, g in enumerate(order)}
-    fold = np.array([fold_of_group[g] for g in groups])
-    pred = np.full_like(Y, np.nan)
-    std = np.full_like(Y, np.nan)
-    import warnings
-
-    for f in range(k):
-        tr, te = fold != f, fold == f
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # the final fit warns once
-            m = model_cls(**params).fit(X[tr], Y[tr])
-        pred[te], std[te] = m.predict(X[te], return_std=True)
-    names = [f"{d}_{o}" for d in params["directions"] for o in _OUTPUTS]
+    cal = model.calibration_
     rows = []
-    for j in range(Y.shape[1]):
-        ok = np.isfinite(Y[:, j]) & np.isfinite(pred[:, j])
-        y, p, s = Y[ok, j], pred[ok, j], std[ok, j]
-        err = p - y
-        ss = np.sum((y - y.mean()) ** 2)
+    for j, name in enumerate(cal.output_names):
+        y = Y[np.isfinite(Y[:, j]), j]
+        ss = float(np.sum((y - y.mean()) ** 2)) if y.size else np.nan
+        rmse = float(cal.rmse[j])
         rows.append({
-            "output": names[j], "unit": _OUTPUT_UNITS[j % 3], "n": int(ok.sum()),
-            "rmse": float(np.sqrt(np.mean(err**2))) if ok.any() else np.nan,
-            "relative_rmse_pct": float(100 * np.sqrt(np.mean(err**2)) / np.mean(y)) if ok.any() else np.nan,
-            "r2": float(1 - np.sum(err**2) / ss) if ss > 0 else np.nan,
-            "mean_abs_error_over_std": float(np.mean(np.abs(err) / np.maximum(s, 1e-300))) if ok.any() else np.nan,
+            "output": name, "unit": _OUTPUT_UNITS[j % 3], "n": int(cal.n[j]),
+            "rmse": rmse,
+            "relative_rmse_pct": 100 * rmse / float(np.mean(y)) if y.size else np.nan,
+            "r2": 1 - rmse**2 * y.size / ss if ss > 0 else np.nan,
+            "coverage_50": float(cal.coverage[j, 0]), "coverage_90": float(cal.coverage[j, 1]),
+            "coverage_95": float(cal.coverage[j, 2]),
+            "coverage_95_uncalibrated": float(cal.coverage_uncalibrated[j, 2]),
+            "nlpd": float(cal.nlpd[j]), "covariance": cal.covariance[j],
+            "scale": float(cal.scale[j, 0]), "dof": float(cal.dof[j, 0]),
         })  # fmt: skip
-    return pd.DataFrame(rows), k
+    return pd.DataFrame(rows)
 
 
 def fit_pose_model_from_table(
@@ -144,6 +132,7 @@ def fit_pose_model_from_table(
     n_folds: int = 5,
     use_flagged: bool = False,
     rng=0,
+    covariance: str = "auto",
 ) -> PoseModelFit:
     """Fit the pose model of every output of a campaign's ``modal.csv``.
 
@@ -165,12 +154,17 @@ def fit_pose_model_from_table(
         Also use rows whose fit is flagged (band edge, residual, coherence).
     rng
         Seed of the fold shuffle and the optimiser restarts.
+    covariance
+        Covariance family, or ``"auto"`` (default): chosen per output by grouped-CV log
+        predictive density (:mod:`robovib.gp.calibration`).
 
     Returns
     -------
     PoseModelFit
-        The fitted :class:`~robovib.gp.PoseModalModel` and its grouped cross-validation
-        scores (R², RMSE per output in SI units).
+        The fitted, calibrated :class:`~robovib.gp.PoseModalModel` and its grouped
+        cross-validation scores (R², RMSE per output in SI units, coverage of the calibrated
+        measurement sets at 50/90/95 %, NLPD; the same out-of-fold predictions the calibration
+        was fitted on, see :mod:`robovib.gp.calibration`).
 
     Raises
     ------
@@ -201,13 +195,20 @@ def fit_pose_model_from_table(
         directions = tuple(d for d in ("x", "y", "z") if d in set(table["direction"]))
     X, Y, groups, excluded = _training_table(table, inputs, tuple(directions), use_flagged)
     cls = _pose_model_class()
+    n_poses = int(np.unique(groups).size)
+    if n_poses < 2:
+        raise ValueError(f"cross-validation needs at least 2 poses, got {n_poses}")
+    k = min(int(n_folds), n_poses)
     params = dict(input_names=inputs, directions=tuple(directions), kernel=kernel,
-                  mode_switch=mode_switch, rng=rng)  # fmt: skip
-    cv_table, k = _cv(cls, params, X, Y, groups, n_folds)
+                  mode_switch=mode_switch, rng=rng, covariance=covariance, calibrate=True,
+                  calibration_folds=k)  # fmt: skip
     model = cls(**params).fit(X, Y)  # groups of fit() are noise groups, not poses
+    cv_table = _cv_table(model, np.where(model.mask_, model.Y_train_, np.nan))
     model.cv_table_ = cv_table
     model.cv_ = {
-        c: cv_table[c].to_numpy(float) for c in cv_table.columns if c not in ("output", "unit")
+        c: cv_table[c].to_numpy(float)
+        for c in cv_table.columns
+        if c not in ("output", "unit") and cv_table[c].dtype.kind in "biuf"
     }
     model.provenance_ = {
         "source": str(modal_csv) if not isinstance(modal_csv, pd.DataFrame) else "DataFrame",
@@ -215,7 +216,8 @@ def fit_pose_model_from_table(
         "n_training_rows": len(X),
         "n_poses": int(np.unique(groups).size),
         "cv_folds": int(k),
-        "cv": "k-fold grouped by pose (replicates left out together)",
+        "cv": "k-fold grouped by pose (replicates left out together); bands calibrated on it",
+        "covariances": list(model.covariances_),
         "excluded_rows": [list(e) for e in excluded],
         "mode_switch_found": mode_switches_found(model),
     }
@@ -239,7 +241,11 @@ def save_pose_model(fit: PoseModelFit, path) -> Path:
     """Save the model (``PoseModalModel.save``: HDF5, format tag, no pickle, atomic) with the
     grouped CV figures and the provenance of the fit."""
     cv = fit.cv_table
-    cv_arrays = {c: cv[c].to_numpy(float) for c in cv.columns if c not in ("output", "unit")}
+    cv_arrays = {
+        c: cv[c].to_numpy(float)
+        for c in cv.columns
+        if c not in ("output", "unit") and cv[c].dtype.kind in "biuf"
+    }
     return fit.model.save(path, cv=cv_arrays, provenance=_flat_provenance(fit.model.provenance_))
 
 
@@ -265,15 +271,25 @@ class NextPoses:
     total_variance_before: float
 
 
-def _gps_of(model) -> list[BatchedGPRegressor]:
-    """The BatchedGPRegressors of a fitted pose model (``PoseModalModel.estimators_``; the
-    per-mode GPs of a mode-switching direction included)."""
+def _gps_of(model) -> list[tuple[BatchedGPRegressor, np.ndarray]]:
+    """The BatchedGPRegressors of a fitted pose model with the calibration factor of each of
+    their outputs (``calibration_.scale``, 1 where uncalibrated); the per-mode GPs of a
+    mode-switching direction included."""
+    cal = getattr(model, "calibration_", None)
     out = []
-    for est in getattr(model, "estimators_", []) or []:
+    for est, cols in zip(
+        getattr(model, "estimators_", []) or [],
+        getattr(model, "estimator_columns_", []) or [],
+        strict=True,
+    ):
+        cols = np.asarray(cols, int)
+        scale = np.ones((cols.size, 2)) if cal is None else np.asarray(cal.scale)[cols]
         if isinstance(est, BatchedGPRegressor):
-            out.append(est)
-        else:
-            out += [v for v in vars(est).values() if isinstance(v, BatchedGPRegressor)]
+            out.append((est, scale[:, 0]))
+            continue
+        out.append((est.low_model_, scale[:, 0]))
+        if getattr(est, "high_model_", None) is not None:
+            out.append((est.high_model_, scale[np.asarray(est.switching_outputs, int), 1]))
     if not out:
         raise ValueError("next_poses needs a fitted pose model (no GPs found in estimators_)")
     return out
@@ -282,9 +298,11 @@ def _gps_of(model) -> list[BatchedGPRegressor]:
 def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
     """Posterior covariance (B, m, m) at Xc, noise and prior variances (B,), in target units.
 
-    Computed from the fitted hyperparameters (data units, squared-exponential kernel,
-    thesis Eq. 6-10), independently of the regressor's internals.
+    Computed from the fitted hyperparameters (data units, the regressor's covariance family,
+    :func:`robovib.gp.kernels.correlation`, thesis Eq. 6-10).
     """
+    from ..gp.kernels import correlation
+
     hp = gp.hyperparameters_
     X, mask = gp.X_train_, gp.mask_
     noise = np.asarray(hp.noise_std, float)
@@ -297,7 +315,7 @@ def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
 
         def k(a, c, sf2=sf2, ls=ls):
             d = (a[:, None, :] - c[None, :, :]) / ls
-            return sf2 * np.exp(-0.5 * np.sum(d * d, axis=-1))
+            return sf2 * correlation(np.sum(d * d, axis=-1), gp.covariance)
 
         Xb = X[mask[:, b]]
         kxx = k(Xb, Xb) + (float(noise[b]) ** 2 + 1e-10 * sf2) * np.eye(len(Xb))
@@ -355,9 +373,11 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
         raise ValueError("candidates contain NaN or inf")
     if not 1 <= int(k) <= len(C):
         raise ValueError(f"k must be in [1, {len(C)}], got {k}")
-    parts = [_posterior_cov(gp, C) for gp in _gps_of(model)]
-    cov = np.concatenate([c / p[:, None, None] for c, _, p in parts])
-    noise = np.concatenate([n / p for _, n, p in parts])
+    # Calibrated bands (issue 24): latent and noise variance both scaled by c² per output, so an
+    # output whose plain GP band was too narrow weighs more in the choice.
+    parts = [(_posterior_cov(gp, C), c**2) for gp, c in _gps_of(model)]
+    cov = np.concatenate([c2[:, None, None] * c / p[:, None, None] for (c, _, p), c2 in parts])
+    noise = np.concatenate([c2 * n / p for (_, n, p), c2 in parts])
     before = float(np.sum(np.trace(cov, axis1=1, axis2=2)))
     chosen, gains = [], []
     for _ in range(int(k)):

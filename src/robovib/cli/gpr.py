@@ -115,15 +115,18 @@ def predict(
     con = console()
     where = ", ".join(f"{k}={v:g}" for k, v in p.pose.items())
     t = Table(title=f"Prediction at {where}", caption=source)
-    for col in ("output", "unit", "mean", "± 2σ", "range (2σ)"):
+    for col in ("output", "unit", "mean", "± 2σ latent", "95 % of a new test"):
         t.add_column(col, justify="right")
     for r in p.outputs:
         unit, f = _SHOWN.get(r["unit"], (r["unit"] or "", 1.0))
         name = next((r["output"][: -len(u)] for u in _SUFFIXES if r["output"].endswith(u)),
                     r["output"])  # fmt: skip
+        sets = " or ".join(f"[{f * a:.4g}, {f * b:.4g}]" for a, b in r["measurement_95"])
         t.add_row(escape(name), escape(unit), f"{f * r['mean']:.4g}", f"{2 * f * r['std']:.3g}",
-                  escape(f"[{f * r['lower_2sigma']:.4g}, {f * r['upper_2sigma']:.4g}]"))  # fmt: skip
+                  escape(sets))  # fmt: skip
     con.print(t)
+    con.print("latent: the modal parameter at this pose; a new test adds test-to-test scatter "
+              "(two ranges where the dominant mode is uncertain)")  # fmt: skip
     if p.extrapolating:
         outside = ", ".join(p.outside_inputs) or "the combination of inputs"
         con.print(

@@ -59,13 +59,18 @@ def fit(
         return
     con = console()
     t = Table(title=f"Cross-validation grouped by pose ({res.model.provenance_['cv_folds']} folds)")
-    for col in ("output", "n", "RMSE", "RMSE [% of mean]", "R²", "mean |err|/σ"):
+    for col in ("output", "n", "RMSE", "RMSE [%]", "R²", "in 50/90/95 % [%]", "NLPD", "kernel"):
         t.add_column(escape(col), justify="right")
     for r in res.cv_table.to_dict(orient="records"):
+        cover = "/".join(f"{100 * r[f'coverage_{p}']:.0f}" for p in (50, 90, 95))
         t.add_row(escape(r["output"]), str(r["n"]), f"{r['rmse']:.4g}",
-                  f"{r['relative_rmse_pct']:.2f}", f"{r['r2']:.3f}",
-                  f"{r['mean_abs_error_over_std']:.2f}")  # fmt: skip
+                  f"{r['relative_rmse_pct']:.2f}", f"{r['r2']:.3f}", cover,
+                  f"{r['nlpd']:.3g}", escape(r["covariance"]))  # fmt: skip
     con.print(t)
+    con.print("RMSE in the output's SI unit; coverage: held-out hammer tests inside the calibrated "
+              "measurement set (docs/bands.md)")  # fmt: skip
+    for w in res.model.calibration_.warnings():
+        con.print(f"[yellow]warning:[/] {escape(w)}")
     found = [d for d, f in switches.items() if f]
     con.print("mode switch: " + (f"found in {', '.join(found)}" if found else "none found"))
     con.print(f"wrote {output}")

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ._common import JsonFlag, OutOpt, SeedOpt, emit_json, material, new_app
+from ._common import JsonFlag, OutOpt, SeedOpt, emit_json, fail, material, new_app
 
 app = new_app("The virtual robot: synthetic hammer tests, milling passes and offset-mass runs.")
 
@@ -177,14 +177,25 @@ def campaign(
     duration_s: Annotated[float, typer.Option(help="Seconds per hit.")] = 2.0,
     sample_rate_hz: Annotated[float, typer.Option(help="Sample rate [Hz].")] = 1280.0,
     truth: Annotated[int, typer.Option(min=0, help="Unseen poses in truth.csv.")] = 20,
+    scatter: Annotated[
+        str | None,
+        typer.Option(help="Test-to-test scatter 'fn,k,zeta' as relative stds, e.g. 0.01,0.04,0.04."),
+    ] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
     """A virtual hammer campaign: recordings in mixed layouts, manifest and truth at unseen poses."""
     from ..sim import simulate_campaign
 
+    rel = None
+    if scatter is not None:
+        try:
+            rel = tuple(float(v) for v in scatter.split(","))
+        except ValueError:
+            fail(f"--scatter must be three numbers 'fn,k,zeta', got {scatter!r}")
     res = simulate_campaign(poses, output, rng=seed, n_hits=hits, duration_s=duration_s,
-                            sample_rate_hz=sample_rate_hz, n_truth=truth)  # fmt: skip
+                            sample_rate_hz=sample_rate_hz, n_truth=truth,
+                            scatter=rel)  # fmt: skip
     doc = {
         "manifest": str(res.manifest),
         "truth": str(res.truth),

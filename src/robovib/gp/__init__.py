@@ -7,6 +7,9 @@ does not pay for scikit-learn, which the estimators need.
 from importlib import import_module
 
 _WHERE = {
+    "BandCalibration": "calibration",
+    "COVARIANCES": "kernels",
+    "ModalPredictive": "predictive",
     "BatchedGPRegressor": "regressor",
     "GPHyperparameters": "regressor",
     "GPNumericalError": "regressor",

@@ -26,10 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from .calibration import read_calibration, write_calibration
 from .mode_switch import ModeSwitchingGPRegressor, symmetric_rz_features
 from .regressor import BatchedGPRegressor, GPHyperparameters
 
-_REG_PARAMS = ("kernel", "mean", "normalize", "max_iter", "gtol", "n_noise_groups")
+_REG_PARAMS = ("kernel", "mean", "normalize", "max_iter", "gtol", "n_noise_groups", "covariance")
+# Files written before a parameter existed read with its default.
+_REG_DEFAULTS = {"covariance": "se"}
 
 
 # ---------------------------------------------------------------------------- regressor
@@ -87,7 +90,8 @@ def read_regressor(group) -> BatchedGPRegressor:
         noise_std=d["noise_std"],
         mean=d["mean"],
     )
-    params = {p: a[p].item() if hasattr(a[p], "item") else a[p] for p in _REG_PARAMS}
+    raw = {p: a[p] if p in a else _REG_DEFAULTS[p] for p in _REG_PARAMS}
+    params = {p: v.item() if hasattr(v, "item") else v for p, v in raw.items()}
     params = {k: (str(v) if isinstance(v, str | bytes) else v) for k, v in params.items()}
     gp = BatchedGPRegressor(
         **params, optimizer=None, initial_hyperparameters=hp, n_restarts=0, rng=None
@@ -154,6 +158,7 @@ def write_mode_switching(group, model: ModeSwitchingGPRegressor) -> None:
     a["threshold"] = float(model.threshold)
     a["classifier_features"] = _features_tag(model.classifier_features)
     a["kernel"] = model.kernel
+    a["covariance"] = model.covariance
     a["rng"] = int(model.rng) if isinstance(model.rng, int | np.integer) else -1
     a["n_noise_groups"] = int(model.n_noise_groups)
     a["n_high"] = int(model.n_high_)
@@ -194,6 +199,7 @@ def read_mode_switching(group) -> ModeSwitchingGPRegressor:
         threshold=float(a["threshold"]),
         classifier_features=_features_from_tag(str(a["classifier_features"])),
         kernel=str(a["kernel"]),
+        covariance=_str(a["covariance"]) if "covariance" in a else "se",
         rng=None if rng < 0 else rng,
         n_noise_groups=int(a["n_noise_groups"]),
     )
@@ -254,6 +260,9 @@ def write_pose_model(model, path, *, cv=None, provenance=None) -> None:
             else:
                 g.attrs["kind"] = "BatchedGPRegressor"
                 write_regressor(g, e)
+        cal = getattr(model, "calibration_", None)
+        if cal is not None:
+            write_calibration(h5.create_group("calibration"), cal)
         if cv is not None:
             c = h5.create_group("cv")
             figures = _cv_figures(cv)
@@ -336,6 +345,16 @@ def read_pose_model(cls, path):
         model.mode_switches_ = switches
         model.estimators_, model.estimator_columns_ = estimators, columns
         model._set_fitted(names, dirs, X, Y, mask, groups)
+        model.calibration_ = read_calibration(h5["calibration"]) if "calibration" in h5 else None
+        model.covariances_ = (
+            model.calibration_.covariance
+            if model.calibration_ is not None
+            else tuple(
+                getattr(e, "covariance", "se")
+                for e, cols in zip(estimators, columns, strict=True)
+                for _ in cols
+            )
+        )
         if "cv" in h5:
             c = h5["cv"]
             cv = {k: c[k][()] for k in c}

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
+from .kernels import correlation
+
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Target size of the per-chunk work arrays (bytes); a chunk holds at least one row.
 WORK_BYTES = 48 * 2**20
@@ -250,6 +252,7 @@ def evaluate(
     constant_mean: bool,
     want_grad: bool = True,
     want_state: bool = False,
+    covariance: str = "se",
 ):
     """Negative log marginal likelihood (Eq. 33, mean profiled) and gradient for each row.
 
@@ -257,6 +260,7 @@ def evaluate(
     ----------
     theta : (k, p) log-hyperparameters [log sf, log l (1 or d), log sn (G)] per row.
     design : :class:`Design` whose per-output arrays have ``k`` rows (see :meth:`Design.take`).
+    covariance : ``"se"``, ``"matern52"`` or ``"matern32"`` (:func:`robovib.gp.kernels.correlation`).
 
     Returns
     -------
@@ -281,8 +285,10 @@ def evaluate(
             "jitter": np.empty(k),
         }
     # Work arrays: K_f and K^-1 buffers plus two n x n temporaries per row.
-    chunk = max(1, min(k, WORK_BYTES // (4 * 8 * n * n)))
+    chunk = max(1, min(k, WORK_BYTES // (5 * 8 * n * n)))
     kf_buf = np.empty((chunk, n * n))
+    # γ(r) of the length-scale gradient; the SE kernel's is K itself (no buffer needed).
+    kg_buf = np.empty((chunk, n * n)) if want_grad and covariance != "se" else None
     inv_buf = np.empty((chunk, n, n))
     all_obs = bool(design.obs.all())
     diag_idx = np.arange(n)
@@ -298,9 +304,20 @@ def evaluate(
             np.multiply(design.sq_sum[None, :], inv_l2, out=kf)
         else:
             np.matmul(inv_l2, design.sq_flat.T, out=kf)
-        kf *= -0.5
-        kf += 2.0 * log_sf[:, None]
-        np.exp(kf, out=kf)
+        sf2 = np.exp(2.0 * log_sf)[:, None]
+        if covariance == "se":
+            kf *= -0.5
+            kf += 2.0 * log_sf[:, None]
+            np.exp(kf, out=kf)
+            kg3 = None
+        else:
+            rho, gam = correlation(kf, covariance, with_gradient=True)
+            np.multiply(rho, sf2, out=kf)
+            kg3 = None
+            if kg_buf is not None:
+                kg = kg_buf[:c]
+                np.multiply(gam, sf2, out=kg)
+                kg3 = kg.reshape(c, n, n)
         kf3 = kf.reshape(c, n, n)
         if not all_obs:
             kf3 *= obs[:, :, None]
@@ -349,11 +366,21 @@ def evaluate(
         kinv_diag = np.diagonal(kinv, axis1=1, axis2=2).copy()
         # Elementwise with the noise-free kernel; both symmetric, so sum the upper triangle with
         # weight 2 off the diagonal (the strict lower triangle of kinv is not K^-1: weight 0).
-        kf3 *= _triangle_weights(n)
-        kinv *= kf3
-        wk = kinv.reshape(c, n * n)
+        tri = _triangle_weights(n)
         g = grad[sl]
-        g[:, 0] = np.sum(wk, axis=1)  # dK/dlog sf = 2 K_f
+        if kg3 is not None:
+            if not all_obs:
+                kg3 *= obs[:, :, None]
+                kg3 *= obs[:, None, :]
+            kg3 *= tri
+            kg3 *= kinv
+            g[:, 0] = np.sum(kinv * (kf3 * tri), axis=(1, 2))  # dK/dlog sf = 2 K_f
+            wk = kg3.reshape(c, n * n)
+        else:
+            kf3 *= tri
+            kinv *= kf3
+            wk = kinv.reshape(c, n * n)
+            g[:, 0] = np.sum(wk, axis=1)  # dK/dlog sf = 2 K_f
         if inv_l2.shape[1] == 1:
             g[:, 1] = 0.5 * (wk @ design.sq_sum) * inv_l2[:, 0]
         else:

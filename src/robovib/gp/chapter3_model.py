@@ -52,6 +52,7 @@ def fit_chapter3_model(
     mode_switch: str | bool = "auto",
     stiffness_reading: Literal["corrected", "printed"] = "corrected",
     rng: int | np.random.Generator | None = 0,
+    calibrate: bool = True,
 ) -> PoseModalModel:
     """Fit the 9-output pose model of Table A1 over (x_mm, y_mm, rz_deg), outputs in SI.
 
@@ -66,6 +67,9 @@ def fit_chapter3_model(
         Reading of Table A1's shifted stiffness cells (:func:`robovib.datasets.load_table_a1`).
     rng
         Seed of the optimiser restarts and the classifier.
+    calibrate
+        Calibrate the bands by grouped CV (:mod:`robovib.gp.calibration`; the thesis' SE
+        kernel is kept); ``False``: the plain GP posterior, as the thesis.
 
     Returns
     -------
@@ -83,6 +87,7 @@ def fit_chapter3_model(
         mode_switch=mode_switch,
         rng=rng,
         rz_symmetric=True,
+        calibrate=calibrate,
     )
     return model.fit(X, Y)
 

@@ -53,6 +53,8 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         Passed to the underlying :class:`BatchedGPRegressor` models.
     n_noise_groups
         Number of noise groups (``fit(..., groups=...)``), passed to the regressors.
+    covariance
+        Covariance family of both modes' GPs (:mod:`robovib.gp.kernels`).
 
     Attributes
     ----------
@@ -71,6 +73,7 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         kernel: str = "ard",
         rng: int | np.random.Generator | None = 0,
         n_noise_groups: int = 1,
+        covariance: str = "se",
     ) -> None:
         self.switching_outputs = switching_outputs
         self.indicator_output = indicator_output
@@ -79,10 +82,14 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         self.kernel = kernel
         self.rng = rng
         self.n_noise_groups = n_noise_groups
+        self.covariance = covariance
 
     def _regressor(self) -> BatchedGPRegressor:
         return BatchedGPRegressor(
-            kernel=self.kernel, rng=self.rng, n_noise_groups=self.n_noise_groups
+            kernel=self.kernel,
+            rng=self.rng,
+            n_noise_groups=self.n_noise_groups,
+            covariance=self.covariance,
         )
 
     def fit(self, X, Y, mask=None, groups=None) -> ModeSwitchingGPRegressor:
@@ -256,6 +263,33 @@ class ModeSwitchingGPRegressor(BaseEstimator):
             if self.classifier_features is None
             else np.asarray(self.classifier_features(X), float)
         )
+
+    def components(self, X):
+        """Both modes of every output: ``(p_high, low, high)``.
+
+        ``low``/``high`` are ``(mean, latent_std, noise_std)`` with arrays (n, n_outputs); the
+        non-switching outputs repeat the low-mode GP in ``high``. A high mode seen fewer than 3
+        times has no GP: its mean is the observed mean and its latent std
+        :data:`~robovib.gp.predictive.UNMODELLED_MODE_RELATIVE_STD` of it.
+        """
+        from .predictive import UNMODELLED_MODE_RELATIVE_STD, noise_std_of
+
+        self._require_fitted()
+        X = np.asarray(X, float)
+        mean, std = self.low_model_.predict(X, return_std=True)
+        noise = np.broadcast_to(noise_std_of(self.low_model_.hyperparameters_), mean.shape)
+        h_mean, h_std, h_noise = mean.copy(), std.copy(), noise.copy()
+        cols = self._switching
+        if self.high_model_ is not None:
+            m, s = self.high_model_.predict(X, return_std=True)
+            h_mean[:, cols], h_std[:, cols] = m, s
+            h_noise[:, cols] = noise_std_of(self.high_model_.hyperparameters_)
+        elif self._high_mean is not None:
+            h_mean[:, cols] = self._high_mean
+            h_std[:, cols] = UNMODELLED_MODE_RELATIVE_STD * np.abs(self._high_mean)
+            h_noise[:, cols] = 0.0
+        p = self.high_mode_probability(X)
+        return p, (mean, std, noise), (h_mean, h_std, h_noise)
 
     def predict(self, X, return_std: bool = False):
         """Mean (and std) of every output; switching outputs from the more probable mode."""

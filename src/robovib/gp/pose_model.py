@@ -43,7 +43,9 @@ from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
 from ..modal.parameters import ModalParameters
+from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchingGPRegressor
+from .predictive import ModalPredictive, assemble, noise_std_of
 from .regressor import BatchedGPRegressor
 
 __all__ = [
@@ -73,7 +75,13 @@ class PoseMode:
     parameters
         Mean prediction as :class:`~robovib.modal.ModalParameters` (SI).
     fn_std_hz, stiffness_std_n_per_m, damping_std_ns_per_m
-        Predictive (latent) standard deviations of fn, k and c.
+        Standard deviations of the *latent* fn, k and c (the modal parameters themselves) of
+        the more probable mode, calibrated where the model is (``calibration_``).
+    measurement_std
+        The same for a new *measurement* (latent plus test-to-test scatter), or None.
+    intervals_95
+        Per (fn, k, c) the 95 % set of a new measurement: one ``(low, high)`` interval, or two
+        where the mode is uncertain (a mixture of the low and the high mode), or None.
     extrapolating
         The pose is outside the calibrated inputs (see :meth:`PoseModalModel.extrapolating`).
     high_mode_probability
@@ -87,11 +95,30 @@ class PoseMode:
     damping_std_ns_per_m: float
     extrapolating: bool
     high_mode_probability: float | None
+    measurement_std: tuple[float, float, float] | None = None
+    intervals_95: tuple | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready, units in the keys (fn, k, c, ζ with the std of fn, k, c)."""
         p = self.parameters
-        return {
+        extra = {}
+        if self.measurement_std is not None:
+            extra["measurement_std"] = dict(
+                zip(
+                    ("fn_hz", "stiffness_n_per_m", "damping_ns_per_m"),
+                    self.measurement_std,
+                    strict=True,
+                )
+            )
+        if self.intervals_95 is not None:
+            extra["intervals_95"] = dict(
+                zip(
+                    ("fn_hz", "stiffness_n_per_m", "damping_ns_per_m"),
+                    [[list(iv) for iv in ivs] for ivs in self.intervals_95],
+                    strict=True,
+                )
+            )
+        return extra | {
             "fn_hz": p.natural_frequency_hz,
             "fn_std_hz": self.fn_std_hz,
             "stiffness_n_per_m": p.stiffness_n_per_m,
@@ -277,6 +304,17 @@ class PoseModalModel(BaseEstimator):
     rz_symmetric
         The mode classifier sees cos(2 Rz) instead of ``rz_deg`` (Rz and Rz + 180° give the
         same configuration of the arm, as on Table A1). Needs an input named ``"rz_deg"``.
+    covariance
+        Covariance family of the GPs (:mod:`robovib.gp.kernels`): ``"se"`` (thesis Eq. 7),
+        ``"matern52"``, ``"matern32"`` or ``"auto"``: chosen per output by the grouped-CV log
+        predictive density (needs ``calibrate=True``).
+    calibrate
+        Calibrate the bands by grouped cross-validation (:mod:`robovib.gp.calibration`): a
+        Student-t scale and tail per output and mode, stored in ``calibration_``. Costs
+        ``calibration_folds`` extra fits per covariance family tried. ``False``: the plain GP
+        posterior (fast; what the thesis reports).
+    calibration_folds
+        Folds of that grouped cross-validation (poses held out with all their replicates).
 
     Attributes
     ----------
@@ -295,6 +333,10 @@ class PoseModalModel(BaseEstimator):
         Noise group of each training sample.
     input_min_, input_max_ : ndarray (n_inputs,)
         Box of the training inputs.
+    calibration_ : BandCalibration or None
+        The band calibration and its grouped-CV scores (``calibrate=True``), else None.
+    covariances_ : tuple of str
+        Covariance family used for each output.
 
     Notes
     -----
@@ -316,6 +358,9 @@ class PoseModalModel(BaseEstimator):
         mode_switch: str | bool | Mapping[str, float] = "auto",
         rng: int | np.random.Generator | None = 0,
         rz_symmetric: bool = False,
+        covariance: str = "se",
+        calibrate: bool = False,
+        calibration_folds: int = 5,
     ) -> None:
         self.input_names = input_names
         self.directions = directions
@@ -323,6 +368,9 @@ class PoseModalModel(BaseEstimator):
         self.mode_switch = mode_switch
         self.rng = rng
         self.rz_symmetric = rz_symmetric
+        self.covariance = covariance
+        self.calibrate = calibrate
+        self.calibration_folds = calibration_folds
 
     # ------------------------------------------------------------------ validation
     def _check_params(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -357,6 +405,14 @@ class PoseModalModel(BaseEstimator):
             )
         if self.rz_symmetric and "rz_deg" not in names:
             raise ValueError("rz_symmetric=True needs an input named 'rz_deg'")
+        if self.covariance not in (*COVARIANCES, "auto"):
+            raise ValueError(
+                f"unknown covariance {self.covariance!r}; expected one of {(*COVARIANCES, 'auto')}"
+            )
+        if self.covariance == "auto" and not self.calibrate:
+            raise ValueError("covariance='auto' chooses by grouped CV: it needs calibrate=True")
+        if int(self.calibration_folds) < 2:
+            raise ValueError(f"calibration_folds must be >= 2, got {self.calibration_folds}")
         return names, dirs
 
     def _check_X(self, X) -> np.ndarray:
@@ -418,8 +474,6 @@ class PoseModalModel(BaseEstimator):
         """
         names, dirs = self._check_params()
         X, Y, mask, obs, groups = self._validated(X, Y, mask, groups, names, dirs)
-        n_groups = 1 if groups is None else int(groups.max()) + 1
-
         self.mode_switches_ = self._detect(obs, mask, dirs)
         if self.mode_switch is True and not any(s.found for s in self.mode_switches_.values()):
             raise ValueError(
@@ -427,15 +481,32 @@ class PoseModalModel(BaseEstimator):
                 + "; ".join(f"{d}: {s.reason}" for d, s in self.mode_switches_.items())
                 + " (use mode_switch='auto' to fit without one)"
             )
+        n_out = 3 * len(dirs)
+        families = COVARIANCES if self.covariance == "auto" else (self.covariance,)
+        self.calibration_ = None
+        chosen = (families[0],) * n_out
+        if self.calibrate:
+            chosen, self.calibration_ = self._calibrate(X, obs, mask, groups, families)
+        self._fit_estimators(X, Y, mask, groups, names, dirs, chosen)
+        self.covariances_ = tuple(chosen)
+        self._set_fitted(names, dirs, X, np.where(mask, Y, np.nan), mask, groups)
+        return self
+
+    def _fit_estimators(self, X, Y, mask, groups, names, dirs, chosen) -> None:
+        """One GP per covariance family over the smooth outputs, one switching GP per switch."""
+        n_groups = 1 if groups is None else int(groups.max()) + 1
         features = _RzCos2(names.index("rz_deg")) if self.rz_symmetric else None
         switching = [i for i, d in enumerate(dirs) if self.mode_switches_[d].found]
-        smooth_cols = [3 * i + j for i in range(len(dirs)) if i not in switching for j in range(3)]
         self.estimators_, self.estimator_columns_ = [], []
-        if smooth_cols:
-            gp = BatchedGPRegressor(kernel=self.kernel, rng=self.rng, n_noise_groups=n_groups)
-            gp.fit(X, Y[:, smooth_cols], mask=mask[:, smooth_cols], groups=groups)
+        smooth = [3 * i + j for i in range(len(dirs)) if i not in switching for j in range(3)]
+        for family in dict.fromkeys(chosen[c] for c in smooth):
+            cols = [c for c in smooth if chosen[c] == family]
+            gp = BatchedGPRegressor(
+                kernel=self.kernel, rng=self.rng, n_noise_groups=n_groups, covariance=family
+            )
+            gp.fit(X, Y[:, cols], mask=mask[:, cols], groups=groups)
             self.estimators_.append(gp)
-            self.estimator_columns_.append(np.array(smooth_cols))
+            self.estimator_columns_.append(np.array(cols))
         for i in switching:
             cols = np.arange(3 * i, 3 * i + 3)
             msgp = ModeSwitchingGPRegressor(
@@ -446,6 +517,7 @@ class PoseModalModel(BaseEstimator):
                 kernel=self.kernel,
                 rng=self.rng,
                 n_noise_groups=n_groups,
+                covariance=chosen[3 * i],
             )
             msgp.fit(
                 X, np.where(mask[:, cols], Y[:, cols], np.nan), mask=mask[:, cols], groups=groups
@@ -453,7 +525,109 @@ class PoseModalModel(BaseEstimator):
             self.estimators_.append(msgp)
             self.estimator_columns_.append(cols)
         self._set_fitted(names, dirs, X, np.where(mask, Y, np.nan), mask, groups)
-        return self
+
+    def _thresholds(self) -> np.ndarray:
+        """(n_outputs,) mode threshold of each output's direction (NaN without a switch)."""
+        return np.array(
+            [
+                self.mode_switches_[d].threshold_hz if self.mode_switches_[d].found else np.nan
+                for d in self.directions_
+                for _ in range(3)
+            ]
+        )
+
+    def _calibrate(self, X, obs, mask, groups, families):
+        """Grouped-CV predictions per covariance family -> chosen family and band calibration."""
+        import warnings
+
+        from sklearn.base import clone
+
+        from .calibration import (
+            BandCalibration,
+            calibrate_predictions,
+            grouped_folds,
+            scores,
+            uncalibrated_coverage,
+        )
+
+        dirs = tuple(self.directions)
+        n_out = 3 * len(dirs)
+        fold = grouped_folds(
+            X, self.calibration_folds, self.rng if isinstance(self.rng, int) else 0
+        )
+        thresholds = np.array(
+            [
+                self.mode_switches_[d].threshold_hz if self.mode_switches_[d].found else np.nan
+                for d in dirs
+                for _ in range(3)
+            ]
+        )
+        Y = np.where(mask, obs, np.nan)
+        results = {}
+        for family in families:
+            template = clone(self).set_params(
+                covariance=family, calibrate=False, mode_switch=self._fold_mode_switch()
+            )
+            parts = []
+            for f in np.unique(fold):
+                tr, te = fold != f, fold == f
+                with warnings.catch_warnings():
+                    warnings.simplefilter(
+                        "ignore"
+                    )  # fold fits of few poses warn; the final fit speaks
+                    m = clone(template).fit(
+                        X[tr], Y[tr], mask=mask[tr], groups=None if groups is None else groups[tr]
+                    )
+                parts.append((te, m._raw_predictive(X[te])))
+            pred = _stack_predictive(parts, X.shape[0])
+            scale, dof = calibrate_predictions(pred, Y, thresholds)
+            cal = pred.with_calibration(scale, dof)
+            results[family] = (pred, cal, scale, dof, scores(cal, Y))
+        # Per output (per direction where a switch ties the three outputs): best mean LPD.
+        lpd = {f: -r[4]["nlpd"] for f, r in results.items()}
+        chosen = []
+        for i, d in enumerate(dirs):
+            cols = slice(3 * i, 3 * i + 3)
+            if self.mode_switches_[d].found:
+                best = max(families, key=lambda f: float(np.sum(lpd[f][cols])))
+                chosen += [best] * 3
+            else:
+                chosen += [
+                    max(families, key=lambda f: float(lpd[f][j])) for j in range(3 * i, 3 * i + 3)
+                ]
+        pick = lambda key: np.array(  # noqa: E731
+            [results[chosen[j]][key][j] for j in range(n_out)]
+        )
+        scale = pick(2)
+        dof = pick(3)
+        sc = {
+            k: np.array([results[chosen[j]][4][k][j] for j in range(n_out)])
+            for k in ("n", "coverage", "nlpd", "rmse")
+        }
+        pit = np.column_stack([results[chosen[j]][4]["pit"][:, j] for j in range(n_out)])
+        uncal = np.array([uncalibrated_coverage(results[chosen[j]][0], Y)[j] for j in range(n_out)])
+        names = tuple(f"{d}_{q}_{u}" for d in dirs for q, u in _QUANTITIES)
+        calibration = BandCalibration(
+            output_names=names,
+            covariance=tuple(chosen),
+            scale=scale,
+            dof=dof,
+            n_folds=int(np.unique(fold).size),
+            n_poses=int(np.unique(np.round(X, 9), axis=0).shape[0]),
+            n=sc["n"].astype(int),
+            coverage=sc["coverage"],
+            coverage_uncalibrated=uncal,
+            nlpd=sc["nlpd"],
+            rmse=sc["rmse"],
+            lpd_by_covariance={f: v for f, v in lpd.items()},
+            pit=pit,
+        )
+        return tuple(chosen), calibration
+
+    def _fold_mode_switch(self):
+        """The switch setting of the CV folds: the thresholds found on all data, assumed."""
+        found = {d: s.threshold_hz for d, s in self.mode_switches_.items() if s.found}
+        return found if found else False
 
     @staticmethod
     def _validated(X, Y, mask, groups, names, dirs):
@@ -692,6 +866,45 @@ class PoseModalModel(BaseEstimator):
                 p[:, cols[0] // 3] = est.high_mode_probability(X)
         return p
 
+    def _raw_predictive(self, X) -> ModalPredictive:
+        """The GP posterior as a :class:`ModalPredictive`, before calibration."""
+        X = self._check_X(X)
+        parts = []
+        for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
+            if isinstance(est, ModeSwitchingGPRegressor):
+                parts.append((cols, *est.components(X)))
+            else:
+                m, s = est.predict(X, return_std=True)
+                parts.append((cols, None, (m, s, noise_std_of(est.hyperparameters_)), None))
+        return assemble(self.output_names_, self.output_units_, self.directions_, X.shape[0], parts)
+
+    def predictive(self, X) -> ModalPredictive:
+        """Calibrated predictive distribution of every output (latent and measurement, modes).
+
+        See :mod:`robovib.gp.predictive` and ``docs/bands.md``.
+
+        Parameters
+        ----------
+        X : array_like, shape (n, n_inputs)
+            Poses in the units named by ``input_names``.
+
+        Returns
+        -------
+        ModalPredictive
+            Per output a mixture of the low and high mode (where a switch is modelled) with
+            the calibration of ``calibration_`` (none: the plain GP).
+
+        Examples
+        --------
+        >>> from robovib.gp import load_chapter3_model
+        >>> pred = load_chapter3_model().predictive([[2400.0, 0.0, 45.0]])
+        >>> len(pred.intervals(0.95)[0]) == 9
+        True
+        """
+        raw = self._raw_predictive(X)
+        cal = getattr(self, "calibration_", None)
+        return raw if cal is None else raw.with_calibration(cal.scale, cal.dof)
+
     def modes(self, X) -> list[dict[str, PoseMode]]:
         """The dominant mode of each direction at each pose (one dict per row of ``X``).
 
@@ -723,7 +936,11 @@ class PoseModalModel(BaseEstimator):
         True
         """
         X = self._check_X(X)
-        mean, std = self.predict(X, return_std=True)
+        pred = self.predictive(X)
+        mean = pred.point()
+        std = pred.point_std("latent")
+        std_meas = pred.point_std("measurement")
+        sets = pred.intervals(0.95, "measurement")
         extrap = self.extrapolating(X)
         p = self.mode_switch_probability(X)
         out = []
@@ -745,6 +962,8 @@ class PoseModalModel(BaseEstimator):
                     float(std[r, 3 * i + 2]),
                     bool(extrap[r]),
                     prob,
+                    tuple(float(v) for v in std_meas[r, 3 * i : 3 * i + 3]),
+                    tuple(tuple(sets[r][3 * i + j]) for j in range(3)),
                 )
             out.append(row)
         return out
@@ -838,6 +1057,9 @@ def _params_json(model: PoseModalModel) -> str:
             "mode_switch": dict(ms) if isinstance(ms, Mapping) else ms,
             "rng": None if rng is None else int(rng),
             "rz_symmetric": bool(model.rz_symmetric),
+            "covariance": model.covariance,
+            "calibrate": bool(model.calibrate),
+            "calibration_folds": int(model.calibration_folds),
         }
     )
 
@@ -849,3 +1071,22 @@ def _now_utc() -> str:
 def _finite_or_nan(v) -> float:
     v = float(v)
     return v if math.isfinite(v) else float("nan")
+
+
+def _stack_predictive(parts, n: int) -> ModalPredictive:
+    """Out-of-fold predictions (rows, ModalPredictive) pieced together in row order."""
+    first = parts[0][1]
+    n_out = first.high_probability.shape[1]
+    p = np.zeros((n, n_out))
+    mean, lat, noise = (np.zeros((n, n_out, 2)) for _ in range(3))
+    for rows, pr in parts:
+        p[rows], mean[rows], lat[rows], noise[rows] = (
+            pr.high_probability,
+            pr.mean,
+            pr.latent_std,
+            pr.noise_std,
+        )
+    return ModalPredictive(
+        first.output_names, first.output_units, first.directions, p, mean, lat, noise,
+        first.scale, first.dof,
+    )  # fmt: skip

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .._threads import single_blas_thread
+from .kernels import correlation
 
 __all__ = [
     "AMBIGUOUS_MODE_PROBABILITY",
@@ -86,6 +87,7 @@ class _GP:
         d = {k: group[k][()] for k in group}
         a = group.attrs
         kernel = _str(a["kernel"])
+        self.covariance = _str(a["covariance"]) if "covariance" in a else "se"
         normalize = bool(a["normalize"])
         mean_kind = _str(a["mean"])
         n_groups = int(a["n_noise_groups"])
@@ -118,7 +120,7 @@ class _GP:
         chol_inv = np.zeros((n_out, n, n))
         for b in range(n_out):
             obs = mask[:, b]
-            k = sf2[b] * np.exp(-0.5 * (sq[np.ix_(obs, obs)] @ inv_l2[b]))
+            k = sf2[b] * correlation(sq[np.ix_(obs, obs)] @ inv_l2[b], self.covariance)
             k[np.diag_indices_from(k)] += noise[b, groups[obs]] ** 2
             L = _chol(k)
             Li = _tri_inv(L)
@@ -130,12 +132,14 @@ class _GP:
         self.x_loc, self.x_scale, self.y_loc, self.y_scale = x_loc, x_scale, y_loc, y_scale
         self.x_s, self.mask, self.sf2, self.inv_l2 = x_s, mask, sf2, inv_l2
         self.alpha, self.chol_inv, self.m_s = alpha, chol_inv, m_s
+        self.noise_std = noise[:, 0] * y_scale  # first (reference) noise group, data units
         self.X_train = X
 
     def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         xq = (X - self.x_loc) / self.x_scale
         sq = (xq[:, None, :] - self.x_s[None, :, :]) ** 2  # (m, n, d)
-        k = self.sf2[:, None, None] * np.exp(-0.5 * np.einsum("mnd,bd->bmn", sq, self.inv_l2))
+        r2 = np.einsum("mnd,bd->bmn", sq, self.inv_l2)
+        k = self.sf2[:, None, None] * correlation(r2, self.covariance)
         k = k * self.mask.T[:, None, :]  # (B, m, n)
         mean_s = self.m_s[:, None] + np.einsum("bmn,bn->bm", k, self.alpha)
         v = np.matmul(self.chol_inv, k.transpose(0, 2, 1))  # (B, n, m)
@@ -233,6 +237,24 @@ class _Switching:
             return np.full(X.shape[0], 1.0 if self.all_high else 0.0)
         return self.classifier.predict_proba((self._features(X) - self.x_loc) / self.x_scale)
 
+    def components(self, X: np.ndarray):
+        """``(p_high, low, high)`` as :meth:`ModeSwitchingGPRegressor.components`."""
+        from .predictive import UNMODELLED_MODE_RELATIVE_STD
+
+        mean, std = self.low.predict(X)
+        noise = np.broadcast_to(self.low.noise_std, mean.shape)
+        h_mean, h_std, h_noise = mean.copy(), std.copy(), noise.copy()
+        cols = self.switching
+        if self.high is not None:
+            m, s = self.high.predict(X)
+            h_mean[:, cols], h_std[:, cols] = m, s
+            h_noise[:, cols] = self.high.noise_std
+        elif self.high_mean is not None:
+            h_mean[:, cols] = self.high_mean
+            h_std[:, cols] = UNMODELLED_MODE_RELATIVE_STD * np.abs(self.high_mean)
+            h_noise[:, cols] = 0.0
+        return self.high_mode_probability(X), (mean, std, noise), (h_mean, h_std, h_noise)
+
     def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         mean, std = self.low.predict(X)
         use_high = self.high_mode_probability(X) > 0.5
@@ -321,6 +343,11 @@ class PosePredictor:
             }
             self.provenance_ = {k: _str(v) if isinstance(v, bytes) else v
                                 for k, v in h5["provenance"].attrs.items()}  # fmt: skip
+            self.calibration_ = None
+            if "calibration" in h5:
+                from .calibration import read_calibration
+
+                self.calibration_ = read_calibration(h5["calibration"])
         X = self.X_train_
         self.input_min_, self.input_max_ = X.min(axis=0), X.max(axis=0)
         self._hull_pts = None
@@ -356,6 +383,25 @@ class PosePredictor:
                 m, s = est.predict(X)
                 mean[:, cols], std[:, cols] = m, s
         return (mean, std) if return_std else mean
+
+    def predictive(self, X):
+        """Calibrated predictive distribution, as :meth:`PoseModalModel.predictive`."""
+        from .predictive import assemble
+
+        X = self._check_X(X)
+        parts = []
+        with single_blas_thread():
+            for est, cols in self._estimators:
+                if isinstance(est, _Switching):
+                    parts.append((cols, *est.components(X)))
+                else:
+                    m, s = est.predict(X)
+                    parts.append((cols, None, (m, s, est.noise_std), None))
+        cal = self.calibration_
+        return assemble(
+            self.output_names_, self.output_units_, self.directions_, X.shape[0], parts,
+            None if cal is None else cal.scale, None if cal is None else cal.dof,
+        )  # fmt: skip
 
     def outside_inputs(self, X) -> np.ndarray:
         """(n, n_inputs) bool: input value outside the training range of that input."""
@@ -457,7 +503,10 @@ class PosePrediction:
         Input name -> value, in the model's units.
     outputs
         One dict per output: ``output`` (name with unit suffix, e.g. ``x_fn_hz``), ``unit``,
-        ``mean``, ``std``, ``lower_2sigma``, ``upper_2sigma`` (SI, in ``unit``).
+        ``mean`` (the more probable mode), ``std``, ``lower_2sigma``, ``upper_2sigma`` (the
+        *latent* modal parameter, calibrated where the model is), ``measurement_std`` and
+        ``measurement_95`` (the 95 % set of a new hammer test: one or, at an uncertain mode
+        switch, two ``[low, high]`` intervals), SI in ``unit``.
     extrapolating
         The pose lies outside the training inputs' box or convex hull.
     outside_inputs
@@ -526,8 +575,11 @@ def predict_at(model, pose) -> PosePrediction:
     x = np.array([[float(given[n]) for n in names]])
     if not np.all(np.isfinite(x)):
         raise ValueError(f"pose values must be finite, got {given}")
-    mean, std = model.predict(x, return_std=True)
     units = getattr(model, "output_units_", None) or (None,) * len(model.output_names_)
+    pred = model.predictive(x)
+    mean, std = pred.point(), pred.point_std("latent")
+    std_meas = pred.point_std("measurement")
+    sets = pred.intervals(0.95, "measurement")[0]
     outs = tuple(
         {
             "output": name,
@@ -536,8 +588,12 @@ def predict_at(model, pose) -> PosePrediction:
             "std": float(s),
             "lower_2sigma": float(m - 2 * s),
             "upper_2sigma": float(m + 2 * s),
+            "measurement_std": float(sm),
+            "measurement_95": [[float(a), float(b)] for a, b in iv],
         }
-        for name, unit, m, s in zip(model.output_names_, units, mean[0], std[0], strict=True)
+        for name, unit, m, s, sm, iv in zip(
+            model.output_names_, units, mean[0], std[0], std_meas[0], sets, strict=True
+        )
     )
     from .extrapolation import outside_inputs
 

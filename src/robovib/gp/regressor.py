@@ -49,6 +49,7 @@ from sklearn.exceptions import NotFittedError
 
 from .._threads import single_blas_thread
 from . import _likelihood
+from .kernels import COVARIANCES, correlation
 from .optimize import batched_bfgs
 
 __all__ = ["BatchedGPRegressor", "GPHyperparameters", "GPNumericalError", "JitterWarning"]
@@ -151,6 +152,9 @@ class BatchedGPRegressor(BaseEstimator):
         hyperparameters are then (B, G) and ``noise_std`` has that shape.
     rng
         Seed or :class:`numpy.random.Generator` for the restarts.
+    covariance
+        Covariance family (:mod:`robovib.gp.kernels`): ``"se"`` (squared exponential, thesis
+        Eq. 7), ``"matern52"`` or ``"matern32"``.
 
     Notes
     -----
@@ -197,8 +201,10 @@ class BatchedGPRegressor(BaseEstimator):
         initial_hyperparameters: GPHyperparameters | None = None,
         n_noise_groups: int = 1,
         rng: int | np.random.Generator | None = None,
+        covariance: Literal["se", "matern52", "matern32"] = "se",
     ) -> None:
         self.kernel = kernel
+        self.covariance = covariance
         self.mean = mean
         self.normalize = normalize
         self.optimizer = optimizer
@@ -257,6 +263,10 @@ class BatchedGPRegressor(BaseEstimator):
     def _check_params(self) -> None:
         if self.kernel not in ("isotropic", "ard"):
             raise ValueError(f"unknown kernel {self.kernel!r}; expected 'isotropic' or 'ard'")
+        if self.covariance not in COVARIANCES:
+            raise ValueError(
+                f"unknown covariance {self.covariance!r}; expected one of {COVARIANCES}"
+            )
         if self.mean not in ("constant", "zero"):
             raise ValueError(f"unknown mean {self.mean!r}; expected 'constant' or 'zero'")
         if self.optimizer not in ("bfgs", "scipy", None):
@@ -394,6 +404,7 @@ class BatchedGPRegressor(BaseEstimator):
             constant_mean=mean == "constant",
             want_grad=want_grad,
             want_state=want_state,
+            covariance=getattr(self, "covariance", "se"),
         )
         failed = ~np.isfinite(nll)
         if np.any(failed) and not allow_fail:
@@ -782,7 +793,7 @@ class BatchedGPRegressor(BaseEstimator):
         sq = (xq[:, None, :] - self._x_s[None, :, :]) ** 2  # (m, n, d)
         m_q, n_tr = sq.shape[:2]
         dist = (self._inv_l2 @ sq.reshape(m_q * n_tr, -1).T).reshape(-1, m_q, n_tr)
-        k_star = self._sf2[:, None, None] * np.exp(-0.5 * dist)
+        k_star = self._sf2[:, None, None] * correlation(dist, self.covariance)
         mean_s = self._m_s[:, None] + np.matmul(k_star, self._alpha[:, :, None])[:, :, 0]
         mean = (mean_s * self._y_scale[:, None] + self._y_loc[:, None]).T
         if not return_std:
@@ -809,7 +820,11 @@ class BatchedGPRegressor(BaseEstimator):
         # Scalings folded into precomputed arrays (_set_training_data): the kernel row is in
         # data units times y_scale, so mean and variance come out in data units.
         d2 = (self._p1_x - x) ** 2  # (n, d)
-        k = np.exp(self._p1_neg_half_inv_l2 @ d2.T + self._p1_log_k0)  # (B, n)
+        if self.covariance == "se":
+            k = np.exp(self._p1_neg_half_inv_l2 @ d2.T + self._p1_log_k0)  # (B, n)
+        else:
+            r2 = -2.0 * (self._p1_neg_half_inv_l2 @ d2.T)
+            k = np.exp(self._p1_log_k0) * correlation(r2, self.covariance)
         mean = self._p1_offset + _vecdot(k, self._alpha)
         v = np.matmul(self._chol_inv, k[:, :, None])[:, :, 0]
         var = self._p1_var0 - _vecdot(v, v)

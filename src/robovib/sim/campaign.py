@@ -118,6 +118,7 @@ def simulate_campaign(
     snr_db: float = 40.0,
     n_truth: int = 20,
     robot: VirtualRobot | None = None,
+    scatter: tuple[float, float, float] | None = None,
 ) -> SimulatedCampaign:
     """Simulate a hammer campaign at ``poses`` and write recordings, manifest and truth.
 
@@ -138,6 +139,11 @@ def simulate_campaign(
         Per recording: hits, seconds per hit, sample rate [Hz], response SNR [dB].
     n_truth
         Unseen poses at which ``truth.csv`` gives the dominant modes.
+    robot
+        The virtual robot (default :class:`VirtualRobot`).
+    scatter
+        Test-to-test scatter of (fn, k, ζ), relative stds per recording
+        (:func:`~robovib.sim.simulate_hammer_test`); ``None``: none.
 
     Returns
     -------
@@ -173,7 +179,7 @@ def simulate_campaign(
             k += 1
             rec = simulate_hammer_test(
                 robot, coords, d, n_hits=n_hits, sample_rate_hz=fs, duration_s=duration_s,
-                snr_db=snr_db, rng=gen,
+                snr_db=snr_db, rng=gen, scatter=scatter,
             )  # fmt: skip
             name = f"pose{i:03d}_{d}"
             code = _CODE[d]

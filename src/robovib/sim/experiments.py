@@ -140,6 +140,7 @@ def simulate_hammer_test(
     snr_db: float = 40.0,
     allow_extrapolation: bool = False,
     rng=None,
+    scatter: tuple[float, float, float] | None = None,
 ) -> HammerRecording:
     """Impact-hammer test at a fixed pose: half-sine pulses, accelerometer with noise.
 
@@ -173,6 +174,11 @@ def simulate_hammer_test(
         Allow poses outside the robot's calibrated range (otherwise an error).
     rng : int or numpy.random.Generator, optional
         Seed of the forces and the noise.
+    scatter : tuple of float, optional
+        Test-to-test scatter: relative standard deviations of (fn, k, ζ), one Gaussian factor
+        per test applied to every mode (a re-clamped tool, another hammer spot, temperature).
+        Table A1's replicates scatter by about (0.01, 0.04, 0.04) (RMS of the within-pose
+        relative std). ``None``: every test sees the same modes.
 
     Returns
     -------
@@ -200,6 +206,20 @@ def simulate_hammer_test(
     if modes.fn_hz.shape[0] != 1:
         raise ValueError("a hammer test takes one pose")
     gen = _rng(rng)
+    fn_hz, k_n_per_m, zeta = modes.fn_hz, modes.stiffness_n_per_m, modes.damping_ratio
+    if scatter is not None:
+        rel = np.asarray(scatter, float)
+        if (
+            rel.shape != (3,)
+            or not np.all(np.isfinite(rel))
+            or np.any(rel < 0)
+            or np.any(rel >= 0.3)
+        ):
+            raise ValueError(
+                f"scatter must be 3 relative stds (fn, k, zeta) in [0, 0.3), got {scatter!r}"
+            )
+        f_fn, f_k, f_z = 1.0 + rel * gen.standard_normal(3)
+        fn_hz, k_n_per_m, zeta = fn_hz * f_fn, k_n_per_m * f_k, zeta * f_z
     n = round(duration_s * sample_rate_hz)
     t = np.arange(n) / sample_rate_hz
     forces, responses = [], []
@@ -210,10 +230,7 @@ def simulate_hammer_test(
             (t >= t0) & (t <= t0 + pulse_width_s), np.sin(np.pi * (t - t0) / pulse_width_s), 0.0
         )
         f = peak * np.clip(pulse, 0.0, None)
-        params = [
-            np.repeat(a.T, n, axis=1)
-            for a in (modes.fn_hz, modes.stiffness_n_per_m, modes.damping_ratio)
-        ]
+        params = [np.repeat(a.T, n, axis=1) for a in (fn_hz, k_n_per_m, zeta)]
         _, _, acc = modal_response(*params, f, 1.0 / sample_rate_hz)
         noise = gen.normal(size=n) * math.sqrt(np.mean(acc**2) / 10 ** (snr_db / 10))
         forces.append(f + gen.normal(size=n) * 5e-4 * peak)
