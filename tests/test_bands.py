@@ -206,3 +206,23 @@ def test_calibration_round_trips_through_the_file_and_the_fast_predictor(tmp_pat
     assert first["measurement_std"] > first["std"] > 0
     ((lo, hi),) = first["measurement_95"]
     assert lo < first["mean"] < hi
+
+
+def test_reliability_figure_has_a_panel_per_output_and_the_coverage(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from robovib.gp import plot_calibration
+
+    rng = np.random.default_rng(4)
+    X, Y, _ = _synthetic(rng, 20)
+    m = PoseModalModel(directions=("x",), mode_switch=False, calibrate=True, rng=0).fit(X, Y)
+    fig = plot_calibration(m.calibration_)
+    visible = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(visible) == 4  # 3 PIT histograms + coverage
+    heights = [p.get_height() for p in visible[0].patches]
+    # Density histogram: its area is 1 (bins of width 0.1).
+    assert sum(heights) * 0.1 == pytest.approx(1.0)
+    table = m.calibration_.table()
+    assert list(table["output"]) == list(m.output_names_)
+    assert {"coverage_50", "coverage_90", "coverage_95", "nlpd", "rmse"} <= set(table.columns)

@@ -296,33 +296,16 @@ def _gps_of(model) -> list[tuple[BatchedGPRegressor, np.ndarray]]:
 
 
 def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
-    """Posterior covariance (B, m, m) at Xc, noise and prior variances (B,), in target units.
-
-    Computed from the fitted hyperparameters (data units, the regressor's covariance family,
-    :func:`robovib.gp.kernels.correlation`, thesis Eq. 6-10).
-    """
-    from ..gp.kernels import correlation
+    """Latent posterior covariance (B, m, m) at Xc, noise and prior variances (B,), in target
+    units (the regressor's own posterior, :class:`robovib.gp.posterior.GPPosterior`)."""
+    from ..gp.predictive import noise_std_of
 
     hp = gp.hyperparameters_
-    X, mask = gp.X_train_, gp.mask_
-    noise = np.asarray(hp.noise_std, float)
-    if noise.ndim == 2:  # noise groups: the first (reference) group
-        noise = noise[:, 0]
-    out = []
-    for b in range(hp.signal_std.size):
-        sf2 = float(hp.signal_std[b]) ** 2
-        ls = np.asarray(hp.length_scales[b], float)
-
-        def k(a, c, sf2=sf2, ls=ls):
-            d = (a[:, None, :] - c[None, :, :]) / ls
-            return sf2 * correlation(np.sum(d * d, axis=-1), gp.covariance)
-
-        Xb = X[mask[:, b]]
-        kxx = k(Xb, Xb) + (float(noise[b]) ** 2 + 1e-10 * sf2) * np.eye(len(Xb))
-        kcx = k(Xc, Xb)
-        sol = np.linalg.solve(kxx, kcx.T)
-        out.append(k(Xc, Xc) - kcx @ sol)
-    return np.array(out), noise**2, np.asarray(hp.signal_std, float) ** 2
+    return (
+        gp.posterior_.covariance_at(Xc),
+        noise_std_of(hp) ** 2,
+        np.asarray(hp.signal_std, float) ** 2,
+    )
 
 
 def next_poses(model, candidates, k: int = 5) -> NextPoses:

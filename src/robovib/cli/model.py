@@ -39,6 +39,9 @@ def fit(
     use_flagged: Annotated[
         bool, typer.Option("--use-flagged", help="Also train on rows whose fit is flagged.")
     ] = False,
+    plot: Annotated[
+        Path | None, typer.Option(help="Reliability figure (PIT histograms, coverage) to write.")
+    ] = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Fit the pose model of every output (fn, k, c per direction); print the grouped CV table."""
@@ -48,6 +51,11 @@ def fit(
     res = fit_pose_model_from_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
                                     n_folds=folds, use_flagged=use_flagged)  # fmt: skip
     save_pose_model(res, output)
+    if plot is not None:
+        from ..gp.plot import plot_calibration
+
+        use_agg()
+        save_figure(plot_calibration(res.model.calibration_), plot)
     switches = mode_switches_found(res.model)
     if json_out:
         emit_json({

@@ -25,6 +25,7 @@ _WHERE = {
     "load_chapter3_model": "chapter3_model",
     "load_chapter3_predictor": "chapter3_model",
     "load_pose_predictor": "predictor",
+    "plot_calibration": "plot",
 }
 
 __all__ = sorted(_WHERE)

@@ -36,6 +36,7 @@ import numpy as np
 
 from .._threads import single_blas_thread
 from .kernels import correlation
+from .posterior import GPPosterior
 
 __all__ = [
     "AMBIGUOUS_MODE_PROBABILITY",
@@ -129,24 +130,16 @@ class _GP:
                 m_s[b] = (k_inv_1 @ y_s[obs, b]) / k_inv_1.sum()
             alpha[b, obs] = Li.T @ (Li @ (y_s[obs, b] - m_s[b]))
             chol_inv[b][np.ix_(obs, obs)] = Li
-        self.x_loc, self.x_scale, self.y_loc, self.y_scale = x_loc, x_scale, y_loc, y_scale
-        self.x_s, self.mask, self.sf2, self.inv_l2 = x_s, mask, sf2, inv_l2
-        self.alpha, self.chol_inv, self.m_s = alpha, chol_inv, m_s
+        # Unobserved targets: alpha and the L^-1 columns are zero, so they drop out.
+        self.posterior = GPPosterior(
+            x_loc, x_scale, y_loc, y_scale, x_s, sf2, np.ascontiguousarray(inv_l2), m_s, alpha,
+            chol_inv, self.covariance,
+        )  # fmt: skip
         self.noise_std = noise[:, 0] * y_scale  # first (reference) noise group, data units
         self.X_train = X
 
     def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        xq = (X - self.x_loc) / self.x_scale
-        sq = (xq[:, None, :] - self.x_s[None, :, :]) ** 2  # (m, n, d)
-        r2 = np.einsum("mnd,bd->bmn", sq, self.inv_l2)
-        k = self.sf2[:, None, None] * correlation(r2, self.covariance)
-        k = k * self.mask.T[:, None, :]  # (B, m, n)
-        mean_s = self.m_s[:, None] + np.einsum("bmn,bn->bm", k, self.alpha)
-        v = np.matmul(self.chol_inv, k.transpose(0, 2, 1))  # (B, n, m)
-        var_s = self.sf2[:, None] - np.sum(v * v, axis=1)
-        mean = (mean_s * self.y_scale[:, None] + self.y_loc[:, None]).T
-        std = (np.sqrt(np.maximum(var_s, 0.0)) * self.y_scale[:, None]).T
-        return mean, std
+        return self.posterior.predict(X)
 
 
 class _LaplaceGPC:

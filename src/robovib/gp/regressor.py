@@ -51,6 +51,7 @@ from .._threads import single_blas_thread
 from . import _likelihood
 from .kernels import COVARIANCES, correlation
 from .optimize import batched_bfgs
+from .posterior import GPPosterior
 
 __all__ = ["BatchedGPRegressor", "GPHyperparameters", "GPNumericalError", "JitterWarning"]
 
@@ -174,6 +175,8 @@ class BatchedGPRegressor(BaseEstimator):
     log_marginal_likelihood_value_ : ndarray (B,)
         Eq. 33 at the optimum, in the data's units.
     converged_ : ndarray (B,) of bool
+    posterior_ : GPPosterior
+        The posterior (Eq. 9-10) every prediction evaluates.
     jitter_ : ndarray (B,)
         Jitter added to the diagonal (scaled units) to factorise each covariance.
 
@@ -684,6 +687,10 @@ class BatchedGPRegressor(BaseEstimator):
         self._inv_l2 = np.broadcast_to(
             np.exp(-2.0 * log_l), (self._theta.shape[0], x_s.shape[1])
         ).copy()
+        self.posterior_ = GPPosterior(
+            self._x_loc, self._x_scale, self._y_loc, self._y_scale, design.x, self._sf2,
+            self._inv_l2, m, alpha, self._chol_inv, self.covariance,
+        )  # fmt: skip
         # predict_one's precomputed arrays (data units; see there).
         self._p1_x = design.x * self._x_scale + self._x_loc
         self._p1_neg_half_inv_l2 = -0.5 * self._inv_l2 / self._x_scale**2
@@ -789,21 +796,13 @@ class BatchedGPRegressor(BaseEstimator):
             )
         if not np.all(np.isfinite(Xq)):
             raise ValueError("X contains NaN or inf")
-        xq = self._scale_x(Xq)
-        sq = (xq[:, None, :] - self._x_s[None, :, :]) ** 2  # (m, n, d)
-        m_q, n_tr = sq.shape[:2]
-        dist = (self._inv_l2 @ sq.reshape(m_q * n_tr, -1).T).reshape(-1, m_q, n_tr)
-        k_star = self._sf2[:, None, None] * correlation(dist, self.covariance)
-        mean_s = self._m_s[:, None] + np.matmul(k_star, self._alpha[:, :, None])[:, :, 0]
-        mean = (mean_s * self._y_scale[:, None] + self._y_loc[:, None]).T
+        mean, std = self.posterior_.predict(Xq)
         if not return_std:
             return mean[:, 0] if self._squeeze else mean
-        v = np.matmul(self._chol_inv, k_star.transpose(0, 2, 1))  # (B, n, m)
-        var_s = self._sf2[:, None] - np.sum(v * v, axis=1)
         if include_noise:
             # The noise of group 0 (the first source, e.g. the reference measurements).
-            var_s = var_s + np.exp(2.0 * self._theta[:, -self._n_groups])[:, None]
-        std = (np.sqrt(np.maximum(var_s, 0.0)) * self._y_scale[:, None]).T
+            noise_var = np.exp(2.0 * self._theta[:, -self._n_groups]) * self._y_scale**2
+            std = np.sqrt(std**2 + noise_var[None, :])
         if self._squeeze:
             return mean[:, 0], std[:, 0]
         return mean, std

@@ -281,16 +281,33 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
         },
         index=pd.Index(names, name="output (unit in the name)"),
     )
+    tables = [("Training range of each input", inputs), ("Fit at the training poses", resid)]
+    figures = [
+        ("Predicted natural frequencies along the first input", plot_pose_model_slice(model))
+    ]
+    cal = getattr(model, "calibration_", None)
+    paragraphs = [
+        f"{type(model).__name__} from {path}: {X.shape[0]} training rows, inputs "
+        f"{', '.join(model.input_names)}, outputs {', '.join(names)} (SI)."
+    ]
+    if cal is not None:
+        from ..gp.plot import plot_calibration
+
+        table = cal.table().set_index("output")
+        tables.append(("Band calibration: grouped CV by pose (coverage of the measurement set, "
+                       "NLPD, RMSE in SI)", table))  # fmt: skip
+        figures.append(("Reliability: PIT histograms and coverage", plot_calibration(cal)))
+        paragraphs.append(
+            f"Bands calibrated on a {cal.n_folds}-fold CV grouped by pose ({cal.n_poses} poses): "
+            "a Student-t scale and tail per output and mode; see docs/bands.md."
+        )
+    else:
+        paragraphs.append("Bands: the plain GP posterior (not calibrated).")
     section = ReportSection(
         title="Pose model of the modal parameters",
-        paragraphs=(
-            f"{type(model).__name__} from {path}: {X.shape[0]} training rows, inputs "
-            f"{', '.join(model.input_names)}, outputs {', '.join(names)} (SI).",
-        ),
-        tables=(("Training range of each input", inputs), ("Fit at the training poses", resid)),
-        figures=(
-            ("Predicted natural frequencies along the first input", plot_pose_model_slice(model)),
-        ),
+        paragraphs=tuple(paragraphs),
+        tables=tuple(tables),
+        figures=tuple(figures),
     )
     settings = {k: v for k, v in model.get_params().items()} if hasattr(model, "get_params") else {}
     return Report(f"robovib — pose model {Path(path).name}", (section,), settings=settings,
