@@ -179,7 +179,9 @@ def campaign(
     truth: Annotated[int, typer.Option(min=0, help="Unseen poses in truth.csv.")] = 20,
     scatter: Annotated[
         str | None,
-        typer.Option(help="Test-to-test scatter 'fn,k,zeta' as relative stds, e.g. 0.01,0.04,0.04."),
+        typer.Option(
+            help="Test-to-test scatter 'fn,k,zeta' as relative stds, e.g. 0.01,0.04,0.04."
+        ),
     ] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
