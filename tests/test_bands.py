@@ -77,10 +77,12 @@ def test_single_component_sets_are_scipy_intervals():
     (iv,) = g.intervals(0.9, "latent")[0][0]
     np.testing.assert_allclose(iv, stats.norm.interval(0.9, 10.0, 0.3), rtol=1e-12)
     t = _one(0.0, (10.0, 10.0), (0.3, 0.3), (0.4, 0.4), scale=(2.0, 2.0), dof=(4.0, 4.0))
+    s = np.hypot(2.0 * 0.3, 0.4)  # the calibration scales the latent std only
     (iv,) = t.intervals(0.95)[0][0]
-    np.testing.assert_allclose(iv, stats.t.interval(0.95, 4.0, 10.0, 1.0), rtol=1e-10)
-    np.testing.assert_allclose(t.logpdf([[11.0]]), stats.t.logpdf(11.0, 4.0, 10.0, 1.0))
-    np.testing.assert_allclose(t.point_std("measurement"), stats.t.std(4.0, 10.0, 1.0))
+    np.testing.assert_allclose(iv, stats.t.interval(0.95, 4.0, 10.0, s), rtol=1e-10)
+    np.testing.assert_allclose(t.logpdf([[11.0]]), stats.t.logpdf(11.0, 4.0, 10.0, s))
+    np.testing.assert_allclose(t.point_std("measurement"), stats.t.std(4.0, 10.0, s))
+    np.testing.assert_allclose(t.point_std("latent"), stats.t.std(4.0, 0.0, 0.6))
 
 
 def test_bimodal_set_holds_its_mass_and_matches_the_scipy_mixture():
@@ -128,6 +130,12 @@ def test_student_t_fit_recovers_scale_and_tail():
     assert 3.0 <= dof <= 6.0
     dof, scale, _ = fit_student_t(0.7 * rng.standard_normal(4000))
     assert dof >= 30 and scale == pytest.approx(0.7, rel=0.05)
+    # Latent and noise parts: only the latent std is scaled (noise known from replicates).
+    lat = rng.uniform(0.5, 2.0, 4000)
+    noise = np.full(4000, 0.8)
+    e = np.sqrt((1.8 * lat) ** 2 + noise**2) * rng.standard_normal(4000)
+    dof, scale, _ = fit_student_t(e, lat, noise)
+    assert dof >= 30 and scale == pytest.approx(1.8, rel=0.05)
     # Too few errors: Gaussian, never narrowed.
     dof, scale, _ = fit_student_t([0.1, -0.2, 0.05])
     assert np.isinf(dof) and scale == 1.0

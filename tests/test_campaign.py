@@ -110,9 +110,9 @@ def test_next_poses_matches_brute_force_refit(campaign):
         [rng.uniform(2100, 2550, 40), rng.uniform(-300, 600, 40), rng.uniform(0, 180, 40)]
     )
     nx = next_poses(fit.model, cand, k=2)
-    from robovib.campaign.model import _gps_of
-
     import copy
+
+    from robovib.campaign.model import _gps_of
 
     # One GP per covariance family (no mode switch here), each output weighted by its band
     # calibration c² (the calibrated band, issue 24).

@@ -3,18 +3,19 @@
 A GP whose hyperparameters maximise the marginal likelihood is often overconfident at a pose it
 has not seen: on Table A1 the plain band covered 73-77 % of held-out hammer tests instead of
 95 %. :class:`~robovib.gp.PoseModalModel` with ``calibrate=True`` therefore fits, per output and
-mode, a Student-t predictive distribution on the standardised out-of-fold errors of a *grouped*
+mode, a Student-t predictive distribution to the out-of-fold errors of a *grouped*
 cross-validation (every replicate of a pose held out together: a prediction at an unseen pose):
 
-    z = (y − μ_cv) / √(σ_latent,cv² + σ_noise,cv²)  ~  c · t_ν
+    y − μ_cv  ~  √((c σ_latent,cv)² + σ_noise,cv²) · t_ν
 
-``c`` (variance scale) and ``ν`` (tail weight, from ``DOF_GRID``; ``inf`` = Gaussian) maximise
-the out-of-fold log predictive density of z. ``ν >= 3`` keeps the variance finite: every band
+``c`` (scale of the latent std: the GP's confidence between measured poses; the test-to-test
+scatter σ_noise is measured by the replicates themselves) and ``ν`` (tail weight, from
+``DOF_GRID``; ``inf`` = Gaussian) maximise the out-of-fold log predictive density. ``ν >= 3`` keeps the variance finite: every band
 has a standard deviation, and sampled modal parameters (P(stable), robust control) stay
 physical. The same predictive density chooses the covariance
 family per output (``covariance="auto"``: SE, Matérn 5/2, Matérn 3/2). Where a mode has fewer
 than ``MIN_Z`` out-of-fold errors, the band keeps the Gaussian shape and is only widened
-(``c = max(1, rms z)``): too little evidence to narrow it or to fit tails.
+(``c >= 1``): too little evidence to narrow it or to fit tails.
 
 The figures stored with the model (coverage at 50/90/95 %, NLPD, RMSE, PIT values) are those of
 the same out-of-fold predictions after calibration, so they are in-sample for the two
@@ -68,40 +69,50 @@ def grouped_folds(X: np.ndarray, n_folds: int, rng=0) -> np.ndarray:
     return fold_of_pose[pose]
 
 
-def fit_student_t(z) -> tuple[float, float, float]:
-    """Maximum-likelihood (dof, scale) of ``c · t_ν`` on standardised errors ``z``.
+def fit_student_t(errors, latent_std=1.0, noise_std=0.0) -> tuple[float, float, float]:
+    """Maximum-likelihood (dof, c) of ``errors ~ √((c σ_latent)² + σ_noise²) · t_ν``.
 
     Parameters
     ----------
-    z
-        (m,) standardised errors (non-finite values ignored).
+    errors
+        (m,) out-of-fold errors ``y − μ`` (non-finite values ignored).
+    latent_std, noise_std
+        (m,) or scalars: the GP's latent and noise std of each prediction (same units).
 
     Returns
     -------
     dof, scale, mean_log_density
-        ``dof`` from :data:`DOF_GRID`; with fewer than :data:`MIN_Z` values a Gaussian widened
-        only: ``(inf, max(1, rms z), ...)``.
+        ``dof`` from :data:`DOF_GRID`; with fewer than :data:`MIN_Z` errors a Gaussian that is
+        only widened: ``(inf, max(1, c_ML), ...)``.
     """
     from scipy.optimize import minimize_scalar
 
-    z = np.asarray(z, float)
-    z = z[np.isfinite(z)]
-    if z.size == 0:
+    e = np.asarray(errors, float)
+    lat = np.broadcast_to(np.asarray(latent_std, float), e.shape)
+    noi = np.broadcast_to(np.asarray(noise_std, float), e.shape)
+    ok = np.isfinite(e) & np.isfinite(lat) & np.isfinite(noi) & (np.hypot(lat, noi) > 0)
+    e, lat, noi = e[ok], lat[ok], noi[ok]
+    if e.size == 0:
         return np.inf, 1.0, float("nan")
-    if z.size < MIN_Z:
-        s = max(1.0, float(np.sqrt(np.mean(z * z))))
-        return np.inf, s, float(np.mean(_t_logpdf(z / s, np.inf) - np.log(s)))
-    best = (-np.inf, np.inf, 1.0)
-    for dof in DOF_GRID:
 
-        def nll(log_s, dof=dof):
-            s = np.exp(log_s)
-            return -float(np.mean(_t_logpdf(z / s, dof) - log_s))
+    def mean_log_density(log_c, dof):
+        s = np.sqrt((np.exp(log_c) * lat) ** 2 + noi**2)
+        return float(np.mean(_t_logpdf(e / s, dof) - np.log(s)))
 
-        r = minimize_scalar(nll, bounds=(-6.0, 6.0), method="bounded")
+    grid = DOF_GRID if e.size >= MIN_Z else (np.inf,)
+    best = (-np.inf, np.inf, 0.0)
+    for dof in grid:
+        r = minimize_scalar(
+            lambda log_c, dof=dof: -mean_log_density(log_c, dof),
+            bounds=(-6.0, 6.0),
+            method="bounded",
+        )
         if -r.fun > best[0]:
-            best = (-r.fun, dof, float(np.exp(r.x)))
-    return best[1], best[2], best[0]
+            best = (-r.fun, dof, float(r.x))
+    dof, log_c = best[1], best[2]
+    if e.size < MIN_Z:
+        log_c = max(log_c, 0.0)
+    return dof, float(np.exp(log_c)), mean_log_density(log_c, dof)
 
 
 @dataclass(frozen=True)
@@ -192,21 +203,21 @@ def mode_index(Y: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
     return idx
 
 
-def standardised_errors(pred: ModalPredictive, Y: np.ndarray, modes: np.ndarray) -> np.ndarray:
-    """(n, n_outputs) uncalibrated z of each observation against the component of its mode."""
-    mean = np.take_along_axis(pred.mean, modes[..., None], axis=-1)[..., 0]
-    s = np.hypot(pred.latent_std, pred.noise_std)
-    s = np.take_along_axis(s, modes[..., None], axis=-1)[..., 0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (Y - mean) / s
+def _of_mode(a: np.ndarray, modes: np.ndarray) -> np.ndarray:
+    return np.take_along_axis(a, modes[..., None], axis=-1)[..., 0]
 
 
 def calibrate_predictions(
     pred: ModalPredictive, Y: np.ndarray, thresholds: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Fit (scale, dof) per output and mode on out-of-fold predictions ``pred`` of ``Y``."""
+    """Fit (scale, dof) per output and mode on out-of-fold predictions ``pred`` of ``Y``.
+
+    Each observation is scored against the component of the mode it shows (by the direction's
+    threshold); a mode never observed takes the other mode's calibration.
+    """
     modes = mode_index(Y, thresholds)
-    z = standardised_errors(pred, Y, modes)
+    err = Y - _of_mode(pred.mean, modes)
+    lat, noi = _of_mode(pred.latent_std, modes), _of_mode(pred.noise_std, modes)
     n_out = Y.shape[1]
     scale = np.ones((n_out, 2))
     dof = np.full((n_out, 2), np.inf)
@@ -214,7 +225,7 @@ def calibrate_predictions(
         for c in (0, 1):
             sel = np.isfinite(Y[:, j]) & (modes[:, j] == c)
             if sel.any():
-                dof[j, c], scale[j, c], _ = fit_student_t(z[sel, j])
+                dof[j, c], scale[j, c], _ = fit_student_t(err[sel, j], lat[sel, j], noi[sel, j])
         if not np.any(np.isfinite(Y[:, j]) & (modes[:, j] == 1)):
             dof[j, 1], scale[j, 1] = dof[j, 0], scale[j, 0]
     return scale, dof

@@ -13,10 +13,12 @@ with a mode switch, weights ``1 − p`` and ``p``; one component elsewhere), eac
 Student-t (Gaussian for ``dof = inf``) with
 
     scale_latent      = c · σ_latent
-    scale_measurement = c · √(σ_latent² + σ_noise²)
+    scale_measurement = √((c · σ_latent)² + σ_noise²)
 
 where ``c`` and ``dof`` are the calibration of that output and mode, estimated from grouped
-cross-validation (:mod:`robovib.gp.calibration`); ``c = 1, dof = inf`` is the plain GP.
+cross-validation (:mod:`robovib.gp.calibration`); ``c = 1, dof = inf`` is the plain GP. The
+calibration scales the latent part only: the test-to-test scatter ``σ_noise`` is what replicated
+tests measure directly, the GP's overconfidence is about the pose dependence between them.
 
 The ``level`` set of a mixture is its highest-density region: one interval where the modes
 overlap or one dominates, two where the prediction is genuinely bimodal
@@ -141,7 +143,8 @@ class ModalPredictive:
         (n, n_outputs, 2) per component [low, high] (SI); the high component repeats the low
         one where no switch is modelled.
     scale, dof
-        (n_outputs, 2) calibration factor ``c`` and Student-t degrees of freedom per component.
+        (n_outputs, 2) calibration factor ``c`` of the latent std and Student-t degrees of
+        freedom per component.
     """
 
     output_names: tuple[str, ...]
@@ -168,8 +171,8 @@ class ModalPredictive:
     def component_scale(self, kind: str = "measurement") -> np.ndarray:
         """(n, n_outputs, 2) calibrated scale of each component (SI)."""
         self._check_kind(kind)
-        s = self.latent_std if kind == "latent" else np.hypot(self.latent_std, self.noise_std)
-        return self.scale[None] * s
+        latent = self.scale[None] * self.latent_std
+        return latent if kind == "latent" else np.hypot(latent, self.noise_std)
 
     @property
     def weights(self) -> np.ndarray:
