@@ -26,8 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..io.h5format import open_checked, write_header
 from .calibration import read_calibration, write_calibration
-from .mode_switch import ModeSwitchingGPRegressor, symmetric_rz_features
+from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, symmetric_rz_features
+from .predictor import FORMAT, FORMAT_VERSION
 from .regressor import BatchedGPRegressor, GPHyperparameters
 
 _REG_PARAMS = ("kernel", "mean", "normalize", "max_iter", "gtol", "n_noise_groups", "covariance")
@@ -221,14 +223,9 @@ def read_mode_switching(group) -> ModeSwitchingGPRegressor:
 def write_pose_model(model, path, *, cv=None, provenance=None) -> None:
     import h5py
 
-    from .pose_model import FORMAT, FORMAT_VERSION, _now_utc, _params_json
-
     with h5py.File(path, "w") as h5:
+        write_header(h5, FORMAT, FORMAT_VERSION)
         a = h5.attrs
-        a["format"] = FORMAT
-        a["format_version"] = FORMAT_VERSION
-        a["robovib_version"] = __version__
-        a["created_utc"] = _now_utc()
         a["params_json"] = _params_json(model)
         a["input_names"] = list(model.input_names_)
         a["input_units"] = list(model.input_units_)
@@ -278,6 +275,24 @@ def write_pose_model(model, path, *, cv=None, provenance=None) -> None:
             p.attrs[str(k)] = v if isinstance(v, int | float | str | bool) else json.dumps(v)
 
 
+def _params_json(model) -> str:
+    ms = model.mode_switch
+    rng = model.rng if isinstance(model.rng, int | np.integer) or model.rng is None else None
+    return json.dumps(
+        {
+            "input_names": list(model.input_names),
+            "directions": list(model.directions),
+            "kernel": model.kernel,
+            "mode_switch": dict(ms) if isinstance(ms, Mapping) else ms,
+            "rng": None if rng is None else int(rng),
+            "rz_symmetric": bool(model.rz_symmetric),
+            "covariance": model.covariance,
+            "calibrate": bool(model.calibrate),
+            "calibration_folds": int(model.calibration_folds),
+        }
+    )
+
+
 def _cv_figures(cv) -> dict:
     if isinstance(cv, Mapping):
         return dict(cv)
@@ -289,25 +304,11 @@ def _str(v) -> str:
 
 
 def read_pose_model(cls, path):
-    import h5py
-
-    from .pose_model import FORMAT, FORMAT_VERSION, ModeSwitchDetection
 
     path = Path(path)
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+    h5, _, version = open_checked(path, {FORMAT: FORMAT_VERSION})
     with h5:
         a = h5.attrs
-        if _str(a.get("format", "")) != FORMAT:
-            raise ValueError(f"{path}: not a {FORMAT} file (format tag {a.get('format')!r})")
-        version = int(a.get("format_version", -1))
-        if version < 1 or version > FORMAT_VERSION:
-            raise ValueError(
-                f"{path}: {FORMAT} format version {version}; this robovib reads up to "
-                f"{FORMAT_VERSION}"
-            )
         params = json.loads(_str(a["params_json"]))
         params["input_names"] = tuple(params["input_names"])
         params["directions"] = tuple(params["directions"])

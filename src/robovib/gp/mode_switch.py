@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from sklearn.base import BaseEstimator
@@ -26,7 +27,142 @@ from sklearn.exceptions import NotFittedError
 
 from .regressor import BatchedGPRegressor
 
-__all__ = ["ModeSwitchingGPRegressor", "symmetric_rz_features"]
+__all__ = [
+    "ModeSwitchDetection",
+    "ModeSwitchingGPRegressor",
+    "detect_mode_switch",
+    "symmetric_rz_features",
+]
+
+
+@dataclass(frozen=True)
+class ModeSwitchDetection:
+    """Outcome of the mode-switch test of one direction (see the module docstring).
+
+    Attributes
+    ----------
+    direction
+        The direction tested.
+    found
+        A switch is modelled in this direction.
+    assumed
+        The switch was given by the user (``mode_switch={direction: threshold_hz}``), not tested.
+    threshold_hz
+        Frequency separating the low and the high mode (NaN when none is found).
+    delta_bic
+        BIC(1 component) − BIC(2 components) of ``log fn``.
+    ashman_d
+        Ashman's D of the two mixture components.
+    gap_sigma
+        Empty gap between the modes / larger within-mode std, both in ``log fn``.
+    n_low, n_high
+        Samples in the low and the high mode.
+    reason
+        One line explaining the decision.
+    """
+
+    direction: str
+    found: bool
+    assumed: bool
+    threshold_hz: float
+    delta_bic: float
+    ashman_d: float
+    gap_sigma: float
+    n_low: int
+    n_high: int
+    reason: str
+
+    def to_dict(self) -> dict:
+        """Plain dict (JSON-ready; NaN stays NaN)."""
+        return asdict(self)
+
+
+def detect_mode_switch(
+    fn_hz,
+    *,
+    direction: str = "",
+    min_delta_bic: float = 10.0,
+    min_ashman_d: float = 3.0,
+    min_gap_sigma: float = 3.0,
+    min_samples: int = 3,
+) -> ModeSwitchDetection:
+    """Test whether the natural frequencies of one direction come from two distinct modes.
+
+    Parameters
+    ----------
+    fn_hz
+        (n,) observed natural frequencies of the dominant mode [Hz], over the workspace.
+    direction
+        Label stored in the result.
+    min_delta_bic, min_ashman_d, min_gap_sigma, min_samples
+        The thresholds of rules 1-4 of the module docstring.
+
+    Returns
+    -------
+    ModeSwitchDetection
+
+    Raises
+    ------
+    ValueError
+        If ``fn_hz`` is not 1-D or holds non-finite or non-positive values.
+    """
+    from sklearn.mixture import GaussianMixture
+
+    fn = np.asarray(fn_hz, float)
+    if fn.ndim != 1:
+        raise ValueError(f"fn_hz must be 1-D, got shape {fn.shape}")
+    if not np.all(np.isfinite(fn)) or np.any(fn <= 0):
+        raise ValueError("fn_hz must be positive finite natural frequencies [Hz]")
+    nan = float("nan")
+
+    def none(reason, dbic=nan, d=nan, gap=nan, n_low=fn.size, n_high=0):
+        return ModeSwitchDetection(
+            direction, False, False, nan, dbic, d, gap, int(n_low), int(n_high), reason
+        )
+
+    if fn.size < 2 * min_samples or np.unique(fn).size < 2:
+        return none(f"too few distinct samples ({fn.size}) to test for two modes")
+    v = np.log(fn)[:, None]
+    one = GaussianMixture(1).fit(v)
+    two = GaussianMixture(2, n_init=5, random_state=0).fit(v)
+    delta_bic = float(one.bic(v) - two.bic(v))
+    labels = two.predict(v)
+    high_label = int(np.argmax(two.means_[:, 0]))
+    low, high = v[labels != high_label, 0], v[labels == high_label, 0]
+    if low.size == 0 or high.size == 0:
+        return none("the 2-component mixture put every sample in one mode", delta_bic)
+    ashman = float(np.sqrt(2.0) * abs(high.mean() - low.mean()) / np.hypot(low.std(), high.std()))
+    # Floor of the within-mode spread: frequencies are read to ~0.5 %, and identical replicates
+    # must not make any gap look infinitely wide.
+    spread = max(low.std(), high.std(), 0.005)
+    gap = float(max(high.min() - low.max(), 0.0) / spread)
+    stats = dict(dbic=delta_bic, d=ashman, gap=gap, n_low=low.size, n_high=high.size)
+    if delta_bic < min_delta_bic:
+        return none(f"one mode: ΔBIC = {delta_bic:.1f} < {min_delta_bic:g}", **stats)
+    if ashman < min_ashman_d:
+        return none(f"modes not separated: Ashman's D = {ashman:.2f} < {min_ashman_d:g}", **stats)
+    if gap < min_gap_sigma:
+        return none(
+            f"no clear gap between the modes: gap = {gap:.2f} within-mode std < {min_gap_sigma:g}",
+            **stats,
+        )
+    if min(low.size, high.size) < min_samples:
+        return none(f"a mode has fewer than {min_samples} samples", **stats)
+    threshold = float(np.exp(0.5 * (low.max() + high.min())))
+    return ModeSwitchDetection(
+        direction,
+        True,
+        False,
+        threshold,
+        delta_bic,
+        ashman,
+        gap,
+        int(low.size),
+        int(high.size),
+        f"two modes: {np.exp(low.min()):.3g}-{np.exp(low.max()):.3g} Hz and "
+        f"{np.exp(high.min()):.3g}-{np.exp(high.max()):.3g} Hz (ΔBIC = {delta_bic:.0f}, "
+        f"D = {ashman:.1f}, gap = {gap:.1f} std)",
+    )
 
 
 def symmetric_rz_features(X: np.ndarray) -> np.ndarray:

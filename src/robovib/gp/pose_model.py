@@ -31,11 +31,9 @@ direction is kept in ``mode_switches_``.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass
-from datetime import UTC, datetime
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -43,9 +41,11 @@ from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
 from ..modal.parameters import ModalParameters
+from . import _h5
 from .kernels import COVARIANCES
-from .mode_switch import ModeSwitchingGPRegressor
+from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
 from .predictive import ModalPredictive, assemble, noise_std_of
+from .predictor import FORMAT, FORMAT_VERSION
 from .regressor import BatchedGPRegressor
 
 __all__ = [
@@ -57,9 +57,6 @@ __all__ = [
     "detect_mode_switch",
 ]
 
-#: Format tag and version of the HDF5 files written by :meth:`PoseModalModel.save`.
-FORMAT = "robovib.PoseModalModel"
-FORMAT_VERSION = 1
 
 _QUANTITIES = (("fn", "hz"), ("stiffness", "n_per_m"), ("damping", "ns_per_m"))
 _UNIT_LABELS = {"hz": "Hz", "n_per_m": "N/m", "ns_per_m": "N*s/m"}
@@ -129,136 +126,6 @@ class PoseMode:
             "extrapolating": self.extrapolating,
             "high_mode_probability": self.high_mode_probability,
         }
-
-
-@dataclass(frozen=True)
-class ModeSwitchDetection:
-    """Outcome of the mode-switch test of one direction (see the module docstring).
-
-    Attributes
-    ----------
-    direction
-        The direction tested.
-    found
-        A switch is modelled in this direction.
-    assumed
-        The switch was given by the user (``mode_switch={direction: threshold_hz}``), not tested.
-    threshold_hz
-        Frequency separating the low and the high mode (NaN when none is found).
-    delta_bic
-        BIC(1 component) − BIC(2 components) of ``log fn``.
-    ashman_d
-        Ashman's D of the two mixture components.
-    gap_sigma
-        Empty gap between the modes / larger within-mode std, both in ``log fn``.
-    n_low, n_high
-        Samples in the low and the high mode.
-    reason
-        One line explaining the decision.
-    """
-
-    direction: str
-    found: bool
-    assumed: bool
-    threshold_hz: float
-    delta_bic: float
-    ashman_d: float
-    gap_sigma: float
-    n_low: int
-    n_high: int
-    reason: str
-
-    def to_dict(self) -> dict:
-        """Plain dict (JSON-ready; NaN stays NaN)."""
-        return asdict(self)
-
-
-def detect_mode_switch(
-    fn_hz,
-    *,
-    direction: str = "",
-    min_delta_bic: float = 10.0,
-    min_ashman_d: float = 3.0,
-    min_gap_sigma: float = 3.0,
-    min_samples: int = 3,
-) -> ModeSwitchDetection:
-    """Test whether the natural frequencies of one direction come from two distinct modes.
-
-    Parameters
-    ----------
-    fn_hz
-        (n,) observed natural frequencies of the dominant mode [Hz], over the workspace.
-    direction
-        Label stored in the result.
-    min_delta_bic, min_ashman_d, min_gap_sigma, min_samples
-        The thresholds of rules 1-4 of the module docstring.
-
-    Returns
-    -------
-    ModeSwitchDetection
-
-    Raises
-    ------
-    ValueError
-        If ``fn_hz`` is not 1-D or holds non-finite or non-positive values.
-    """
-    from sklearn.mixture import GaussianMixture
-
-    fn = np.asarray(fn_hz, float)
-    if fn.ndim != 1:
-        raise ValueError(f"fn_hz must be 1-D, got shape {fn.shape}")
-    if not np.all(np.isfinite(fn)) or np.any(fn <= 0):
-        raise ValueError("fn_hz must be positive finite natural frequencies [Hz]")
-    nan = float("nan")
-
-    def none(reason, dbic=nan, d=nan, gap=nan, n_low=fn.size, n_high=0):
-        return ModeSwitchDetection(
-            direction, False, False, nan, dbic, d, gap, int(n_low), int(n_high), reason
-        )
-
-    if fn.size < 2 * min_samples or np.unique(fn).size < 2:
-        return none(f"too few distinct samples ({fn.size}) to test for two modes")
-    v = np.log(fn)[:, None]
-    one = GaussianMixture(1).fit(v)
-    two = GaussianMixture(2, n_init=5, random_state=0).fit(v)
-    delta_bic = float(one.bic(v) - two.bic(v))
-    labels = two.predict(v)
-    high_label = int(np.argmax(two.means_[:, 0]))
-    low, high = v[labels != high_label, 0], v[labels == high_label, 0]
-    if low.size == 0 or high.size == 0:
-        return none("the 2-component mixture put every sample in one mode", delta_bic)
-    ashman = float(np.sqrt(2.0) * abs(high.mean() - low.mean()) / np.hypot(low.std(), high.std()))
-    # Floor of the within-mode spread: frequencies are read to ~0.5 %, and identical replicates
-    # must not make any gap look infinitely wide.
-    spread = max(low.std(), high.std(), 0.005)
-    gap = float(max(high.min() - low.max(), 0.0) / spread)
-    stats = dict(dbic=delta_bic, d=ashman, gap=gap, n_low=low.size, n_high=high.size)
-    if delta_bic < min_delta_bic:
-        return none(f"one mode: ΔBIC = {delta_bic:.1f} < {min_delta_bic:g}", **stats)
-    if ashman < min_ashman_d:
-        return none(f"modes not separated: Ashman's D = {ashman:.2f} < {min_ashman_d:g}", **stats)
-    if gap < min_gap_sigma:
-        return none(
-            f"no clear gap between the modes: gap = {gap:.2f} within-mode std < {min_gap_sigma:g}",
-            **stats,
-        )
-    if min(low.size, high.size) < min_samples:
-        return none(f"a mode has fewer than {min_samples} samples", **stats)
-    threshold = float(np.exp(0.5 * (low.max() + high.min())))
-    return ModeSwitchDetection(
-        direction,
-        True,
-        False,
-        threshold,
-        delta_bic,
-        ashman,
-        gap,
-        int(low.size),
-        int(high.size),
-        f"two modes: {np.exp(low.min()):.3g}-{np.exp(low.max()):.3g} Hz and "
-        f"{np.exp(high.min()):.3g}-{np.exp(high.max()):.3g} Hz (ΔBIC = {delta_bic:.0f}, "
-        f"D = {ashman:.1f}, gap = {gap:.1f} std)",
-    )
 
 
 class _RzCos2:
@@ -1000,8 +867,6 @@ class PoseModalModel(BaseEstimator):
         >>> path.suffix
         '.h5'
         """
-        from . import _h5
-
         self._require_fitted()
         cv = getattr(self, "cv_", None) if cv is None else cv
         provenance = getattr(self, "provenance_", None) if provenance is None else provenance
@@ -1041,31 +906,7 @@ class PoseModalModel(BaseEstimator):
         >>> PoseModalModel.load(path).input_names
         ('x_mm', 'y_mm', 'rz_deg')
         """
-        from . import _h5
-
         return _h5.read_pose_model(cls, path)
-
-
-def _params_json(model: PoseModalModel) -> str:
-    ms = model.mode_switch
-    rng = model.rng if isinstance(model.rng, int | np.integer) or model.rng is None else None
-    return json.dumps(
-        {
-            "input_names": list(model.input_names),
-            "directions": list(model.directions),
-            "kernel": model.kernel,
-            "mode_switch": dict(ms) if isinstance(ms, Mapping) else ms,
-            "rng": None if rng is None else int(rng),
-            "rz_symmetric": bool(model.rz_symmetric),
-            "covariance": model.covariance,
-            "calibrate": bool(model.calibrate),
-            "calibration_folds": int(model.calibration_folds),
-        }
-    )
-
-
-def _now_utc() -> str:
-    return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def _finite_or_nan(v) -> float:

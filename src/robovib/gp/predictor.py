@@ -46,8 +46,9 @@ __all__ = [
     "predict_at",
 ]
 
-_FORMAT = "robovib.PoseModalModel"  # = pose_model.FORMAT (not imported: it imports scikit-learn)
-_FORMAT_VERSION = 1
+#: Format tag and version of pose-model files (:meth:`PoseModalModel.save` writes them).
+FORMAT = "robovib.PoseModalModel"
+FORMAT_VERSION = 1
 _QUANTITIES = (("fn", "hz"), ("stiffness", "n_per_m"), ("damping", "ns_per_m"))
 _UNIT_LABELS = {"hz": "Hz", "n_per_m": "N/m", "ns_per_m": "N*s/m"}
 # Williams & Barber's approximation of the logistic sigmoid by five error functions (the
@@ -284,24 +285,13 @@ class PosePredictor:
             Not a readable HDF5 file, not a pose model, a newer format version, or a stored
             covariance that needed jitter (use :meth:`PoseModalModel.load`).
         """
-        import h5py
+        from ..io.h5format import open_checked
 
         path = Path(path)
-        try:
-            h5 = h5py.File(path, "r")
-        except OSError as exc:
-            raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+        h5, _, _ = open_checked(path, {FORMAT: FORMAT_VERSION})
         self = cls()
         with h5:
             a = h5.attrs
-            if _str(a.get("format", "")) != _FORMAT:
-                raise ValueError(f"{path}: not a {_FORMAT} file (format tag {a.get('format')!r})")
-            version = int(a.get("format_version", -1))
-            if version < 1 or version > _FORMAT_VERSION:
-                raise ValueError(
-                    f"{path}: {_FORMAT} format version {version}; this robovib reads up to "
-                    f"{_FORMAT_VERSION}"
-                )
             params = json.loads(_str(a["params_json"]))
             self.input_names = self.input_names_ = tuple(params["input_names"])
             self.directions = self.directions_ = tuple(params["directions"])

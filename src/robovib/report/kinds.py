@@ -164,15 +164,10 @@ def chapter3_study_report(
 def _load_model(path):
     """A saved pose model (:class:`robovib.gp.PoseModalModel`: the chapter-3 model, a campaign's
     or a user's) or a hybrid FRF model, by the file's format tag."""
-    import h5py
+    from ..gp.predictor import FORMAT as POSE_FORMAT
+    from ..io.h5format import file_format
 
-    from ..gp.pose_model import FORMAT as POSE_FORMAT
-
-    try:
-        with h5py.File(path, "r") as h5:
-            fmt = str(h5.attrs.get("format", ""))
-    except OSError as exc:
-        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+    fmt, _ = file_format(path)
     if fmt == "robovib-frf-pose-model":
         from ..hybrid import FRFPoseModel
 

@@ -1,0 +1,112 @@
+"""The one header convention of every HDF5 file robovib writes, and its one reader.
+
+Every file carries, as root attributes: ``format`` (what it holds, e.g.
+``robovib.PoseModalModel``), ``format_version`` (an integer that grows when the layout
+changes), ``robovib_version`` (the writer) and ``created_utc``. :func:`open_checked` opens a
+file for reading and checks the tag and version in one place, so every reader refuses a foreign
+or newer file with the same clear message. Files written before the convention named the
+version ``version``; it is read as ``format_version``.
+
+Only h5py is imported (lazily): the fast prediction path uses this module.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from datetime import UTC, datetime
+from pathlib import Path
+
+__all__ = ["file_format", "open_checked", "write_header"]
+
+
+def write_header(h5, format_name: str, format_version: int, **attrs) -> None:
+    """Write the root attributes of the convention (and any extra ``attrs``).
+
+    Parameters
+    ----------
+    h5
+        An ``h5py.File`` open for writing.
+    format_name, format_version
+        What the file holds and its layout version.
+    **attrs
+        Further root attributes (strings, numbers, lists of strings).
+    """
+    from .. import __version__
+
+    h5.attrs["format"] = format_name
+    h5.attrs["format_version"] = int(format_version)
+    h5.attrs["robovib_version"] = __version__
+    h5.attrs["created_utc"] = datetime.now(UTC).isoformat(timespec="seconds")
+    for key, value in attrs.items():
+        h5.attrs[key] = value
+
+
+def _as_str(v) -> str:
+    return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def file_format(path) -> tuple[str, int]:
+    """``(format, format_version)`` of an HDF5 file (``("", -1)`` when untagged).
+
+    Raises
+    ------
+    ValueError
+        Not a readable HDF5 file.
+    """
+    import h5py
+
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as h5:
+            return _tag(h5)
+    except OSError as exc:
+        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+
+
+def _tag(h5) -> tuple[str, int]:
+    a = h5.attrs
+    version = a.get("format_version", a.get("version", -1))
+    return _as_str(a.get("format", "")), int(version)
+
+
+def open_checked(path, formats: Mapping[str, int], what: str | None = None):
+    """Open an HDF5 file for reading after checking its format tag and version.
+
+    Parameters
+    ----------
+    path
+        The file.
+    formats
+        Accepted format tags -> the newest version this robovib reads of each.
+    what
+        Words for the error message (default: the accepted tags).
+
+    Returns
+    -------
+    h5py.File, str, int
+        The open file (close it: ``with``), its format tag and version.
+
+    Raises
+    ------
+    ValueError
+        Not a readable HDF5 file, another format, or a version newer than supported.
+    """
+    import h5py
+
+    path = Path(path)
+    try:
+        h5 = h5py.File(path, "r")
+    except OSError as exc:
+        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+    fmt, version = _tag(h5)
+    if fmt not in formats:
+        h5.close()
+        expected = what or " or ".join(formats)
+        raise ValueError(f"{path}: not a {expected} file (format tag {fmt!r})")
+    if version < 1 or version > formats[fmt]:
+        h5.close()
+        raise ValueError(
+            f"{path}: {fmt} format version {version}; this robovib reads versions 1 to "
+            f"{formats[fmt]}"
+        )
+    return h5, fmt, version
