@@ -15,7 +15,8 @@ import pytest
 
 from robovib.gp import PoseModalModel
 from robovib.gp.chapter3_model import chapter3_model_path, load_chapter3_predictor
-from robovib.gp.predictor import PosePredictor, _in_hull, _LaplaceGPC, predict_at
+from robovib.gp.extrapolation import _in_hull
+from robovib.gp.predictor import PosePredictor, _LaplaceGPC, predict_at
 
 
 @pytest.fixture(scope="module")

@@ -42,6 +42,7 @@ from sklearn.exceptions import NotFittedError
 
 from ..modal.parameters import ModalParameters
 from . import _h5
+from .extrapolation import TrainingRegion
 from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
 from .predictive import ModalPredictive, assemble, noise_std_of
@@ -200,6 +201,8 @@ class PoseModalModel(BaseEstimator):
         Noise group of each training sample.
     input_min_, input_max_ : ndarray (n_inputs,)
         Box of the training inputs.
+    region_ : TrainingRegion
+        Box and hull of the training inputs (:meth:`extrapolating`).
     calibration_ : BandCalibration or None
         The band calibration and its grouped-CV scores (``calibrate=True``), else None.
     covariances_ : tuple of str
@@ -641,26 +644,8 @@ class PoseModalModel(BaseEstimator):
         self.X_train_, self.Y_train_, self.mask_, self.groups_ = X, Y, mask, groups
         self.n_features_in_ = X.shape[1]
         self.n_outputs_ = Y.shape[1]
-        self.input_min_, self.input_max_ = X.min(axis=0), X.max(axis=0)
-        self._build_hull()
-
-    def _build_hull(self) -> None:
-        """Delaunay triangulation of the (standardised) training inputs, if they span a volume."""
-        self._hull = None
-        X = self.X_train_
-        if X.shape[1] < 2:
-            return
-        from scipy.spatial import Delaunay, QhullError
-
-        self._hull_loc = X.mean(axis=0)
-        self._hull_scale = np.where(X.std(axis=0) > 0, X.std(axis=0), 1.0)
-        pts = np.unique((X - self._hull_loc) / self._hull_scale, axis=0)
-        if pts.shape[0] <= X.shape[1]:
-            return
-        try:
-            self._hull = Delaunay(pts)
-        except QhullError:  # flat point set: the box test alone applies
-            self._hull = None
+        self.region_ = TrainingRegion.of(X)
+        self.input_min_, self.input_max_ = self.region_.lo, self.region_.hi
 
     # ------------------------------------------------------------------ prediction
     def predict(self, X, return_std: bool = False):
@@ -701,23 +686,17 @@ class PoseModalModel(BaseEstimator):
 
     def outside_inputs(self, X) -> np.ndarray:
         """(n, n_inputs) bool: input value outside the training range of that input."""
-        X = self._check_X(X)
-        tol = 1e-9 * np.maximum(1.0, self.input_max_ - self.input_min_)
-        return (self.input_min_ - tol > X) | (self.input_max_ + tol < X)
+        return self.region_.outside_inputs(self._check_X(X))
 
     def extrapolating(self, X) -> np.ndarray:
         """(n,) bool: the pose is outside the calibrated inputs.
 
         Outside means outside the box of the training inputs (per input, as ``gpr predict``
         has always reported) or, for two or more inputs, outside the convex hull of the
-        training poses (inside the box but off the measured workspace).
+        training poses (inside the box but off the measured workspace); one rule for every pose
+        model: :class:`robovib.gp.extrapolation.TrainingRegion`.
         """
-        X = self._check_X(X)
-        out = np.any(self.outside_inputs(X), axis=1)
-        if self._hull is not None:
-            xs = (X - self._hull_loc) / self._hull_scale
-            out |= self._hull.find_simplex(xs, tol=1e-9) < 0
-        return out
+        return self.region_.extrapolating(self._check_X(X))
 
     def mode_switch_probability(self, X) -> np.ndarray | None:
         """(n, n_directions) probability that the high mode dominates; None without switches.

@@ -14,8 +14,8 @@ same posterior without them:
   on the stored kernel): Newton iterations for the posterior mode, then the Williams-Barber
   five-erf approximation of the predictive probability;
 * extrapolation: outside the box of the training inputs or outside the convex hull of the
-  standardised unique training poses (as :meth:`PoseModalModel.extrapolating`, which uses SciPy's
-  Delaunay triangulation; here a non-negative least-squares test, :func:`_in_hull`).
+  standardised unique training poses: the rule of :meth:`PoseModalModel.extrapolating`, one
+  implementation (:class:`robovib.gp.extrapolation.TrainingRegion`, NumPy only).
 
 :func:`predict_at` is the one prediction at a pose of both (``robovib gpr predict`` with or
 without ``--model``): SI outputs with ±2σ, extrapolation and mode-switch flags.
@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .._threads import single_blas_thread
+from .extrapolation import TrainingRegion
 from .kernels import correlation
 from .posterior import GPPosterior
 
@@ -331,16 +332,8 @@ class PosePredictor:
                 from .calibration import read_calibration
 
                 self.calibration_ = read_calibration(h5["calibration"])
-        X = self.X_train_
-        self.input_min_, self.input_max_ = X.min(axis=0), X.max(axis=0)
-        self._hull_pts = None
-        if X.shape[1] >= 2:
-            self._hull_loc = X.mean(axis=0)
-            self._hull_scale = np.where(X.std(axis=0) > 0, X.std(axis=0), 1.0)
-            pts = _unique_rows((X - self._hull_loc) / self._hull_scale)
-            # As PoseModalModel: no hull (box test only) where the poses span no volume.
-            if pts.shape[0] > X.shape[1] and np.linalg.matrix_rank(pts - pts[0]) == X.shape[1]:
-                self._hull_pts = pts
+        self.region_ = TrainingRegion.of(self.X_train_)
+        self.input_min_, self.input_max_ = self.region_.lo, self.region_.hi
         return self
 
     def _check_X(self, X) -> np.ndarray:
@@ -388,24 +381,12 @@ class PosePredictor:
 
     def outside_inputs(self, X) -> np.ndarray:
         """(n, n_inputs) bool: input value outside the training range of that input."""
-        X = self._check_X(X)
-        tol = 1e-9 * np.maximum(1.0, self.input_max_ - self.input_min_)
-        return (self.input_min_ - tol > X) | (self.input_max_ + tol < X)
+        return self.region_.outside_inputs(self._check_X(X))
 
     def extrapolating(self, X) -> np.ndarray:
-        """(n,) bool: outside the box or the convex hull of the training inputs.
-
-        The hull test is a non-negative least-squares problem (:func:`_in_hull`) instead of
-        SciPy's Delaunay triangulation (importing ``scipy.spatial`` costs ~0.3 s); both say
-        "inside" within ~1e-9 of the hull in standardised inputs.
-        """
-        X = self._check_X(X)
-        out = np.any(self.outside_inputs(X), axis=1)
-        if self._hull_pts is not None:
-            xs = (X - self._hull_loc) / self._hull_scale
-            for i in np.flatnonzero(~out):
-                out[i] = not _in_hull(self._hull_pts, xs[i])
-        return out
+        """(n,) bool: outside the box or the convex hull of the training inputs
+        (:class:`robovib.gp.extrapolation.TrainingRegion`)."""
+        return self.region_.extrapolating(self._check_X(X))
 
     def mode_switch_probability(self, X) -> np.ndarray | None:
         """(n, n_directions) probability that the high mode dominates; None without switches."""
@@ -417,43 +398,6 @@ class PosePredictor:
             if isinstance(est, _Switching):
                 p[:, cols[0] // 3] = est.high_mode_probability(X)
         return p
-
-
-def _unique_rows(a: np.ndarray) -> np.ndarray:
-    """Distinct rows of ``a`` (``np.unique(a, axis=0)`` imports numpy.ma: ~30 ms at start-up)."""
-    s = a[np.lexsort(a.T[::-1])]
-    return s[np.r_[True, np.any(s[1:] != s[:-1], axis=1)]]
-
-
-def _in_hull(points: np.ndarray, x: np.ndarray, tol: float = 1e-9) -> bool:
-    """Whether ``x`` (d,) lies in the convex hull of ``points`` (m, d), within ``tol``.
-
-    ``x`` is in the hull iff weights ``w >= 0`` with ``sum(w) = 1`` and ``points.T @ w = x``
-    exist: the non-negative least-squares residual of ``[points.T; 1] w = [x; 1]`` is zero
-    (Lawson & Hanson's active-set algorithm, NumPy only).
-    """
-    A = np.vstack([points.T, np.ones(points.shape[0])])
-    b = np.append(x, 1.0)
-    n = A.shape[1]
-    passive = np.zeros(n, bool)
-    w = np.zeros(n)
-    for _ in range(3 * n):
-        grad = A.T @ (b - A @ w)
-        if np.linalg.norm(b - A @ w) <= tol or passive.all() or grad[~passive].max() <= 1e-14:
-            break
-        passive[np.argmax(np.where(passive, -np.inf, grad))] = True
-        while True:
-            z = np.zeros(n)
-            z[passive] = np.linalg.lstsq(A[:, passive], b, rcond=None)[0]
-            if np.all(z[passive] > 0):
-                w = z
-                break
-            neg = passive & (z <= 0)
-            step = np.min(w[neg] / (w[neg] - z[neg]))
-            w = w + step * (z - w)
-            passive &= w > 1e-15
-            w[~passive] = 0.0
-    return bool(np.linalg.norm(b - A @ w) <= tol)
 
 
 def load_pose_predictor(path):
