@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..gp.pose_model import PoseModalModel, load_pose_model
 from ..gp.predictor import PosePrediction, predict_at
 from ..gp.regressor import BatchedGPRegressor
 
@@ -40,12 +41,6 @@ __all__ = [
 _OUTPUTS = ("fn_hz", "stiffness_n_per_m", "damping_ns_per_m")
 _OUTPUT_UNITS = ("Hz", "N/m", "N*s/m")
 _FIT_FLAGS = ("band edge", "residual", "coherence")
-
-
-def _pose_model_class():
-    from ..gp import PoseModalModel
-
-    return PoseModalModel
 
 
 @dataclass(frozen=True)
@@ -194,7 +189,7 @@ def fit_pose_model_from_table(
     if directions is None:
         directions = tuple(d for d in ("x", "y", "z") if d in set(table["direction"]))
     X, Y, groups, excluded = _training_table(table, inputs, tuple(directions), use_flagged)
-    cls = _pose_model_class()
+    cls = PoseModalModel
     n_poses = int(np.unique(groups).size)
     if n_poses < 2:
         raise ValueError(f"cross-validation needs at least 2 poses, got {n_poses}")
@@ -374,31 +369,3 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
         cov = cov - col[:, :, None] * col[:, None, :] / (diag[:, c] + noise)[:, None, None]
     idx = np.array(chosen)
     return NextPoses(C[idx], idx, np.array(gains), before)
-
-
-def load_pose_model(path, require_inputs=None):
-    """Load a pose model file (``robovib.gp.PoseModalModel``), optionally checking its inputs.
-
-    Parameters
-    ----------
-    path
-        The model's HDF5 file.
-    require_inputs
-        If given, the input names the caller needs (e.g. ``("x_mm", "y_mm", "rz_deg")``).
-
-    Raises
-    ------
-    ValueError
-        Not a readable HDF5 file, not a robovib pose model, or other inputs than required.
-    """
-    model = _load_pose_model(path)
-    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
-        raise ValueError(
-            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
-            f"the model has {', '.join(model.input_names)}"
-        )
-    return model
-
-
-def _load_pose_model(path):
-    return _pose_model_class().load(path)

@@ -84,7 +84,7 @@ def workspace_model(path: Path | None, seed: int = 0):
         from ..gp import get_chapter3_model
 
         return get_chapter3_model(rng=seed)
-    from ..campaign import load_pose_model
+    from ..gp import load_pose_model
 
     return load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg"))
 

@@ -190,7 +190,7 @@ def _schedule_line(start, end, points, direction, model_path, seed, plot, json_o
 
         model = get_chapter3_model(rng=seed)
     else:
-        from ..campaign import load_pose_model
+        from ..gp import load_pose_model
 
         model = load_pose_model(model_path)
     warnings_seen: list[str] = []

@@ -100,7 +100,8 @@ def next_poses_cmd(
     json_out: JsonFlag = False,
 ) -> None:
     """Where to hammer next: largest integrated variance reduction over the candidates."""
-    from ..campaign import load_pose_model, next_poses
+    from ..campaign import next_poses
+    from ..gp import load_pose_model
     from ..io import read_pose_table
 
     m = load_pose_model(model)

@@ -25,6 +25,7 @@ _WHERE = {
     "load_chapter3_model": "chapter3_model",
     "load_chapter3_predictor": "chapter3_model",
     "load_pose_predictor": "predictor",
+    "load_pose_model": "pose_model",
     "plot_calibration": "plot",
 }
 

@@ -56,6 +56,7 @@ __all__ = [
     "PoseModalModel",
     "PoseMode",
     "detect_mode_switch",
+    "load_pose_model",
 ]
 
 
@@ -891,6 +892,42 @@ class PoseModalModel(BaseEstimator):
 def _finite_or_nan(v) -> float:
     v = float(v)
     return v if math.isfinite(v) else float("nan")
+
+
+def load_pose_model(path, require_inputs=None):
+    """Load a pose model file (``robovib.gp.PoseModalModel``), optionally checking its inputs.
+
+    Parameters
+    ----------
+    path
+        The model's HDF5 file.
+    require_inputs
+        If given, the input names the caller needs (e.g. ``("x_mm", "y_mm", "rz_deg")``).
+
+    Returns
+    -------
+    PoseModalModel
+
+    Raises
+    ------
+    ValueError
+        Not a readable HDF5 file, not a robovib pose model, or other inputs than required.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from robovib.gp import load_chapter3_model, load_pose_model
+    >>> path = load_chapter3_model().save(pathlib.Path(tempfile.mkdtemp()) / "m.h5")
+    >>> load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg")).input_names
+    ('x_mm', 'y_mm', 'rz_deg')
+    """
+    model = PoseModalModel.load(path)
+    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
+        raise ValueError(
+            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
+            f"the model has {', '.join(model.input_names)}"
+        )
+    return model
 
 
 def _stack_predictive(parts, n: int) -> ModalPredictive:
