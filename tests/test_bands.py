@@ -234,3 +234,30 @@ def test_reliability_figure_has_a_panel_per_output_and_the_coverage(tmp_path):
     table = m.calibration_.table()
     assert list(table["output"]) == list(m.output_names_)
     assert {"coverage_50", "coverage_90", "coverage_95", "nlpd", "rmse"} <= set(table.columns)
+
+
+def test_stability_sampling_draws_the_mode_mixture_of_the_pose_model():
+    """P(stable) samples the calibrated mixture: the share of high-mode X draws is P(high)."""
+    from robovib.gp import load_chapter3_model
+    from robovib.milling.uncertainty import mode_distribution_at_pose
+
+    model = load_chapter3_model()
+    # A pose where the classifier hesitates between the 16-23 Hz and the ~63 Hz X mode.
+    cand = np.column_stack([np.full(25, 2700.0), np.linspace(-300, 600, 25), np.full(25, 20.0)])
+    p = model.mode_switch_probability(cand)[:, 0]
+    pose = cand[int(np.argmin(np.abs(p - 0.5)))]
+    p_high = float(model.mode_switch_probability(pose[None])[0, 0])
+    assert 0.2 < p_high < 0.8
+    dist = mode_distribution_at_pose(model, pose, n_draws=4000, rng=1)
+    draws = dist["x"].draws
+    assert draws.shape == (4000, 3)
+    high = draws[:, 0] > model.mode_switches_["x"].threshold_hz
+    assert high.mean() == pytest.approx(p_high, abs=0.03)
+    # k and c come from the same mode as fn: the high mode's damping is far lower.
+    assert (
+        np.median(draws[high, 2]) < 0.5 * np.median(draws[~high, 2])
+        if 0.05 < p_high < 0.95
+        else True
+    )
+    picked = dist["x"].sample(50, rng=2)
+    assert len(picked) == 50 and all(m.natural_frequency_hz > 0 for m in picked)

@@ -1,11 +1,14 @@
 """How sure is a lobe? Probability of a stable cut from the pose model's predictive distribution.
 
 The pose model predicts, per direction, the dominant mode's natural frequency, stiffness and
-damping coefficient with a predictive standard deviation. Samples are drawn from those normals
-(each quantity independently, which ignores correlations between outputs; draws with fn, k, c <= 0
-or zeta >= 1 are redrawn), a stability envelope is computed for every sample (semi-discretization
-or zero-order method) and at each (speed, depth) the probability of a stable cut is the fraction
-of samples whose envelope lies above that depth.
+damping coefficient with a calibrated predictive distribution of the *latent* modal parameters
+(:meth:`robovib.gp.PoseModalModel.predictive`: Student-t bands calibrated by grouped CV, and
+where a mode switch is modelled the mixture of both modes, the mode drawn once per direction so
+that fn, k and c of a draw belong to one mode). Samples are drawn from it (draws with
+fn, k, c <= 0 or zeta >= 1 are redrawn), a stability envelope is computed for every sample
+(semi-discretization or zero-order method) and at each (speed, depth) the probability of a
+stable cut is the fraction of samples whose envelope lies above that depth. A
+:class:`ModeDistribution` given by hand (mean and std) is sampled as independent normals.
 """
 
 from __future__ import annotations
@@ -39,6 +42,9 @@ class ModeDistribution:
     fn_std_hz: float = 0.0
     stiffness_std_n_per_m: float = 0.0
     damping_std_ns_per_m: float = 0.0
+    #: Optional (m, 3) joint draws of (fn_hz, stiffness_n_per_m, damping_ns_per_m) from a pose
+    #: model's calibrated predictive distribution; sampled instead of the normals when given.
+    draws: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("fn_std_hz", "stiffness_std_n_per_m", "damping_std_ns_per_m"):
@@ -59,13 +65,14 @@ class ModeDistribution:
         sd = np.array([self.fn_std_hz, self.stiffness_std_n_per_m, self.damping_std_ns_per_m])
         out: list[ModalParameters] = []
         tries = 0
+        order = None if self.draws is None else gen.permutation(len(self.draws))
         while len(out) < n:
             tries += 1
-            if tries > 50 * n + 100:
+            if tries > 50 * n + 100 or (order is not None and tries > len(order)):
                 raise ValueError(
                     "the predictive distribution is mostly non-physical (fn, k, c <= 0)"
                 )
-            s = gen.normal(mu, sd)
+            s = gen.normal(mu, sd) if order is None else self.draws[order[tries - 1]]
             if np.any(s <= 0):
                 continue
             m = ModalParameters.from_fn_k_c(*s)
@@ -74,7 +81,9 @@ class ModeDistribution:
         return out
 
 
-def mode_distribution_at_pose(model, pose) -> dict[str, ModeDistribution]:
+def mode_distribution_at_pose(
+    model, pose, *, n_draws: int = 4000, rng=0
+) -> dict[str, ModeDistribution]:
     """Predictive distribution per direction at one pose from a pose model.
 
     Parameters
@@ -85,6 +94,16 @@ def mode_distribution_at_pose(model, pose) -> dict[str, ModeDistribution]:
         (a thesis-unit and an SI regressor both have 9 outputs).
     pose
         One input row in the units of ``model.input_names``.
+    n_draws
+        Joint draws kept from the model's calibrated latent predictive distribution
+        (``model.predictive``: Student-t bands, mode mixture); 0: normals from the std fields.
+    rng
+        Seed of those draws.
+
+    Returns
+    -------
+    dict direction -> ModeDistribution
+        Mean of the more probable mode, its calibrated latent std and the joint draws.
 
     Raises
     ------
@@ -98,13 +117,17 @@ def mode_distribution_at_pose(model, pose) -> dict[str, ModeDistribution]:
         raise ValueError(f"one pose expected, got {x.shape[0]}")
     if hasattr(model, "modes") and hasattr(model, "output_names_"):
         row = model.modes(x)[0]
+        draws = None
+        if n_draws and hasattr(model, "predictive"):
+            draws = model.predictive(x).sample(int(n_draws), rng, kind="latent")[:, 0, :]
         out = {}
-        for d, pm in row.items():
+        for i, (d, pm) in enumerate(row.items()):
             p = pm.parameters
             out[d] = ModeDistribution(
                 p.natural_frequency_hz, p.stiffness_n_per_m, p.damping_ns_per_m,
                 float(pm.fn_std_hz), float(pm.stiffness_std_n_per_m),
                 float(pm.damping_std_ns_per_m),
+                draws=None if draws is None else draws[:, 3 * i : 3 * i + 3],
             )  # fmt: skip
         return out
     raise TypeError(
@@ -219,7 +242,11 @@ def stability_probability(
     return StabilityProbability(
         rpm, depth, p, a_s, mins, mean_env,
         {"n_samples": int(n_samples), "method": method, "feed_direction": feed_direction,
-         "sampling": "independent normals on fn_hz, stiffness_n_per_m, damping_ns_per_m"},
+         "sampling": (
+             "joint draws of the pose model's calibrated latent predictive distribution "
+             "(Student-t bands, mode mixture)"
+             if distribution[feed_direction].draws is not None
+             else "independent normals on fn_hz, stiffness_n_per_m, damping_ns_per_m")},
     )  # fmt: skip
 
 
