@@ -10,7 +10,8 @@ Files: ``hammer.uff`` and ``hammer.csv`` (impact-hammer recordings, X direction,
 ``frf.csv`` (compliance FRF of ``hammer.uff`` in um/N), ``milling_record.csv`` (a 100 mm
 acetal cut along the chapter-4 path: forces, tool displacement, path coordinate),
 ``cuts.csv`` (test cuts labelled stable/chatter by the virtual robot's true lobes at a pose),
-``campaign.csv`` (a campaign manifest naming the two hammer recordings).
+``campaign.csv`` (a campaign manifest naming the two hammer recordings), ``poses.csv`` (30
+poses for a virtual campaign and as next-pose candidates).
 """
 
 from __future__ import annotations
@@ -75,6 +76,13 @@ def make(out: Path) -> None:
         f"{name},x,{px:g},{py:g},325,{prz:g},0" for name, (px, py, prz) in POSES_MM_DEG.items()
     ]
     (out / "campaign.csv").write_text("\n".join(rows) + "\n")
+    # 30 poses inside the Table A1 box (X stratified) for a virtual campaign / candidates.
+    gen = np.random.default_rng(7)
+    n = 30
+    px = 2100 + 450 * (np.arange(n) + gen.uniform(size=n)) / n
+    poses = np.column_stack([px, gen.uniform(-300, 600, n), gen.uniform(0, 180, n)])
+    lines = ["x_mm,y_mm,rz_deg"] + [f"{a:.1f},{b:.1f},{c:.1f}" for a, b, c in poses]
+    (out / "poses.csv").write_text("\n".join(lines) + "\n")
 
 
 def main(argv=None) -> int:

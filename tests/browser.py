@@ -50,10 +50,26 @@ def inspect_page(html_path: Path, screenshot_name: str) -> dict:
             )
             title = page.title()
             tables = page.evaluate("document.querySelectorAll('table').length")
+            # Tables running off the page at 1280 px: the table (or its scrolling box) ends
+            # beyond the body's content box, or the page itself scrolls sideways.
+            overflowing = page.evaluate(
+                """(() => {
+                    const body = document.body.getBoundingClientRect();
+                    const bad = Array.from(document.querySelectorAll('table')).filter(t => {
+                        const w = t.parentElement.classList.contains('table-wrap')
+                            ? t.parentElement : t;
+                        return w.getBoundingClientRect().right > body.right + 1;
+                    }).map(t => t.caption ? t.caption.textContent : '(no caption)');
+                    if (document.documentElement.scrollWidth > window.innerWidth + 1)
+                        bad.push('the page scrolls sideways');
+                    return bad;
+                })()"""
+            )
             page.screenshot(path=str(shot), full_page=True)
         finally:
             browser.close()
-    return {"errors": errors, "figures": figures, "title": title, "tables": tables, "shot": shot}
+    return {"errors": errors, "figures": figures, "title": title, "tables": tables, "shot": shot,
+            "overflowing_tables": overflowing}  # fmt: skip
 
 
 def assert_page_ok(html_path: Path, screenshot_name: str, min_figures: int = 1) -> dict:
@@ -65,5 +81,8 @@ def assert_page_ok(html_path: Path, screenshot_name: str, min_figures: int = 1) 
         assert fig["natural_width"] > 0 and fig["natural_height"] > 0, fig
         assert fig["width"] > 0 and fig["height"] > 0, fig
     assert info["tables"] >= 1
+    assert info["overflowing_tables"] == [], (
+        f"tables wider than the page: {info['overflowing_tables']}"
+    )
     assert info["shot"].stat().st_size > 0
     return info

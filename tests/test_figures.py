@@ -181,3 +181,24 @@ def test_stabilization_diagram_figure(sdof):
     _, frf = sdof
     diagram = stabilization_diagram(frf.frequency_hz, frf.values, max_order=8)
     assert_labelled(diagram.plot(frf=frf).figure)
+
+
+def test_lobes_legend_sits_outside_the_data_and_the_best_speed_is_in_view():
+    """Issue 22: the legend covered the low-speed lobes; the most-stable marker sat off the top."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from robovib.milling.lobes import LobeEnvelope, plot_lobes
+
+    rpm = np.linspace(100, 3000, 300)
+    a = 1e-3 * (1.0 + 4.0 * np.exp(-(((rpm - 2200) / 60) ** 2)))  # a tall lobe: best speed 2200
+    env = LobeEnvelope(rpm, a, np.full(rpm.size, 20.0), np.array(["hopf"] * rpm.size), "sdm")
+    fig = plot_lobes(env)
+    ax = fig.axes[0]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    legend = ax.get_legend().get_window_extent(renderer)
+    axes_box = ax.get_window_extent(renderer)
+    assert legend.x0 >= axes_box.x1 - 1  # entirely right of the plotting area
+    _, best_depth = env.most_stable_speed()
+    assert best_depth * 1e3 < ax.get_ylim()[1]

@@ -1,9 +1,13 @@
-"""The README's "Using it" walk-through runs as written, in order, in an empty folder.
+"""The README's walk-through runs as written, in order, in an empty folder.
 
-Each command (a line, or a ``for ... done`` block) runs with bash; any non-zero exit fails the
-test and names the command. Lines ending in ``# slow`` (a full study) are skipped unless
-``ROBOVIB_README_SLOW=1``; the ``slow``-marked test runs them all. ``robovib`` is this
-interpreter's ``python -m robovib.cli`` (the checkout under test).
+The main command (``robovib demo``), then the first ``bash`` block under "Using it" and the one
+under "Your own robot". Each command (a line, or a ``for ... done`` block) runs with bash; any
+non-zero exit fails the test and names the command. Lines ending in ``# slow`` (a full study)
+are skipped unless ``ROBOVIB_README_SLOW=1``; the ``slow``-marked test runs them all.
+``robovib`` is this interpreter's ``python -m robovib.cli`` (the checkout under test), or with
+``ROBOVIB_README_PYTHON=/path/to/python`` that interpreter (``.ci/run`` points it at a fresh
+virtual environment made with the README's install command alone, so the test extras cannot
+hide a missing dependency).
 
 Standalone: ``python tests/test_readme.py [--slow]`` prints the time of each command.
 """
@@ -24,14 +28,27 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 SLOW = re.compile(r"#\s*slow\b")
 
 
-def readme_commands(text: str | None = None) -> list[str]:
-    """The shell commands of the first ```bash block under '## Using it', grouped."""
-    text = text if text is not None else README.read_text()
-    section = text.split("## Using it", 1)[1]
+SECTIONS = ("## Using it", "## Your own robot")
+
+
+def _block(text: str, heading: str) -> str:
+    section = text.split(heading, 1)[1]
     block = re.search(r"```bash\n(.*?)```", section, re.S)
-    assert block, "no ```bash block under '## Using it' in README.md"
+    assert block, f"no ```bash block under {heading!r} in README.md"
+    return block.group(1)
+
+
+def readme_commands(text: str | None = None) -> list[str]:
+    """The shell commands of the main job and of the first ```bash block of each of
+    :data:`SECTIONS`, grouped, in order."""
+    text = text if text is not None else README.read_text()
+    main = re.search(r"pip install -e \. && (robovib [^\n`]*)", text)
+    assert main, "README: no 'pip install -e . && robovib ...' main command"
+    lines = [main.group(1)]
+    for heading in SECTIONS:
+        lines += _block(text, heading).splitlines()
     commands, current, depth = [], [], 0
-    for line in block.group(1).splitlines():
+    for line in lines:
         stripped = line.strip()
         if not stripped or (stripped.startswith("#") and not current):
             continue
@@ -48,16 +65,21 @@ def readme_commands(text: str | None = None) -> list[str]:
 
 
 def _shim(folder: Path) -> dict:
-    """Environment whose ``robovib`` runs this interpreter on this checkout."""
+    """Environment whose ``robovib`` runs this interpreter on this checkout (or the
+    interpreter named by ``ROBOVIB_README_PYTHON``, with only what it has installed)."""
     bindir = folder / ".bin"
     bindir.mkdir()
     exe = bindir / "robovib"
-    exe.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m robovib.cli "$@"\n')
+    python = os.environ.get("ROBOVIB_README_PYTHON") or sys.executable
+    exe.write_text(f'#!/bin/sh\nexec "{python}" -m robovib.cli "$@"\n')
     exe.chmod(exe.stat().st_mode | stat.S_IEXEC)
-    src = str(Path(__file__).resolve().parents[1] / "src")
     env = dict(os.environ)
     env["PATH"] = f"{bindir}{os.pathsep}{env.get('PATH', '')}"
-    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    if not os.environ.get("ROBOVIB_README_PYTHON"):
+        src = str(Path(__file__).resolve().parents[1] / "src")
+        env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    else:
+        env.pop("PYTHONPATH", None)
     env.setdefault("OMP_NUM_THREADS", "1")
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     env["MPLBACKEND"] = "Agg"

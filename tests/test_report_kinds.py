@@ -39,9 +39,18 @@ def test_chapter3_report(tmp_path):
 
 def test_lobes_report(tmp_path):
     out, text = report(tmp_path, "lobes", "--x", "2400", "--y", "0", "--rz", "45",
-                       "--rpm-min", "500", "--rpm-max", "2500")  # fmt: skip
+                       "--rpm-range", "500:2500:40")  # fmt: skip
     assert "depth stable at every speed [mm]" in text and "x_mm" in text
     assert_page_ok(out, "report_lobes.png")
+    # One stability answer per question: the page and `mill lobes` agree at the same settings.
+    res = runner.invoke(app, ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "45",
+                              "--rpm-range", "500:2500:40", "--json"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    mill = json.loads(res.stdout)
+    row = text.split("depth stable at every speed [mm]", 1)[1]
+    shown = float(row.split("<td>", 1)[1].split("<", 1)[0])
+    assert shown == pytest.approx(1e3 * mill["minimum_depth_m"], abs=1e-3)
+    assert f"<td>{mill['method']}</td>" in text
 
 
 def test_control_report(tmp_path):

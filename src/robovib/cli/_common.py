@@ -11,8 +11,9 @@ import click
 import typer
 from rich.console import Console
 from rich.markup import escape
-from rich.table import Table
 from typer.core import TyperGroup
+
+from ._table import Table
 
 __all__ = [
     "ForceOpt",
@@ -46,7 +47,9 @@ KernelOpt = Annotated[
         help="GP kernel: 'ard' (one length scale per input) or 'isotropic' (thesis Eq. 7)."
     ),
 ]
-SeedOpt = Annotated[int, typer.Option(help="Seed of fold shuffles and optimiser restarts.")]
+SeedOpt = Annotated[
+    int, typer.Option(help="Random seed (simulated noise, fold shuffles, optimiser restarts).")
+]
 ModeSwitchOpt = Annotated[
     bool,
     typer.Option(
@@ -78,15 +81,16 @@ ModelOpt = Annotated[
 ]
 
 
-def workspace_model(path: Path | None, seed: int = 0):
-    """The pose model to predict with: the user's file or the shipped chapter-3 model."""
+def workspace_model(path: Path | None, seed: int = 0, require_inputs=("x_mm", "y_mm", "rz_deg")):
+    """The pose model to predict with: the user's file (its inputs checked when
+    ``require_inputs``) or the shipped chapter-3 model."""
     if path is None:
         from ..gp import get_chapter3_model
 
         return get_chapter3_model(rng=seed)
     from ..gp import load_pose_model
 
-    return load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg"))
+    return load_pose_model(path, require_inputs=require_inputs)
 
 
 try:  # Typer >= 0.2x vendors Click as typer._click: its context stack and exceptions are those
@@ -95,16 +99,6 @@ try:  # Typer >= 0.2x vendors Click as typer._click: its context stack and excep
 except ImportError:  # pragma: no cover - older Typer on the real Click
     _TyperClickException = click.exceptions.ClickException
     _current_context = click.get_current_context
-
-#: Exceptions that keep their own meaning (usage errors, exits) - never turned into "error: ...".
-_PASS_THROUGH = (
-    typer.Exit,
-    typer.Abort,
-    _TyperClickException,
-    click.exceptions.ClickException,
-    click.exceptions.Exit,
-    click.exceptions.Abort,
-)
 
 #: Library errors reported as one line ``error: ...`` with exit code 1.
 EXPECTED_ERRORS = (ValueError, OSError, RuntimeError, KeyError, ImportError)
@@ -121,7 +115,7 @@ def _click_passthrough() -> tuple[type, ...]:
     recent Typer vendors as ``typer._click``: click reports them itself, never as "unexpected"."""
     kinds: list[type] = [
         click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort,
-        typer.Exit, typer.Abort,
+        typer.Exit, typer.Abort, _TyperClickException,
     ]  # fmt: skip
     try:
         from typer._click import exceptions as vendored
@@ -131,6 +125,7 @@ def _click_passthrough() -> tuple[type, ...]:
     return (*kinds, *(getattr(vendored, n) for n in names if hasattr(vendored, n)))
 
 
+#: Exceptions that keep their own meaning (usage errors, exits) - never turned into "error: ...".
 _PASSTHROUGH = _click_passthrough()
 
 
@@ -212,7 +207,8 @@ def run_info() -> dict:
             settings[p.name] = plain_json(list(value) if isinstance(value, tuple) else value)
             unit = _unit_of_help(getattr(p, "help", None))
             vals = value if isinstance(value, list | tuple) else [value]
-            if unit:
+            # A unit belongs to a value, never to a file path (whose help may name its content's).
+            if unit and not any(isinstance(v, Path) for v in vals):
                 units[p.name] = unit
             elif any(isinstance(v, int | float) and not isinstance(v, bool) for v in vals):
                 units[p.name] = "1"

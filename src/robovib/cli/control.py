@@ -24,7 +24,7 @@ from ._common import (
     workspace_model,
 )
 
-app = new_app("Pose-dependent LQR vibration control (thesis ch. 4).")
+app = new_app("Pose-dependent LQR vibration control (thesis chapter 4).")
 
 
 @app.command("gains")
@@ -76,11 +76,13 @@ def gains(
     typer.echo(
         f"mode: fn {mode.natural_frequency_hz:.2f} Hz, k {mode.stiffness_n_per_m / 1e6:.3f} MN/m, zeta {mode.damping_ratio:.3f}"
     )
-    typer.echo(f"W = [{d.gains[0]:.4g}, {d.gains[1]:.4g}] (R = {r:g}); with {delay_ms:g} ms delay: "
+    typer.echo(f"W = [w1 {d.gains[0]:.4g} m/m, w2 {d.gains[1]:.4g} s] (R = {r:g}; a path-correction "
+               f"command per m and per m/s of tool-tip motion); with {delay_ms:g} ms delay: "
                f"{'stable' if da.stable else 'UNSTABLE'} (spectral radius {da.spectral_radius:.3f}, largest stable delay {1e3 * da.max_stable_delay_s:g} ms)")  # fmt: skip
     if not da.stable:
         typer.echo(
-            f"best-damped R with the delay: {r_tuned:.3g} -> W = [{tuned.gains[0]:.4g}, {tuned.gains[1]:.4g}]"
+            f"best-damped R with the delay: {r_tuned:.3g} -> W = [{tuned.gains[0]:.4g} m/m, "
+            f"{tuned.gains[1]:.4g} s]"
         )
     if margins.gain_margins.size:
         typer.echo(
@@ -185,14 +187,7 @@ def _pose(text: str, option: str) -> list[float]:
 def _schedule_line(start, end, points, direction, model_path, seed, plot, json_out) -> None:
     from ..control.schedule import schedule_along_line
 
-    if model_path is None:
-        from ..gp import get_chapter3_model
-
-        model = get_chapter3_model(rng=seed)
-    else:
-        from ..gp import load_pose_model
-
-        model = load_pose_model(model_path)
+    model = workspace_model(model_path, seed, require_inputs=None)  # a line in any inputs
     warnings_seen: list[str] = []
     result = schedule_along_line(model, _pose(start, "--start"), _pose(end, "--end"), direction,
                                  points, warn=warnings_seen.append)  # fmt: skip
@@ -240,7 +235,11 @@ def table9(json_out: JsonFlag = False) -> None:
             r["formulation"], r["input"], str(r["position"]), r["direction"], f"{r['w1']:.4g}",
             f"{r['thesis_w1']:.3g}", f"{r['w2']:.4g}", f"{r['thesis_w2']:.3g}",
         )  # fmt: skip
-    console().print(t)
+    con = console()
+    con.print(t)
+    con.print("w1 in m/m and w2 in s for displacement input, N/m and N*s/m for force input. No "
+              "formulation reproduces the printed Table 9 gains (force or displacement input, SI or "
+              "mm, T = 4 or 1 ms were all tried; see docs/data.md): compare trends, not values.")  # fmt: skip
 
 
 @app.command("simulate")

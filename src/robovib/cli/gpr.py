@@ -18,7 +18,7 @@ from ._common import (
     new_app,
 )
 
-app = new_app("GP models of the modal parameters over the workspace (thesis ch. 3).")
+app = new_app("GP models of the modal parameters over the workspace (thesis chapter 3).")
 
 
 _Deg = Annotated[float | None, typer.Option(help="Pose input [deg] of a --model that uses it.")]

@@ -78,11 +78,13 @@ def lobes(
         str, typer.Option("--material", help="Cutting-coefficient preset: al7075 or acetal.")
     ] = "al7075",
     feed: Annotated[str, typer.Option(help="Feed direction in the base frame: x or y.")] = "x",
-    rpm_min: Annotated[float, typer.Option(help="Lowest speed [rpm].")] = 100.0,
-    rpm_max: Annotated[float, typer.Option(help="Highest speed [rpm].")] = 3000.0,
+    rpm_range: Annotated[
+        str, typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm] (as mill lobes).")
+    ] = "100:3000:200",
     method: Annotated[
-        str, typer.Option(help="zoa (zero-order, fast) or sdm (semi-discretisation, flip lobes).")
-    ] = "zoa",
+        str,
+        typer.Option(help="sdm (semi-discretization, flip lobes; as mill lobes) or zoa (fast)."),
+    ] = "sdm",
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
@@ -91,7 +93,7 @@ def lobes(
 
     _check(output)
     _done(lobes_study_report(x, y, rz, ae_mm=ae, material=material_name, feed=feed,
-                             rpm_range=(rpm_min, rpm_max), method=method, rng=seed), output, json_out)  # fmt: skip
+                             rpm_range=rpm_range, method=method, rng=seed), output, json_out)  # fmt: skip
 
 
 @app.command("control")

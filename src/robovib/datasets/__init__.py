@@ -203,6 +203,8 @@ EXAMPLES: dict[str, str] = {
     "Rz 45 deg, ae 6 mm, al7075",
     "campaign.csv": "campaign manifest naming hammer.uff and hammer.csv with their poses "
     "(robovib.campaign)",
+    "poses.csv": "30 poses x_mm,y_mm,rz_deg inside the Table A1 box, for a virtual campaign and "
+    "as next-pose candidates (robovib sim campaign --poses, model next-poses --candidates)",
 }
 
 

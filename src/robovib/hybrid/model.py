@@ -141,11 +141,12 @@ class UpdateReport:
 
     def describe(self) -> str:
         """One line on what the bias check rejected (robust mode) for a person to read."""
-        bins = ", ".join(f"{f:.2f}" for f in self.rejected_bins_hz) or "none"
+        bins = ", ".join(f"{f:.2f}" for f in self.rejected_bins_hz)
+        whole = f"whole bins rejected at {bins} Hz" if bins else "no whole bin rejected"
         applied = "applied" if self.scale_applied else "not applied"
         return (
             f"rejected {self.n_rejected} of {self.n_observations} OMA bins "
-            f"({100 * self.rejected_fraction:.0f} %); whole bins: {bins} Hz; source scale "
+            f"({100 * self.rejected_fraction:.0f} %); {whole}; source scale "
             f"{abs(self.scale):.3f} ({applied})"
         )
 

@@ -193,6 +193,9 @@ def plot_lobes(
             top = max(top, 1.2 * operating_point[1] * 1e3)
         if cuts is not None and len(cuts.depth_m):
             top = max(top, 1.15 * float(np.max(cuts.depth_m)) * 1e3)
+        best_auto = envelope.most_stable_speed()
+        if best_auto is not None and np.isfinite(best_auto[1]):
+            top = max(top, 1.1 * best_auto[1] * 1e3)  # the most stable speed's marker stays in view
     drawn = np.where(finite, np.minimum(a_mm, top), top)
     if probability is not None:
         mesh = ax.pcolormesh(
@@ -235,8 +238,10 @@ def plot_lobes(
     ax.set_xlabel("spindle speed [rpm]")
     ax.set_ylabel("axial depth of cut [mm]")
     ax.set_title(title or "stability lobes", fontsize=10)
-    ax.legend(fontsize=8, loc="upper left")
+    # Outside the axes: a legend inside covers the low-speed lobes.
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.grid(alpha=0.3)
+    ax.figure.tight_layout()
     return ax.figure
 
 

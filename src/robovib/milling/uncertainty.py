@@ -276,5 +276,6 @@ def plot_stability_probability(
     for q, ls in ((0.05, ":"), (0.95, "--")):
         ax.plot(result.spindle_rpm, result.depth_quantile_m(q) * 1e3, color="0.2", ls=ls, lw=1,
                 label=f"{int(q * 100)} % quantile of the limit")  # fmt: skip
-    ax.legend(fontsize=8, loc="upper left")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.22, 1.0), borderaxespad=0.0)
+    ax.figure.tight_layout()
     return ax.figure

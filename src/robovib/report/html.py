@@ -27,6 +27,7 @@ body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2rem 
  padding:0 1rem;color:#1b1f24;line-height:1.45}
 h1{font-size:1.6rem;border-bottom:2px solid #0b5394;padding-bottom:.3rem}
 h2{font-size:1.25rem;margin-top:2rem;color:#0b5394}
+.table-wrap{max-width:100%;overflow-x:auto}
 table{border-collapse:collapse;margin:.8rem 0;font-size:.88rem}
 th,td{border:1px solid #c9d1d9;padding:.25rem .55rem;text-align:right}
 th{background:#eef3f8}td:first-child,th:first-child{text-align:left}
@@ -96,11 +97,13 @@ def _table_html(caption: str, frame: pd.DataFrame) -> str:
         na_rep="–",
         escape=True,
     )
-    return (
+    table = (
         body.replace("<table", f"<table><caption>{html.escape(caption)}</caption", 1)
         .replace("<table><caption", "<table class='data'><caption", 1)
         .replace('</caption class="dataframe">', "</caption>")
     )
+    # A wide table scrolls inside its own box instead of running off the page.
+    return f"<div class='table-wrap'>{table}</div>"
 
 
 def _value_text(value: Any) -> str:

@@ -98,7 +98,8 @@ def plot_cv_rmse_ratio(study, ax=None):
     ax.set_ylabel("RMSE / thesis GPR RMSE [-]")
     ax.set_xlabel("output")
     ax.set_yscale("log")
-    ax.legend(fontsize=8)
+    # Outside the axes: inside, the legend covered bars.
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     fig.tight_layout()
     return fig
 
@@ -389,13 +390,15 @@ def lobes_study_report(
     ae_mm: float = 6.0,
     material: str = "al7075",
     feed: str = "x",
-    rpm_range: tuple[float, float] = (100.0, 3000.0),
-    n_speeds: int = 100,
-    method: str = "zoa",
+    rpm_range: str = "100:3000:200",
+    method: str = "sdm",
     model=None,
     rng: int = 0,
 ) -> Report:
     """Lobes at a pose from the chapter-3 pose model (or ``model``) as a report.
+
+    The defaults are those of ``robovib mill lobes`` (semi-discretization, 200 speeds from 100 to
+    3000 rpm, 40 steps per period): the page and the command give the same answer.
 
     Raises
     ------
@@ -417,19 +420,20 @@ def lobes_study_report(
             raise ValueError(f"--{name} must be finite, got {v}")
     if not ae_mm > 0:
         raise ValueError(f"radial depth ae must be > 0 mm, got {ae_mm}")
-    if not 0 < rpm_range[0] < rpm_range[1] < np.inf:
-        raise ValueError(f"speed range must be 0 < min < max rpm, got {rpm_range}")
+    from ..milling.chart import parse_rpm_range
+
+    speeds = parse_rpm_range(rpm_range)
     model = model if model is not None else get_chapter3_model(rng=rng)
     tool = MillingTool()
     chart = lobes_chart(
         tool=tool, conditions=CuttingConditions(1000.0, 1e-4, 1e-3, ae_mm / 1e3),
-        coefficients=mats[material], spindle_rpm=np.linspace(*rpm_range, n_speeds), method=method,
+        coefficients=mats[material], spindle_rpm=speeds, method=method,
         pose_label=f"X {x_mm:g} mm, Y {y_mm:g} mm, Rz {rz_deg:g}°, feed {feed}",
         material_label=material, pose_model=model, pose=(x_mm, y_mm, rz_deg), feed_direction=feed,
     )  # fmt: skip
     settings = {"x_mm": x_mm, "y_mm": y_mm, "z_mm": 325.0, "rz_deg": rz_deg, "ae_mm": ae_mm,
-                "material": material, "feed_direction": feed, "rpm_range_rpm": list(rpm_range),
-                "n_speeds": n_speeds, "method": method,
+                "material": material, "feed_direction": feed, "rpm_range": rpm_range,
+                "n_speeds": int(speeds.size), "method": method,
                 "tool": "25.4 mm, 2 flutes, 30° helix (thesis §3.5)"}  # fmt: skip
     return lobes_report(chart, settings)
 

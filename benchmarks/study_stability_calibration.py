@@ -1,0 +1,119 @@
+"""Issue 24: is P(stable) calibrated? Brier score and reliability against simulated cuts.
+
+A user's path on the virtual robot: a hammer campaign (``sim campaign``, ``--campaign-poses``
+poses) -> ``campaign process`` -> ``model fit`` (calibrated bands). At ``--poses`` unseen poses
+inside the sampled box and at each of ``--speeds``, the probability of a stable cut
+(:func:`robovib.milling.stability_probability`, ``--samples`` joint draws of the calibrated
+latent predictive, zero-order method) is compared with the outcome of a regenerative
+time-domain simulation of the virtual robot at depths spread around the predicted limit
+(``sim.simulate_regenerative_cut``). Beside it the deterministic lobes (the mean modes:
+stable = 1 below their limit, 0 above). Printed: Brier scores and the reliability table
+(predicted P(stable) bins: mean prediction vs observed stable fraction, count).
+
+``--truth dominant`` simulates the truth's dominant mode per direction (the class of model the
+pose model is: this tests the bands); ``--truth all`` simulates every mode of the truth (the
+modes a dominant-mode model does not have: issue 29).
+
+    python benchmarks/study_stability_calibration.py                 # ~10 min on one core
+    python benchmarks/study_stability_calibration.py --truth all
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+FACTORS = (0.5, 0.7, 0.85, 1.0, 1.15, 1.35, 1.7)
+
+
+def fit_campaign_model(n_poses: int, seed: int):
+    from robovib.campaign import fit_pose_model_from_table, process_campaign
+    from robovib.sim import simulate_campaign
+
+    rng = np.random.default_rng(seed)
+    x = 2100 + 450 * (np.arange(n_poses) + rng.uniform(size=n_poses)) / n_poses
+    poses = np.column_stack([x, rng.uniform(-300, 600, n_poses), rng.uniform(0, 180, n_poses)])
+    with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = simulate_campaign(
+            poses, tmp, rng=seed, n_hits=2, n_truth=0, scatter=(0.01, 0.04, 0.04)
+        )
+        process_campaign(sim.manifest, Path(tmp) / "out", n_workers=1)
+        return fit_pose_model_from_table(Path(tmp) / "out" / "modal.csv").model
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--poses", type=int, default=40)
+    ap.add_argument("--campaign-poses", type=int, default=40)
+    ap.add_argument("--speeds", type=float, nargs="+", default=[1750.0, 2400.0, 3100.0])
+    ap.add_argument("--samples", type=int, default=100)
+    ap.add_argument("--truth", choices=("dominant", "all"), default="dominant")
+    ap.add_argument("--seed", type=int, default=21)
+    args = ap.parse_args(argv)
+
+    from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    from robovib.milling.uncertainty import mode_distribution_at_pose, stability_probability
+    from robovib.sim import VirtualRobot, simulate_regenerative_cut
+
+    t0 = time.perf_counter()
+    model = fit_campaign_model(args.campaign_poses, args.seed)
+    print(
+        f"pose model fitted on {args.campaign_poses} campaign poses ({time.perf_counter() - t0:.0f} s)"
+    )
+    robot = VirtualRobot()
+    tool = MillingTool()
+    rng = np.random.default_rng(args.seed + 1)
+    unseen = np.column_stack([rng.uniform(2150, 2500, args.poses), rng.uniform(-250, 550, args.poses),
+                              rng.uniform(5, 175, args.poses)])  # fmt: skip
+    rpm = np.asarray(args.speeds, float)
+    p_rows, det_rows, out_rows = [], [], []
+    for i, pose in enumerate(unseen):
+        cond = CuttingConditions(float(rpm[0]), 0.058e-3, 1e-3, 6e-3)
+        dist = mode_distribution_at_pose(model, pose, rng=i)
+        prob = stability_probability(dist, tool, cond, ALUMINIUM_7075, rpm, n_samples=args.samples,
+                                     method="zoa", rng=i)  # fmt: skip
+        coords = (pose[0] / 1e3, pose[1] / 1e3, pose[2])
+        truth = {}
+        for d in ("x", "y"):
+            ms = robot.workspace.modes(np.array([coords]), d)
+            truth[d] = (ms.dominant() if args.truth == "dominant" else ms).at(0)
+        for s, speed in enumerate(rpm):
+            limit = float(prob.mean.a_lim_m[s])
+            depths = limit * np.asarray(FACTORS)
+            c = CuttingConditions(float(speed), 0.058e-3, float(depths[0]), 6e-3)
+            cut = simulate_regenerative_cut(truth["x"], truth["y"], tool, c, ALUMINIUM_7075, depths)
+            p_rows += list(np.mean(prob.a_lim_samples_m[:, s, None] > depths[None, :], axis=0))
+            det_rows += list((depths < limit).astype(float))
+            out_rows += list((~cut.chatter).astype(float))
+        if (i + 1) % 10 == 0:
+            print(f"  {i + 1} poses ({time.perf_counter() - t0:.0f} s)", flush=True)
+    p, det, y = (np.asarray(v) for v in (p_rows, det_rows, out_rows))
+    brier, brier_det = float(np.mean((p - y) ** 2)), float(np.mean((det - y) ** 2))
+    print(f"\n{len(y)} cuts ({args.poses} poses x {rpm.size} speeds x {len(FACTORS)} depths), "
+          f"truth: {args.truth} modes; stable fraction {y.mean():.2f}")  # fmt: skip
+    print(f"Brier score  P(stable) {brier:.4f}   deterministic lobes {brier_det:.4f}")
+    print("\nreliability: P(stable) bin   mean P   observed stable   cuts")
+    edges = np.linspace(0, 1, 11)
+    worst = 0.0
+    for a, b in itertools.pairwise(edges):
+        sel = (p >= a) & ((p < b) if b < 1 else (p <= b))
+        if sel.any():
+            gap = abs(p[sel].mean() - y[sel].mean())
+            if sel.sum() >= 20:
+                worst = max(worst, gap)
+            print(
+                f"  [{a:.1f}, {b:.1f}]  {p[sel].mean():9.2f} {y[sel].mean():14.2f} {sel.sum():8d}"
+            )
+    print(f"largest |mean P - observed| in bins with >= 20 cuts: {100 * worst:.1f} points")
+    print(f"total {time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
