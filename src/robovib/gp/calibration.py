@@ -47,6 +47,8 @@ DOF_GRID = (3.0, 4.0, 6.0, 10.0, 30.0, np.inf)
 LEVELS = (0.5, 0.9, 0.95)
 #: Fewest out-of-fold errors of a mode for a fitted scale and tail.
 MIN_Z = 10
+#: Shapes of the band over the poses tried: ``σ → σ_ref^(1-γ) σ^γ`` (1: the GP's own).
+GAMMA_GRID = (0.5, 1.0)
 
 
 def grouped_folds(X: np.ndarray, n_folds: int, rng=0) -> np.ndarray:
@@ -127,6 +129,8 @@ class BandCalibration:
         (n_outputs,) covariance family chosen per output.
     scale, dof
         (n_outputs, 2) calibration factor and Student-t dof per [low, high] mode.
+    gamma, ref_std
+        (n_outputs, 2) shape of the band over the poses and its reference latent std (SI).
     n_folds, n_poses
         Folds of the grouped CV and distinct poses.
     n
@@ -149,6 +153,8 @@ class BandCalibration:
     covariance: tuple[str, ...]
     scale: np.ndarray
     dof: np.ndarray
+    gamma: np.ndarray
+    ref_std: np.ndarray
     n_folds: int
     n_poses: int
     n: np.ndarray
@@ -173,6 +179,7 @@ class BandCalibration:
             row["nlpd"] = float(self.nlpd[j])
             row["rmse"] = float(self.rmse[j])
             row["scale"] = float(self.scale[j, 0])
+            row["gamma"] = float(self.gamma[j, 0])
             row["dof"] = float(self.dof[j, 0])
             rows.append(row)
         return pd.DataFrame(rows)
@@ -207,13 +214,18 @@ def _of_mode(a: np.ndarray, modes: np.ndarray) -> np.ndarray:
     return np.take_along_axis(a, modes[..., None], axis=-1)[..., 0]
 
 
-def calibrate_predictions(
-    pred: ModalPredictive, Y: np.ndarray, thresholds: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Fit (scale, dof) per output and mode on out-of-fold predictions ``pred`` of ``Y``.
+def calibrate_predictions(pred: ModalPredictive, Y: np.ndarray, thresholds: np.ndarray):
+    """Fit (scale, dof, gamma, ref_std) per output and mode on out-of-fold predictions.
 
     Each observation is scored against the component of the mode it shows (by the direction's
-    threshold); a mode never observed takes the other mode's calibration.
+    threshold); for each shape ``γ`` of :data:`GAMMA_GRID` the latent std becomes
+    ``σ_ref^(1-γ) σ^γ`` (``σ_ref``: the median out-of-fold latent std of that output and mode),
+    ``(c, ν)`` are fitted by :func:`fit_student_t`, and the ``γ`` of the highest out-of-fold log
+    predictive density is kept. A mode never observed takes the other mode's calibration.
+
+    Returns
+    -------
+    scale, dof, gamma, ref_std : ndarray (n_outputs, 2)
     """
     modes = mode_index(Y, thresholds)
     err = Y - _of_mode(pred.mean, modes)
@@ -221,14 +233,28 @@ def calibrate_predictions(
     n_out = Y.shape[1]
     scale = np.ones((n_out, 2))
     dof = np.full((n_out, 2), np.inf)
+    gamma = np.ones((n_out, 2))
+    ref = np.ones((n_out, 2))
     for j in range(n_out):
         for c in (0, 1):
             sel = np.isfinite(Y[:, j]) & (modes[:, j] == c)
-            if sel.any():
-                dof[j, c], scale[j, c], _ = fit_student_t(err[sel, j], lat[sel, j], noi[sel, j])
+            if not sel.any():
+                continue
+            ref[j, c] = float(np.median(lat[sel, j])) if np.any(lat[sel, j] > 0) else 1.0
+            best = -np.inf
+            for g in GAMMA_GRID:
+                shaped = ref[j, c] * (np.maximum(lat[sel, j], 1e-300) / ref[j, c]) ** g
+                v, s, lpd = fit_student_t(err[sel, j], shaped, noi[sel, j])
+                if lpd > best:
+                    best, dof[j, c], scale[j, c], gamma[j, c] = lpd, v, s, g
         if not np.any(np.isfinite(Y[:, j]) & (modes[:, j] == 1)):
-            dof[j, 1], scale[j, 1] = dof[j, 0], scale[j, 0]
-    return scale, dof
+            dof[j, 1], scale[j, 1], gamma[j, 1], ref[j, 1] = (
+                dof[j, 0],
+                scale[j, 0],
+                gamma[j, 0],
+                ref[j, 0],
+            )
+    return scale, dof, gamma, ref
 
 
 def scores(pred: ModalPredictive, Y: np.ndarray) -> dict:
@@ -270,6 +296,8 @@ def _as_str(v) -> str:
 _CAL_ARRAYS = {
     "scale": "1 (factor on the GP std)",
     "dof": "1 (Student-t degrees of freedom; inf = Gaussian)",
+    "gamma": "1 (shape of the band over the poses)",
+    "ref_std": "SI output units (reference latent std)",
     "n": "1",
     "coverage": "1 (fraction)",
     "coverage_uncalibrated": "1 (fraction)",
@@ -309,6 +337,8 @@ def read_calibration(group):
         covariance=tuple(_as_str(v) for v in a["covariance"]),
         scale=d["scale"],
         dof=d["dof"],
+        gamma=d.get("gamma", np.ones_like(d["scale"])),
+        ref_std=d.get("ref_std", np.ones_like(d["scale"])),
         n_folds=int(a["n_folds"]),
         n_poses=int(a["n_poses"]),
         n=d["n"].astype(int),

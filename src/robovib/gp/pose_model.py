@@ -451,11 +451,11 @@ class PoseModalModel(BaseEstimator):
                     )
                 parts.append((te, m._raw_predictive(X[te])))
             pred = _stack_predictive(parts, X.shape[0])
-            scale, dof = calibrate_predictions(pred, Y, thresholds)
-            cal = pred.with_calibration(scale, dof)
-            results[family] = (pred, cal, scale, dof, scores(cal, Y))
+            scale, dof, gamma, ref = calibrate_predictions(pred, Y, thresholds)
+            cal = pred.with_calibration(scale, dof, gamma, ref)
+            results[family] = (pred, cal, (scale, dof, gamma, ref), scores(cal, Y))
         # Per output (per direction where a switch ties the three outputs): best mean LPD.
-        lpd = {f: -r[4]["nlpd"] for f, r in results.items()}
+        lpd = {f: -r[3]["nlpd"] for f, r in results.items()}
         chosen = []
         for i, d in enumerate(dirs):
             cols = slice(3 * i, 3 * i + 3)
@@ -466,16 +466,14 @@ class PoseModalModel(BaseEstimator):
                 chosen += [
                     max(families, key=lambda f: float(lpd[f][j])) for j in range(3 * i, 3 * i + 3)
                 ]
-        pick = lambda key: np.array(  # noqa: E731
-            [results[chosen[j]][key][j] for j in range(n_out)]
+        scale, dof, gamma, ref = (
+            np.array([results[chosen[j]][2][i][j] for j in range(n_out)]) for i in range(4)
         )
-        scale = pick(2)
-        dof = pick(3)
         sc = {
-            k: np.array([results[chosen[j]][4][k][j] for j in range(n_out)])
+            k: np.array([results[chosen[j]][3][k][j] for j in range(n_out)])
             for k in ("n", "coverage", "nlpd", "rmse")
         }
-        pit = np.column_stack([results[chosen[j]][4]["pit"][:, j] for j in range(n_out)])
+        pit = np.column_stack([results[chosen[j]][3]["pit"][:, j] for j in range(n_out)])
         uncal = np.array([uncalibrated_coverage(results[chosen[j]][0], Y)[j] for j in range(n_out)])
         names = tuple(f"{d}_{q}_{u}" for d in dirs for q, u in _QUANTITIES)
         calibration = BandCalibration(
@@ -483,6 +481,8 @@ class PoseModalModel(BaseEstimator):
             covariance=tuple(chosen),
             scale=scale,
             dof=dof,
+            gamma=gamma,
+            ref_std=ref,
             n_folds=int(np.unique(fold).size),
             n_poses=int(np.unique(np.round(X, 9), axis=0).shape[0]),
             n=sc["n"].astype(int),
@@ -750,7 +750,9 @@ class PoseModalModel(BaseEstimator):
         """
         raw = self._raw_predictive(X)
         cal = getattr(self, "calibration_", None)
-        return raw if cal is None else raw.with_calibration(cal.scale, cal.dof)
+        if cal is None:
+            return raw
+        return raw.with_calibration(cal.scale, cal.dof, cal.gamma, cal.ref_std)
 
     def modes(self, X) -> list[dict[str, PoseMode]]:
         """The dominant mode of each direction at each pose (one dict per row of ``X``).

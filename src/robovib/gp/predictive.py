@@ -12,11 +12,12 @@ Each output is a mixture of at most two components (the low and the high mode of
 with a mode switch, weights ``1 − p`` and ``p``; one component elsewhere), each a location-scale
 Student-t (Gaussian for ``dof = inf``) with
 
-    scale_latent      = c · σ_latent
-    scale_measurement = √((c · σ_latent)² + σ_noise²)
+    scale_latent      = c · σ_ref^(1−γ) · σ_latent^γ
+    scale_measurement = √(scale_latent² + σ_noise²)
 
-where ``c`` and ``dof`` are the calibration of that output and mode, estimated from grouped
-cross-validation (:mod:`robovib.gp.calibration`); ``c = 1, dof = inf`` is the plain GP. The
+where ``c``, ``γ`` (with the reference std ``σ_ref``) and ``dof`` are the calibration of that
+output and mode, estimated from grouped cross-validation (:mod:`robovib.gp.calibration`);
+``c = 1, γ = 1, dof = inf`` is the plain GP. The
 calibration scales the latent part only: the test-to-test scatter ``σ_noise`` is what replicated
 tests measure directly, the GP's overconfidence is about the pose dependence between them.
 
@@ -145,6 +146,9 @@ class ModalPredictive:
     scale, dof
         (n_outputs, 2) calibration factor ``c`` of the latent std and Student-t degrees of
         freedom per component.
+    gamma, ref_std
+        (n_outputs, 2) or None: how much of the GP's pose-to-pose variation of the latent std
+        the calibrated band keeps, ``σ → ref^(1-γ) σ^γ`` (None: ``γ = 1``).
     """
 
     output_names: tuple[str, ...]
@@ -156,12 +160,30 @@ class ModalPredictive:
     noise_std: np.ndarray
     scale: np.ndarray
     dof: np.ndarray
+    gamma: np.ndarray | None = None
+    ref_std: np.ndarray | None = None
 
-    def with_calibration(self, scale, dof) -> ModalPredictive:
-        """The same components with another calibration (``scale``, ``dof``: (n_outputs, 2))."""
+    def with_calibration(self, scale, dof, gamma=None, ref_std=None) -> ModalPredictive:
+        """The same components with another calibration ((n_outputs, 2) arrays; ``gamma`` and
+        ``ref_std`` default to the plain GP's shape of the band, ``gamma = 1``)."""
         from dataclasses import replace
 
-        return replace(self, scale=np.asarray(scale, float), dof=np.asarray(dof, float))
+        return replace(
+            self,
+            scale=np.asarray(scale, float),
+            dof=np.asarray(dof, float),
+            gamma=None if gamma is None else np.asarray(gamma, float),
+            ref_std=None if ref_std is None else np.asarray(ref_std, float),
+        )
+
+    def shaped_latent_std(self) -> np.ndarray:
+        """(n, n_outputs, 2) ``ref^(1-γ) σ_latent^γ``: the GP's latent std with the pose
+        dependence of its band tempered by ``γ`` (1: the GP's own; 0: the same at every pose)."""
+        if self.gamma is None:
+            return self.latent_std
+        ref = self.ref_std[None]
+        g = self.gamma[None]
+        return ref * (np.maximum(self.latent_std, 1e-300) / ref) ** g
 
     # ------------------------------------------------------------------ components
     def _check_kind(self, kind: str) -> None:
@@ -171,7 +193,7 @@ class ModalPredictive:
     def component_scale(self, kind: str = "measurement") -> np.ndarray:
         """(n, n_outputs, 2) calibrated scale of each component (SI)."""
         self._check_kind(kind)
-        latent = self.scale[None] * self.latent_std
+        latent = self.scale[None] * self.shaped_latent_std()
         return latent if kind == "latent" else np.hypot(latent, self.noise_std)
 
     @property
@@ -345,7 +367,15 @@ UNMODELLED_MODE_RELATIVE_STD = 0.1
 
 
 def assemble(
-    output_names, output_units, directions, n: int, parts, scale=None, dof=None
+    output_names,
+    output_units,
+    directions,
+    n: int,
+    parts,
+    scale=None,
+    dof=None,
+    gamma=None,
+    ref_std=None,
 ) -> ModalPredictive:
     """Build a :class:`ModalPredictive` from per-estimator components.
 
@@ -368,5 +398,7 @@ def assemble(
     dof = np.full((n_out, 2), np.inf) if dof is None else np.asarray(dof, float)
     dirs = tuple(directions[j // 3] for j in range(n_out))
     return ModalPredictive(
-        tuple(output_names), tuple(output_units), dirs, p, mean, lat, noise, scale, dof
-    )
+        tuple(output_names), tuple(output_units), dirs, p, mean, lat, noise, scale, dof,
+        None if gamma is None else np.asarray(gamma, float),
+        None if ref_std is None else np.asarray(ref_std, float),
+    )  # fmt: skip

@@ -376,7 +376,7 @@ class PosePredictor:
         cal = self.calibration_
         return assemble(
             self.output_names_, self.output_units_, self.directions_, X.shape[0], parts,
-            None if cal is None else cal.scale, None if cal is None else cal.dof,
+            *((None,) * 4 if cal is None else (cal.scale, cal.dof, cal.gamma, cal.ref_std)),
         )  # fmt: skip
 
     def outside_inputs(self, X) -> np.ndarray:
