@@ -2,7 +2,7 @@
 
 from .core import FRF, RESPONSE_TO_QUANTITY, to_compliance
 from .estimate import SpectralDensities, estimate_frf, spectral_densities
-from .impact import HitReport, ImpactResult, check_hit, impact_frf
+from .impact import HitReport, ImpactResult, check_hit, impact_frf, noise_level, overload_reason
 from .plot import FRFCurve, plot_frf, unwrapped_phase_deg
 from .segment import HitSegmentation, segment_hits
 
@@ -17,6 +17,8 @@ __all__ = [
     "check_hit",
     "estimate_frf",
     "impact_frf",
+    "noise_level",
+    "overload_reason",
     "plot_frf",
     "segment_hits",
     "spectral_densities",

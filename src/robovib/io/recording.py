@@ -37,7 +37,6 @@ Units come from the ordinate unit labels (see :mod:`robovib.io.units`).
 
 from __future__ import annotations
 
-import csv
 import decimal
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -275,6 +274,7 @@ class _Channels:
     records_read: int
     rejected: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    cut_short: bool = False  # the file ends without a line end (or inside a record)
 
 
 def _channel_name(key, ch: _Channels) -> str:
@@ -312,13 +312,38 @@ def _cut_continuous(ch: _Channels, where: str, segment: str, seg_kw: dict) -> st
     return "continuous"
 
 
-def _equal_lengths(ch: _Channels) -> None:
-    lengths = {len(f) for f in ch.forces}
-    if len(lengths) > 1:
-        n = min(lengths)
-        ch.notes.append(f"hits of {sorted(lengths)} samples truncated to the shortest ({n})")
-        ch.forces = [f[:n] for f in ch.forces]
-        ch.responses = {k: [r[:n] for r in v] for k, v in ch.responses.items()}
+def _equal_lengths(ch: _Channels, where: str) -> None:
+    """Give every hit the common length; a hit shorter than it is rejected, never the others cut.
+
+    The common length is the upper median of the hit lengths (at least half the hits are that
+    long). Shorter hits are rejected by name and length (averaging them would cut every hit
+    and coarsen the FRF resolution); longer ones lose only their tail beyond it (noted). A
+    short last hit in a file that ends without a line end is a file cut short: an error.
+    """
+    lengths = [len(f) for f in ch.forces]
+    if len(set(lengths)) <= 1:
+        return
+    n = int(np.sort(lengths)[len(lengths) // 2])
+    if ch.cut_short and lengths[-1] < n:
+        raise ValueError(
+            f"{where}: the file ends inside {ch.labels[-1]} ({lengths[-1]} samples, the other "
+            f"hits {n}) without a line end: a truncated or damaged file"
+        )
+    keep = []
+    for i, m in enumerate(lengths):
+        if m < n:
+            ch.rejected.append(
+                (ch.labels[i], f"short hit: {m} samples ({m / ch.sample_rate_hz:.4g} s), the "
+                 f"others {n} ({n / ch.sample_rate_hz:.4g} s)")
+            )  # fmt: skip
+        else:
+            keep.append(i)
+    longer = sorted({lengths[i] for i in keep if lengths[i] > n})
+    if longer:
+        ch.notes.append(f"hits of {longer} samples cut to the common length {n}")
+    ch.forces = [ch.forces[i][:n] for i in keep]
+    ch.responses = {k: [v[i][:n] for i in keep] for k, v in ch.responses.items()}
+    ch.labels = [ch.labels[i] for i in keep]
 
 
 def _finish(ch: _Channels, path: Path, segment: str, seg_kw: dict) -> list[HammerRecording]:
@@ -328,7 +353,7 @@ def _finish(ch: _Channels, path: Path, segment: str, seg_kw: dict) -> list[Hamme
         detail = "; ".join(f"{h}: {r}" for h, r in ch.rejected)
         raise ValueError(f"{path}: no complete hit (force + response) found ({detail})")
     layout = _cut_continuous(ch, str(path), segment, seg_kw)
-    _equal_lengths(ch)
+    _equal_lengths(ch, str(path))
     names = tuple(_channel_name(k, ch) for k in ch.responses)
     report = ReadReport(
         str(path), layout, ch.records_read, len(ch.forces),
@@ -357,24 +382,22 @@ def _csv_channels(
     force_sensitivity: Sensitivity | None,
     response_sensitivity: Sensitivity | None,
 ) -> _Channels:
-    with path.open(newline="") as fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip().lower() for h in next(reader)]
-        except StopIteration:
-            raise ValueError(f"{path}: empty file") from None
-        rows = [r for r in reader if r]
-    if not rows:
-        raise ValueError(f"{path}: no data rows")
-    if any(len(r) != len(header) for r in rows):
-        bad = next(i for i, r in enumerate(rows) if len(r) != len(header))
-        raise ValueError(
-            f"{path}: row {bad + 2} has {len(rows[bad])} cells, expected {len(header)}"
-        )
+    from .csv_table import read_table
+
+    table = read_table(path, what="recording")
+    header = list(table.header)
+    rows = table.rows
     try:
         data = np.array(rows, dtype=float)
-    except ValueError as exc:
-        raise ValueError(f"{path}: non-numeric cell ({exc})") from None
+    except ValueError:
+        for name in header:
+            table.numbers(name)  # names the line and the cell
+        raise
+    renamed = [
+        f"column {raw!r} read as {name}"
+        for raw, name in zip(table.raw_header, header, strict=True)
+        if raw.strip().lower() != name
+    ]
     col = {h: i for i, h in enumerate(header)}
     time_cols = [h for h in header if h.startswith("time_")]
     force_cols = [h for h in header if h.startswith("force_")]
@@ -386,7 +409,7 @@ def _csv_channels(
         )
     if not np.all(np.isfinite(data)):
         r, c = np.argwhere(~np.isfinite(data))[0]
-        raise ValueError(f"{path}: NaN or inf in row {r + 2}, column {header[c]!r}")
+        raise ValueError(f"{path} line {table.lines[r]}: NaN or inf in column {header[c]!r}")
     _, t_factor = si_factor(_unit_from_column(time_cols[0]), "time")
     _, f_dir, f_unit = _split_column(force_cols[0])
     f_factor = _channel_factor(f_unit, "force", force_sensitivity, str(path))
@@ -414,6 +437,7 @@ def _csv_channels(
         responses=responses, quantity=quantity, direction=direction, node=node,
         force_direction=f_dir, sample_rate_hz=float(np.mean(rates)),
         labels=[f"hit {h}" for h in order], records_read=len(order) * (1 + len(resp_cols)),
+        notes=[f"CSV read with {table.dialect}", *renamed], cut_short=not table.ends_with_newline,
     )  # fmt: skip
 
 
@@ -428,6 +452,40 @@ def _uff_fs(s: dict, where: str) -> float:
     return sample_rate_from_time(x, res, where)
 
 
+def _check_uff_complete(path: Path, n_read: int) -> None:
+    """A UFF file cut short or damaged is an error, never a partial read.
+
+    Datasets are delimited by lines ``    -1``; the file must close every dataset it opens, and
+    the reader must have returned every dataset 58 the file holds.
+    """
+    raw = path.read_bytes()
+    lines = raw.decode("latin-1").splitlines()
+    inside, start, kind, n58 = False, 0, "", 0
+    for i, line in enumerate(lines):
+        if line.strip() == "-1":
+            if inside:
+                inside = False
+            else:
+                inside, start = True, i
+                kind = (
+                    lines[i + 1].strip().split()[0]
+                    if i + 1 < len(lines) and lines[i + 1].strip()
+                    else ""
+                )
+                if kind.lower().endswith("b"):
+                    return  # binary dataset: the text structure cannot be checked here
+                n58 += kind == "58"
+    if inside:
+        raise ValueError(
+            f"{path}: the file ends inside dataset {kind or '?'} opened at line {start + 1} "
+            "(no closing -1): a truncated or damaged file"
+        )
+    if n58 != n_read:
+        raise ValueError(
+            f"{path}: holds {n58} datasets 58 but only {n_read} could be read: a damaged file"
+        )
+
+
 def _uff_channels(
     path: Path,
     force_sensitivity: Sensitivity | None,
@@ -440,6 +498,14 @@ def _uff_channels(
     except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
         raise ValueError(f"{path}: not a readable UFF file ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
+    _check_uff_complete(path, sum(s.get("type") == 58 for s in sets))
+    for k, s in enumerate(s for s in sets if s.get("type") == 58):
+        declared, held = int(s.get("num_pts", -1)), len(s.get("data", ()))
+        if declared >= 0 and declared != held:
+            raise ValueError(
+                f"{path}: dataset 58 number {k} declares {declared} values but holds {held}: "
+                "a truncated or damaged file"
+            )
     records = [s for s in sets if s.get("type") == 58 and s.get("func_type") == 1]
     if not records:
         raise ValueError(f"{path}: no dataset 58 time records (function type 1)")
