@@ -102,9 +102,10 @@ def overload_reason(
        stuck at its last code; a free peak repeats its top value by chance only).
     3. **Flat top with noise**: ``min_plateau`` or more consecutive samples within a band
        ``tol = max(3 noise deviations, rel_band x extreme)`` of the extreme
-       (:func:`noise_level`), where the samples on both sides of the run lie, on average, more
-       than ``kink x tol`` below the parabola fitted to the run. A free peak is smooth: its
-       own parabola predicts its flanks; a clipped one has a flat top between steep flanks.
+       (:func:`noise_level`), whose flanks fall more than ``kink`` times faster than a free
+       peak that blunt can: a smooth peak within ``tol`` over ``L`` samples falls about
+       ``tol (2 d / L)^2`` at ``d`` samples from its centre; a clipped top is flat between
+       steep flanks.
 
     Parameters
     ----------
@@ -154,21 +155,21 @@ def overload_reason(
         length = b - a + 1
         if length < min_plateau:
             continue
-        # The run's own parabola predicts a free peak's flanks; a clipped top is flat and
-        # its flanks fall far below that prediction on both sides.
+        # A free peak that stays within tol for `length` samples is at least that blunt: it
+        # falls about tol * (2 d / length)^2 at d samples from its centre. A clipped top
+        # falls far faster on both sides.
         m = max(2, length // 2)
         if a - m < 0 or b + 1 + m > y.size:
             continue
-        t = np.arange(a, b + 1, dtype=float) - j
-        coef = np.polyfit(t, y[a : b + 1], 2)
-        misses = [
-            float(np.mean(np.polyval(coef, np.arange(lo, hi, dtype=float) - j) - y[lo:hi]))
-            for lo, hi in ((a - m, a), (b + 1, b + 1 + m))
-        ]
-        if min(misses) > kink * tol:
+        centre = 0.5 * (a + b)
+        ratios = []
+        for idx in (np.arange(a - m, a), np.arange(b + 1, b + 1 + m)):
+            expected = tol * (2.0 * np.abs(idx - centre) / length) ** 2
+            ratios.append(float(np.mean(top - y[idx]) / np.mean(expected)))
+        if min(ratios) > kink:
             return (
                 f"flat top: {length} samples within {tol:.3g} of {sign * top:.6g} "
-                f"from sample {a}, its flanks {min(misses) / tol:.0f}x that band below a free peak"
+                f"from sample {a}, its flanks falling {min(ratios):.0f}x faster than a free peak"
             )
     return None
 
@@ -262,6 +263,7 @@ def impact_frf(
     f_max_hz: float | None = None,
     direction: str | None = None,
     pose: tuple[float, ...] | None = None,
+    plausible=None,
 ) -> ImpactResult:
     """Averaged FRF of several hammer hits with per-hit quality control.
 
@@ -299,6 +301,9 @@ def impact_frf(
         ``"x"``, ``"y"`` or ``"z"``: stored on the FRF.
     pose
         Tool-tip pose (X, Y, Z [m], Rx, Ry, Rz [deg]) stored on the FRF.
+    plausible
+        :class:`robovib.frf.PlausibleRanges`: peak force and response levels of the kept hits
+        outside them are an error naming the likely unit mix-up (None: not checked).
 
     Returns
     -------
@@ -310,7 +315,8 @@ def impact_frf(
     ------
     ValueError
         Shapes differ, unknown quantity or estimator, non-positive rate, windows longer than
-        the record, ``f_max_hz`` above Nyquist, or no hit left after rejection.
+        the record, ``f_max_hz`` above Nyquist, no hit left after rejection, or (with
+        ``plausible``) implausible levels.
 
     See ``docs/methods.md`` section 1 (FRFs from impact tests, Eq. 3-5).
 
@@ -380,6 +386,13 @@ def impact_frf(
     if not aligned:
         detail = "; ".join(f"hit {r.index}: {', '.join(r.reasons)}" for r in reports)
         raise ValueError(f"all {n_hits} hits were rejected ({detail})")
+    if plausible is not None:
+        from .plausibility import check_levels
+
+        kept = [i for i, r in enumerate(reports) if r.accepted or not reject]
+        bad = check_levels(forces[kept], responses[kept], response_quantity, plausible)
+        if bad:
+            raise ValueError("implausible levels: " + "; ".join(bad))
     t = np.arange(n) / fs - pretrigger_s
     w_force = np.ones(n)
     if force_window_s is not None:
