@@ -432,7 +432,8 @@ def process_campaign(
         detail = "; ".join(f"line {line}: {why}" for line, why in bad)
         raise ValueError(f"{manifest}: {len(bad)} of {total} rows failed ({detail})")
     if len(bad) == total:
-        raise ValueError(f"{manifest}: every row failed; nothing written")
+        detail = "; ".join(f"line {line}: {why}" for line, why in bad)
+        raise ValueError(f"{manifest}: every row failed; nothing written ({detail})")
     out_dir.mkdir(parents=True, exist_ok=True)
     table, n_frfs = _write_outputs(out_dir, results, settings, manifest, bad)
     return CampaignResult(
