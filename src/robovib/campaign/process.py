@@ -225,16 +225,22 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
         if is_direct:
             fitted = (frf, res)
     frf, res = fitted
-    fit = fit_dominant_mode(frf, s.band_hz)
+    n_fs = direct.forces.shape[1]
+    resolution = (
+        f"FRF resolution df = {frf.df_hz:.3g} Hz from hits of {n_fs} samples = "
+        f"{n_fs / direct.sample_rate_hz:.3g} s"
+    )
+    try:
+        fit = fit_dominant_mode(frf, s.band_hz)
+    except ValueError as exc:
+        raise ValueError(f"{exc} ({resolution}; longer hits give finer lines)") from None
     p, sd = fit.parameters, fit.std
     lo, hi = fit.band_hz
     band = frf.band(lo, hi)
     df = frf.df_hz
-    n_fs = direct.forces.shape[1]
     if band.frequency_hz.size < s.min_fit_bins:
         raise ValueError(
-            f"FRF resolution df = {df:.3g} Hz (hits of {n_fs} samples = "
-            f"{n_fs / direct.sample_rate_hz:.3g} s) leaves {band.frequency_hz.size} lines in the "
+            f"{resolution} leaves {band.frequency_hz.size} lines in the "
             f"fit band {lo:.4g}-{hi:.4g} Hz, fewer than {s.min_fit_bins}: the hits are too short "
             f"for this band (need >= {s.min_fit_bins / max(hi - lo, 1e-12):.3g} s)"
         )

@@ -101,7 +101,7 @@ def overload_reason(
     2. **Equal samples**: ``run`` or more consecutive samples exactly at the extreme (an ADC
        stuck at its last code; a free peak repeats its top value by chance only).
     3. **Flat top with noise**: ``min_plateau`` or more consecutive samples within a band
-       ``tol = max(3 noise deviations, rel_band x extreme)`` of the extreme
+       ``tol = max(5 noise deviations, rel_band x extreme)`` of the extreme
        (:func:`noise_level`), whose flanks fall more than ``kink`` times faster than a free
        peak that blunt can: a smooth peak within ``tol`` over ``L`` samples falls about
        ``tol (2 d / L)^2`` at ``d`` samples from its centre; a clipped top is flat between
@@ -138,13 +138,15 @@ def overload_reason(
         i0, n_eq = _longest_run(y >= top * (1 - 1e-12))
         if n_eq >= run:
             return f"{n_eq} equal samples at {sign * top:.6g} (sample {i0})"
-        tol = max(3.0 * sigma, rel_band * top)
+        tol = max(5.0 * sigma, rel_band * top)
         if tol > 0.2 * top:
             continue
-        # The run near the extreme holding the extreme, one stray noisy sample bridged.
+        # The run near the extreme holding the extreme, up to two stray noisy samples bridged.
         near = y >= top - tol
         bridged = near.copy()
         bridged[1:-1] |= near[:-2] & near[2:]
+        bridged[1:-2] |= near[:-3] & near[3:]
+        bridged[2:-1] |= near[:-3] & near[3:]
         j = int(np.argmax(y))
         a = j
         while a > 0 and bridged[a - 1]:

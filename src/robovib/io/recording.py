@@ -275,6 +275,7 @@ class _Channels:
     rejected: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     cut_short: bool = False  # the file ends without a line end (or inside a record)
+    hit_rates: list | None = None  # per-hit sample rates (CSV), averaged over the kept hits
 
 
 def _channel_name(key, ch: _Channels) -> str:
@@ -344,6 +345,9 @@ def _equal_lengths(ch: _Channels, where: str) -> None:
     ch.forces = [ch.forces[i][:n] for i in keep]
     ch.responses = {k: [v[i][:n] for i in keep] for k, v in ch.responses.items()}
     ch.labels = [ch.labels[i] for i in keep]
+    if ch.hit_rates is not None:  # a rejected short hit's (less precise) rate does not count
+        ch.hit_rates = [ch.hit_rates[i] for i in keep]
+        ch.sample_rate_hz = float(np.mean(ch.hit_rates))
 
 
 def _finish(ch: _Channels, path: Path, segment: str, seg_kw: dict) -> list[HammerRecording]:
@@ -438,6 +442,7 @@ def _csv_channels(
         force_direction=f_dir, sample_rate_hz=float(np.mean(rates)),
         labels=[f"hit {h}" for h in order], records_read=len(order) * (1 + len(resp_cols)),
         notes=[f"CSV read with {table.dialect}", *renamed], cut_short=not table.ends_with_newline,
+        hit_rates=rates,
     )  # fmt: skip
 
 
