@@ -377,3 +377,26 @@ def test_cut_uff_is_an_error_never_a_partial_read(tmp_path_factory, frac, n_hits
         )
         return
     assert rec.n_hits == n_hits and text[: int(frac * len(text))].rstrip() == text.rstrip()
+
+
+@SETTINGS
+@given(n_hits=st.integers(3, 6), close=st.integers(0, 4), seed=st.integers(0, 1000))
+def test_continuous_record_close_pair_does_not_shorten_every_hit(n_hits, close, seed):
+    """Hits struck by hand 1.5-2 s apart, one followed after only 0.3 s by the next: that hit is
+    rejected as short; the others keep at least the shortest normal spacing."""
+    from robovib.frf import segment_hits
+
+    rng = np.random.default_rng(seed)
+    fs = 1024.0
+    close = close % (n_hits - 1)
+    gaps = rng.uniform(1.5, 2.0, n_hits - 1)
+    gaps[close] = 0.3
+    onsets = 0.2 + np.concatenate([[0.0], np.cumsum(gaps)])
+    n = round((onsets[-1] + 2.0) * fs)
+    force = sum(half_sine_pulse(n, fs, t, 2e-3, rng.uniform(200, 800)) for t in onsets)
+    seg = segment_hits(force, fs, hold_off_s=0.2)
+    assert seg.n_hits + len(seg.rejected) == n_hits
+    ((onset, why),) = seg.rejected
+    assert onset / fs == pytest.approx(onsets[close], abs=2e-3) and "short hit" in why
+    normal = np.delete(gaps, close)
+    assert seg.length / fs >= normal.min() - 0.05
