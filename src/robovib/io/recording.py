@@ -584,9 +584,19 @@ def _uff_channels(
     if not rkeys:
         raise ValueError(f"{path}: no response record (specific data type 8, 11 or 12)")
     forces, responses, kept_labels, rejected = [], {k: [] for k in rkeys}, [], []
+    # The hit the file's last record belongs to: a hit from there on that lacks a record means
+    # the file was cut (between datasets), not that a record was left out.
+    final = parsed[-1]
+    last = final[2] if by_case else len(per_key[final[1]]) - 1
     for h in sorted(hits):
         rec = hits[h]
         missing = [k for k in [fkey, *rkeys] if k not in rec]
+        if missing and h >= last:
+            names = ", ".join(f"{k[0]} node {k[1]} dir {k[2]}" for k in missing)
+            raise ValueError(
+                f"{path}: the last hit ({labels[h]}) lacks its {names} record and the file ends "
+                "there: a truncated file (a file cut between datasets)"
+            )
         if missing:
             names = ", ".join(f"{k[0]} node {k[1]} dir {k[2]}" for k in missing)
             rejected.append((labels[h], f"no {names} record"))
