@@ -410,3 +410,28 @@ def test_continuous_record_close_pair_does_not_shorten_every_hit(n_hits, close, 
     assert onset / fs == pytest.approx(onsets[close], abs=2e-3) and "short hit" in why
     normal = np.delete(gaps, close)
     assert seg.length / fs >= normal.min() - 0.05
+
+
+@SETTINGS
+@given(frac=st.floats(0.3, 1.0), n_hits=st.integers(2, 4), seed=st.integers(0, 100))
+def test_cut_csv_is_an_error_or_reports_the_lost_hit(tmp_path_factory, frac, n_hits, seed):
+    """A recording CSV cut anywhere: an error naming the line, or (cut at a line end) the hits
+    it holds with the cut one rejected as short by name: hits read + rejected = hits begun."""
+    fs, n = 1024.0, 256
+    forces, resp = hits(n_hits, n, fs, seed)
+    folder = tmp_path_factory.mktemp("cutcsv")
+    write_clean(folder / "full.csv", forces, resp, fs)
+    text = (folder / "full.csv").read_text()
+    prefix = text[: int(frac * len(text))]
+    (folder / "cut.csv").write_text(prefix)
+    rows = [ln for ln in prefix.splitlines()[1:] if ln]
+    begun = len({ln.split(",")[0] for ln in rows})
+    try:
+        rec = read_recording(folder / "cut.csv")
+    except ValueError as exc:
+        assert "line" in str(exc) or "truncated" in str(exc) or "fewer than 2" in str(exc), exc
+        return
+    assert rec.n_hits + len(rec.report.hits_rejected) == begun
+    assert all("short hit" in why for _, why in rec.report.hits_rejected)
+    if begun > 1:  # a whole hit before the cut sets the length: the cut one never shortens it
+        assert rec.forces.shape[1] == n

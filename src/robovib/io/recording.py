@@ -322,6 +322,8 @@ def _equal_lengths(ch: _Channels, where: str) -> None:
     short last hit in a file that ends without a line end is a file cut short: an error.
     """
     lengths = [len(f) for f in ch.forces]
+    if ch.cut_short:
+        ch.notes.append("the file ends without a line end: its last value may be cut short")
     if len(set(lengths)) <= 1:
         return
     n = int(np.sort(lengths)[len(lengths) // 2])
