@@ -435,3 +435,17 @@ def test_cut_csv_is_an_error_or_reports_the_lost_hit(tmp_path_factory, frac, n_h
     assert all("short hit" in why for _, why in rec.report.hits_rejected)
     if begun > 1:  # a whole hit before the cut sets the length: the cut one never shortens it
         assert rec.forces.shape[1] == n
+
+
+def test_time_printed_with_significant_digits_past_one_second(tmp_path):
+    """A DAQ printing %.10g loses decimals once t > 1 s: that is rounding, not a gap; a real
+    gap (one sample missing) is still named."""
+    fs, n = 51200.0, 65536
+    forces, resp = hits(1, n, fs, 4)
+    write_clean(tmp_path / "t.csv", forces, resp, fs)
+    assert read_recording(tmp_path / "t.csv").sample_rate_hz == pytest.approx(fs, rel=1e-9)
+    lines = (tmp_path / "t.csv").read_text().splitlines()
+    del lines[60000]
+    (tmp_path / "g.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=r"not uniformly sampled: step of .* before sample 59999"):
+        read_recording(tmp_path / "g.csv")

@@ -194,13 +194,28 @@ def _channel_factor(
     return si_factor(label, expected)[1]
 
 
-def sample_rate_from_time(time_s: np.ndarray, resolution_s: float, where: str) -> float:
+def sample_rate_from_time(time_s: np.ndarray, resolution_s, where: str) -> float:
     """Sample rate [Hz] of a printed time column, tolerating rounding up to its resolution.
 
     The sample interval is the least-squares slope of time against sample index; each step must
     match it within the printed resolution ``resolution_s`` (a rounded value is off by at most
     half of it, a step by at most all of it). A larger deviation is a gap, named by sample and
     time.
+
+    Parameters
+    ----------
+    time_s
+        (n,) sample times [s].
+    resolution_s
+        Printed resolution [s]: one value, or one per sample (a step is allowed the coarser
+        of its two ends).
+    where
+        The file (and hit) for messages.
+
+    Returns
+    -------
+    float
+        The sample rate [Hz].
 
     Raises
     ------
@@ -217,31 +232,44 @@ def sample_rate_from_time(time_s: np.ndarray, resolution_s: float, where: str) -
             f"{where}: time column is not uniformly sampled: time does not increase at sample {i} "
             f"(t = {t[i]:.9g} s)"
         )
+    # A gap (a missing sample, a jump) is found against the median step first, so that it is
+    # named where it is, not where it tilts the least-squares slope.
+    step = float(np.median(dt))
+    gap = np.abs(dt - step) > 0.25 * step
+    if np.any(gap):
+        i = int(np.argmax(gap)) + 1
+        raise ValueError(
+            f"{where}: time column is not uniformly sampled: step of {dt[i - 1]:.9g} s before "
+            f"sample {i} (t = {t[i]:.9g} s), expected {step:.9g} s; a gap or a changed rate"
+        )
     idx = np.arange(t.size, dtype=float)
     slope, _ = np.polyfit(idx, t, 1)
     # A step off by a quarter interval or more is never rounding (a missing sample is a whole one).
-    tol = min(1.001 * resolution_s + 1e-9 * slope + 1e-15, 0.25 * slope)
+    res = np.broadcast_to(np.asarray(resolution_s, float), t.shape)
+    res_step = np.maximum(res[:-1], res[1:])  # each step: the coarser of its two printed times
+    tol = np.minimum(1.001 * res_step + 1e-9 * slope + 1e-15, 0.25 * slope)
     bad = np.abs(dt - slope) > tol
     if np.any(bad):
         i = int(np.argmax(bad)) + 1
         raise ValueError(
             f"{where}: time column is not uniformly sampled: step of {dt[i - 1]:.9g} s before "
-            f"sample {i} (t = {t[i]:.9g} s), expected {slope:.9g} s ± {resolution_s:.3g} s "
+            f"sample {i} (t = {t[i]:.9g} s), expected {slope:.9g} s ± {res_step[i - 1]:.3g} s "
             "(the printed resolution); a gap or a changed rate"
         )
     return float(1.0 / slope)
 
 
-def _printed_resolution(cells) -> float:
-    """The typical (median) last printed digit of numeric strings (e.g. '0.000195' -> 1e-6)."""
-    exps = []
+def _printed_resolution(cells) -> np.ndarray:
+    """The last printed digit of each numeric string (e.g. '0.000195' -> 1e-6); a DAQ printing
+    ``%.10g`` gives fewer decimals once the time passes 1 s."""
+    out = []
     for c in cells:
         try:
-            exps.append(decimal.Decimal(c.strip()).as_tuple().exponent)
+            e = decimal.Decimal(c.strip()).as_tuple().exponent
         except (decimal.InvalidOperation, AttributeError):
-            continue
-    exps = [e for e in exps if isinstance(e, int)]
-    return float(10.0 ** np.median(exps)) if exps else 0.0
+            e = None
+        out.append(10.0**e if isinstance(e, int) else 0.0)
+    return np.asarray(out, float)
 
 
 def _unit_from_column(name: str) -> str:
