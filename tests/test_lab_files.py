@@ -449,3 +449,22 @@ def test_time_printed_with_significant_digits_past_one_second(tmp_path):
     (tmp_path / "g.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(ValueError, match=r"not uniformly sampled: step of .* before sample 59999"):
         read_recording(tmp_path / "g.csv")
+
+
+def test_one_sample_clips_pile_up_across_hits():
+    """Three hits each clipped to a single sample at the range limit: alone, a one-sample top
+    looks free; together, three peaks at exactly one value are the limit."""
+    fs, n = 1000.0, 1000
+    rng = np.random.default_rng(0)
+    f = np.array(
+        [half_sine_pulse(n, fs, 0.05 + rng.uniform(0, 1e-3), 1.5e-3, p) for p in (400, 500, 600)]
+    )
+    assert all(overload_reason(x) is None for x in f)
+    limit = 0.98 * f.max(axis=1).min()
+    clipped = np.minimum(f, limit)
+    assert all(int(np.sum(x >= limit)) == 1 for x in clipped)
+    resp = np.vstack([system_response(x, fs, [MODE]) for x in clipped])
+    with pytest.raises(ValueError, match="equals that of hit"):
+        impact_frf(clipped, resp, fs)
+    res = impact_frf(f, np.vstack([system_response(x, fs, [MODE]) for x in f]), fs)
+    assert res.n_rejected == 0

@@ -8,8 +8,9 @@ For each hit (one force and one response record, equally sampled):
    *double hit* — outside the main (largest) pulse, before it or after it has decayed below
    the trigger level, the force reaches ``double_hit_level`` x peak; *overload* — a run of ``clip_run`` or more samples
    at the channel's extreme value (a clipped ADC), a flat top carrying noise (many samples
-   near the extreme between steep flanks, :func:`overload_reason`), or a given full-scale
-   range reached, on the force and on the response channel;
+   near the extreme between steep flanks, :func:`overload_reason`), peaks of several hits
+   piled up at exactly one value (the range limit, even for one-sample tops), or a given
+   full-scale range reached, on the force and on the response channel;
    flagged hits are rejected (default) or only reported (``reject=False``).
 3. **Windows**: a *force window* keeps the pulse (``force_window_s`` after the trigger, with a
    short cosine taper) and zeroes the hammer channel's noise elsewhere; an optional
@@ -236,6 +237,29 @@ def check_hit(
     return HitReport(index, trigger, peak, width, not reasons, tuple(reasons))
 
 
+def _peak_pile_up(reports: list, forces: np.ndarray, responses: np.ndarray) -> list:
+    """Hits whose peak |value| equals another hit's exactly hit the input range (an ADC's last
+    code): hand-struck peaks never repeat to 1e-9; a clipped one-sample top does."""
+    from dataclasses import replace
+
+    out = list(reports)
+    for name, x in (("force", forces), ("response", responses)):
+        if x.shape[0] < 2:
+            continue
+        peaks = np.max(np.abs(x), axis=1)
+        for i, p in enumerate(peaks):
+            same = np.flatnonzero(np.isclose(peaks, p, rtol=1e-9, atol=0.0))
+            if p > 0 and same.size >= 2:
+                others = ", ".join(str(j) for j in same if j != i)
+                why = (
+                    f"{name} channel overload (clipped: peak {p:.6g} equals that of hit(s) "
+                    f"{others}: the input range)"
+                )
+                if why not in out[i].reasons:
+                    out[i] = replace(out[i], accepted=False, reasons=(*out[i].reasons, why))
+    return out
+
+
 def _force_window(n: int, start: int, stop: int, taper: int) -> np.ndarray:
     w = np.zeros(n)
     w[max(start, 0) : min(stop, n)] = 1.0
@@ -369,14 +393,24 @@ def impact_frf(
     if f_max_hz is not None:
         f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
     pre = round(pretrigger_s * fs)
-    reports, aligned = [], []
-    for i in range(n_hits):
-        rep = check_hit(
-            forces[i], responses[i], fs, index=i, trigger_level=trigger_level,
-            double_hit_level=double_hit_level, pretrigger_s=pretrigger_s, clip_run=clip_run,
-            force_full_scale=force_full_scale, response_full_scale=response_full_scale,
+    reports = [
+        check_hit(
+            forces[i],
+            responses[i],
+            fs,
+            index=i,
+            trigger_level=trigger_level,
+            double_hit_level=double_hit_level,
+            pretrigger_s=pretrigger_s,
+            clip_run=clip_run,
+            force_full_scale=force_full_scale,
+            response_full_scale=response_full_scale,
         )  # fmt: skip
-        reports.append(rep)
+        for i in range(n_hits)
+    ]
+    reports = _peak_pile_up(reports, forces, responses)
+    aligned = []
+    for i, rep in enumerate(reports):
         if rep.accepted or not reject:
             shift = rep.trigger_index - pre
             f_al = np.zeros(n)
