@@ -393,21 +393,13 @@ def impact_frf(
     if f_max_hz is not None:
         f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
     pre = round(pretrigger_s * fs)
-    reports = [
-        check_hit(
-            forces[i],
-            responses[i],
-            fs,
-            index=i,
-            trigger_level=trigger_level,
-            double_hit_level=double_hit_level,
-            pretrigger_s=pretrigger_s,
-            clip_run=clip_run,
-            force_full_scale=force_full_scale,
-            response_full_scale=response_full_scale,
-        )  # fmt: skip
-        for i in range(n_hits)
-    ]
+    reports = []
+    for i in range(n_hits):
+        reports.append(check_hit(
+            forces[i], responses[i], fs, index=i, trigger_level=trigger_level,
+            double_hit_level=double_hit_level, pretrigger_s=pretrigger_s, clip_run=clip_run,
+            force_full_scale=force_full_scale, response_full_scale=response_full_scale,
+        ))  # fmt: skip
     reports = _peak_pile_up(reports, forces, responses)
     aligned = []
     for i, rep in enumerate(reports):
