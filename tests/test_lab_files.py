@@ -468,3 +468,20 @@ def test_one_sample_clips_pile_up_across_hits():
         impact_frf(clipped, resp, fs)
     res = impact_frf(f, np.vstack([system_response(x, fs, [MODE]) for x in f]), fs)
     assert res.n_rejected == 0
+
+
+def test_pose_table_from_a_spreadsheet(tmp_path):
+    from robovib.io import read_pose_table
+
+    p = tmp_path / "poses.csv"
+    p.write_bytes(
+        b"\xef\xbb\xbfX [mm];Y [mm];Rz [deg];note\r\n2100,5;-12,25;90;a\r\n2200;0;45,5;b\r\n"
+    )
+    t = read_pose_table(p, ["x_mm", "y_mm", "rz_deg"])
+    np.testing.assert_array_equal(
+        t[["x_mm", "y_mm", "rz_deg"]].to_numpy(), [[2100.5, -12.25, 90.0], [2200.0, 0.0, 45.5]]
+    )
+    assert list(t["note"]) == ["a", "b"]
+    p.write_text("x_mm;y_mm;rz_deg\n2100;0;0\n2200;1,5.3;0\n")
+    with pytest.raises(ValueError, match=r"line 3: y_mm = '1,5.3' is not a finite number"):
+        read_pose_table(p, ["x_mm", "y_mm", "rz_deg"])
