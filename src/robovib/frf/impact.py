@@ -239,7 +239,8 @@ def check_hit(
 
 def _peak_pile_up(reports: list, forces: np.ndarray, responses: np.ndarray) -> list:
     """Hits whose peak |value| equals another hit's exactly hit the input range (an ADC's last
-    code): hand-struck peaks never repeat to 1e-9; a clipped one-sample top does."""
+    code): hand-struck peaks never repeat to 1e-9; a clipped one-sample top does. Hits equal
+    around the peak too are copies (synthetic data), not clipped."""
     from dataclasses import replace
 
     out = list(reports)
@@ -247,8 +248,18 @@ def _peak_pile_up(reports: list, forces: np.ndarray, responses: np.ndarray) -> l
         if x.shape[0] < 2:
             continue
         peaks = np.max(np.abs(x), axis=1)
+        at = np.argmax(np.abs(x), axis=1)
+        around = [np.abs(x[i, max(int(k) - 2, 0) : int(k) + 3]) for i, k in enumerate(at)]
+
         for i, p in enumerate(peaks):
-            same = np.flatnonzero(np.isclose(peaks, p, rtol=1e-9, atol=0.0))
+            # Equal peaks with different neighbours: a limit; equal neighbours too: copied hits
+            # (synthetic data), not a clip.
+            same = [
+                j for j in np.flatnonzero(np.isclose(peaks, p, rtol=1e-9, atol=0.0))
+                if j == i or around[j].shape != around[i].shape
+                or not np.allclose(around[j], around[i], rtol=1e-9, atol=0.0)
+            ]  # fmt: skip
+            same = np.asarray(same)
             if p > 0 and same.size >= 2:
                 others = ", ".join(str(j) for j in same if j != i)
                 why = (
