@@ -199,6 +199,25 @@ def main() -> int:
             "correct result: " + msg[-120:] if not code else f"ERROR {msg}",
         )
     )
+    lines = [head.strip()]
+    for k in range(4):
+        fk, rk = hits(3, n, FS, 20 + k)
+        write(tmp / f"p{k}.csv", fk, [x / 9.80665 for x in rk] if k == 1 else rk)
+        lines.append(f"p{k}.csv,x,{2100 + 100 * k},0,325,0")
+    (tmp / "mg.csv").write_text("\n".join(lines) + "\n")
+    import json
+
+    flags = [r["flags"] or "" for r in json.loads(CliRunner().invoke(app, [
+        "campaign", "process", str(tmp / "mg.csv"), "-o", str(tmp / "og2"), "--workers", "1", "--json"
+    ]).output)["rows"]]  # fmt: skip
+    rows.append(
+        (
+            "campaign: one file of 4 in g labelled m/s^2",
+            f"flagged row 2: {flags[1][:110]}"
+            if "g labelled" in flags[1]
+            else f"NOT FLAGGED {flags}",
+        )
+    )
     (tmp / "ms.csv").write_text(head + "clean3.csv,x,2400,0,325,0\ncutrec.uff,x,2500,0,325,0\n")
     code, msg = cli(
         "campaign", "process", tmp / "ms.csv", "-o", tmp / "os", "--workers", "1", "--skip-bad"

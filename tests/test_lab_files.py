@@ -485,3 +485,23 @@ def test_pose_table_from_a_spreadsheet(tmp_path):
     p.write_text("x_mm;y_mm;rz_deg\n2100;0;0\n2200;1,5.3;0\n")
     with pytest.raises(ValueError, match=r"line 3: y_mm = '1,5.3' is not a finite number"):
         read_pose_table(p, ["x_mm", "y_mm", "rz_deg"])
+
+
+def test_one_file_in_g_among_m_per_s2_is_flagged(tmp_path):
+    """Four recordings of the same structure, one exported in g but labelled m/s^2: its
+    stiffness is 9.81x the others' -> flagged as a likely unit mix-up; the others are not."""
+    from robovib.campaign import process_campaign
+
+    lines = ["file,direction,x_mm,y_mm,z_mm,rz_deg"]
+    for k in range(4):
+        fs, n = 1024.0, 1024
+        forces, resp = hits(2, n, fs, 10 + k)
+        if k == 2:
+            resp = [r / 9.80665 for r in resp]
+        write_clean(tmp_path / f"r{k}.csv", forces, resp, fs)
+        lines.append(f"r{k}.csv,x,{2100 + 100 * k},0,325,0")
+    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    res = process_campaign(tmp_path / "m.csv", tmp_path / "out", n_workers=1)
+    flags = res.table["flags"].fillna("").tolist()
+    assert "g labelled m/s^2" in flags[2]
+    assert all("unit mix-up" not in f for i, f in enumerate(flags) if i != 2)

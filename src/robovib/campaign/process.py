@@ -328,6 +328,38 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
     return table, len(frfs)
 
 
+#: Factors between a row's stiffness and its campaign neighbours' that point to a unit mix-up.
+_UNIT_FACTORS = (
+    (9.80665, "the response in g labelled m/s^2 (or the reverse)"),
+    (1e3, "a force in kN labelled N, or a response in mm(/s^2) labelled m(/s^2) (or the reverse)"),
+)
+
+
+def _flag_unit_outliers(results) -> None:
+    """Flag rows whose stiffness differs from the median of their direction by a unit factor.
+
+    A robot's stiffness changes with the pose by a few times at most; a row 9.8x or 1000x off
+    the others (within 30 %) is far likelier one file exported in other units. Needs >= 3 rows
+    of a direction; the flag goes to the row's ``flags``.
+    """
+    good = [r for r in results if r.modal is not None]
+    for d in ("x", "y", "z"):
+        rows = [r for r in good if r.modal["direction"] == d]
+        if len(rows) < 3:
+            continue
+        k = np.array([r.modal["stiffness_n_per_m"] for r in rows], float)
+        med = float(np.median(k))
+        for r, ki in zip(rows, k, strict=True):
+            ratio = ki / med
+            for factor, words in _UNIT_FACTORS:
+                if any(abs(np.log(ratio * f)) < np.log(1.3) for f in (factor, 1 / factor)):
+                    flag = (
+                        f"stiffness {ratio:.3g}x the median of the {d} rows: likely a unit "
+                        f"mix-up ({words})"
+                    )
+                    r.modal["flags"] = "; ".join(x for x in (r.modal["flags"], flag) if x)
+
+
 def campaign_accounting(results) -> dict:
     """Where every manifest row went: row -> FRFs (direct, cross) -> modal row, or skipped.
 
@@ -433,6 +465,7 @@ def process_campaign(
                 results.append(res)
                 if progress:
                     progress(len(results), total)
+    _flag_unit_outliers(results)
     bad = [(r.row, r.error) for r in results if r.error is not None]
     if bad and not skip_bad:
         detail = "; ".join(f"line {line}: {why}" for line, why in bad)
