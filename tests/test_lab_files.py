@@ -505,3 +505,12 @@ def test_one_file_in_g_among_m_per_s2_is_flagged(tmp_path):
     flags = res.table["flags"].fillna("").tolist()
     assert "g labelled m/s^2" in flags[2]
     assert all("unit mix-up" not in f for i, f in enumerate(flags) if i != 2)
+
+
+def test_one_odd_line_in_a_semicolon_file_is_named(tmp_path):
+    p = tmp_path / "r.csv"
+    rows = [f"0;{i / 1024:.6f};{1.5 + i:.1f};0,{i:03d}".replace(".", ",") for i in range(50)]
+    rows[30] += ";7"
+    p.write_text("hit;time_s;force_n;acceleration_g\n" + "\n".join(rows) + "\n")
+    with pytest.raises(ValueError, match=r"line 32: 5 cells, expected 4 .*delimiter ';'"):
+        read_recording(p)

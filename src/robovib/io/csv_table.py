@@ -6,8 +6,8 @@ through :func:`read_table`. It accepts what Excel and DAQ software write and say
 * **encoding**: UTF-8 with or without a byte-order mark (Excel's "CSV UTF-8"), UTF-16 with a
   byte-order mark (Excel's "Unicode text"), else Windows-1252;
 * **delimiter**: sniffed among ``,`` ``;`` tab and ``|`` — the one that splits the header into
-  two or more cells and every sampled data line into as many (a single-column table is
-  comma-separated);
+  two or more cells and every sampled data line into as many (else the one splitting the header
+  most, so that the odd line is named; a single-column table is comma-separated);
 * **decimal mark**: a comma when the delimiter is not a comma and numbers are written ``1,5``
   (also ``1.234,5`` with a thousands dot); such cells are returned with a decimal point;
 * **quotes**: ``"1,5"`` and ``"12.5"`` are cells like any other (csv-module quoting);
@@ -200,6 +200,7 @@ def _sniff_delimiter(text: str) -> str:
     if not sample:
         return ","
     best, best_cols = ",", 1
+    widest, widest_cols = ",", 1  # if no delimiter splits every line alike: the header's
     for d in _DELIMITERS:
         try:
             rows = _split(sample, d)
@@ -211,13 +212,17 @@ def _sniff_delimiter(text: str) -> str:
             n -= 1
         if n < 2:
             continue
+        if n > widest_cols:
+            widest, widest_cols = d, n
         ok = all(
             len(r) == len(rows[0]) or (len(r) >= n and not any(c.strip() for c in r[n:]))
             for r in rows[1:-1]  # the last sampled line may be cut short
         )
         if ok and n > best_cols:
             best, best_cols = d, n
-    return best
+    # No consistent delimiter: take the one that splits the header, so that the cell-count
+    # check names the first odd line.
+    return best if best_cols > 1 else widest
 
 
 def read_table(path: str | Path, *, what: str = "table") -> CsvTable:
