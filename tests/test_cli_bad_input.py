@@ -25,7 +25,11 @@ from robovib.cli import app
 
 # ----------------------------------------------------------------------------- inputs
 SUFFIX = {"rec": ".uff", "frf": ".h5", "inverted": ".h5", "ema": ".h5", "model": ".h5", "oma": ".h5", "omay": ".h5",
-          "cut": ".csv", "forces": ".csv", "sched": ".csv", "tests": ".csv"}  # fmt: skip
+          "cut": ".csv", "forces": ".csv", "sched": ".csv", "tests": ".csv",
+          # files as labs write them (issue 28)
+          "reckn": ".csv", "recgmm": ".csv", "rectrunc": ".uff", "rectruncnum": ".uff", "reccut": ".csv",
+          "recclip": ".uff", "recclipnoisy": ".csv", "mandup": ".csv", "mantwoposes": ".csv",
+          "manslot": ".csv", "mancopy": ".csv", "mantrunc": ".csv"}  # fmt: skip
 
 
 def _make_inputs(folder: Path) -> None:
@@ -38,14 +42,16 @@ def _make_inputs(folder: Path) -> None:
     fs, n = 1024.0, 1024
     t = np.arange(n) / fs
     forces = np.zeros((2, n))
-    forces[:, 20:24] = np.array([100.0, 300.0, 300.0, 100.0])
+    forces[:, 20:24] = np.array([100.0, 300.0, 280.0, 100.0])
+    forces[1] *= 0.8  # hand-struck hits differ (equal peaks would be the range limit)
     mode = ModalParameters(16.5, 2e6, 0.05)
     wd = 2 * np.pi * mode.natural_frequency_hz
     resp = np.where(
         t >= 20 / fs, np.exp(-0.05 * wd * (t - 20 / fs)) * np.sin(wd * (t - 20 / fs)), 0
     )
-    rec = HammerRecording(forces, np.vstack([resp, resp]) * 1e-2, fs, "acceleration", "x")
+    rec = HammerRecording(forces, np.vstack([resp, 0.8 * resp]) * 1e-2, fs, "acceleration", "x")
     write_recording_uff(folder / "rec.uff", rec)
+    _lab_files(folder, forces, np.vstack([resp, 0.8 * resp]) * 1e-2, fs)
     f = np.arange(2.0, 40.0 + 1e-9, 1.953125)
 
     def path_frfs(direction, source, svals):
@@ -85,6 +91,52 @@ def _make_inputs(folder: Path) -> None:
     for k in ("fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm", "dx_m", "dy_m", "dz_m"):
         tcols[k] = rng.normal(size=8)
     _csv(folder / "tests.csv", tcols)
+
+
+def _hits_csv(path: Path, forces, responses, fs, header="hit,time_s,force_n,acceleration_m_per_s2",
+              end="\n") -> None:  # fmt: skip
+    lines = [header]
+    for h, (f, r) in enumerate(zip(forces, responses, strict=True)):
+        lines += [f"{h},{i / fs:.9g},{f[i]:.9g},{r[i]:.9g}" for i in range(len(f))]
+    path.write_text("\n".join(lines) + end)
+
+
+def _lab_files(folder: Path, forces, responses, fs) -> None:
+    """Files as labs write them that must fail with one clear error (issue 28)."""
+    from robovib.io import HammerRecording, write_recording_uff
+
+    _hits_csv(folder / "reckn.csv", forces / 1e3, responses, fs)  # kN values under force_n
+    _hits_csv(folder / "recgmm.csv", forces, responses / 9.80665, fs)  # g values as m/s^2
+    text = (folder / "rec.uff").read_text()
+    (folder / "rectrunc.uff").write_text(text[: int(0.8 * len(text))])  # cut mid-record
+    cut = text.rstrip().rfind("-1") - 30  # inside the last number of the last record
+    (folder / "rectruncnum.uff").write_text(text[:cut])
+    long_f = np.hstack([forces, forces])
+    long_r = np.hstack([responses, responses])
+    _hits_csv(folder / "reccut.csv", long_f, long_r, fs)
+    cut_text = (folder / "reccut.csv").read_text()
+    (folder / "reccut.csv").write_text(cut_text[: len(cut_text) - 4000])  # cut inside a line
+    clipped = forces.copy()
+    clipped[:, 21:23] = 250.0  # two equal samples at the range limit
+    write_recording_uff(folder / "recclip.uff",
+                        HammerRecording(clipped, responses, fs, "acceleration", "x"))  # fmt: skip
+    rng = np.random.default_rng(1)
+    n = forces.shape[1]
+    t = np.arange(n) / fs
+    wide = 600 * np.sin(np.pi * np.clip((t - 0.02) / 0.008, 0, 1)) * (t < 0.028)
+    noisy = np.minimum(wide, 450.0)
+    noisy = noisy + (noisy >= 450.0) * rng.normal(size=n) * 1.0  # noisy plateau at the limit
+    _hits_csv(folder / "recclipnoisy.csv", np.vstack([noisy, noisy]), responses, fs)
+    (folder / "recb.uff").write_text(text.replace("robovib hammer", "robovib hammeR"))
+    (folder / "recc.uff").write_bytes((folder / "rec.uff").read_bytes())
+    head = "file,direction,x_mm,y_mm,z_mm,rz_deg\n"
+    (folder / "mandup.csv").write_text(head + "rec.uff,x,2400,0,325,0\n" * 2)
+    (folder / "mantwoposes.csv").write_text(
+        head + "rec.uff,x,2400,0,325,0\nrec.uff,x,2500,0,325,0\n"
+    )
+    (folder / "manslot.csv").write_text(head + "rec.uff,x,2400,0,325,0\nrecb.uff,x,2400,0,325,0\n")
+    (folder / "mancopy.csv").write_text(head + "rec.uff,x,2400,0,325,0\nrecc.uff,x,2500,0,325,0\n")
+    (folder / "mantrunc.csv").write_text(head + "rectrunc.uff,x,2400,0,325,0\n")
 
 
 def _csv(path: Path, cols: dict) -> None:
@@ -307,6 +359,13 @@ bad_inputs("sim-campaign-poses", "sim campaign --poses {IN} -o {out:}", ".csv")
 bad_options("sim-campaign", "sim campaign --poses {missing:.csv} -o {out:}", {
     "--hits": ["0"], "--duration-s": ["nan", "-1"], "--sample-rate-hz": ["0", "inf"],
 })  # fmt: skip
+
+# files as labs write them (issue 28): one clear error each, never a silently worse answer
+for name in ("reckn", "recgmm", "rectrunc", "rectruncnum", "reccut", "recclip", "recclipnoisy"):
+    case(f"frf-compute-lab-{name}", f"frf compute {{{name}}} -o {{out:.h5}}")
+for name in ("mandup", "mantwoposes", "manslot", "mancopy"):
+    case(f"campaign-process-lab-{name}", f"campaign process {{{name}}} -o {{out:}}")
+case("campaign-process-lab-truncated-skip-bad", "campaign process {mantrunc} -o {out:} --skip-bad")
 
 #: cases the CLI still gets wrong (see module docstring); strict xfail, so the set only shrinks
 KNOWN_GAPS: set[str] = set()

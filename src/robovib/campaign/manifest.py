@@ -11,13 +11,15 @@ Layout (header names exact, order free)::
 * ``replicate``: repeat number of the same pose (default 0);
 * sensitivities for voltage channels: hammer [mV/N], response [mV per ``response_unit``].
 
-Empty optional cells mean "not given". Unknown columns are an error (a typo such as ``x_m``
+The file may come from a spreadsheet (BOM, ``;`` with decimal commas, tabs, ``x [mm]`` headers:
+read by :func:`robovib.io.csv_table.read_table`). Rows that would count the same data twice are
+errors (:func:`check_manifest_integrity`). Empty optional cells mean "not given". Unknown
+columns are an error (a typo such as ``x_m``
 would otherwise silently drop a pose coordinate).
 """
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +29,7 @@ __all__ = [
     "OPTIONAL_POSE_COLUMNS",
     "POSE_COLUMNS",
     "CampaignRow",
+    "check_manifest_integrity",
     "read_manifest",
 ]
 
@@ -113,19 +116,22 @@ def read_manifest(path: str | Path) -> list[CampaignRow]:
     ------
     ValueError
         Missing/unknown columns, an unknown direction, a non-numeric or non-finite number, a
-        non-positive sensitivity, a joint-angle set given only in part, or no rows; the
-        message names the manifest line.
+        non-positive sensitivity, a joint-angle set given only in part, no rows, or rows that
+        count the same data twice (:func:`check_manifest_integrity`); the message names the
+        manifest line.
     """
+    from ..io.csv_table import read_table
+
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such manifest file")
-    with path.open(newline="") as fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip().lower() for h in next(reader)]
-        except StopIteration:
-            raise ValueError(f"{path}: empty manifest") from None
-        lines = list(reader)
+    try:
+        table = read_table(path, what="manifest")
+    except ValueError as exc:
+        if "has a header but no data rows" in str(exc):
+            raise ValueError(f"{path}: manifest has no rows") from None
+        raise
+    header = list(table.header)
     missing = [c for c in _REQUIRED if c not in header]
     if missing:
         raise ValueError(f"{path}: manifest lacks column(s) {', '.join(missing)}")
@@ -134,18 +140,12 @@ def read_manifest(path: str | Path) -> list[CampaignRow]:
         raise ValueError(
             f"{path}: unknown manifest column(s) {', '.join(unknown)}; known: {', '.join(_KNOWN)}"
         )
-    if len(set(header)) != len(header):
-        raise ValueError(f"{path}: duplicate manifest columns")
     joints = [c for c in JOINT_COLUMNS if c in header]
     if joints and len(joints) != 6:
         raise ValueError(f"{path}: joint angles need all of a1_deg..a6_deg, got {joints}")
     rows = []
-    for lineno, cells in enumerate(lines, start=2):
-        if not cells or all(not c.strip() for c in cells):
-            continue
+    for lineno, cells in zip(table.lines, table.rows, strict=True):
         where = f"{path} line {lineno}"
-        if len(cells) != len(header):
-            raise ValueError(f"{where}: {len(cells)} cells, expected {len(header)}")
         rec = {h: c.strip() for h, c in zip(header, cells, strict=True)}
         if not rec["file"]:
             raise ValueError(f"{where}: empty file name")
@@ -188,4 +188,95 @@ def read_manifest(path: str | Path) -> list[CampaignRow]:
         )
     if not rows:
         raise ValueError(f"{path}: manifest has no rows")
+    check_manifest_integrity(rows, str(path))
     return rows
+
+
+def _file_hash(path: Path) -> str | None:
+    import hashlib
+
+    if not path.is_file():
+        return None  # reported when the row is processed
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _pose_text(row: CampaignRow) -> str:
+    return ", ".join(f"{k} = {v:g}" for k, v in row.pose.items())
+
+
+def check_manifest_integrity(rows: list[CampaignRow], where: str = "manifest") -> None:
+    """Rows that would count the same data twice, or two data sets as one, are errors.
+
+    * a row repeated (same file, direction, pose and replicate);
+    * the same recording for the same direction at two rows (at two poses, or twice at one
+      pose: a replicate is a new recording);
+    * two files with identical content (same SHA-256) at two rows (a copied file);
+    * two different recordings at the same pose, direction and replicate number (declare
+      replicates with the ``replicate`` column: 0, 1, ...).
+
+    Parameters
+    ----------
+    rows
+        The manifest rows (:func:`read_manifest`).
+    where
+        The manifest, for messages.
+
+    Raises
+    ------
+    ValueError
+        Naming the lines of the first conflict found and what to do.
+    """
+    problems = []
+    seen_file: dict = {}
+    seen_slot: dict = {}
+    seen_hash: dict = {}
+    for r in rows:
+        pose_key = tuple(sorted(r.pose.items()))
+        key = (r.file, r.direction)
+        if key in seen_file:
+            o = seen_file[key]
+            if (tuple(sorted(o.pose.items())), o.replicate) == (pose_key, r.replicate):
+                problems.append(f"line {r.row} repeats line {o.row} ({r.file.name}, {r.direction})")
+            elif tuple(sorted(o.pose.items())) != pose_key:
+                problems.append(
+                    f"lines {o.row} and {r.row}: the same recording {r.file.name} "
+                    f"({r.direction}) at two poses ({_pose_text(o)} / {_pose_text(r)})"
+                )
+            else:
+                problems.append(
+                    f"lines {o.row} and {r.row}: the same recording {r.file.name} ({r.direction}) "
+                    f"as replicates {o.replicate} and {r.replicate}; a replicate is a new recording"
+                )
+            continue
+        seen_file[key] = r
+        slot = (pose_key, r.direction, r.replicate)
+        if slot in seen_slot and seen_slot[slot].file != r.file:
+            o = seen_slot[slot]
+            problems.append(
+                f"lines {o.row} and {r.row}: two recordings ({o.file.name}, {r.file.name}) at the "
+                f"same pose, direction {r.direction} and replicate {r.replicate}; number "
+                "replicates in the replicate column (0, 1, ...)"
+            )
+        seen_slot.setdefault(slot, r)
+    by_path: dict = {}
+    for r in rows:
+        if r.file not in by_path:
+            by_path[r.file] = _file_hash(r.file)
+        digest = by_path[r.file]
+        if digest is None:
+            continue
+        o = seen_hash.setdefault(digest, r)
+        if o.file != r.file:
+            problems.append(
+                f"lines {o.row} and {r.row}: {o.file.name} and {r.file.name} have identical "
+                f"content (SHA-256 {digest[:12]}...), a copied file, not new data"
+            )
+    if problems:
+        raise ValueError(
+            f"{where}: {len(problems)} duplicate(s) would count the same data twice: "
+            + "; ".join(problems)
+        )

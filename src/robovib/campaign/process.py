@@ -31,9 +31,21 @@ import numpy as np
 
 from .manifest import CampaignRow, read_manifest
 
-__all__ = ["CampaignResult", "ProcessingSettings", "process_campaign", "process_row"]
+__all__ = [
+    "CampaignResult",
+    "ProcessingSettings",
+    "campaign_accounting",
+    "process_campaign",
+    "process_row",
+]
 
 _FLAG_BAND_EDGE = "fn at the fit band edge"
+
+
+def _default_ranges():
+    from ..frf.plausibility import PlausibleRanges
+
+    return PlausibleRanges()
 
 
 @dataclass(frozen=True)
@@ -58,6 +70,12 @@ class ProcessingSettings:
         Impact detection in continuous records (fraction of the peak, [s]).
     min_coherence
         Mean coherence in the fit band below this is flagged.
+    plausible
+        :class:`robovib.frf.PlausibleRanges` of peak force, response and compliance; a level
+        outside is an error naming the likely unit mix-up (None: not checked).
+    min_fit_bins
+        Fewest FRF lines in the dominant-mode fit band; fewer (hits too short for the band)
+        is an error naming the resolution.
     """
 
     estimator: str = "H1"
@@ -71,6 +89,8 @@ class ProcessingSettings:
     threshold: float = 0.1
     hold_off_s: float = 0.5
     min_coherence: float = 0.8
+    plausible: object = field(default_factory=_default_ranges)
+    min_fit_bins: int = 5
 
     def __post_init__(self) -> None:
         if self.estimator not in ("H1", "H2"):
@@ -87,6 +107,16 @@ class ProcessingSettings:
             v = getattr(self, name)
             if v is not None and not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be None or a positive number of seconds, got {v!r}")
+        if isinstance(self.plausible, dict):  # from asdict() / JSON
+            from ..frf.plausibility import PlausibleRanges
+
+            object.__setattr__(
+                self,
+                "plausible",
+                PlausibleRanges(**{k: tuple(v) for k, v in self.plausible.items()}),
+            )
+        if not (isinstance(self.min_fit_bins, int) and self.min_fit_bins >= 3):
+            raise ValueError(f"min_fit_bins must be an integer >= 3, got {self.min_fit_bins!r}")
 
 
 @dataclass(frozen=True)
@@ -116,6 +146,8 @@ class CampaignResult:
         Where the files were written.
     reports
         Reader report per processed row (dicts).
+    accounting
+        Every manifest row -> FRFs -> modal row (:func:`campaign_accounting`).
     """
 
     table: object
@@ -123,6 +155,7 @@ class CampaignResult:
     skipped: tuple[tuple[int, str], ...]
     out_dir: Path
     reports: tuple = field(default=(), repr=False)
+    accounting: dict = field(default_factory=dict)
 
 
 def _sens(row: CampaignRow):
@@ -168,8 +201,15 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
             exp_window_tau_s=s.exp_window_tau_s, reject=not s.keep_flagged,
             f_max_hz=min(s.f_max_hz, ch.sample_rate_hz / 2), pose=pose,
             direction=row.direction if is_direct else ch.direction,
+            plausible=s.plausible if is_direct else None,
         )  # fmt: skip
         frf = res.frf.to_compliance(s.f_min_hz)
+        if is_direct and s.plausible is not None:
+            from ..frf.plausibility import check_frf_level
+
+            bad = check_frf_level(frf, s.plausible)
+            if bad:
+                raise ValueError(f"implausible FRF: {bad}")
         meta = {
             "row": row.row,
             "file": str(row.file),
@@ -177,6 +217,7 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
             "reference_direction": row.direction,
             "response_node": -1 if ch.response_node is None else ch.response_node,
             "n_hits_rejected": res.n_rejected,
+            "fitted": int(is_direct),
             **{k: v for k, v in row.pose.items()},
         }
         frf = replace(frf, meta={**frf.meta, **meta})
@@ -184,10 +225,25 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
         if is_direct:
             fitted = (frf, res)
     frf, res = fitted
-    fit = fit_dominant_mode(frf, s.band_hz)
+    n_fs = direct.forces.shape[1]
+    resolution = (
+        f"FRF resolution df = {frf.df_hz:.3g} Hz from hits of {n_fs} samples = "
+        f"{n_fs / direct.sample_rate_hz:.3g} s"
+    )
+    try:
+        fit = fit_dominant_mode(frf, s.band_hz)
+    except ValueError as exc:
+        raise ValueError(f"{exc} ({resolution}; longer hits give finer lines)") from None
     p, sd = fit.parameters, fit.std
     lo, hi = fit.band_hz
     band = frf.band(lo, hi)
+    df = frf.df_hz
+    if band.frequency_hz.size < s.min_fit_bins:
+        raise ValueError(
+            f"{resolution} leaves {band.frequency_hz.size} lines in the "
+            f"fit band {lo:.4g}-{hi:.4g} Hz, fewer than {s.min_fit_bins}: the hits are too short "
+            f"for this band (need >= {s.min_fit_bins / max(hi - lo, 1e-12):.3g} s)"
+        )
     coh = float(np.mean(band.coherence)) if band.coherence is not None else float("nan")
     flags = []
     width = hi - lo
@@ -197,6 +253,11 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
         flags.append(f"mean coherence {coh:.2f} < {s.min_coherence:g}")
     if fit.relative_rms_error > 0.2:
         flags.append(f"relative fit residual {fit.relative_rms_error:.2f}")
+    half_power = 2 * p.damping_ratio * p.natural_frequency_hz
+    if half_power < df:
+        flags.append(
+            f"peak not resolved: half-power bandwidth {half_power:.3g} Hz < df {df:.3g} Hz"
+        )
     if res.n_rejected:
         reasons = sorted({r for h in res.hits for r in h.reasons})
         flags.append(f"{res.n_rejected} hit(s) rejected: {'; '.join(reasons)}")
@@ -222,6 +283,8 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
         "mean_coherence": coh,
         "fit_band_lo_hz": lo,
         "fit_band_hi_hz": hi,
+        "df_hz": df,
+        "n_frfs": len(frfs),
         "flags": "; ".join(flags),
     }
     return RowResult(row.row, modal, tuple(frfs), report.to_dict() if report else None)
@@ -237,6 +300,7 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
     good = [r for r in results if r.modal is not None]
     table = pd.DataFrame([r.modal for r in good])
     frfs = [f for r in good for f in r.frfs]
+    accounting = campaign_accounting(results)
     settings_json = json.dumps(asdict(settings))
     doc = {
         "robovib_version": __version__,
@@ -244,6 +308,7 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
         "settings": asdict(settings),
         "units": "SI; pose columns as in the manifest (mm, deg)",
         "rows_processed": len(good),
+        "accounting": accounting,
         "skipped": [{"line": line, "reason": why} for line, why in skipped],
         "reports": [{"line": r.row, **(r.report or {})} for r in good],
     }
@@ -261,6 +326,75 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
         table.to_csv(t_csv, index=False, float_format="%.9g")
         t_json.write_text(json_dumps(doc, indent=2))  # NaN -> null + reason
     return table, len(frfs)
+
+
+#: Factors between a row's stiffness and its campaign neighbours' that point to a unit mix-up.
+_UNIT_FACTORS = (
+    (9.80665, "the response in g labelled m/s^2 (or the reverse)"),
+    (1e3, "a force in kN labelled N, or a response in mm(/s^2) labelled m(/s^2) (or the reverse)"),
+)
+
+
+def _flag_unit_outliers(results) -> None:
+    """Flag rows whose stiffness differs from the median of their direction by a unit factor.
+
+    A robot's stiffness changes with the pose by a few times at most; a row 9.8x or 1000x off
+    the others (within 30 %) is far likelier one file exported in other units. Needs >= 3 rows
+    of a direction; the flag goes to the row's ``flags``.
+    """
+    good = [r for r in results if r.modal is not None]
+    for d in ("x", "y", "z"):
+        rows = [r for r in good if r.modal["direction"] == d]
+        if len(rows) < 3:
+            continue
+        k = np.array([r.modal["stiffness_n_per_m"] for r in rows], float)
+        med = float(np.median(k))
+        for r, ki in zip(rows, k, strict=True):
+            ratio = ki / med
+            for factor, words in _UNIT_FACTORS:
+                if any(abs(np.log(ratio * f)) < np.log(1.3) for f in (factor, 1 / factor)):
+                    flag = (
+                        f"stiffness {ratio:.3g}x the median of the {d} rows: likely a unit "
+                        f"mix-up ({words})"
+                    )
+                    r.modal["flags"] = "; ".join(x for x in (r.modal["flags"], flag) if x)
+
+
+def campaign_accounting(results) -> dict:
+    """Where every manifest row went: row -> FRFs (direct, cross) -> modal row, or skipped.
+
+    Parameters
+    ----------
+    results
+        The :class:`RowResult` of every manifest row.
+
+    Returns
+    -------
+    dict
+        ``manifest_rows``, ``rows_processed``, ``rows_skipped`` (lines), ``frfs``,
+        ``frfs_direct`` (one per processed row, fitted), ``frfs_cross`` (other response
+        channels: stored, never fitted), ``modal_rows`` and ``summary`` (one sentence).
+    """
+    good = [r for r in results if r.modal is not None]
+    n_frfs = sum(len(r.frfs) for r in good)
+    n_direct = len(good)
+    skipped = [r.row for r in results if r.modal is None]
+    summary = (
+        f"{len(results)} manifest rows: {len(good)} processed, {len(skipped)} skipped"
+        + (f" (lines {', '.join(map(str, skipped))})" if skipped else "")
+        + f"; {n_frfs} FRFs = {n_direct} direct (fitted, one modal row each) + "
+        f"{n_frfs - n_direct} cross-channel (stored, not fitted); {len(good)} modal rows"
+    )
+    return {
+        "manifest_rows": len(results),
+        "rows_processed": len(good),
+        "rows_skipped": skipped,
+        "frfs": n_frfs,
+        "frfs_direct": n_direct,
+        "frfs_cross": n_frfs - n_direct,
+        "modal_rows": len(good),
+        "summary": summary,
+    }
 
 
 def process_campaign(
@@ -331,14 +465,21 @@ def process_campaign(
                 results.append(res)
                 if progress:
                     progress(len(results), total)
+    _flag_unit_outliers(results)
     bad = [(r.row, r.error) for r in results if r.error is not None]
     if bad and not skip_bad:
         detail = "; ".join(f"line {line}: {why}" for line, why in bad)
         raise ValueError(f"{manifest}: {len(bad)} of {total} rows failed ({detail})")
     if len(bad) == total:
-        raise ValueError(f"{manifest}: every row failed; nothing written")
+        detail = "; ".join(f"line {line}: {why}" for line, why in bad)
+        raise ValueError(f"{manifest}: every row failed; nothing written ({detail})")
     out_dir.mkdir(parents=True, exist_ok=True)
     table, n_frfs = _write_outputs(out_dir, results, settings, manifest, bad)
     return CampaignResult(
-        table, n_frfs, tuple(bad), out_dir, tuple(r.report for r in results if r.report)
+        table,
+        n_frfs,
+        tuple(bad),
+        out_dir,
+        tuple(r.report for r in results if r.report),
+        campaign_accounting(results),
     )

@@ -32,14 +32,22 @@ def process(
     ] = None,
     f_min_hz: Annotated[float, typer.Option("--fmin", help="Lowest frequency kept [Hz].")] = 5.0,
     f_max_hz: Annotated[float, typer.Option("--fmax", help="Highest frequency kept [Hz].")] = 200.0,
+    level_check: Annotated[
+        bool,
+        typer.Option(help="Refuse implausible force/response/compliance levels (unit mix-ups)."),
+    ] = True,
     json_out: JsonFlag = False,
 ) -> None:
     """Every recording of the manifest -> averaged FRF (hit QC) -> dominant mode, in parallel."""
+    from dataclasses import replace
+
     from rich.progress import Progress
 
     from ..campaign import ProcessingSettings, process_campaign
 
     settings = ProcessingSettings(f_min_hz=f_min_hz, f_max_hz=f_max_hz)
+    if not level_check:
+        settings = replace(settings, plausible=None)
     with Progress(disable=json_out, transient=True) as bar:
         task = bar.add_task("processing recordings", total=None)
 
@@ -56,6 +64,7 @@ def process(
             "n_rows": len(table), "n_frfs": res.n_frfs,
             "skipped": [{"line": line, "reason": why} for line, why in res.skipped],
             "rows": table.to_dict(orient="records"), "reader_reports": list(res.reports),
+            "accounting": res.accounting,
         })  # fmt: skip
         return
     con = console()
@@ -84,6 +93,7 @@ def process(
     con.print(t)
     for line, why in res.skipped:
         con.print(f"[yellow]skipped line {line}:[/] {escape(why)}")
+    con.print(escape(res.accounting.get("summary", "")))
     con.print(
         f"wrote {output}/frfs.h5 ({res.n_frfs} FRFs), modal.csv ({len(table)} rows), campaign.json"
     )

@@ -92,13 +92,20 @@ def compute(
     response_unit: Annotated[
         str, typer.Option(help="Unit of the response sensitivity (g, m/s^2, m/s, m).")
     ] = "g",
+    level_check: Annotated[
+        bool,
+        typer.Option(
+            help="Refuse implausible peak force / response / compliance levels (unit mix-ups; "
+            "ranges in robovib.frf.plausibility).",
+        ),
+    ] = True,
     force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
     """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
     from dataclasses import replace
 
-    from ..frf import impact_frf
+    from ..frf import PlausibleRanges, check_frf_level, impact_frf
     from ..io import Sensitivity, read_recording, write_frfs
 
     if direction is not None and direction not in ("x", "y", "z"):
@@ -116,8 +123,16 @@ def compute(
         force_window_s=None if force_window_ms == 0 else force_window_ms / 1e3,  # < 0: error
         exp_window_tau_s=None if exp_window_tau_ms == 0 else exp_window_tau_ms / 1e3,
         reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
+        plausible=PlausibleRanges() if level_check else None,
     )  # fmt: skip
     frf = result.frf.to_compliance(f_min_hz)
+    if level_check and (bad := check_frf_level(frf)):
+        fail(f"implausible FRF: {bad}")
+    if frf.frequency_hz.size < 5:
+        fail(
+            f"{frf.frequency_hz.size} FRF lines between --fmin and --fmax at df = {frf.df_hz:.3g} Hz "
+            f"(hits of {rec.forces.shape[1] / rec.sample_rate_hz:.3g} s): too short for the band"
+        )
     if path_s is not None:
         frf = replace(frf, meta={**frf.meta, "path_s_m": float(path_s)})
     given = [v is not None for v in (x_mm, y_mm, rz_deg)]

@@ -7,7 +7,10 @@ For each hit (one force and one response record, equally sampled):
 2. **Quality control**, per hit, reported in a :class:`HitReport`:
    *double hit* — outside the main (largest) pulse, before it or after it has decayed below
    the trigger level, the force reaches ``double_hit_level`` x peak; *overload* — a run of ``clip_run`` or more samples
-   at the channel's extreme value (a clipped ADC), or beyond a given full-scale range;
+   at the channel's extreme value (a clipped ADC), a flat top carrying noise (many samples
+   near the extreme between steep flanks, :func:`overload_reason`), peaks of several hits
+   piled up at exactly one value (the range limit, even for one-sample tops), or a given
+   full-scale range reached, on the force and on the response channel;
    flagged hits are rejected (default) or only reported (``reject=False``).
 3. **Windows**: a *force window* keeps the pulse (``force_window_s`` after the trigger, with a
    short cosine taper) and zeroes the hammer channel's noise elsewhere; an optional
@@ -29,7 +32,7 @@ from .._checks import check_choice, check_int, check_number
 from .core import FRF, RESPONSE_TO_QUANTITY
 from .estimate import SpectralDensities, _frf_from_densities, spectral_densities
 
-__all__ = ["HitReport", "ImpactResult", "check_hit", "impact_frf"]
+__all__ = ["HitReport", "ImpactResult", "check_hit", "impact_frf", "noise_level", "overload_reason"]
 
 
 @dataclass(frozen=True)
@@ -54,21 +57,128 @@ class ImpactResult:
         return sum(not h.accepted for h in self.hits)
 
 
-def _clipped(x: np.ndarray, run: int, full_scale: float | None) -> bool:
-    if full_scale is not None and np.max(np.abs(x)) >= 0.999 * full_scale:
-        return True
-    for extreme in (x.max(), x.min()):
-        if extreme == 0:
+def _longest_run(mask: np.ndarray) -> tuple[int, int]:
+    """(start, length) of the longest run of True in ``mask``."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    if starts.size == 0:
+        return 0, 0
+    k = int(np.argmax(stops - starts))
+    return int(starts[k]), int(stops[k] - starts[k])
+
+
+def noise_level(x: np.ndarray) -> float:
+    """Robust noise standard deviation of a record, from its second differences.
+
+    Parameters
+    ----------
+    x
+        (n,) record.
+
+    Returns
+    -------
+    float
+        ``1.4826 median|d2 x| / sqrt(6)``: white noise of standard deviation s gives s; a
+        smooth signal adds little (its second difference is small).
+    """
+    d2 = np.diff(np.asarray(x, float), 2)
+    return float(1.4826 * np.median(np.abs(d2)) / np.sqrt(6.0)) if d2.size else 0.0
+
+
+def overload_reason(
+    x,
+    run: int = 2,
+    full_scale: float | None = None,
+    *,
+    min_plateau: int = 3,
+    rel_band: float = 0.01,
+    kink: float = 3.0,
+) -> str | None:
+    """Why a channel looks clipped (overloaded), or None.
+
+    Three signatures, each on the largest and on the most negative excursion:
+
+    1. **Full scale**: ``|x|`` reaches 99.9 % of a given input range.
+    2. **Equal samples**: ``run`` or more consecutive samples exactly at the extreme (an ADC
+       stuck at its last code; a free peak repeats its top value by chance only).
+    3. **Flat top with noise**: ``min_plateau`` or more consecutive samples within a band
+       ``tol = max(5 noise deviations, rel_band x extreme)`` of the extreme
+       (:func:`noise_level`), whose flanks fall more than ``kink`` times faster than a free
+       peak that blunt can: a smooth peak within ``tol`` over ``L`` samples falls about
+       ``tol (2 d / L)^2`` at ``d`` samples from its centre; a clipped top is flat between
+       steep flanks.
+
+    Parameters
+    ----------
+    x
+        (n,) record.
+    run
+        Equal samples at the extreme that flag an overload.
+    full_scale
+        Input range in the record's unit (None: unknown).
+    min_plateau, rel_band, kink
+        Flat-top test settings (samples, fraction of the extreme, fraction of the band).
+
+    Returns
+    -------
+    str or None
+        The reason (where and how many samples), None when no overload is seen.
+    """
+    x = np.asarray(x, float)
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if peak == 0:
+        return None
+    if full_scale is not None and peak >= 0.999 * full_scale:
+        return f"reaches {peak:.4g} of the {full_scale:.4g} full scale"
+    sigma = noise_level(x)
+    for sign in (1.0, -1.0):
+        y = sign * x
+        top = float(y.max())
+        if top <= 0:
             continue
-        at = np.isclose(x, extreme, rtol=1e-9, atol=0.0)
-        if at.sum() < run:
+        i0, n_eq = _longest_run(y >= top * (1 - 1e-12))
+        if n_eq >= run:
+            return f"{n_eq} equal samples at {sign * top:.6g} (sample {i0})"
+        tol = max(5.0 * sigma, rel_band * top)
+        if tol > 0.2 * top:
             continue
-        # Longest run of consecutive samples at the extreme value.
-        edges = np.diff(np.concatenate([[0], at.astype(np.int8), [0]]))
-        longest = np.max(np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1))
-        if longest >= run:
-            return True
-    return False
+        # The run near the extreme holding the extreme, up to two stray noisy samples bridged.
+        near = y >= top - tol
+        bridged = near.copy()
+        bridged[1:-1] |= near[:-2] & near[2:]
+        bridged[1:-2] |= near[:-3] & near[3:]
+        bridged[2:-1] |= near[:-3] & near[3:]
+        j = int(np.argmax(y))
+        a = j
+        while a > 0 and bridged[a - 1]:
+            a -= 1
+        b = j
+        while b < y.size - 1 and bridged[b + 1]:
+            b += 1
+        length = b - a + 1
+        if length < min_plateau:
+            continue
+        # A free peak that stays within tol for `length` samples is at least that blunt: it
+        # falls about tol * (2 d / length)^2 at d samples from its centre. A clipped top
+        # falls far faster on both sides.
+        m = max(2, length // 2)
+        if a - m < 0 or b + 1 + m > y.size:
+            continue
+        centre = 0.5 * (a + b)
+        ratios = []
+        for idx in (np.arange(a - m, a), np.arange(b + 1, b + 1 + m)):
+            expected = tol * (2.0 * np.abs(idx - centre) / length) ** 2
+            ratios.append(float(np.mean(top - y[idx]) / np.mean(expected)))
+        if min(ratios) > kink:
+            return (
+                f"flat top: {length} samples within {tol:.3g} of {sign * top:.6g} "
+                f"from sample {a}, its flanks falling {min(ratios):.0f}x faster than a free peak"
+            )
+    return None
+
+
+def _clipped(x: np.ndarray, run: int, full_scale: float | None) -> str | None:
+    return overload_reason(x, run, full_scale)
 
 
 def check_hit(
@@ -80,7 +190,7 @@ def check_hit(
     trigger_level: float = 0.05,
     double_hit_level: float = 0.1,
     pretrigger_s: float = 0.0,
-    clip_run: int = 3,
+    clip_run: int = 2,
     force_full_scale: float | None = None,
     response_full_scale: float | None = None,
 ) -> HitReport:
@@ -118,11 +228,47 @@ def check_hit(
     if end < force.size and np.max(np.abs(force[end:])) >= second:
         t2 = (end + int(np.argmax(np.abs(force[end:]) >= second))) / sample_rate_hz
         reasons.append(f"double hit: second force pulse at {t2:.4g} s")
-    if _clipped(force, clip_run, force_full_scale):
-        reasons.append("force channel overload (clipped samples)")
-    if _clipped(response, clip_run, response_full_scale):
-        reasons.append("response channel overload (clipped samples)")
+    why = _clipped(force, clip_run, force_full_scale)
+    if why:
+        reasons.append(f"force channel overload (clipped: {why})")
+    why = _clipped(response, clip_run, response_full_scale)
+    if why:
+        reasons.append(f"response channel overload (clipped: {why})")
     return HitReport(index, trigger, peak, width, not reasons, tuple(reasons))
+
+
+def _peak_pile_up(reports: list, forces: np.ndarray, responses: np.ndarray) -> list:
+    """Hits whose peak |value| equals another hit's exactly hit the input range (an ADC's last
+    code): hand-struck peaks never repeat to 1e-9; a clipped one-sample top does. Hits equal
+    around the peak too are copies (synthetic data), not clipped."""
+    from dataclasses import replace
+
+    out = list(reports)
+    for name, x in (("force", forces), ("response", responses)):
+        if x.shape[0] < 2:
+            continue
+        peaks = np.max(np.abs(x), axis=1)
+        at = np.argmax(np.abs(x), axis=1)
+        around = [np.abs(x[i, max(int(k) - 2, 0) : int(k) + 3]) for i, k in enumerate(at)]
+
+        for i, p in enumerate(peaks):
+            # Equal peaks with different neighbours: a limit; equal neighbours too: copied hits
+            # (synthetic data), not a clip.
+            same = [
+                j for j in np.flatnonzero(np.isclose(peaks, p, rtol=1e-9, atol=0.0))
+                if j == i or around[j].shape != around[i].shape
+                or not np.allclose(around[j], around[i], rtol=1e-9, atol=0.0)
+            ]  # fmt: skip
+            same = np.asarray(same)
+            if p > 0 and same.size >= 2:
+                others = ", ".join(str(j) for j in same if j != i)
+                why = (
+                    f"{name} channel overload (clipped: peak {p:.6g} equals that of hit(s) "
+                    f"{others}: the input range)"
+                )
+                if why not in out[i].reasons:
+                    out[i] = replace(out[i], accepted=False, reasons=(*out[i].reasons, why))
+    return out
 
 
 def _force_window(n: int, start: int, stop: int, taper: int) -> np.ndarray:
@@ -147,13 +293,14 @@ def impact_frf(
     exp_window_tau_s: float | None = None,
     trigger_level: float = 0.05,
     double_hit_level: float = 0.1,
-    clip_run: int = 3,
+    clip_run: int = 2,
     force_full_scale: float | None = None,
     response_full_scale: float | None = None,
     reject: bool = True,
     f_max_hz: float | None = None,
     direction: str | None = None,
     pose: tuple[float, ...] | None = None,
+    plausible=None,
 ) -> ImpactResult:
     """Averaged FRF of several hammer hits with per-hit quality control.
 
@@ -181,7 +328,8 @@ def impact_frf(
     double_hit_level
         A second force pulse above this fraction of the peak flags a double hit, in (0, 1].
     clip_run
-        This many equal samples at the extreme of a channel flag an overload.
+        This many equal samples at the extreme of a channel flag an overload; a noisy flat top
+        is found too (:func:`overload_reason`).
     force_full_scale, response_full_scale
         Input ranges [N], [response SI unit]; reaching 99.9 % of them flags an overload.
     f_max_hz
@@ -190,6 +338,9 @@ def impact_frf(
         ``"x"``, ``"y"`` or ``"z"``: stored on the FRF.
     pose
         Tool-tip pose (X, Y, Z [m], Rx, Ry, Rz [deg]) stored on the FRF.
+    plausible
+        :class:`robovib.frf.PlausibleRanges`: peak force and response levels of the kept hits
+        outside them are an error naming the likely unit mix-up (None: not checked).
 
     Returns
     -------
@@ -201,7 +352,8 @@ def impact_frf(
     ------
     ValueError
         Shapes differ, unknown quantity or estimator, non-positive rate, windows longer than
-        the record, ``f_max_hz`` above Nyquist, or no hit left after rejection.
+        the record, ``f_max_hz`` above Nyquist, no hit left after rejection, or (with
+        ``plausible``) implausible levels.
 
     See ``docs/methods.md`` section 1 (FRFs from impact tests, Eq. 3-5).
 
@@ -252,14 +404,16 @@ def impact_frf(
     if f_max_hz is not None:
         f_max_hz = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
     pre = round(pretrigger_s * fs)
-    reports, aligned = [], []
+    reports = []
     for i in range(n_hits):
-        rep = check_hit(
+        reports.append(check_hit(
             forces[i], responses[i], fs, index=i, trigger_level=trigger_level,
             double_hit_level=double_hit_level, pretrigger_s=pretrigger_s, clip_run=clip_run,
             force_full_scale=force_full_scale, response_full_scale=response_full_scale,
-        )  # fmt: skip
-        reports.append(rep)
+        ))  # fmt: skip
+    reports = _peak_pile_up(reports, forces, responses)
+    aligned = []
+    for i, rep in enumerate(reports):
         if rep.accepted or not reject:
             shift = rep.trigger_index - pre
             f_al = np.zeros(n)
@@ -271,6 +425,13 @@ def impact_frf(
     if not aligned:
         detail = "; ".join(f"hit {r.index}: {', '.join(r.reasons)}" for r in reports)
         raise ValueError(f"all {n_hits} hits were rejected ({detail})")
+    if plausible is not None:
+        from .plausibility import check_levels
+
+        kept = [i for i, r in enumerate(reports) if r.accepted or not reject]
+        bad = check_levels(forces[kept], responses[kept], response_quantity, plausible)
+        if bad:
+            raise ValueError("implausible levels: " + "; ".join(bad))
     t = np.arange(n) / fs - pretrigger_s
     w_force = np.ones(n)
     if force_window_s is not None:

@@ -10,9 +10,11 @@ apart. The impacts are found in the force channel:
    belongs to that hit (it is a double hit, judged later by :func:`robovib.frf.check_hit`); a
    later pulse starts a new hit.
 4. **Cut**: hit ``i`` starts ``pretrigger_s + merge_s`` before its onset and ends where the next hit
-   starts; all hits get the shortest such length (averaging needs equal records). A last hit
-   with less than half the median spacing left before the end of the record is rejected as
-   truncated (reported, never padded).
+   starts; all hits get the shortest such length (averaging needs equal records; at most
+   ``window_s``), but a hit with less than half the median span before the next impact is
+   rejected as short (reported; it must not shorten every hit). A last hit with less than
+   half the median spacing left before the end of the record is rejected as truncated
+   (reported, never padded).
 """
 
 from __future__ import annotations
@@ -162,7 +164,23 @@ def segment_hits(
                     f"{onsets[-1] / fs:.4g} s (other hits have {spacing / fs:.3g} s)",
                 )
             )
-    length = int(np.min((ends - starts)[keep]))
+    # Hand-struck hits come at irregular spacings: all kept hits share the shortest span, but a
+    # hit followed by the next impact (or the record end) after less than half the median span
+    # is rejected, never allowed to shorten every hit (and the FRF resolution) below that.
+    spans = (ends - starts).astype(float)
+    median = float(np.median(spans[keep]))
+    for k in np.flatnonzero(keep):
+        if spans[k] < 0.5 * median:
+            keep[k] = False
+            after = "the next impact follows" if k + 1 < len(onsets) else "the record ends"
+            rejected.append(
+                (
+                    int(onsets[k]),
+                    f"short hit: {after} {spans[k] / fs:.3g} s after the impact at "
+                    f"{onsets[k] / fs:.4g} s (median {median / fs:.3g} s)",
+                )
+            )
+    length = int(np.min(spans[keep]))
     if window_s is not None:
         length = min(length, round(window_s * fs))
     return HitSegmentation(

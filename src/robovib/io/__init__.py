@@ -1,5 +1,9 @@
 """File formats: hammer recordings (CSV, UFF 58) and FRF collections (HDF5, UFF 58).
 
+Every CSV (recordings, manifests, pose tables, path modes...) is read by :func:`read_table`:
+spreadsheet and DAQ exports (BOM, ``;`` with decimal commas, tabs, quotes, ``Force [kN]``
+headers) are sniffed and the choice reported; errors name the file line.
+
 Units and sensor sensitivities are converted to SI here, at the edge.
 
 Names are imported on first use (PEP 562): ``robovib.io.provenance``, which every CLI
@@ -10,6 +14,7 @@ from importlib import import_module
 
 #: Public name -> (submodule, name in it).
 _WHERE = {
+    "CsvTable": ("csv_table", "CsvTable"),
     "FRF_CSV_UNITS": ("frf_csv", "FRF_CSV_UNITS"),
     "HammerRecording": ("recording", "HammerRecording"),
     "MeasuredCuts": ("cuts", "MeasuredCuts"),
@@ -33,10 +38,12 @@ _WHERE = {
     "read_milling_record_csv": ("tables", "read_milling_record_csv"),
     "read_path_modes_csv": ("tables", "read_path_modes_csv"),
     "read_pose_table": ("poses", "read_pose_table"),
+    "normalise_column_name": ("csv_table", "normalise_column_name"),
     "read_recording": ("recording", "read_recording"),
     "read_recording_channels": ("recording", "read_recording_channels"),
     "read_recording_csv": ("recording", "read_recording_csv"),
     "read_recording_uff": ("recording", "read_recording_uff"),
+    "read_table": ("csv_table", "read_table"),
     "sample_rate_from_time": ("recording", "sample_rate_from_time"),
     "save_figure": ("safe_write", "save_figure"),
     "select_channel": ("recording", "select_channel"),

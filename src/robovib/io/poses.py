@@ -10,13 +10,21 @@ import numpy as np
 __all__ = ["read_pose_table"]
 
 
+def _float(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return float("nan")
+
+
 def read_pose_table(path: str | Path, columns: Sequence[str]):
     """Read a CSV of poses and check that ``columns`` are present, numeric and finite.
 
     Parameters
     ----------
     path
-        CSV with a header row; other columns are kept.
+        CSV with a header row (any layout :func:`robovib.io.csv_table.read_table` reads:
+        spreadsheet exports, ``x [mm]`` headers); other columns are kept.
     columns
         Required columns, units in the names (``x_mm``, ``rz_deg``, ``a1_deg``...).
 
@@ -29,16 +37,18 @@ def read_pose_table(path: str | Path, columns: Sequence[str]):
     ValueError
         Missing file or columns, no rows, non-numeric or non-finite cells (line named).
     """
-    import pandas as pd
+    from .csv_table import read_table
 
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such pose table")
     try:
-        table = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not a readable CSV table ({exc})") from None
-    table.columns = [str(c).strip() for c in table.columns]
+        raw = read_table(path, what="pose table")
+    except ValueError as exc:
+        if "has a header but no data rows" in str(exc):
+            raise ValueError(f"{path}: pose table has no rows") from None
+        raise
+    table = raw.to_frame()
     missing = [c for c in columns if c not in table.columns]
     if missing:
         raise ValueError(
@@ -47,12 +57,12 @@ def read_pose_table(path: str | Path, columns: Sequence[str]):
     if table.empty:
         raise ValueError(f"{path}: pose table has no rows")
     for c in columns:
-        values = pd.to_numeric(table[c], errors="coerce").to_numpy(float)
+        values = np.array([_float(v) for v in raw.column(c)])
         bad = ~np.isfinite(values)
         if bad.any():
             i = int(np.argmax(bad))
             raise ValueError(
-                f"{path} line {i + 2}: {c} = {table[c].iloc[i]!r} is not a finite number"
+                f"{path} line {raw.lines[i]}: {c} = {raw.column(c)[i]!r} is not a finite number"
             )
         table[c] = values
     return table

@@ -37,7 +37,6 @@ Units come from the ordinate unit labels (see :mod:`robovib.io.units`).
 
 from __future__ import annotations
 
-import csv
 import decimal
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -195,13 +194,28 @@ def _channel_factor(
     return si_factor(label, expected)[1]
 
 
-def sample_rate_from_time(time_s: np.ndarray, resolution_s: float, where: str) -> float:
+def sample_rate_from_time(time_s: np.ndarray, resolution_s, where: str) -> float:
     """Sample rate [Hz] of a printed time column, tolerating rounding up to its resolution.
 
     The sample interval is the least-squares slope of time against sample index; each step must
     match it within the printed resolution ``resolution_s`` (a rounded value is off by at most
     half of it, a step by at most all of it). A larger deviation is a gap, named by sample and
     time.
+
+    Parameters
+    ----------
+    time_s
+        (n,) sample times [s].
+    resolution_s
+        Printed resolution [s]: one value, or one per sample (a step is allowed the coarser
+        of its two ends).
+    where
+        The file (and hit) for messages.
+
+    Returns
+    -------
+    float
+        The sample rate [Hz].
 
     Raises
     ------
@@ -218,31 +232,44 @@ def sample_rate_from_time(time_s: np.ndarray, resolution_s: float, where: str) -
             f"{where}: time column is not uniformly sampled: time does not increase at sample {i} "
             f"(t = {t[i]:.9g} s)"
         )
+    # A gap (a missing sample, a jump) is found against the median step first, so that it is
+    # named where it is, not where it tilts the least-squares slope.
+    step = float(np.median(dt))
+    gap = np.abs(dt - step) > 0.25 * step
+    if np.any(gap):
+        i = int(np.argmax(gap)) + 1
+        raise ValueError(
+            f"{where}: time column is not uniformly sampled: step of {dt[i - 1]:.9g} s before "
+            f"sample {i} (t = {t[i]:.9g} s), expected {step:.9g} s; a gap or a changed rate"
+        )
     idx = np.arange(t.size, dtype=float)
     slope, _ = np.polyfit(idx, t, 1)
     # A step off by a quarter interval or more is never rounding (a missing sample is a whole one).
-    tol = min(1.001 * resolution_s + 1e-9 * slope + 1e-15, 0.25 * slope)
+    res = np.broadcast_to(np.asarray(resolution_s, float), t.shape)
+    res_step = np.maximum(res[:-1], res[1:])  # each step: the coarser of its two printed times
+    tol = np.minimum(1.001 * res_step + 1e-9 * slope + 1e-15, 0.25 * slope)
     bad = np.abs(dt - slope) > tol
     if np.any(bad):
         i = int(np.argmax(bad)) + 1
         raise ValueError(
             f"{where}: time column is not uniformly sampled: step of {dt[i - 1]:.9g} s before "
-            f"sample {i} (t = {t[i]:.9g} s), expected {slope:.9g} s ± {resolution_s:.3g} s "
+            f"sample {i} (t = {t[i]:.9g} s), expected {slope:.9g} s ± {res_step[i - 1]:.3g} s "
             "(the printed resolution); a gap or a changed rate"
         )
     return float(1.0 / slope)
 
 
-def _printed_resolution(cells) -> float:
-    """The typical (median) last printed digit of numeric strings (e.g. '0.000195' -> 1e-6)."""
-    exps = []
+def _printed_resolution(cells) -> np.ndarray:
+    """The last printed digit of each numeric string (e.g. '0.000195' -> 1e-6); a DAQ printing
+    ``%.10g`` gives fewer decimals once the time passes 1 s."""
+    out = []
     for c in cells:
         try:
-            exps.append(decimal.Decimal(c.strip()).as_tuple().exponent)
+            e = decimal.Decimal(c.strip()).as_tuple().exponent
         except (decimal.InvalidOperation, AttributeError):
-            continue
-    exps = [e for e in exps if isinstance(e, int)]
-    return float(10.0 ** np.median(exps)) if exps else 0.0
+            e = None
+        out.append(10.0**e if isinstance(e, int) else 0.0)
+    return np.asarray(out, float)
 
 
 def _unit_from_column(name: str) -> str:
@@ -275,6 +302,8 @@ class _Channels:
     records_read: int
     rejected: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    cut_short: bool = False  # the file ends without a line end (or inside a record)
+    hit_rates: list | None = None  # per-hit sample rates (CSV), averaged over the kept hits
 
 
 def _channel_name(key, ch: _Channels) -> str:
@@ -312,13 +341,43 @@ def _cut_continuous(ch: _Channels, where: str, segment: str, seg_kw: dict) -> st
     return "continuous"
 
 
-def _equal_lengths(ch: _Channels) -> None:
-    lengths = {len(f) for f in ch.forces}
-    if len(lengths) > 1:
-        n = min(lengths)
-        ch.notes.append(f"hits of {sorted(lengths)} samples truncated to the shortest ({n})")
-        ch.forces = [f[:n] for f in ch.forces]
-        ch.responses = {k: [r[:n] for r in v] for k, v in ch.responses.items()}
+def _equal_lengths(ch: _Channels, where: str) -> None:
+    """Give every hit the common length; a hit shorter than it is rejected, never the others cut.
+
+    The common length is the upper median of the hit lengths (at least half the hits are that
+    long). Shorter hits are rejected by name and length (averaging them would cut every hit
+    and coarsen the FRF resolution); longer ones lose only their tail beyond it (noted). A
+    short last hit in a file that ends without a line end is a file cut short: an error.
+    """
+    lengths = [len(f) for f in ch.forces]
+    if ch.cut_short:
+        ch.notes.append("the file ends without a line end: its last value may be cut short")
+    if len(set(lengths)) <= 1:
+        return
+    n = int(np.sort(lengths)[len(lengths) // 2])
+    if ch.cut_short and lengths[-1] < n:
+        raise ValueError(
+            f"{where}: the file ends inside {ch.labels[-1]} ({lengths[-1]} samples, the other "
+            f"hits {n}) without a line end: a truncated or damaged file"
+        )
+    keep = []
+    for i, m in enumerate(lengths):
+        if m < n:
+            ch.rejected.append(
+                (ch.labels[i], f"short hit: {m} samples ({m / ch.sample_rate_hz:.4g} s), the "
+                 f"others {n} ({n / ch.sample_rate_hz:.4g} s)")
+            )  # fmt: skip
+        else:
+            keep.append(i)
+    longer = sorted({lengths[i] for i in keep if lengths[i] > n})
+    if longer:
+        ch.notes.append(f"hits of {longer} samples cut to the common length {n}")
+    ch.forces = [ch.forces[i][:n] for i in keep]
+    ch.responses = {k: [v[i][:n] for i in keep] for k, v in ch.responses.items()}
+    ch.labels = [ch.labels[i] for i in keep]
+    if ch.hit_rates is not None:  # a rejected short hit's (less precise) rate does not count
+        ch.hit_rates = [ch.hit_rates[i] for i in keep]
+        ch.sample_rate_hz = float(np.mean(ch.hit_rates))
 
 
 def _finish(ch: _Channels, path: Path, segment: str, seg_kw: dict) -> list[HammerRecording]:
@@ -328,7 +387,7 @@ def _finish(ch: _Channels, path: Path, segment: str, seg_kw: dict) -> list[Hamme
         detail = "; ".join(f"{h}: {r}" for h, r in ch.rejected)
         raise ValueError(f"{path}: no complete hit (force + response) found ({detail})")
     layout = _cut_continuous(ch, str(path), segment, seg_kw)
-    _equal_lengths(ch)
+    _equal_lengths(ch, str(path))
     names = tuple(_channel_name(k, ch) for k in ch.responses)
     report = ReadReport(
         str(path), layout, ch.records_read, len(ch.forces),
@@ -357,24 +416,22 @@ def _csv_channels(
     force_sensitivity: Sensitivity | None,
     response_sensitivity: Sensitivity | None,
 ) -> _Channels:
-    with path.open(newline="") as fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip().lower() for h in next(reader)]
-        except StopIteration:
-            raise ValueError(f"{path}: empty file") from None
-        rows = [r for r in reader if r]
-    if not rows:
-        raise ValueError(f"{path}: no data rows")
-    if any(len(r) != len(header) for r in rows):
-        bad = next(i for i, r in enumerate(rows) if len(r) != len(header))
-        raise ValueError(
-            f"{path}: row {bad + 2} has {len(rows[bad])} cells, expected {len(header)}"
-        )
+    from .csv_table import read_table
+
+    table = read_table(path, what="recording")
+    header = list(table.header)
+    rows = table.rows
     try:
         data = np.array(rows, dtype=float)
-    except ValueError as exc:
-        raise ValueError(f"{path}: non-numeric cell ({exc})") from None
+    except ValueError:
+        for name in header:
+            table.numbers(name)  # names the line and the cell
+        raise
+    renamed = [
+        f"column {raw!r} read as {name}"
+        for raw, name in zip(table.raw_header, header, strict=True)
+        if raw.strip().lower() != name
+    ]
     col = {h: i for i, h in enumerate(header)}
     time_cols = [h for h in header if h.startswith("time_")]
     force_cols = [h for h in header if h.startswith("force_")]
@@ -386,7 +443,7 @@ def _csv_channels(
         )
     if not np.all(np.isfinite(data)):
         r, c = np.argwhere(~np.isfinite(data))[0]
-        raise ValueError(f"{path}: NaN or inf in row {r + 2}, column {header[c]!r}")
+        raise ValueError(f"{path} line {table.lines[r]}: NaN or inf in column {header[c]!r}")
     _, t_factor = si_factor(_unit_from_column(time_cols[0]), "time")
     _, f_dir, f_unit = _split_column(force_cols[0])
     f_factor = _channel_factor(f_unit, "force", force_sensitivity, str(path))
@@ -414,6 +471,8 @@ def _csv_channels(
         responses=responses, quantity=quantity, direction=direction, node=node,
         force_direction=f_dir, sample_rate_hz=float(np.mean(rates)),
         labels=[f"hit {h}" for h in order], records_read=len(order) * (1 + len(resp_cols)),
+        notes=[f"CSV read with {table.dialect}", *renamed], cut_short=not table.ends_with_newline,
+        hit_rates=rates,
     )  # fmt: skip
 
 
@@ -428,6 +487,40 @@ def _uff_fs(s: dict, where: str) -> float:
     return sample_rate_from_time(x, res, where)
 
 
+def _check_uff_complete(path: Path, n_read: int) -> None:
+    """A UFF file cut short or damaged is an error, never a partial read.
+
+    Datasets are delimited by lines ``    -1``; the file must close every dataset it opens, and
+    the reader must have returned every dataset 58 the file holds.
+    """
+    raw = path.read_bytes()
+    lines = raw.decode("latin-1").splitlines()
+    inside, start, kind, n58 = False, 0, "", 0
+    for i, line in enumerate(lines):
+        if line.strip() == "-1":
+            if inside:
+                inside = False
+            else:
+                inside, start = True, i
+                kind = (
+                    lines[i + 1].strip().split()[0]
+                    if i + 1 < len(lines) and lines[i + 1].strip()
+                    else ""
+                )
+                if kind.lower().endswith("b"):
+                    return  # binary dataset: the text structure cannot be checked here
+                n58 += kind == "58"
+    if inside:
+        raise ValueError(
+            f"{path}: the file ends inside dataset {kind or '?'} opened at line {start + 1} "
+            "(no closing -1): a truncated or damaged file"
+        )
+    if n58 != n_read:
+        raise ValueError(
+            f"{path}: holds {n58} datasets 58 but only {n_read} could be read: a damaged file"
+        )
+
+
 def _uff_channels(
     path: Path,
     force_sensitivity: Sensitivity | None,
@@ -440,6 +533,14 @@ def _uff_channels(
     except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
         raise ValueError(f"{path}: not a readable UFF file ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
+    _check_uff_complete(path, sum(s.get("type") == 58 for s in sets))
+    for k, s in enumerate(s for s in sets if s.get("type") == 58):
+        declared, held = int(s.get("num_pts", -1)), len(s.get("data", ()))
+        if declared >= 0 and declared != held:
+            raise ValueError(
+                f"{path}: dataset 58 number {k} declares {declared} values but holds {held}: "
+                "a truncated or damaged file"
+            )
     records = [s for s in sets if s.get("type") == 58 and s.get("func_type") == 1]
     if not records:
         raise ValueError(f"{path}: no dataset 58 time records (function type 1)")
@@ -513,9 +614,19 @@ def _uff_channels(
     if not rkeys:
         raise ValueError(f"{path}: no response record (specific data type 8, 11 or 12)")
     forces, responses, kept_labels, rejected = [], {k: [] for k in rkeys}, [], []
+    # The hit the file's last record belongs to: a hit from there on that lacks a record means
+    # the file was cut (between datasets), not that a record was left out.
+    final = parsed[-1]
+    last = final[2] if by_case else len(per_key[final[1]]) - 1
     for h in sorted(hits):
         rec = hits[h]
         missing = [k for k in [fkey, *rkeys] if k not in rec]
+        if missing and h >= last:
+            names = ", ".join(f"{k[0]} node {k[1]} dir {k[2]}" for k in missing)
+            raise ValueError(
+                f"{path}: the last hit ({labels[h]}) lacks its {names} record and the file ends "
+                "there: a truncated file (a file cut between datasets)"
+            )
         if missing:
             names = ", ".join(f"{k[0]} node {k[1]} dir {k[2]}" for k in missing)
             rejected.append((labels[h], f"no {names} record"))

@@ -51,17 +51,26 @@ def _atomic_write_text(path: Path, text: str, *, inputs=(), force: bool = False)
 
 
 def _read_table(path, columns: Sequence[str]):
-    import pandas as pd
+    """(DataFrame, (n, len(columns)) floats) of a CSV (:func:`robovib.io.csv_table.read_table`)."""
+    from .csv_table import read_table
 
     path = Path(path)
-    df = pd.read_csv(path)
-    missing = [c for c in columns if c not in df]
+    table = read_table(path)
+    missing = [c for c in columns if c not in table.header]
     if missing:
         raise ValueError(f"{path}: missing columns {missing} (need {', '.join(columns)})")
-    data = df[list(columns)].to_numpy(dtype=float)
-    if not np.all(np.isfinite(data)):
-        raise ValueError(f"{path}: columns {', '.join(columns)} contain NaN or inf")
-    return df, data
+    data = np.column_stack([table.numbers(c, allow_empty=True) for c in columns])
+    bad = ~np.isfinite(data)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise ValueError(f"{path} line {table.lines[r]}: {columns[c]} is empty, NaN or inf")
+    return table.to_frame(), data
+
+
+def _header(path) -> tuple[str, ...]:
+    from .csv_table import read_table
+
+    return read_table(path).header
 
 
 def write_recording_csv(
@@ -184,9 +193,7 @@ def read_milling_record_csv(path: str | Path) -> dict[str, np.ndarray]:
     ValueError
         Missing column, NaN or inf.
     """
-    import pandas as pd
-
-    head = pd.read_csv(path, nrows=0).columns
+    head = _header(path)
     if "path_s_m" not in head and all(c in head for c in ("x_m", "y_m", "rz_deg")):
         _, d = _read_table(path, (*MILLING_RECORD_COLUMNS[:-1], "x_m", "y_m", "rz_deg"))
         return {"time_s": d[:, 0], "force_n": d[:, 1:4], "displacement_m": d[:, 4:7],
@@ -218,11 +225,9 @@ def read_compliance_tests_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray,
     ValueError
         Missing column, NaN or inf.
     """
-    import pandas as pd
-
     cols = [f"a{i}_deg" for i in range(1, 7)] + ["fx_n", "fy_n", "fz_n", "mx_nm", "my_nm", "mz_nm"]
     cols += ["dx_m", "dy_m", "dz_m"]
-    header = pd.read_csv(path, nrows=0).columns
+    header = _header(path)
     if "rx_rad" in header:
         cols += ["rx_rad", "ry_rad", "rz_rad"]
     _, d = _read_table(path, cols)
