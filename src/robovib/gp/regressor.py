@@ -115,11 +115,26 @@ _vecdot = getattr(np, "vecdot", _vecdot_einsum)
 
 
 def _as_2d_float(name: str, value, ndim_hint: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
+    """A dense real 2-D float array with at least one row (1-D: one column); clear errors for
+    sparse, complex and empty input (scikit-learn's estimator checks)."""
+    if type(value).__module__.startswith("scipy.sparse"):
+        raise TypeError(
+            f"{name} is a sparse matrix: sparse input is not supported; pass a dense array"
+        )
+    arr = np.asarray(value)
+    if np.iscomplexobj(arr):
+        raise ValueError(f"{name}: Complex data not supported")
+    arr = arr.astype(float, copy=False)
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2:
         raise ValueError(f"{name} must be 2-D {ndim_hint}, got shape {arr.shape}")
+    if arr.shape[0] == 0:
+        raise ValueError(f"{name} has 0 sample(s) (shape {arr.shape}); at least one is needed")
+    if arr.shape[1] == 0:
+        raise ValueError(
+            f"{name} has 0 feature(s) (shape={arr.shape}) while a minimum of 1 is required."
+        )
     return arr
 
 
@@ -306,7 +321,10 @@ class BatchedGPRegressor(BaseEstimator):
         n_obs = mask.sum(axis=0)
         if np.any(n_obs < min_observed):
             bad = np.flatnonzero(n_obs < min_observed).tolist()
-            raise ValueError(f"outputs {bad} have fewer than 2 observed samples")
+            raise ValueError(
+                f"outputs {bad} have fewer than {min_observed} observed samples "
+                f"(n_samples={X.shape[0]})"
+            )
         return X, np.where(mask, Y, 0.0), mask, squeeze
 
     # ------------------------------------------------------------------ scaling
@@ -789,10 +807,16 @@ class BatchedGPRegressor(BaseEstimator):
 
     def _predict(self, X, return_std, include_noise):
         self._require_fitted()
+        if np.ndim(X) == 1 and self.n_features_in_ != 1:
+            raise ValueError(
+                f"X is 1-D but the model has {self.n_features_in_} inputs: Reshape your data "
+                "to (n_query, n_features)"
+            )
         Xq = _as_2d_float("X", X, "(n_query, n_features)")
         if Xq.shape[1] != self.n_features_in_:
             raise ValueError(
-                f"X has {Xq.shape[1]} features; the model was fitted with {self.n_features_in_}"
+                f"X has {Xq.shape[1]} features, but BatchedGPRegressor is expecting "
+                f"{self.n_features_in_} features as input"
             )
         if not np.all(np.isfinite(Xq)):
             raise ValueError("X contains NaN or inf")

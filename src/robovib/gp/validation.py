@@ -77,8 +77,10 @@ def regression_scores(y_true, y_pred, mask=None) -> tuple[np.ndarray, np.ndarray
 
 
 def _check_validation_inputs(X, Y, mask):
-    X = np.asarray(X, float)
-    Y = np.asarray(Y, float)
+    from .regressor import _as_2d_float
+
+    X = _as_2d_float("X", X, "(n_samples, n_features)") if np.ndim(X) >= 2 else np.asarray(X)
+    Y = _as_2d_float("Y", Y, "(n_samples, n_outputs)")
     if Y.ndim == 1:
         Y = Y[:, None]
     if X.ndim != 2 or Y.ndim != 2:
@@ -223,12 +225,22 @@ class PolynomialRegression(BaseEstimator):
             )
             model.fit(X[m], Y[m, b])
             self.models_.append(model)
+        self.n_features_in_ = X.shape[1]
         return self
 
     def predict(self, X) -> np.ndarray:
+        from .regressor import _as_2d_float
+
         if not hasattr(self, "models_"):
             raise NotFittedError("this PolynomialRegression is not fitted yet; call fit() first")
-        X = np.asarray(X, float)
+        if np.ndim(X) == 1:
+            raise ValueError("X is 1-D: Reshape your data to (n_samples, n_features)")
+        X = _as_2d_float("X", X, "(n_samples, n_features)")
+        if X.shape[1] != self.n_features_in_:
+            raise ValueError(
+                f"X has {X.shape[1]} features, but PolynomialRegression is expecting "
+                f"{self.n_features_in_} features as input"
+            )
         return np.column_stack([m.predict(X) for m in self.models_])
 
 
