@@ -243,7 +243,7 @@ def test_stability_sampling_draws_the_mode_mixture_of_the_pose_model():
 
     model = load_chapter3_model()
     # A pose where the classifier hesitates between the 16-23 Hz and the ~63 Hz X mode.
-    cand = np.column_stack([np.full(25, 2700.0), np.linspace(-300, 600, 25), np.full(25, 20.0)])
+    cand = np.column_stack([np.full(46, 2700.0), np.zeros(46), np.linspace(0.0, 45.0, 46)])
     p = model.mode_switch_probability(cand)[:, 0]
     pose = cand[int(np.argmin(np.abs(p - 0.5)))]
     p_high = float(model.mode_switch_probability(pose[None])[0, 0])
@@ -261,3 +261,22 @@ def test_stability_sampling_draws_the_mode_mixture_of_the_pose_model():
     )
     picked = dist["x"].sample(50, rng=2)
     assert len(picked) == 50 and all(m.natural_frequency_hz > 0 for m in picked)
+
+
+def test_lobes_say_which_mode_they_assumed_where_the_model_is_unsure():
+    from robovib.gp import load_chapter3_model
+    from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    from robovib.milling.chart import lobes_chart
+
+    model = load_chapter3_model()
+    kw = dict(tool=MillingTool(), conditions=CuttingConditions(1000.0, 1e-4, 1e-3, 6e-3),
+              coefficients=ALUMINIUM_7075, spindle_rpm=np.linspace(200, 3000, 40), method="zoa",
+              pose_model=model)  # fmt: skip
+    unsure = lobes_chart(pose=(2700.0, 0.0, 20.0), **kw)
+    p = model.mode_switch_probability([[2700.0, 0.0, 20.0]])[0, 0]
+    assert 0.05 < p < 0.95
+    assert len(unsure.notes) == 1 and unsure.notes[0].startswith("x: P(high mode dominant)")
+    assert unsure.to_dict()["notes"] == list(unsure.notes)
+    sure = lobes_chart(pose=(2100.0, 0.0, 45.0), **kw)
+    assert model.mode_switch_probability([[2100.0, 0.0, 45.0]])[0, 0] < 0.05
+    assert sure.notes == ()

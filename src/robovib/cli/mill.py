@@ -165,6 +165,8 @@ def lobes(
         return
     env = chart.envelope
     typer.echo(f"{chart.title.splitlines()[0]}")
+    for note in chart.notes:
+        typer.echo(f"note: {note}")
     if outside:
         typer.echo(
             f"warning: {', '.join(outside)} outside the calibrated workspace: the modes are a GP "

@@ -131,6 +131,8 @@ class BandCalibration:
         (n_outputs, 2) calibration factor and Student-t dof per [low, high] mode.
     gamma, ref_std
         (n_outputs, 2) shape of the band over the poses and its reference latent std (SI).
+    mode_logit
+        (n_outputs, 2) Platt scaling ``(a, b)`` of the high-mode probability (NaN: none).
     n_folds, n_poses
         Folds of the grouped CV and distinct poses.
     n
@@ -155,6 +157,7 @@ class BandCalibration:
     dof: np.ndarray
     gamma: np.ndarray
     ref_std: np.ndarray
+    mode_logit: np.ndarray
     n_folds: int
     n_poses: int
     n: np.ndarray
@@ -212,6 +215,46 @@ def mode_index(Y: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
 
 def _of_mode(a: np.ndarray, modes: np.ndarray) -> np.ndarray:
     return np.take_along_axis(a, modes[..., None], axis=-1)[..., 0]
+
+
+def fit_mode_logit(p, labels) -> tuple[float, float]:
+    """Platt scaling ``(a, b)`` of out-of-fold high-mode probabilities ``p`` against the
+    observed modes ``labels`` (bool), by maximum likelihood with ``a >= 0``.
+
+    As Platt (1999), the targets are smoothed to ``(N₊ + 1)/(N₊ + 2)`` and ``1/(N₋ + 2)``: with
+    classes the out-of-fold probabilities separate perfectly, plain maximum likelihood runs to a
+    step function, i.e. certainty no finite data can give.
+
+    Returns ``(nan, nan)`` (no recalibration) where the labels hold one mode only.
+    """
+    from scipy.optimize import minimize
+
+    p = np.clip(np.asarray(p, float), 1e-12, 1 - 1e-12)
+    y = np.asarray(labels, bool)
+    if y.all() or not y.any():
+        return float("nan"), float("nan")
+    x = np.log(p / (1 - p))
+    n_pos, n_neg = int(y.sum()), int((~y).sum())
+    t = np.where(y, (n_pos + 1.0) / (n_pos + 2.0), 1.0 / (n_neg + 2.0))
+
+    def nll(ab):
+        z = ab[0] * x + ab[1]
+        return float(np.sum(np.logaddexp(0.0, -z) * t + np.logaddexp(0.0, z) * (1.0 - t)))
+
+    r = minimize(nll, np.array([1.0, 0.0]), method="L-BFGS-B", bounds=[(0.0, 50.0), (-50, 50)])
+    return float(r.x[0]), float(r.x[1])
+
+
+def calibrate_mode_probabilities(pred: ModalPredictive, Y: np.ndarray, thresholds) -> np.ndarray:
+    """(n_outputs, 2) Platt ``(a, b)`` per output (the direction's; NaN without a switch)."""
+    out = np.full((Y.shape[1], 2), np.nan)
+    modes = mode_index(Y, thresholds)
+    for j in range(0, Y.shape[1], 3):
+        if not np.isfinite(thresholds[j]):
+            continue
+        seen = np.isfinite(Y[:, j])
+        out[j : j + 3] = fit_mode_logit(pred.high_probability[seen, j], modes[seen, j] == 1)
+    return out
 
 
 def calibrate_predictions(pred: ModalPredictive, Y: np.ndarray, thresholds: np.ndarray):
@@ -298,6 +341,7 @@ _CAL_ARRAYS = {
     "dof": "1 (Student-t degrees of freedom; inf = Gaussian)",
     "gamma": "1 (shape of the band over the poses)",
     "ref_std": "SI output units (reference latent std)",
+    "mode_logit": "1 (Platt a, b of the high-mode probability; NaN: none)",
     "n": "1",
     "coverage": "1 (fraction)",
     "coverage_uncalibrated": "1 (fraction)",
@@ -339,6 +383,7 @@ def read_calibration(group):
         dof=d["dof"],
         gamma=d.get("gamma", np.ones_like(d["scale"])),
         ref_std=d.get("ref_std", np.ones_like(d["scale"])),
+        mode_logit=d.get("mode_logit", np.full_like(d["scale"], np.nan)),
         n_folds=int(a["n_folds"]),
         n_poses=int(a["n_poses"]),
         n=d["n"].astype(int),

@@ -45,7 +45,7 @@ from . import _h5
 from .extrapolation import TrainingRegion
 from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
-from .predictive import ModalPredictive, assemble, noise_std_of
+from .predictive import ModalPredictive, assemble, calibrated_mode_probability, noise_std_of
 from .predictor import FORMAT, FORMAT_VERSION
 from .regressor import BatchedGPRegressor
 
@@ -415,6 +415,7 @@ class PoseModalModel(BaseEstimator):
 
         from .calibration import (
             BandCalibration,
+            calibrate_mode_probabilities,
             calibrate_predictions,
             grouped_folds,
             scores,
@@ -451,9 +452,10 @@ class PoseModalModel(BaseEstimator):
                     )
                 parts.append((te, m._raw_predictive(X[te])))
             pred = _stack_predictive(parts, X.shape[0])
+            logit = calibrate_mode_probabilities(pred, Y, thresholds)
             scale, dof, gamma, ref = calibrate_predictions(pred, Y, thresholds)
-            cal = pred.with_calibration(scale, dof, gamma, ref)
-            results[family] = (pred, cal, (scale, dof, gamma, ref), scores(cal, Y))
+            cal = pred.with_calibration(scale, dof, gamma, ref, logit)
+            results[family] = (pred, cal, (scale, dof, gamma, ref, logit), scores(cal, Y))
         # Per output (per direction where a switch ties the three outputs): best mean LPD.
         lpd = {f: -r[3]["nlpd"] for f, r in results.items()}
         chosen = []
@@ -466,8 +468,8 @@ class PoseModalModel(BaseEstimator):
                 chosen += [
                     max(families, key=lambda f: float(lpd[f][j])) for j in range(3 * i, 3 * i + 3)
                 ]
-        scale, dof, gamma, ref = (
-            np.array([results[chosen[j]][2][i][j] for j in range(n_out)]) for i in range(4)
+        scale, dof, gamma, ref, logit = (
+            np.array([results[chosen[j]][2][i][j] for j in range(n_out)]) for i in range(5)
         )
         sc = {
             k: np.array([results[chosen[j]][3][k][j] for j in range(n_out)])
@@ -483,6 +485,7 @@ class PoseModalModel(BaseEstimator):
             dof=dof,
             gamma=gamma,
             ref_std=ref,
+            mode_logit=logit,
             n_folds=int(np.unique(fold).size),
             n_poses=int(np.unique(np.round(X, 9), axis=0).shape[0]),
             n=sc["n"].astype(int),
@@ -702,7 +705,8 @@ class PoseModalModel(BaseEstimator):
     def mode_switch_probability(self, X) -> np.ndarray | None:
         """(n, n_directions) probability that the high mode dominates; None without switches.
 
-        Columns of directions without a modelled switch are NaN.
+        Columns of directions without a modelled switch are NaN. Where the model is calibrated,
+        the classifier's probability recalibrated on the grouped CV (Platt scaling).
         """
         X = self._check_X(X)
         if not any(isinstance(e, ModeSwitchingGPRegressor) for e in self.estimators_):
@@ -711,7 +715,7 @@ class PoseModalModel(BaseEstimator):
         for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
             if isinstance(est, ModeSwitchingGPRegressor):
                 p[:, cols[0] // 3] = est.high_mode_probability(X)
-        return p
+        return calibrated_mode_probability(p, getattr(self, "calibration_", None))
 
     def _raw_predictive(self, X) -> ModalPredictive:
         """The GP posterior as a :class:`ModalPredictive`, before calibration."""
@@ -752,7 +756,7 @@ class PoseModalModel(BaseEstimator):
         cal = getattr(self, "calibration_", None)
         if cal is None:
             return raw
-        return raw.with_calibration(cal.scale, cal.dof, cal.gamma, cal.ref_std)
+        return raw.with_calibration(cal.scale, cal.dof, cal.gamma, cal.ref_std, cal.mode_logit)
 
     def modes(self, X) -> list[dict[str, PoseMode]]:
         """The dominant mode of each direction at each pose (one dict per row of ``X``).

@@ -128,6 +128,25 @@ def t_quantile(q: float, dof) -> np.ndarray:
     return 0.5 * (lo + hi)
 
 
+def recalibrated_probability(p: np.ndarray, mode_logit: np.ndarray) -> np.ndarray:
+    """``σ(a logit p + b)`` per output column (``mode_logit`` (n_outputs, 2); NaN: unchanged)."""
+    p = np.asarray(p, float)
+    a, b = mode_logit[:, 0], mode_logit[:, 1]
+    keep = ~np.isfinite(a)
+    q = np.clip(p, 1e-12, 1 - 1e-12)
+    z = np.where(keep, 0.0, a) * np.log(q / (1 - q)) + np.where(keep, 0.0, b)
+    return np.where(keep, p, 1.0 / (1.0 + np.exp(-z)))
+
+
+def calibrated_mode_probability(p: np.ndarray, calibration) -> np.ndarray:
+    """(n, n_directions) high-mode probabilities after the calibration's Platt scaling (the
+    direction's first output row of ``calibration.mode_logit``); unchanged without one."""
+    logit = None if calibration is None else getattr(calibration, "mode_logit", None)
+    if logit is None:
+        return p
+    return recalibrated_probability(p, np.asarray(logit, float)[0::3])
+
+
 @dataclass(frozen=True)
 class ModalPredictive:
     """Predictive distribution of ``n_outputs`` modal outputs at ``n`` poses.
@@ -163,13 +182,23 @@ class ModalPredictive:
     gamma: np.ndarray | None = None
     ref_std: np.ndarray | None = None
 
-    def with_calibration(self, scale, dof, gamma=None, ref_std=None) -> ModalPredictive:
+    def with_calibration(
+        self, scale, dof, gamma=None, ref_std=None, mode_logit=None
+    ) -> ModalPredictive:
         """The same components with another calibration ((n_outputs, 2) arrays; ``gamma`` and
-        ``ref_std`` default to the plain GP's shape of the band, ``gamma = 1``)."""
+        ``ref_std`` default to the plain GP's shape of the band, ``gamma = 1``).
+
+        ``mode_logit`` (n_outputs, 2) ``(a, b)`` recalibrates the classifier's probability of the
+        high mode, ``p → σ(a logit p + b)`` (Platt scaling; NaN rows: unchanged).
+        """
         from dataclasses import replace
 
+        p = self.high_probability
+        if mode_logit is not None:
+            p = recalibrated_probability(p, np.asarray(mode_logit, float))
         return replace(
             self,
+            high_probability=p,
             scale=np.asarray(scale, float),
             dof=np.asarray(dof, float),
             gamma=None if gamma is None else np.asarray(gamma, float),
@@ -376,6 +405,7 @@ def assemble(
     dof=None,
     gamma=None,
     ref_std=None,
+    mode_logit=None,
 ) -> ModalPredictive:
     """Build a :class:`ModalPredictive` from per-estimator components.
 
@@ -397,6 +427,8 @@ def assemble(
     scale = np.ones((n_out, 2)) if scale is None else np.asarray(scale, float)
     dof = np.full((n_out, 2), np.inf) if dof is None else np.asarray(dof, float)
     dirs = tuple(directions[j // 3] for j in range(n_out))
+    if mode_logit is not None:
+        p = recalibrated_probability(p, np.asarray(mode_logit, float))
     return ModalPredictive(
         tuple(output_names), tuple(output_units), dirs, p, mean, lat, noise, scale, dof,
         None if gamma is None else np.asarray(gamma, float),

@@ -38,6 +38,7 @@ from .._threads import single_blas_thread
 from .extrapolation import TrainingRegion
 from .kernels import correlation
 from .posterior import GPPosterior
+from .predictive import calibrated_mode_probability
 
 __all__ = [
     "AMBIGUOUS_MODE_PROBABILITY",
@@ -376,7 +377,8 @@ class PosePredictor:
         cal = self.calibration_
         return assemble(
             self.output_names_, self.output_units_, self.directions_, X.shape[0], parts,
-            *((None,) * 4 if cal is None else (cal.scale, cal.dof, cal.gamma, cal.ref_std)),
+            *((None,) * 5 if cal is None
+              else (cal.scale, cal.dof, cal.gamma, cal.ref_std, cal.mode_logit)),
         )  # fmt: skip
 
     def outside_inputs(self, X) -> np.ndarray:
@@ -397,7 +399,7 @@ class PosePredictor:
         for est, cols in self._estimators:
             if isinstance(est, _Switching):
                 p[:, cols[0] // 3] = est.high_mode_probability(X)
-        return p
+        return calibrated_mode_probability(p, getattr(self, "calibration_", None))
 
 
 def load_pose_predictor(path):

@@ -176,6 +176,8 @@ class LobesChart:
     frf_file: str | None = None
     settings: dict = field(default_factory=dict)
     probability: object | None = None
+    #: Which mode the deterministic envelope assumed where the pose model is unsure (mixtures).
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         """JSON document: ``rpm``, ``a_lim_m`` arrays, units in every key, all inputs."""
@@ -202,6 +204,7 @@ class LobesChart:
             "frf_file": self.frf_file,
             "settings": {**self.envelope.settings, **self.settings},
             "title": self.title,
+            "notes": list(self.notes),
         }  # fmt: skip
         if self.operating_point is not None:
             doc["operating_point"] = {
@@ -301,6 +304,7 @@ def lobes_chart(
                 fitted[d] = ()  # the zero-order method uses the measured FRF itself
         modes_x, modes_y = fitted.get("x", ()), fitted.get("y", ())
     probability = None
+    notes: tuple[str, ...] = ()
     if not modes_x and not modes_y and not frfs and pose_model is not None:
         from .uncertainty import mode_distribution_at_pose, stability_probability
 
@@ -310,6 +314,7 @@ def lobes_chart(
             raise ValueError(f"feed_direction must be 'x' or 'y', got {feed_direction!r}")
         dist = mode_distribution_at_pose(pose_model, pose)
         normal = "y" if feed_direction == "x" else "x"
+        notes = _assumed_mode_notes(pose_model, pose, (feed_direction, normal))
         modes_x, modes_y = (dist[feed_direction].mean,), (dist[normal].mean,)
         if int(n_samples) > 0:
             probability = stability_probability(
@@ -365,7 +370,23 @@ def lobes_chart(
                         extra=f"{method.upper()}" + (f", FRF {Path(frf_file).name}" if frf_file else ""))  # fmt: skip
     return LobesChart(env, modes_x, modes_y, tool, conditions, coefficients, title, cuts,
                       operating_point, op_stable, None if frf_file is None else str(frf_file),
-                      probability=probability)  # fmt: skip
+                      probability=probability, notes=notes)  # fmt: skip
+
+
+def _assumed_mode_notes(model, pose, directions) -> tuple[str, ...]:
+    """One line per direction whose dominant mode the pose model is unsure of (a mixture):
+    the deterministic envelope uses the more probable mode; P(stable) samples both."""
+    row = model.modes(np.asarray(pose, float)[None, :])[0]
+    out = []
+    for d in directions:
+        p = row[d].high_mode_probability
+        if p is not None and 0.05 < p < 0.95:
+            fn = row[d].parameters.natural_frequency_hz
+            out.append(
+                f"{d}: P(high mode dominant) = {p:.2f}; the envelope assumes the more probable "
+                f"mode ({fn:.1f} Hz); --samples draws both modes"
+            )
+    return tuple(out)
 
 
 def plot_lobes_chart(chart: LobesChart, ax=None):
