@@ -83,6 +83,7 @@ def _shim(folder: Path) -> dict:
     env.setdefault("OMP_NUM_THREADS", "1")
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     env["MPLBACKEND"] = "Agg"
+    env["COLUMNS"] = "80"  # a narrow terminal: tables must not cut a number (checked below)
     return env
 
 
@@ -103,6 +104,8 @@ def run_readme(folder: Path, slow: bool, log=None) -> list[tuple[str, float]]:
             f"README command failed (exit {res.returncode}):\n{cmd}\n--- stderr ---\n"
             f"{res.stderr[-3000:]}\n--- stdout ---\n{res.stdout[-2000:]}"
         )
+        cut = re.search(r".{0,30}(\d…|…\d).{0,30}", res.stdout)
+        assert cut is None, f"a number cut with '…' at 80 columns:\n{cmd}\n{cut.group(0)}"
     return timings
 
 
