@@ -11,9 +11,19 @@ class Table(_RichTable):
     """A rich table that never cuts a number: where the columns do not fit the terminal, each
     row is printed as ``header: value`` lines instead (no "…", no exponent lost)."""
 
+    def add_column(self, *args, **kwargs) -> None:
+        kwargs.setdefault("overflow", "fold")  # never "…" even where the width estimate is off
+        super().add_column(*args, **kwargs)
+
     def __rich_console__(self, console, options):
         cols = self.columns
-        need = sum(max([len(str(c)) for c in col._cells] + [1]) + 3 for col in cols) + 1
+        need = (
+            sum(
+                max([len(str(c)) for c in col._cells] + [len(str(col.header)), 1]) + 3
+                for col in cols
+            )
+            + 1
+        )
         if need <= options.max_width or not self.row_count:
             yield from super().__rich_console__(console, options)
             return
