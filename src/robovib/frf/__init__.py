@@ -1,31 +1,44 @@
-"""Frequency response functions from force/response time series (thesis §3.2.1, Eq. 3-5)."""
+"""Frequency response functions from force/response time series (thesis §3.2.1, Eq. 3-5).
 
-from .core import FRF, RESPONSE_TO_QUANTITY, to_compliance
-from .estimate import SpectralDensities, estimate_frf, spectral_densities
-from .impact import HitReport, ImpactResult, check_hit, impact_frf, noise_level, overload_reason
-from .plausibility import PlausibleRanges, check_frf_level, check_levels
-from .plot import FRFCurve, plot_frf, unwrapped_phase_deg
-from .segment import HitSegmentation, segment_hits
+Names are imported on first use (PEP 562): ``robovib.frf.core`` (NumPy only) does not pay for
+SciPy's signal module, which the estimators need.
+"""
 
-__all__ = [
-    "FRF",
-    "RESPONSE_TO_QUANTITY",
-    "FRFCurve",
-    "HitReport",
-    "HitSegmentation",
-    "ImpactResult",
-    "PlausibleRanges",
-    "SpectralDensities",
-    "check_frf_level",
-    "check_hit",
-    "check_levels",
-    "estimate_frf",
-    "impact_frf",
-    "noise_level",
-    "overload_reason",
-    "plot_frf",
-    "segment_hits",
-    "spectral_densities",
-    "to_compliance",
-    "unwrapped_phase_deg",
-]
+from importlib import import_module
+
+_WHERE = {
+    "FRF": "core",
+    "FRFCurve": "plot",
+    "HitReport": "impact",
+    "HitSegmentation": "segment",
+    "ImpactResult": "impact",
+    "PlausibleRanges": "plausibility",
+    "RESPONSE_TO_QUANTITY": "core",
+    "SpectralDensities": "estimate",
+    "check_frf_level": "plausibility",
+    "check_hit": "impact",
+    "check_levels": "plausibility",
+    "estimate_frf": "estimate",
+    "impact_frf": "impact",
+    "noise_level": "impact",
+    "overload_reason": "impact",
+    "plot_frf": "plot",
+    "segment_hits": "segment",
+    "spectral_densities": "estimate",
+    "to_compliance": "core",
+    "unwrapped_phase_deg": "plot",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))
