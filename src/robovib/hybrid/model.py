@@ -32,7 +32,14 @@ hyperparameters (§5.2.4: different sensors). Updating with OMA FRFs (:meth:`FRF
      of all kept data with the EMA kernel hyperparameters fixed, floored by the H1 random
      error from the coherence when ``noise_std`` is given (Bendat & Piersol: relative error
      ``sqrt((1 - γ²) / (2 n_d γ²))``);
-  5. the posterior (Eq. 9-10) with those hyperparameters.
+  5. the dominant peak of the EMA model: where a windowed OMA estimate biases it by more than
+     5 % (Bendat & Piersol: about (1/3)(1.5 df / B_r)^2 for Hann, B_r the half-power
+     bandwidth), the OMA noise of the peak band is at least that bias x the peak |H|;
+  6. evidence: two folds of alternate OMA segments along the pose; each fold is predicted by
+     the EMA model plus the other fold and by the EMA model alone; bins (and the whole
+     direction) whose held-out log predictive density gains < 1 nat are held back, and the
+     report says so in words (:meth:`UpdateReport.describe`);
+  7. the posterior (Eq. 9-10) with those hyperparameters.
 
   The kernel hyperparameters stay those of the EMA fit, so OMA data can sharpen the
   prediction between EMA poses but cannot reshape the prior (the failure of ``"warm"`` on
@@ -122,6 +129,14 @@ class UpdateReport:
         Whether the new FRFs were divided by ``scale`` (significant scale bias).
     noise_median_um_per_n
         Median over bins of the new source's noise std (Re/Im) used in the posterior [um/N].
+    held_back_bins_hz
+        Bins whose OMA data were held back: held-out OMA segments gained < 1 nat [Hz].
+    held_back_all
+        Whether the whole update was held back (the direction as a whole gained < 1 nat).
+    heldout_log_density_gain
+        Held-out log predictive density, with OMA minus EMA alone, summed over bins [nat].
+    reasons
+        What was held back or down-weighted and why, in plain words.
     """
 
     mode: str
