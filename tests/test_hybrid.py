@@ -344,3 +344,61 @@ def test_fit_frf_model_grid_starts_where_every_frf_has_data_and_checks_inputs():
         fit_frf_model(frfs, "joints")
     with pytest.raises(ValueError, match="no EMA FRFs"):
         fit_frf_model([], "path")
+
+
+def test_robust_update_holds_back_uninformative_oma_and_says_why():
+    """OMA buried in noise (10x |H|) predicts held-out segments no better than EMA: the whole
+    direction is held back and the model stays the EMA model; informative OMA is used."""
+    rng = np.random.default_rng(5)
+    f, s_ema, h_ema, s_oma, _ = _ema_oma(rng, n_oma=16)
+    truth_oma = _family(s_oma, f)
+    junk = truth_oma + 10 * np.abs(truth_oma).max() * (
+        rng.normal(size=truth_oma.shape) + 1j * rng.normal(size=truth_oma.shape)
+    )
+    s_val = np.array([0.33, 0.91])
+    ema_pred = FRFPoseModel(f, rng=0).fit(s_ema, h_ema).predict(s_val)
+    model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
+    rep = model.update(s_oma, junk, mode="robust")
+    assert rep.held_back_all and rep.heldout_log_density_gain < 1.0
+    assert "held back" in rep.describe() and rep.to_dict()["held_back_all"]
+    np.testing.assert_allclose(model.predict(s_val), ema_pred, rtol=1e-6, atol=1e-12)
+    # Informative OMA (2 % noise) passes the held-out check and beats EMA alone vs truth.
+    _, _, _, _, good = _ema_oma(np.random.default_rng(6), n_oma=16)
+    model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
+    rep = model.update(s_oma, good, mode="robust")
+    assert not rep.held_back_all and rep.heldout_log_density_gain > 1.0
+    truth = _family(s_val, f)
+    assert np.abs(model.predict(s_val) - truth).mean() < np.abs(ema_pred - truth).mean()
+
+
+def test_peak_band_follows_the_window_bias_of_a_known_sdof():
+    """Half-power band B_r = 2 zeta f_n of an SDOF: (1/3)(1.5 df / B_r)^2 > 5 % flags it."""
+    f = np.arange(2.0, 40.0, 1.0)
+    model = FRFPoseModel(f, rng=0)
+    model.frequency_hz_ = f  # the band needs only the grid
+    for zeta, flagged in ((0.02, True), (0.3, False)):
+        h = 1.0 / (1 - (f / 12.0) ** 2 + 2j * zeta * f / 12.0)
+        band, bias = model._peak_band(np.vstack([h, h]))
+        assert band.any() == flagged
+        if flagged:
+            assert band[np.argmin(abs(f - 12.0))] and bias > 0.05
+        else:
+            assert bias <= 0.05
+
+
+def test_background_study_table_and_bad_input():
+    from robovib.studies.hybrid import background_study, background_table, parse_backgrounds
+
+    assert parse_backgrounds(["0.05,0.15", "1 2"]) == [0.05, 0.15, 1.0, 2.0]
+    for bad in (["x"], ["0"], ["-1"], ["nan"], []):
+        with pytest.raises(ValueError):
+            parse_backgrounds(bad)
+    with pytest.raises(ValueError, match="backgrounds"):
+        background_study([0.0])
+    res = background_study([0.15, 1.0], seeds=(3,), directions=("y",))
+    tab = background_table(res)
+    assert [(r["background"], r["direction"]) for r in tab] == [(0.15, "y"), (1.0, "y")]
+    rows = {(r["background"], r["model"]): r for r in res.rows}
+    r, e = rows[(1.0, "robust")], rows[(1.0, "ema")]
+    want = 100 * (r["rmse_vs_truth_um_per_n"] / e["rmse_vs_truth_um_per_n"] - 1)
+    assert tab[1]["rmse_change_mean_pct"] == pytest.approx(want)

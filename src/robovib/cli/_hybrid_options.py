@@ -30,6 +30,22 @@ UpdateModeOpt = Annotated[
     ),
 ]
 BackgroundOpt = Annotated[
-    float,
-    typer.Option(help="Broadband force content of the OMA cut (x spread of the periodic force)."),
+    list[str] | None,
+    typer.Option(
+        help="Broadband force content of the OMA cut (x spread of the periodic force); "
+        "several (repeat, or 0.05,0.15,0.5,1,2) give the background table."
+    ),
 ]
+
+
+def print_background_table(tab: list[dict]) -> None:
+    """Render :func:`robovib.studies.hybrid.background_table` rows."""
+    from ._common import print_table
+
+    cols = ("rmse_change_mean_pct", "rmse_change_worst_pct", "peak_error_ema_pct",
+            "peak_error_robust_pct", "peak_change_worst_pts")  # fmt: skip
+    print_table("Robust vs EMA alone at the validation pose, vs the true FRF: RMSE change % "
+                "(mean, worst seed), peak |H| error % (EMA, robust: mean), worst peak change (pts)",
+                ("background", "dir", "RMSE mean", "RMSE worst", "peak EMA", "peak rob.", "peak worst"),
+                [(f"{r['background']:g}", r["direction"].upper(), *(f"{r[c]:+.1f}" for c in cols))
+                 for r in tab])  # fmt: skip

@@ -26,26 +26,31 @@ app = new_app("Hybrid EMA + OMA model of the whole FRF with Bayesian updating (t
 
 @app.command("study")
 def study(
-    background: hopt.BackgroundOpt = 1.0,
+    background: hopt.BackgroundOpt = None,
     seeds: Annotated[str, typer.Option(help="Simulator seeds: a range 0-4 or a list 0,1,2.")] = "0",
     nperseg: hopt.NpersegOpt = 1024,
     noverlap: hopt.NoverlapOpt = None,
     window: hopt.WindowOpt = "hann",
     segment_m: hopt.SegmentOpt = 0.05,
-    validation_s: Annotated[
-        float, typer.Option("--validation-s", help="Validation path coordinate [m].")
-    ] = 0.91,
+    validation_s: Annotated[float, typer.Option("--validation-s", help="Validation s [m].")] = 0.91,
     fmax: Annotated[float, typer.Option(help="Highest frequency [Hz].")] = 40.0,
     json_out: JsonFlag = False,
 ) -> None:
     """EMA at 3 poses, OMA from a 600 mm cut, validation: Table 12 / 13 analogues over seeds."""
-    from ..studies.hybrid import hybrid_study, parse_seeds
+    from ..studies import hybrid as hs
 
-    res = hybrid_study(
-        seeds=parse_seeds(seeds), background_noise_rel=background, nperseg=nperseg, noverlap=noverlap,
-        window=window, segment_length_m=segment_m, validation_s_m=validation_s,
-        f_range_hz=(2.0, fmax),
-    )  # fmt: skip
+    kw = {"seeds": hs.parse_seeds(seeds), "nperseg": nperseg, "noverlap": noverlap, "window": window,
+          "segment_length_m": segment_m, "validation_s_m": validation_s, "f_range_hz": (2.0, fmax)}  # fmt: skip
+    bgs = hs.parse_backgrounds(background or ["1"])
+    if len(bgs) > 1:
+        res = hs.background_study(bgs, **kw)
+        tab = hs.background_table(res)
+        if json_out:
+            emit_json({**res.to_dict(), "summary": tab})
+            return
+        hopt.print_background_table(tab)
+        return
+    res = hs.hybrid_study(background_noise_rel=bgs[0], **kw)
     if json_out:
         emit_json(res.to_dict())
         return
@@ -97,12 +102,8 @@ def oma(
     doc = {"output": str(output), "segments": len(frfs), "s_mid_m": [f.meta["path_s_m"] for f in frfs],
            "n_bins": int(frfs[0].frequency_hz.size), "df_hz": float(frfs[0].df_hz),
            "flagged_fraction": flagged_fraction(frfs)}  # fmt: skip
-    if json_out:
-        emit_json(doc)
-    else:
-        typer.echo(
-            f"wrote {output}: {len(frfs)} OMA FRFs ({direction}), {100 * doc['flagged_fraction']:.0f} % of bins flagged"
-        )
+    emit_json(doc) if json_out else typer.echo(f"wrote {output}: {len(frfs)} OMA FRFs ({direction}), "
+                                               f"{100 * doc['flagged_fraction']:.0f} % of bins flagged")  # fmt: skip
 
 
 @app.command("fit")

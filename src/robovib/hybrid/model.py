@@ -32,7 +32,14 @@ hyperparameters (§5.2.4: different sensors). Updating with OMA FRFs (:meth:`FRF
      of all kept data with the EMA kernel hyperparameters fixed, floored by the H1 random
      error from the coherence when ``noise_std`` is given (Bendat & Piersol: relative error
      ``sqrt((1 - γ²) / (2 n_d γ²))``);
-  5. the posterior (Eq. 9-10) with those hyperparameters.
+  5. the dominant peak of the EMA model: where a windowed OMA estimate biases it by more than
+     5 % (Bendat & Piersol: about (1/3)(1.5 df / B_r)^2 for Hann, B_r the half-power
+     bandwidth), the OMA noise of the peak band is at least that bias x the peak |H|;
+  6. evidence: two folds of alternate OMA segments along the pose; each fold is predicted by
+     the EMA model plus the other fold and by the EMA model alone; bins (and the whole
+     direction) whose held-out log predictive density gains < 1 nat are held back, and the
+     report says so in words (:meth:`UpdateReport.describe`);
+  7. the posterior (Eq. 9-10) with those hyperparameters.
 
   The kernel hyperparameters stay those of the EMA fit, so OMA data can sharpen the
   prediction between EMA poses but cannot reshape the prior (the failure of ``"warm"`` on
@@ -94,6 +101,7 @@ _DATASET_UNITS = {
 _FORMAT = "robovib-frf-pose-model"
 _VERSION = 2
 _SCALE = 1e6  # m/N -> um/N: O(1) numbers inside the GPs
+_MIN_GAIN_NATS = 1.0  # held-out log-density gain OMA must bring (per bin, per direction)
 UPDATE_MODES = ("robust", "posterior", "warm")
 
 
@@ -121,6 +129,14 @@ class UpdateReport:
         Whether the new FRFs were divided by ``scale`` (significant scale bias).
     noise_median_um_per_n
         Median over bins of the new source's noise std (Re/Im) used in the posterior [um/N].
+    held_back_bins_hz
+        Bins whose OMA data were held back: held-out OMA segments gained < 1 nat [Hz].
+    held_back_all
+        Whether the whole update was held back (the direction as a whole gained < 1 nat).
+    heldout_log_density_gain
+        Held-out log predictive density, with OMA minus EMA alone, summed over bins [nat].
+    reasons
+        What was held back or down-weighted and why, in plain words.
     """
 
     mode: str
@@ -134,6 +150,10 @@ class UpdateReport:
     scale_std: float = 0.0
     scale_applied: bool = False
     noise_median_um_per_n: float | None = None
+    held_back_bins_hz: tuple[float, ...] = ()
+    held_back_all: bool = False
+    heldout_log_density_gain: float | None = None
+    reasons: tuple[str, ...] = ()
 
     @property
     def rejected_fraction(self) -> float:
@@ -144,11 +164,12 @@ class UpdateReport:
         bins = ", ".join(f"{f:.2f}" for f in self.rejected_bins_hz)
         whole = f"whole bins rejected at {bins} Hz" if bins else "no whole bin rejected"
         applied = "applied" if self.scale_applied else "not applied"
-        return (
+        line = (
             f"rejected {self.n_rejected} of {self.n_observations} OMA bins "
             f"({100 * self.rejected_fraction:.0f} %); {whole}; source scale "
             f"{abs(self.scale):.3f} ({applied})"
         )
+        return "; ".join((line, *self.reasons))
 
     def to_dict(self) -> dict:
         """JSON-friendly (complex scale as real/imag)."""
@@ -156,6 +177,8 @@ class UpdateReport:
         d["scale_real"], d["scale_imag"] = float(self.scale.real), float(self.scale.imag)
         del d["scale"]
         d["rejected_bins_hz"] = list(self.rejected_bins_hz)
+        d["held_back_bins_hz"] = list(self.held_back_bins_hz)
+        d["reasons"] = list(self.reasons)
         d["rejected_fraction"] = self.rejected_fraction
         return d
 
@@ -526,23 +549,67 @@ class FRFPoseModel(BaseEstimator):
             noise_std=noise,
             mean=np.asarray(hp.mean),
         )
+        # 5. evidence: held-out OMA segments (2-fold, alternate segments along the pose) must
+        # be predicted better (log predictive density) with the other half's OMA data than
+        # by the EMA model alone, per bin and for the direction as a whole.
+        reasons = []
+        # 6. the dominant peak: a windowed OMA spectrum biases a sharp peak by about
+        # -(1/3)(B_e/B_r)^2 (Bendat & Piersol, B_e = 1.5 df for Hann, B_r the half-power
+        # bandwidth); where that exceeds 5 % the EMA model keeps the peak band.
+        peak, bias = self._peak_band(mc)
+        if np.any(peak):
+            # EMA's own confidence there: the OMA noise is at least the expected bias.
+            allow = np.where(peak, bias * np.max(np.sqrt(np.mean(np.abs(mc) ** 2, axis=0))), 0.0)
+            noise_oma = np.maximum(noise_oma, np.hstack([allow, allow]))
+            hp_new = GPHyperparameters(
+                signal_std=hp_new.signal_std,
+                length_scales=hp_new.length_scales,
+                noise_std=np.column_stack([ema_noise, noise_oma]),
+                mean=hp_new.mean,
+            )
+            lo, hi = self.frequency_hz_[peak].min(), self.frequency_hz_[peak].max()
+            reasons.append(
+                f"dominant peak {lo:.2f}-{hi:.2f} Hz down-weighted: at this frequency "
+                f"resolution the OMA spectra may underestimate it by ~{100 * bias:.0f} %"
+            )
+        gain_f = self._heldout_gain(x, y_new, m_new, g, hp_new, noise_oma)
+        held_all = False
+        tested = np.isfinite(gain_f)
+        # At least 1 nat (2 ln B >= 2, "positive" evidence) per bin and for the direction.
+        hold = tested & (gain_f <= _MIN_GAIN_NATS)
+        total_gain = float(np.nansum(gain_f)) if np.any(tested) else None
+        if total_gain is not None and total_gain <= _MIN_GAIN_NATS:
+            held_all = True
+            reasons.append(
+                "update held back for this direction: held-out OMA segments are predicted no "
+                f"better with OMA data than by the EMA model alone (log density gain < 1 nat: "
+                f"{total_gain:.1f})"
+            )
+            m_new = np.zeros_like(m_new)
+        elif np.any(hold):
+            reasons.append(
+                f"{int(hold.sum())} of {int(tested.sum())} bins held back: there the held-out "
+                "OMA segments are predicted less than 1 nat better than by the EMA model alone"
+            )
+            m_new = m_new & ~np.hstack([hold, hold])[None, :]
         X_all = np.vstack([gp.X_train_, x])
         Y_all = np.vstack([np.where(gp.mask_, gp.Y_train_, 0.0), np.where(m_new, y_new, 0.0)])
         M_all = np.vstack([gp.mask_, m_new])
         G_all = np.concatenate([gp._active_groups, g])
         new = BatchedGPRegressor(
             kernel=self.kernel,
-            optimizer="bfgs" if reoptimize else None,
+            optimizer="bfgs" if reoptimize and not held_all else None,
             n_restarts=0,
             initial_hyperparameters=hp_new,
             n_noise_groups=2,
             rng=self.rng,
         )
         new.fit(X_all, Y_all, mask=M_all, groups=G_all)
-        if not reoptimize:
+        if not reoptimize or held_all:
             new.n_iter_ = np.zeros(2 * n_f, int)
         self.gp_ = new
         rej_hz = tuple(float(f) for f in self.frequency_hz_[bad_bin])
+        hold_hz = tuple(float(f) for f in self.frequency_hz_[hold]) if not held_all else ()
         return UpdateReport(
             "robust",
             int(new.n_iter_.sum()),
@@ -555,12 +622,87 @@ class FRFPoseModel(BaseEstimator):
             scale_std=float(scale_std),
             scale_applied=bool(applied),
             noise_median_um_per_n=float(np.median(noise_oma)),
+            held_back_bins_hz=hold_hz,
+            held_back_all=held_all,
+            heldout_log_density_gain=total_gain,
+            reasons=tuple(reasons),
         )
+
+    def _peak_band(self, mc) -> tuple[np.ndarray, float]:
+        """Bins of the EMA dominant peak's half-power band (+1 bin each side) where the
+        window bias of the OMA estimate, (1/3)(1.5 df / B_r)^2, exceeds 5 %."""
+        f = self.frequency_hz_
+        band = np.zeros(f.size, bool)
+        if f.size < 3:
+            return band, 0.0
+        mag = np.sqrt(np.mean(np.abs(mc) ** 2, axis=0))
+        k = int(np.argmax(mag))
+        half = mag >= mag[k] / np.sqrt(2)
+        lo = k
+        while lo > 0 and half[lo - 1]:
+            lo -= 1
+        hi = k
+        while hi < f.size - 1 and half[hi + 1]:
+            hi += 1
+        df = float(np.median(np.diff(f)))
+        b_r = max(f[hi] - f[lo] + df, df)
+        bias = min((1.5 * df / b_r) ** 2 / 3, 1.0)
+        if bias > 0.05:
+            band[max(lo - 1, 0) : hi + 2] = True
+        return band, bias
+
+    def _heldout_gain(self, x, y, m, g, hp_new, noise_oma) -> np.ndarray:
+        """Per bin: held-out log predictive density of the OMA data, updated minus EMA-only.
+
+        Two folds (alternate segments in pose order); each fold's observations are predicted
+        by the EMA model plus the other fold's kept OMA data (hyperparameters ``hp_new``) and
+        by the EMA model alone, both with the OMA noise ``noise_oma`` (Re/Im summed). NaN
+        where a bin has no held-out observation or fewer than 4 OMA segments are kept.
+        """
+        gp = self.gp_
+        n_f = self.frequency_hz_.size
+        n = x.shape[0]
+        gain = np.zeros(2 * n_f)
+        count = np.zeros(2 * n_f)
+        if n < 4:
+            return np.full(n_f, np.nan)
+        order = np.argsort(x[:, 0], kind="stable")
+        fold = np.zeros(n, int)
+        fold[order[1::2]] = 1
+        mu0, s0 = gp.predict(x, return_std=True)
+        nv = noise_oma[None, :] ** 2
+        for k in (0, 1):
+            tr, te = fold != k, fold == k
+            sub = BatchedGPRegressor(
+                kernel=self.kernel,
+                optimizer=None,
+                n_restarts=0,
+                initial_hyperparameters=hp_new,
+                n_noise_groups=2,
+                rng=self.rng,
+            )
+            sub.fit(
+                np.vstack([gp.X_train_, x[tr]]),
+                np.vstack([np.where(gp.mask_, gp.Y_train_, 0.0), np.where(m[tr], y[tr], 0.0)]),
+                mask=np.vstack([gp.mask_, m[tr]]),
+                groups=np.concatenate([gp._active_groups, g[tr]]),
+            )
+            mu1, s1 = sub.predict(x[te], return_std=True)
+            v0, v1 = s0[te] ** 2 + nv, s1**2 + nv
+            yt = y[te]
+            lp0 = -0.5 * (np.log(v0) + (yt - mu0[te]) ** 2 / v0)
+            lp1 = -0.5 * (np.log(v1) + (yt - mu1) ** 2 / v1)
+            mt = m[te]
+            gain += np.where(mt, lp1 - lp0, 0.0).sum(axis=0)
+            count += mt.sum(axis=0)
+        g_f = gain[:n_f] + gain[n_f:]
+        c_f = count[:n_f]
+        return np.where(c_f > 0, g_f, np.nan)
 
     def _ml_source_noise(self, x_new, y_new, m_new, g_new, sig_floor) -> np.ndarray:
         """Noise std per output [um/N] of the new group maximising Eq. 33, kernel fixed.
 
-        A log grid search (robust, no derivatives) over [1e-3, 10] x the output's signal std;
+        A log grid search (robust, no derivatives) over [1e-3, 1e3] x the output's signal std;
         the result is floored by the RMS of the given random errors of that output.
         """
         gp = self.gp_
@@ -578,7 +720,7 @@ class FRFPoseModel(BaseEstimator):
         kf = np.where(pair, kf, 0.0)
         ema_var = np.asarray(hp.noise_std)[:, 0] ** 2
         is_new = G == 1
-        grid = np.exp(np.linspace(np.log(1e-3), np.log(10.0), 41))
+        grid = np.exp(np.linspace(np.log(1e-3), np.log(1e3), 61))
         best = np.full(Y.shape[0], np.inf)
         best_noise = sf * 0.1
         idx = np.arange(X.shape[0])
