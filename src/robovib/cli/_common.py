@@ -79,6 +79,33 @@ ModelOpt = Annotated[
         "default: the thesis' chapter-3 model.",
     ),
 ]
+LevelCheckOpt = Annotated[
+    bool,
+    typer.Option(
+        help="Refuse implausible peak force / response / compliance levels (unit mix-ups such "
+        "as a response in g labelled m/s^2; ranges in robovib.frf.plausibility).",
+    ),
+]
+ComplianceRangeOpt = Annotated[
+    tuple[float, float] | None,
+    typer.Option(
+        "--compliance-range",
+        help="Plausible peak compliance LOW HIGH [m/N] of the FRF's resonance "
+        "(default 6e-7 1e-3: an industrial robot; lower LOW for a stiffer structure).",
+    ),
+]
+
+
+def plausible_ranges(level_check: bool, compliance_range: tuple[float, float] | None):
+    """The :class:`robovib.frf.PlausibleRanges` of ``--level-check`` and
+    ``--compliance-range`` (None: no level check)."""
+    from ..frf import PlausibleRanges
+
+    if not level_check:
+        return None
+    if compliance_range is None:
+        return PlausibleRanges()
+    return PlausibleRanges(peak_compliance_m_per_n=tuple(map(float, compliance_range)))
 
 
 def workspace_model(path: Path | None, seed: int = 0, require_inputs=("x_mm", "y_mm", "rz_deg")):

@@ -7,7 +7,17 @@ from typing import Annotated
 
 import typer
 
-from ._common import JsonFlag, Table, console, emit_json, escape, new_app
+from ._common import (
+    ComplianceRangeOpt,
+    JsonFlag,
+    LevelCheckOpt,
+    Table,
+    console,
+    emit_json,
+    escape,
+    new_app,
+    plausible_ranges,
+)
 
 app = new_app(
     "Your own robot: process a hammer campaign (manifest CSV) into FRFs and a modal table."
@@ -32,10 +42,8 @@ def process(
     ] = None,
     f_min_hz: Annotated[float, typer.Option("--fmin", help="Lowest frequency kept [Hz].")] = 5.0,
     f_max_hz: Annotated[float, typer.Option("--fmax", help="Highest frequency kept [Hz].")] = 200.0,
-    level_check: Annotated[
-        bool,
-        typer.Option(help="Refuse implausible force/response/compliance levels (unit mix-ups)."),
-    ] = True,
+    level_check: LevelCheckOpt = True,
+    compliance_range: ComplianceRangeOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Every recording of the manifest -> averaged FRF (hit QC) -> dominant mode, in parallel."""
@@ -46,8 +54,7 @@ def process(
     from ..campaign import ProcessingSettings, process_campaign
 
     settings = ProcessingSettings(f_min_hz=f_min_hz, f_max_hz=f_max_hz)
-    if not level_check:
-        settings = replace(settings, plausible=None)
+    settings = replace(settings, plausible=plausible_ranges(level_check, compliance_range))
     with Progress(disable=json_out, transient=True) as bar:
         task = bar.add_task("processing recordings", total=None)
 

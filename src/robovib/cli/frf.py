@@ -9,8 +9,10 @@ import numpy as np
 import typer
 
 from ._common import (
+    ComplianceRangeOpt,
     ForceOpt,
     JsonFlag,
+    LevelCheckOpt,
     Table,
     check_output,
     console,
@@ -18,6 +20,7 @@ from ._common import (
     escape,
     fail,
     new_app,
+    plausible_ranges,
 )
 
 app = new_app("FRFs from impact-hammer recordings (thesis §3.2.1).")
@@ -92,25 +95,21 @@ def compute(
     response_unit: Annotated[
         str, typer.Option(help="Unit of the response sensitivity (g, m/s^2, m/s, m).")
     ] = "g",
-    level_check: Annotated[
-        bool,
-        typer.Option(
-            help="Refuse implausible peak force / response / compliance levels (unit mix-ups; "
-            "ranges in robovib.frf.plausibility).",
-        ),
-    ] = True,
+    level_check: LevelCheckOpt = True,
+    compliance_range: ComplianceRangeOpt = None,
     force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
     """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
     from dataclasses import replace
 
-    from ..frf import PlausibleRanges, check_frf_level, impact_frf
+    from ..frf import check_frf_level, impact_frf
     from ..io import Sensitivity, read_recording, write_frfs
 
     if direction is not None and direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}; use x, y or z")
     check_output(output, [recording], force)
+    plausible = plausible_ranges(level_check, compliance_range)
     rec = read_recording(
         recording, direction,
         Sensitivity(force_sensitivity, "N") if force_sensitivity else None,
@@ -123,10 +122,10 @@ def compute(
         force_window_s=None if force_window_ms == 0 else force_window_ms / 1e3,  # < 0: error
         exp_window_tau_s=None if exp_window_tau_ms == 0 else exp_window_tau_ms / 1e3,
         reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
-        plausible=PlausibleRanges() if level_check else None,
+        plausible=plausible,
     )  # fmt: skip
     frf = result.frf.to_compliance(f_min_hz)
-    if level_check and (bad := check_frf_level(frf)):
+    if plausible is not None and (bad := check_frf_level(frf, plausible)):
         fail(f"implausible FRF: {bad}")
     if frf.frequency_hz.size < 5:
         fail(
