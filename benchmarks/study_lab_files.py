@@ -17,6 +17,7 @@ from scipy import signal
 from typer.testing import CliRunner
 
 from robovib.cli import app
+from robovib.frf import PlausibleRanges
 from robovib.io import read_frfs
 
 FS, MODE = 1024.0, (16.0, 2e6, 0.05)
@@ -254,7 +255,58 @@ def main() -> int:
     for a, b in rows:
         print(f"{a:<{width}}  {b}")
     overload_rates()
+    frf_level_rates()
     return 0
+
+
+def frf_level_rates() -> None:
+    """The FRF peak-compliance check on real and simulated robots, clean and read in g."""
+    from robovib.datasets import load_table_a1
+    from robovib.frf import FRF, check_frf_level, impact_frf
+    from robovib.sim import VirtualRobot, simulate_hammer_test
+
+    a1 = load_table_a1(units="si")
+    f = np.arange(5.0, 200.0, 0.25)
+    ok = bad = n = 0
+    peaks = []
+    for d in "xyz":
+        for fn, k, c in a1[
+            [f"fn_{d}_hz", f"stiffness_{d}_n_per_m", f"damping_{d}_ns_per_m"]
+        ].values:
+            if not np.all(np.isfinite([fn, k, c])):
+                continue
+            w, wn = 2 * np.pi * f, 2 * np.pi * fn
+            h = 1 / (k - k / wn**2 * w**2 + 1j * c * w)  # closed-form SDOF receptance
+            n += 1
+            peaks.append(np.abs(h).max())
+            ok += check_frf_level(FRF(f, h)) is None
+            bad += "g labelled" in (check_frf_level(FRF(f, h / 9.80665)) or "")
+    print(f"\nFRF peak-compliance check (default {PlausibleRanges().peak_compliance_m_per_n} m/N):")
+    print(f"  Table A1 modes (closed form, 5-200 Hz): peak {min(peaks):.3g}-{max(peaks):.3g} m/N;"
+          f" pass {ok}/{n}; read in g: flagged 'g labelled' {bad}/{n}")  # fmt: skip
+    robot, rng = VirtualRobot(), np.random.default_rng(1)
+    ok = bad = n = 0
+    peaks = []
+    for k in range(30):
+        if k % 3 == 2:
+            coords, dom = (rng.uniform(0, 1.235),), "path"
+        else:
+            coords, dom = (
+                (rng.uniform(2.1, 2.7), rng.uniform(-0.3, 0.6), rng.uniform(0, 180)),
+                "workspace",
+            )
+        for d in "xyz":
+            rec = simulate_hammer_test(robot, coords, d, domain=dom, n_hits=3, rng=k, duration_s=1.0,
+                                       sample_rate_hz=(1280.0, 2048.0, 5120.0)[k % 3])  # fmt: skip
+            frf = impact_frf(rec.forces, rec.responses, rec.sample_rate_hz, f_max_hz=200.0)
+            frf = frf.frf.to_compliance(5.0)
+            n += 1
+            peaks.append(np.abs(frf.values).max())
+            ok += check_frf_level(frf) is None
+            g = FRF(frf.frequency_hz, frf.values / 9.80665)
+            bad += "g labelled" in (check_frf_level(g) or "")
+    print(f"  virtual robot, simulated hammer tests (1 s, 3 hits, 30 poses x 3 directions):"
+          f" peak {min(peaks):.3g}-{max(peaks):.3g} m/N; pass {ok}/{n}; read in g: flagged {bad}/{n}")  # fmt: skip
 
 
 def overload_rates() -> None:

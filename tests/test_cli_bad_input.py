@@ -27,7 +27,7 @@ from robovib.cli import app
 SUFFIX = {"rec": ".uff", "frf": ".h5", "inverted": ".h5", "ema": ".h5", "model": ".h5", "oma": ".h5", "omay": ".h5",
           "cut": ".csv", "forces": ".csv", "sched": ".csv", "tests": ".csv",
           # files as labs write them (issue 28)
-          "reckn": ".csv", "recgmm": ".csv", "rectrunc": ".uff", "rectruncnum": ".uff", "reccut": ".csv",
+          "reckn": ".csv", "recgmm": ".csv", "recg": ".csv", "rectrunc": ".uff", "rectruncnum": ".uff", "reccut": ".csv",
           "recclip": ".uff", "recclipnoisy": ".csv", "mandup": ".csv", "mantwoposes": ".csv",
           "manslot": ".csv", "mancopy": ".csv", "mantrunc": ".csv"}  # fmt: skip
 
@@ -107,6 +107,10 @@ def _lab_files(folder: Path, forces, responses, fs) -> None:
 
     _hits_csv(folder / "reckn.csv", forces / 1e3, responses, fs)  # kN values under force_n
     _hits_csv(folder / "recgmm.csv", forces, responses / 9.80665, fs)  # g values as m/s^2
+    from synthetic import system_response  # a normal-level response (16.5 Hz, 2 MN/m, 5 %)
+
+    accel = np.vstack([system_response(f, fs, [(16.5, 2e6, 0.05)]) for f in forces])
+    _hits_csv(folder / "recg.csv", forces, accel / 9.80665, fs)  # in g as m/s^2: FRF 9.81x low
     text = (folder / "rec.uff").read_text()
     (folder / "rectrunc.uff").write_text(text[: int(0.8 * len(text))])  # cut mid-record
     cut = text.rstrip().rfind("-1") - 30  # inside the last number of the last record
@@ -361,7 +365,16 @@ bad_options("sim-campaign", "sim campaign --poses {missing:.csv} -o {out:}", {
 })  # fmt: skip
 
 # files as labs write them (issue 28): one clear error each, never a silently worse answer
-for name in ("reckn", "recgmm", "rectrunc", "rectruncnum", "reccut", "recclip", "recclipnoisy"):
+for name in (
+    "reckn",
+    "recgmm",
+    "recg",
+    "rectrunc",
+    "rectruncnum",
+    "reccut",
+    "recclip",
+    "recclipnoisy",
+):
     case(f"frf-compute-lab-{name}", f"frf compute {{{name}}} -o {{out:.h5}}")
 for name in ("mandup", "mantwoposes", "manslot", "mancopy"):
     case(f"campaign-process-lab-{name}", f"campaign process {{{name}}} -o {{out:}}")

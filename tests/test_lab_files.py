@@ -488,9 +488,10 @@ def test_pose_table_from_a_spreadsheet(tmp_path):
 
 
 def test_one_file_in_g_among_m_per_s2_is_flagged(tmp_path):
-    """Four recordings of the same structure, one exported in g but labelled m/s^2: its
-    stiffness is 9.81x the others' -> flagged as a likely unit mix-up; the others are not."""
-    from robovib.campaign import process_campaign
+    """Four recordings of the same structure, one exported in g but labelled m/s^2: by default
+    its FRF (peak 0.5 um/N, 9.81x too small) is an error naming the mix-up; with the FRF range
+    widened (a stiffer robot declared), its stiffness 9.81x the others' is flagged instead."""
+    from robovib.campaign import ProcessingSettings, process_campaign
 
     lines = ["file,direction,x_mm,y_mm,z_mm,rz_deg"]
     for k in range(4):
@@ -501,10 +502,57 @@ def test_one_file_in_g_among_m_per_s2_is_flagged(tmp_path):
         write_clean(tmp_path / f"r{k}.csv", forces, resp, fs)
         lines.append(f"r{k}.csv,x,{2100 + 100 * k},0,325,0")
     (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
-    res = process_campaign(tmp_path / "m.csv", tmp_path / "out", n_workers=1)
+    with pytest.raises(ValueError, match=r"1 of 4 rows failed \(line 4: r2.csv: implausible FRF"
+                       r".*likely a response in g labelled m/s\^2"):  # fmt: skip
+        process_campaign(tmp_path / "m.csv", tmp_path / "out", n_workers=1)
+    assert not (tmp_path / "out").exists()
+    wide = ProcessingSettings(plausible=PlausibleRanges(peak_compliance_m_per_n=(1e-8, 1e-3)))
+    res = process_campaign(tmp_path / "m.csv", tmp_path / "out", n_workers=1, settings=wide)
     flags = res.table["flags"].fillna("").tolist()
     assert "g labelled m/s^2" in flags[2]
     assert all("unit mix-up" not in f for i, f in enumerate(flags) if i != 2)
+
+
+def _sdof_receptance(f, fn, k, c):
+    """Closed-form receptance [m/N] of m x'' + c x' + k x = F."""
+    w, wn = 2 * np.pi * f, 2 * np.pi * fn
+    return 1 / (k - k / wn**2 * w**2 + 1j * c * w)
+
+
+def test_frf_level_passes_table_a1_and_flags_it_read_in_g():
+    """Every measured mode of the thesis (Table A1, corrected stiffness reading, closed-form
+    SDOF FRFs) passes the default FRF range; each of them read in g as m/s^2 (9.81x too small)
+    is flagged, with the g mix-up named first."""
+    from robovib.datasets import load_table_a1
+    from robovib.frf import FRF, check_frf_level
+
+    a1 = load_table_a1(units="si")
+    f = np.arange(2.0, 200.0, 0.25)
+    n = 0
+    for d in "xyz":
+        cols = [f"fn_{d}_hz", f"stiffness_{d}_n_per_m", f"damping_{d}_ns_per_m"]
+        for fn, k, c in a1[cols].dropna().values:
+            h = _sdof_receptance(f, fn, k, c)
+            assert check_frf_level(FRF(f, h)) is None, (d, fn, k, c)
+            msg = check_frf_level(FRF(f, h / 9.80665))
+            assert msg and "below" in msg and "likely a response in g labelled m/s^2" in msg
+            n += 1
+    assert n > 500
+
+
+def test_frf_level_lower_bound_needs_a_peak_in_the_band():
+    """A band that leaves out the resonance has no peak to judge (its largest |H| is at an
+    edge): no lower-bound verdict. Above the range is always flagged; ranges are overridable."""
+    from robovib.frf import FRF, check_frf_level
+
+    f = np.arange(40.0, 120.0, 0.5)  # the 16 Hz mode lies below the band
+    h = _sdof_receptance(f, 16.0, 2e6, 2 * 0.05 * 2e6 / (2 * np.pi * 16.0))
+    assert np.abs(h).max() < 6e-7 and check_frf_level(FRF(f, h)) is None
+    f = np.arange(5.0, 60.0, 0.5)
+    h = _sdof_receptance(f, 16.0, 2e6, 2 * 0.05 * 2e6 / (2 * np.pi * 16.0))
+    assert "kN labelled N" in check_frf_level(FRF(f, h * 1e3))
+    stiff = PlausibleRanges(peak_compliance_m_per_n=(1e-8, 1e-3))
+    assert check_frf_level(FRF(f, h / 9.80665), stiff) is None
 
 
 def test_one_odd_line_in_a_semicolon_file_is_named(tmp_path):
