@@ -76,7 +76,13 @@ class CampaignRow:
     response_unit: str = "g"
 
     def pose_tuple_si(self) -> tuple[float, ...]:
-        """(X, Y, Z [m], Rx, Ry, Rz [deg]) as stored with an FRF."""
+        """(X, Y, Z [m], Rx, Ry, Rz [deg]) as stored with an FRF.
+
+        Returns
+        -------
+        tuple of float
+            The pose in SI (missing Rx, Ry: 0).
+        """
         p = self.pose
         return (
             p["x_mm"] / 1e3,

@@ -220,7 +220,19 @@ def fit_pose_model_from_table(
 
 
 def mode_switches_found(model) -> dict[str, bool]:
-    """Direction -> whether the fitted model found a mode switch there (either model class)."""
+    """Direction -> whether the fitted model found a mode switch there (either model class).
+
+    Parameters
+    ----------
+    model : object
+        A fitted :class:`~robovib.gp.PoseModalModel` (``mode_switches_``) or a model with
+        ``mode_switch_found_``.
+
+    Returns
+    -------
+    dict of str to bool
+        Direction -> mode switch found.
+    """
     if hasattr(model, "mode_switches_"):  # PoseModalModel: ModeSwitchDetection per direction
         return {d: bool(det.found) for d, det in model.mode_switches_.items()}
     return {d: bool(f) for d, f in getattr(model, "mode_switch_found_", {}).items()}
@@ -234,7 +246,33 @@ def _flat_provenance(prov: dict) -> dict:
 
 def save_pose_model(fit: PoseModelFit, path) -> Path:
     """Save the model (``PoseModalModel.save``: HDF5, format tag, no pickle, atomic) with the
-    grouped CV figures and the provenance of the fit."""
+    grouped CV figures and the provenance of the fit.
+
+    Parameters
+    ----------
+    fit : PoseModelFit
+        The result of :func:`fit_pose_model_from_table`.
+    path : str or pathlib.Path
+        The ``.h5`` file to write (an existing file is replaced atomically).
+
+    Returns
+    -------
+    pathlib.Path
+        The file written (read it back with :func:`robovib.gp.load_pose_model`).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np, pandas as pd
+    >>> from robovib.campaign import fit_pose_model_from_table, save_pose_model
+    >>> x = np.linspace(2100, 2600, 8)  # one direction along X [mm]; outputs in SI
+    >>> table = pd.DataFrame({"x_mm": x, "y_mm": 0 * x, "rz_deg": 0 * x, "direction": "x",
+    ...     "fn_hz": 20 - 0.004 * (x - 2100), "stiffness_n_per_m": 3e6 - 1e3 * (x - 2100),
+    ...     "damping_ns_per_m": 7e3 + 2 * (x - 2100)})
+    >>> fit = fit_pose_model_from_table(table, inputs=("x_mm",), n_folds=2)
+    >>> save_pose_model(fit, pathlib.Path(tempfile.mkdtemp()) / "model.h5").name
+    'model.h5'
+    """
     cv = fit.cv_table
     cv_arrays = {
         c: cv[c].to_numpy(float)

@@ -171,7 +171,20 @@ def _sens(row: CampaignRow):
 
 
 def process_row(row: CampaignRow, settings: ProcessingSettings) -> RowResult:
-    """FRFs and the dominant mode of one manifest row (errors returned, not raised)."""
+    """FRFs and the dominant mode of one manifest row (errors returned, not raised).
+
+    Parameters
+    ----------
+    row : CampaignRow
+        The manifest row (recording, direction, pose, sensitivities).
+    settings : ProcessingSettings
+        FRF estimation, hit checks, plausible levels and fit band.
+
+    Returns
+    -------
+    RowResult
+        The row's FRFs and modal row, or ``error`` (why it failed) with ``modal = None``.
+    """
     try:
         return _process_row(row, settings)
     except (ValueError, RuntimeError, OSError) as exc:

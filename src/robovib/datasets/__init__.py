@@ -83,6 +83,22 @@ def modal_output_columns(units: Units = "si") -> list[str]:
     """Names of the 9 modal output columns (fn, stiffness, damping for X, Y, Z) in ``units``.
 
     Order: direction-major as in thesis Table 2 (X fn, X k, X c, Y fn, ...).
+
+    Parameters
+    ----------
+    units : {"si", "thesis"}
+        ``"si"``: Hz, N/m, N·s/m; ``"thesis"``: Hz, MN/m, kN·s/m (as printed).
+
+    Returns
+    -------
+    list of str
+        The 9 column names of :func:`load_table_a1` / :func:`load_table_a2` in ``units``.
+
+    Examples
+    --------
+    >>> from robovib.datasets import modal_output_columns
+    >>> modal_output_columns()[:3]
+    ['fn_x_hz', 'stiffness_x_n_per_m', 'damping_x_ns_per_m']
     """
     _check_units(units)
     suffix = _UNIT_SUFFIX[units]
@@ -90,7 +106,24 @@ def modal_output_columns(units: Units = "si") -> list[str]:
 
 
 def pose_columns(units: Units = "si") -> list[str]:
-    """Names of the pose input columns used by the chapter-3 models: X, Y and Rz."""
+    """Names of the pose input columns used by the chapter-3 models: X, Y and Rz.
+
+    Parameters
+    ----------
+    units : {"si", "thesis"}
+        ``"si"``: X, Y in metres; ``"thesis"``: in millimetres (Rz in degrees either way).
+
+    Returns
+    -------
+    list of str
+        The 3 column names of :func:`load_table_a1` in ``units``.
+
+    Examples
+    --------
+    >>> from robovib.datasets import pose_columns
+    >>> pose_columns(), pose_columns("thesis")
+    (['x_m', 'y_m', 'rz_deg'], ['x_mm', 'y_mm', 'rz_deg'])
+    """
     _check_units(units)
     length = _UNIT_SUFFIX[units]["length"]
     return [f"x_{length}", f"y_{length}", "rz_deg"]
@@ -170,7 +203,19 @@ def load_table_a1(
 
 
 def load_table_a2(units: Units = "si") -> pd.DataFrame:
-    """Table A2: 30 external-validation poses (6 XY points x 5 Rz), one measurement each."""
+    """Table A2: 30 external-validation poses (6 XY points x 5 Rz), one measurement each.
+
+    Parameters
+    ----------
+    units : {"si", "thesis"}
+        Units of the pose and modal columns (see :func:`modal_output_columns`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per pose: pose columns, the 9 modal outputs and ``x_high_mode`` (the X mode
+        above the high-mode threshold).
+    """
     raw = _read_csv("table_a2.csv")
     out = _to_units(raw, units)
     out["x_high_mode"] = (raw["fn_x_hz"] > X_HIGH_MODE_THRESHOLD_HZ).to_numpy()
@@ -182,6 +227,21 @@ def load_reference_table(number: int | str) -> pd.DataFrame:
 
     Available: 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13 (column names carry the units).
     These numbers are targets to compare with, never inputs that code reproduces by copying.
+
+    Parameters
+    ----------
+    number : int or str
+        The thesis table number.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The table as printed in the thesis.
+
+    Raises
+    ------
+    ValueError
+        No such reference table.
     """
     key = str(number)
     if key not in REFERENCE_TABLES:
@@ -211,6 +271,11 @@ EXAMPLES: dict[str, str] = {
 def example_path(name: str):
     """Path of a shipped example file (see :data:`EXAMPLES`), e.g. ``example_path("hammer.uff")``.
 
+    Parameters
+    ----------
+    name : str
+        A key of :data:`EXAMPLES` (``"hammer.uff"``, ``"hammer.csv"``, ``"frf.csv"``, ...).
+
     Returns
     -------
     pathlib.Path
@@ -220,6 +285,12 @@ def example_path(name: str):
     ------
     ValueError
         Unknown example name (the known ones are listed).
+
+    Examples
+    --------
+    >>> from robovib.datasets import example_path
+    >>> example_path("hammer.uff").name
+    'hammer.uff'
     """
     from pathlib import Path
 
@@ -230,6 +301,18 @@ def example_path(name: str):
 
 def copy_examples(folder, names=None) -> list:
     """Copy shipped examples into ``folder`` (created if missing); returns the new paths.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        Destination folder (created if missing).
+    names : list of str, optional
+        Keys of :data:`EXAMPLES` to copy (default: all).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The copied files.
 
     Raises
     ------

@@ -97,6 +97,14 @@ def read_frf_csv(
         coherence outside [0, 1].
     OSError
         The file cannot be read.
+
+    Examples
+    --------
+    >>> from robovib.datasets import example_path
+    >>> from robovib.io import read_frf_csv
+    >>> (frf,) = read_frf_csv(example_path("frf.csv"))  # frequency_hz,x_real_um_per_n,...
+    >>> frf.direction, frf.quantity, frf.df_hz
+    ('x', 'compliance', 0.25)
     """
     p = Path(path)
     where = str(p)

@@ -153,6 +153,15 @@ def simulate_campaign(
     ------
     ValueError
         Poses outside the workspace, unknown layouts or directions, bad counts.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from robovib.sim import simulate_campaign
+    >>> sim = simulate_campaign([[2400, 0, 45]], tempfile.mkdtemp(), rng=0, n_hits=1,
+    ...                         duration_s=1.0, directions=("x",), n_truth=2)
+    >>> sim.manifest.name, len(sim.recordings)
+    ('campaign.csv', 1)
     """
     import pandas as pd
 
