@@ -32,6 +32,24 @@ def to_compliance(
     Accelerance is divided by ``-(2 pi f)^2`` and mobility by ``i 2 pi f``. Both blow up noise
     toward 0 Hz, hence the explicit low-frequency limit (the returned frequency axis starts at
     the first bin >= ``min_frequency_hz``; nothing is clipped silently).
+
+    Parameters
+    ----------
+    frequency_hz : numpy.ndarray
+        (n,) frequency axis [Hz].
+    values : numpy.ndarray
+        (..., n) complex FRF of ``quantity`` (SI: m/N, m/s/N or m/s²/N).
+    quantity : {"compliance", "mobility", "accelerance"}
+        What ``values`` is.
+    min_frequency_hz : float
+        Lowest frequency kept [Hz] (> 0 for mobility and accelerance).
+
+    Returns
+    -------
+    frequency_hz : numpy.ndarray
+        The kept frequencies [Hz].
+    compliance : numpy.ndarray
+        The FRF as compliance [m/N] at those frequencies.
     """
     if quantity not in ("compliance", "mobility", "accelerance"):
         raise ValueError(
@@ -159,7 +177,18 @@ class FRF:
         )
 
     def to_compliance(self, min_frequency_hz: float = 1.0) -> FRF:
-        """This FRF as compliance [m/N], bins below ``min_frequency_hz`` dropped."""
+        """This FRF as compliance [m/N], bins below ``min_frequency_hz`` dropped.
+
+        Parameters
+        ----------
+        min_frequency_hz : float
+            Lowest frequency kept [Hz] (see :func:`to_compliance`).
+
+        Returns
+        -------
+        FRF
+            A compliance FRF (coherence kept on the same bins).
+        """
         f, v = to_compliance(self.frequency_hz, self.values, self.quantity, min_frequency_hz)
         keep = self.frequency_hz >= min_frequency_hz
         coh = None if self.coherence is None else self.coherence[keep]
@@ -234,7 +263,18 @@ class FRF:
         return replace(self, frequency_hz=g, values=v, coherence=coh)
 
     def band(self, f_min_hz: float, f_max_hz: float) -> FRF:
-        """The bins with ``f_min_hz <= f <= f_max_hz``."""
+        """The bins with ``f_min_hz <= f <= f_max_hz``.
+
+        Parameters
+        ----------
+        f_min_hz, f_max_hz : float
+            The band [Hz], finite, ``f_min_hz < f_max_hz``; it must hold 2 bins or more.
+
+        Returns
+        -------
+        FRF
+            The FRF on those bins (coherence kept).
+        """
         if not (np.isfinite(f_min_hz) and np.isfinite(f_max_hz)):
             raise ValueError(f"band limits must be finite (Hz), got {f_min_hz}-{f_max_hz}")
         if f_min_hz >= f_max_hz:

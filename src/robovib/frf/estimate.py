@@ -20,7 +20,19 @@ __all__ = ["SpectralDensities", "estimate_frf", "spectral_densities"]
 
 @dataclass(frozen=True)
 class SpectralDensities:
-    """Averaged one-sided auto/cross spectral densities on a common frequency axis."""
+    """Averaged one-sided auto/cross spectral densities on a common frequency axis.
+
+    Attributes
+    ----------
+    frequency_hz
+        (n,) frequency axis [Hz].
+    gxx, gyy
+        (n,) force and response auto-spectra.
+    gxy
+        (n,) cross-spectrum ``conj(X) Y``.
+    n_averages
+        Number of segments averaged.
+    """
 
     frequency_hz: np.ndarray
     gxx: np.ndarray  #: force auto-spectrum
@@ -66,7 +78,26 @@ def spectral_densities(
     window: str | tuple = "hann",
     noverlap: int | None = None,
 ) -> SpectralDensities:
-    """Welch estimates of Gxx, Gyy and Gxy of one pair of equally sampled records."""
+    """Welch estimates of Gxx, Gyy and Gxy of one pair of equally sampled records.
+
+    Parameters
+    ----------
+    force, response : array_like
+        (n,) equally sampled records (force [N], response in SI).
+    sample_rate_hz : float
+        Sample rate [Hz].
+    nperseg : int, optional
+        Segment length (default: the whole record, one segment).
+    window : str or tuple
+        SciPy window of each segment.
+    noverlap : int, optional
+        Overlap of segments (default: half a segment).
+
+    Returns
+    -------
+    SpectralDensities
+        Gxx, Gyy, Gxy and the number of averages.
+    """
     force, response = _check_pair(force, response)
     fs = float(sample_rate_hz)
     if not np.isfinite(fs) or fs <= 0:

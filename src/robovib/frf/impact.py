@@ -37,7 +37,23 @@ __all__ = ["HitReport", "ImpactResult", "check_hit", "impact_frf", "noise_level"
 
 @dataclass(frozen=True)
 class HitReport:
-    """Quality of one hit."""
+    """Quality of one hit.
+
+    Attributes
+    ----------
+    index
+        Position of the hit in the recording.
+    trigger_index
+        Sample where |force| first reaches the trigger level.
+    peak_force_n
+        Peak |force| [N].
+    pulse_width_s
+        Width of the main force pulse [s].
+    accepted
+        Whether the hit passed every check.
+    reasons
+        Why it was flagged (double hit, overload, short pre-trigger).
+    """
 
     index: int
     trigger_index: int
@@ -49,6 +65,16 @@ class HitReport:
 
 @dataclass(frozen=True)
 class ImpactResult:
+    """The averaged FRF of an impact test and the quality report of every hit.
+
+    Attributes
+    ----------
+    frf
+        The averaged FRF of the accepted hits.
+    hits
+        One :class:`HitReport` per hit (accepted or not).
+    """
+
     frf: FRF
     hits: tuple[HitReport, ...] = field(default_factory=tuple)
 
@@ -194,7 +220,37 @@ def check_hit(
     force_full_scale: float | None = None,
     response_full_scale: float | None = None,
 ) -> HitReport:
-    """Trigger, pulse width, double-hit and overload checks of one hit (see module docs)."""
+    """Trigger, pulse width, double-hit and overload checks of one hit (see module docs).
+
+    Parameters
+    ----------
+    force, response : array_like
+        (n,) records of the hit (force [N], response in SI).
+    sample_rate_hz : float
+        Sample rate [Hz].
+    index : int
+        Position of the hit, used in messages.
+    trigger_level : float
+        Trigger at this fraction of the peak |force|.
+    double_hit_level : float
+        A second pulse reaching this fraction of the peak is a double hit.
+    pretrigger_s : float
+        Signal the record must hold before the trigger [s].
+    clip_run : int
+        Equal samples at the extreme that make an overload.
+    force_full_scale, response_full_scale : float, optional
+        Channel ranges; reaching one is an overload.
+
+    Returns
+    -------
+    HitReport
+        The hit's trigger, pulse width, and whether it is accepted (with the reasons).
+
+    Raises
+    ------
+    ValueError
+        Records of different shape, non-finite values, an all-zero force.
+    """
     force = np.asarray(force, float)
     response = np.asarray(response, float)
     if force.ndim != 1 or force.shape != response.shape:

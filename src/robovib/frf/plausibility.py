@@ -115,7 +115,18 @@ class PlausibleRanges:
 
     def range_of(self, quantity: str) -> tuple[float, float]:
         """The range of ``force``, ``acceleration``, ``velocity``, ``displacement`` or
-        ``compliance``."""
+        ``compliance``.
+
+        Parameters
+        ----------
+        quantity : str
+            One of the five quantities.
+
+        Returns
+        -------
+        tuple of float
+            (low, high) in SI.
+        """
         return {
             "force": self.peak_force_n,
             "acceleration": self.peak_acceleration_m_per_s2,

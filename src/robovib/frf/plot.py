@@ -112,8 +112,8 @@ def plot_frf(
     title
         Figure title.
     labels
-        Legend entries of the FRFs (default: source and estimator).
-    Bins flagged in ``frf.meta["flagged"]`` (OMA harmonics) are marked with grey crosses.
+        Legend entries of the FRFs (default: source and estimator); bins flagged in
+        ``frf.meta["flagged"]`` (OMA harmonics) are marked with grey crosses.
 
     Returns
     -------

@@ -53,6 +53,22 @@ def lscf_poles(frequency_hz, values, order: int, f_max_hz: float | None = None) 
     """Continuous-time poles (rad/s) of an LSCF model of ``order`` (all roots, unfiltered).
 
     ``values`` is (n_f,) or (n_outputs, n_f): one or several FRFs sharing the denominator.
+
+    Parameters
+    ----------
+    frequency_hz : array_like
+        (n_f,) frequency axis [Hz].
+    values : array_like
+        (n_f,) or (n_outputs, n_f) complex FRFs.
+    order : int
+        Model order (number of denominator coefficients - 1).
+    f_max_hz : float, optional
+        Frequency mapped to the Nyquist limit of the z-domain basis (default: the last bin).
+
+    Returns
+    -------
+    numpy.ndarray
+        (order,) complex poles [rad/s].
     """
     f = np.asarray(frequency_hz, float)
     h = _as_frf_matrix(values)
@@ -88,7 +104,17 @@ def _physical(poles: np.ndarray, f_lo: float, f_hi: float, max_zeta: float):
 
 @dataclass(frozen=True)
 class StabilizationDiagram:
-    """Poles per model order: ``fn[i]``, ``zeta[i]``, ``stable[i]`` for ``orders[i]``."""
+    """Poles per model order: ``fn[i]``, ``zeta[i]``, ``stable[i]`` for ``orders[i]``.
+
+    Attributes
+    ----------
+    orders
+        Model orders.
+    fn, zeta
+        Per order: natural frequencies [Hz] and damping ratios of its physical poles.
+    stable
+        Per order: whether each pole repeats the previous order's (within the tolerances).
+    """
 
     orders: tuple[int, ...]
     fn: tuple[np.ndarray, ...]
@@ -96,7 +122,20 @@ class StabilizationDiagram:
     stable: tuple[np.ndarray, ...]
 
     def plot(self, ax=None, frf: FRF | None = None):
-        """Stabilization diagram (orders vs frequency), optionally over |FRF| (matplotlib)."""
+        """Stabilization diagram (orders vs frequency), optionally over |FRF| (matplotlib).
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw on (default: a new figure).
+        frf : FRF, optional
+            Drawn as |H| on a second axis.
+
+        Returns
+        -------
+        matplotlib.axes.Axes
+            The axes drawn on.
+        """
         import matplotlib.pyplot as plt
 
         if ax is None:
@@ -127,6 +166,25 @@ def stabilization_diagram(
     max_zeta: float = 0.5,
 ) -> StabilizationDiagram:
     """LSCF poles for orders ``min_order..max_order`` with stability flags.
+
+    Parameters
+    ----------
+    frequency_hz : array_like
+        (n_f,) frequency axis [Hz].
+    values : array_like
+        (n_f,) or (n_outputs, n_f) complex FRFs.
+    max_order, min_order : int
+        Range of model orders.
+    df_rel, dzeta_rel : float
+        A pole is stable when its frequency and damping ratio repeat the previous order's
+        within these relative tolerances.
+    max_zeta : float
+        Poles with a larger damping ratio are not physical (dropped).
+
+    Returns
+    -------
+    StabilizationDiagram
+        Poles and stability flags per order.
 
     Raises
     ------
@@ -169,7 +227,25 @@ def stabilization_diagram(
 def select_stable_modes(
     diagram: StabilizationDiagram, min_fraction: float = 0.3, df_rel: float = 0.01
 ):
-    """Automatic choice of physical modes: (fn, zeta) arrays of frequency clusters of stable poles."""
+    """Automatic choice of physical modes: (fn, zeta) arrays of frequency clusters of stable poles.
+
+    Parameters
+    ----------
+    diagram : StabilizationDiagram
+        The poles per order.
+    min_fraction : float
+        A cluster is a mode when its stable poles come from at least this fraction of the
+        orders.
+    df_rel : float
+        Relative frequency gap that separates clusters.
+
+    Returns
+    -------
+    fn : numpy.ndarray
+        Natural frequencies [Hz] of the modes (median of the higher-order half of a cluster).
+    zeta : numpy.ndarray
+        Their damping ratios.
+    """
     pts = [
         (fn[i], z[i], n)
         for n, fn, z, st in zip(
@@ -204,7 +280,23 @@ def lsfd_residues(
 ):
     """Residues A (n_outputs, n_modes) of ``H = sum A/(iw - p) + conj(A)/(iw - conj p) + UR + LR/(iw)^2``.
 
-    Returns ``(A, UR, LR)``; UR, LR are (n_outputs,) complex (zero where not fitted).
+    Parameters
+    ----------
+    frequency_hz : array_like
+        (n_f,) frequency axis [Hz].
+    values : array_like
+        (n_f,) or (n_outputs, n_f) complex FRFs.
+    poles : array_like
+        (n_modes,) complex poles [rad/s] (one of each conjugate pair).
+    lower_residual, upper_residual : bool
+        Fit the ``LR / (iw)^2`` and ``UR`` terms of out-of-band modes.
+
+    Returns
+    -------
+    A : numpy.ndarray
+        (n_outputs, n_modes) complex residues.
+    UR, LR : numpy.ndarray
+        (n_outputs,) complex residual terms (zero where not fitted).
     """
     f = np.asarray(frequency_hz, float)
     h = _as_frf_matrix(values)
@@ -239,6 +331,24 @@ def lsfd_residues(
 
 @dataclass(frozen=True)
 class MultiModeFit:
+    """All physical modes of an FRF in a band (:func:`fit_modes`).
+
+    Attributes
+    ----------
+    modes
+        The modes kept, by frequency.
+    residues
+        (n_modes,) complex LSFD residues.
+    diagram
+        The stabilization diagram they were chosen from.
+    band_hz
+        The band fitted [Hz].
+    relative_rms_error
+        RMS of the fit residual over the RMS of the FRF in the band.
+    flags
+        Reasons not to trust the fit.
+    """
+
     modes: tuple[ModalParameters, ...]
     residues: np.ndarray  #: (n_modes,) complex LSFD residues
     diagram: StabilizationDiagram
@@ -253,7 +363,18 @@ class MultiModeFit:
         return bool(self.flags)
 
     def reconstruct(self, frequency_hz) -> np.ndarray:
-        """Compliance of the fitted modes alone (no residual terms)."""
+        """Compliance of the fitted modes alone (no residual terms).
+
+        Parameters
+        ----------
+        frequency_hz : array_like
+            Frequencies [Hz].
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex compliance [m/N].
+        """
         return sum(m.compliance(frequency_hz) for m in self.modes)
 
 

@@ -31,6 +31,15 @@ class ModalParameters:
 
     Build it from whichever triple you have: :meth:`from_mkc`, :meth:`from_fn_k_c`,
     :meth:`from_fn_k_zeta` (the constructor). All derived quantities are SI.
+
+    Parameters
+    ----------
+    natural_frequency_hz : float
+        Undamped natural frequency [Hz], > 0.
+    stiffness_n_per_m : float
+        Modal stiffness [N/m], > 0.
+    damping_ratio : float
+        Viscous damping ratio [-], >= 0.
     """
 
     natural_frequency_hz: float
@@ -53,7 +62,22 @@ class ModalParameters:
     def from_mkc(
         cls, mass_kg: float, stiffness_n_per_m: float, damping_ns_per_m: float
     ) -> ModalParameters:
-        """From modal mass m, stiffness k and damping coefficient c."""
+        """From modal mass m, stiffness k and damping coefficient c.
+
+        Parameters
+        ----------
+        mass_kg : float
+            Modal mass [kg], > 0.
+        stiffness_n_per_m : float
+            Modal stiffness [N/m], > 0.
+        damping_ns_per_m : float
+            Damping coefficient [N·s/m].
+
+        Returns
+        -------
+        ModalParameters
+            The mode.
+        """
         m = _positive("mass_kg", mass_kg)
         k = _positive("stiffness_n_per_m", stiffness_n_per_m)
         wn = math.sqrt(k / m)
@@ -63,7 +87,22 @@ class ModalParameters:
     def from_fn_k_c(
         cls, fn_hz: float, stiffness_n_per_m: float, damping_ns_per_m: float
     ) -> ModalParameters:
-        """From natural frequency, stiffness and damping coefficient (the thesis' Table A1 triple)."""
+        """From natural frequency, stiffness and damping coefficient (the thesis' Table A1 triple).
+
+        Parameters
+        ----------
+        fn_hz : float
+            Natural frequency [Hz], > 0.
+        stiffness_n_per_m : float
+            Modal stiffness [N/m], > 0.
+        damping_ns_per_m : float
+            Damping coefficient [N·s/m].
+
+        Returns
+        -------
+        ModalParameters
+            The mode.
+        """
         fn = _positive("fn_hz", fn_hz)
         k = _positive("stiffness_n_per_m", stiffness_n_per_m)
         wn = 2 * math.pi * fn
@@ -101,7 +140,18 @@ class ModalParameters:
         return complex(-z * wn, wn * math.sqrt(max(0.0, 1 - z * z)))
 
     def compliance(self, frequency_hz) -> np.ndarray:
-        """Receptance x/F = 1 / (k (1 - r^2 + 2 i zeta r)), r = f / fn [m/N]."""
+        """Receptance x/F = 1 / (k (1 - r^2 + 2 i zeta r)), r = f / fn [m/N].
+
+        Parameters
+        ----------
+        frequency_hz : array_like
+            Frequencies [Hz].
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex compliance [m/N].
+        """
         r = np.asarray(frequency_hz, float) / self.natural_frequency_hz
         return 1.0 / (self.stiffness_n_per_m * (1 - r**2 + 2j * self.damping_ratio * r))
 
@@ -123,6 +173,18 @@ def remove_exponential_window_damping(params: ModalParameters, tau_s: float) -> 
     the damped frequency and the residue (hence the modal mass) stay. So
     ``sigma = sigma' - 1/tau``, ``wn = sqrt(wd^2 + sigma^2)``, ``zeta = sigma / wn``,
     ``k = m wn^2`` with ``m`` unchanged.
+
+    Parameters
+    ----------
+    params : ModalParameters
+        The mode fitted to the windowed FRF.
+    tau_s : float
+        Time constant of the exponential window [s], > 0.
+
+    Returns
+    -------
+    ModalParameters
+        The mode without the window's damping.
     """
     tau = _positive("tau_s", tau_s)
     wn_w = params.omega_n

@@ -31,7 +31,25 @@ MAX_PLAUSIBLE_DAMPING_RATIO = 0.3
 
 @dataclass(frozen=True)
 class ModalFit:
-    """A fitted mode with standard errors (same keys as :meth:`ModalParameters.to_dict`)."""
+    """A fitted mode with standard errors (same keys as :meth:`ModalParameters.to_dict`).
+
+    Attributes
+    ----------
+    parameters
+        The fitted mode.
+    std
+        Standard errors of the parameters (keys of :meth:`ModalParameters.to_dict`).
+    band_hz
+        The band fitted [Hz].
+    residual_compliance
+        Constant residual term of the fit [m/N] (out-of-band modes).
+    relative_rms_error
+        RMS of the fit residual over the RMS of the FRF in the band.
+    exp_window_corrected
+        Whether the exponential window's damping was removed.
+    flags
+        Reasons not to trust the fit (empty: none found).
+    """
 
     parameters: ModalParameters
     std: dict[str, float]
@@ -92,7 +110,20 @@ def _fit_flags(f, v, fn, zeta, k_rel, lower, upper, rel_err) -> tuple[str, ...]:
 
 
 def half_power_estimate(frequency_hz: np.ndarray, compliance: np.ndarray) -> ModalParameters:
-    """Peak-picking estimate of the dominant mode: fn at max |H|, zeta from the half-power band."""
+    """Peak-picking estimate of the dominant mode: fn at max |H|, zeta from the half-power band.
+
+    Parameters
+    ----------
+    frequency_hz : numpy.ndarray
+        (n,) frequency axis [Hz].
+    compliance : numpy.ndarray
+        (n,) complex compliance [m/N].
+
+    Returns
+    -------
+    ModalParameters
+        The estimate (a starting point for the least-squares fit).
+    """
     mag = np.abs(compliance)
     i = int(np.argmax(mag))
     fn = float(frequency_hz[i])
