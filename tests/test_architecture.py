@@ -105,6 +105,14 @@ def test_no_circle_between_packages():
     assert cycles(package_graph()) == []
 
 
+def test_report_reads_results_not_studies():
+    """The report renders results; running a study and reporting it is the studies' job
+    (``robovib.studies.reports``), so the arrow runs studies -> report only."""
+    graph = package_graph()
+    assert "studies" not in graph.get("report", set())
+    assert "report" in graph.get("studies", set())
+
+
 def test_layer_checks_fail_on_planted_violations(tmp_path):
     """The checks can fail: a planted upward import and a planted circle are both found."""
     root = tmp_path / "robovib"

@@ -44,7 +44,7 @@ def chapter3(
     json_out: JsonFlag = False,
 ) -> None:
     """The chapter-3 study (GPR vs thesis Table 2, MLR, external validation) as a page."""
-    from ..report import chapter3_study_report
+    from ..studies.reports import chapter3_study_report
 
     _check(output)
     _done(chapter3_study_report(kernel=check_kernel(kernel), n_splits=n_splits,
@@ -113,7 +113,7 @@ def control(
     json_out: JsonFlag = False,
 ) -> None:
     """LQR gain schedule along a path and the thesis Table 9 comparison, as a page."""
-    from ..report import control_study_report
+    from ..studies.reports import control_study_report
 
     _check(output, path_file)
     _done(control_study_report(path_file, direction=direction, rng=seed), output, json_out,

@@ -12,13 +12,12 @@ from .html import Report, ReportSection
 
 __all__ = [
     "chapter3_report",
-    "chapter3_study_report",
     "control_report",
-    "control_study_report",
     "lobes_report",
     "lobes_study_report",
     "model_report",
     "plot_cv_rmse_ratio",
+    "report_provenance",
     "result_report",
 ]
 
@@ -104,8 +103,21 @@ def plot_cv_rmse_ratio(study, ax=None):
     return fig
 
 
-def _provenance(provenance, inputs=()) -> dict:
-    """The given provenance, or the run's (command, settings, input SHA-256) from robovib.io."""
+def report_provenance(provenance=None, inputs=()) -> dict:
+    """The given provenance, or the run's (command, input SHA-256) from :mod:`robovib.io`.
+
+    Parameters
+    ----------
+    provenance : mapping, optional
+        Provenance to use as it is.
+    inputs : sequence of path
+        Input files whose SHA-256 the run's provenance lists (when ``provenance`` is None).
+
+    Returns
+    -------
+    dict
+        ``command`` and ``input_files``, or a copy of ``provenance``.
+    """
     if provenance is not None:
         return dict(provenance)
     from ..io.provenance import run_provenance
@@ -143,22 +155,6 @@ def chapter3_report(study, provenance: Mapping[str, Any] | None = None) -> Repor
         settings=dict(study.settings),
         provenance=dict(provenance or {}),
     )
-
-
-def chapter3_study_report(
-    *, kernel: str = "ard", n_splits: int = 5, mode_switch: bool = True, rng: int = 0
-) -> Report:
-    """Run the chapter-3 study (:func:`robovib.gp.study.chapter3_study`) and report it."""
-    from ..studies.chapter3 import chapter3_study
-
-    if kernel not in ("ard", "isotropic"):
-        raise ValueError(f"unknown kernel {kernel!r}; use 'ard' or 'isotropic'")
-    if int(n_splits) != n_splits or not 2 <= n_splits <= 20:
-        raise ValueError(
-            f"n_splits must be an integer in [2, 20] (cross-validation folds), got {n_splits}"
-        )
-    study = chapter3_study(kernel=kernel, n_splits=n_splits, mode_switch=mode_switch, rng=rng)
-    return chapter3_report(study, _provenance(None))
 
 
 # ----------------------------------------------------------------------------- pose models
@@ -258,7 +254,7 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
     from ..report.html import file_sha256
 
     model = _load_model(path)
-    prov = {**_provenance(provenance, inputs=[path]), **_file_provenance(path)}
+    prov = {**report_provenance(provenance, inputs=[path]), **_file_provenance(path)}
     prov.setdefault("model file sha256", file_sha256(path))
     if hasattr(model, "frequency_hz") and hasattr(model, "pose_range_"):
         return _frf_model_report(model, path, prov)
@@ -379,7 +375,7 @@ def lobes_report(chart, settings: Mapping[str, Any], provenance=None) -> Report:
         figures=(("Stability chart: envelope, unstable region shaded", plot_lobes_chart(chart)),),
     )
     return Report("robovib — stability lobes", (section,), settings=dict(settings),
-                  provenance=_provenance(provenance))  # fmt: skip
+                  provenance=report_provenance(provenance))  # fmt: skip
 
 
 def lobes_study_report(
@@ -465,33 +461,4 @@ def control_report(schedule, table9_rows, settings: Mapping[str, Any], provenanc
         ),
     )
     return Report("robovib — vibration control study", sections, settings=dict(settings),
-                  provenance=_provenance(provenance))  # fmt: skip
-
-
-def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) -> Report:
-    """Schedule from a path-modes CSV (or the virtual robot's EMA) + Table 9, as a report."""
-    from ..control.schedule import schedule_gains
-    from ..studies.table9 import table_9_comparison
-
-    if path_file is not None:
-        from ..io import read_path_modes_csv
-
-        s, modes = read_path_modes_csv(path_file)
-    else:
-        from ..studies.control_closed_loop import virtual_path_modes
-
-        s, modes = virtual_path_modes(direction=direction, rng=rng)
-    warnings: list[str] = []
-    sched = schedule_gains(s, modes, warn=warnings.append)
-    settings = {"path_file": str(path_file) if path_file else "virtual-robot EMA along the chapter-4 path",
-                "direction": direction, "period_ms": 4.0, "delay_ms": 32.0, "q": "diag(1, 0.001)"}  # fmt: skip
-    rep = control_report(sched, list(table_9_comparison().rows), settings,
-                         provenance=_provenance(None, inputs=[path_file] if path_file else []))  # fmt: skip
-    if warnings:
-        first = rep.sections[0]
-        from dataclasses import replace
-
-        rep = replace(
-            rep, sections=(replace(first, notes=(*first.notes, *warnings)), *rep.sections[1:])
-        )
-    return rep
+                  provenance=report_provenance(provenance))  # fmt: skip
