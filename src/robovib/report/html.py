@@ -66,7 +66,19 @@ class ReportSection:
 
 @dataclass(frozen=True)
 class Report:
-    """A report: title, sections, the settings that produced it and its provenance."""
+    """A report: title, sections, the settings that produced it and its provenance.
+
+    Attributes
+    ----------
+    title
+        Page title.
+    sections
+        The :class:`ReportSection` in page order.
+    settings
+        Settings that produced the results, shown at the end.
+    provenance
+        Where the results come from (command, input files and their SHA-256).
+    """
 
     title: str
     sections: Sequence[ReportSection]
@@ -75,7 +87,18 @@ class Report:
 
 
 def file_sha256(path: str | Path) -> str:
-    """SHA-256 of a file, for the provenance of inputs."""
+    """SHA-256 of a file, for the provenance of inputs.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+
+    Returns
+    -------
+    str
+        Hex digest.
+    """
     digest = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -121,7 +144,18 @@ def _definition_list(items: Mapping[str, Any]) -> str:
 
 
 def render_html(report: Report) -> str:
-    """The report as one self-contained HTML document (no external resources)."""
+    """The report as one self-contained HTML document (no external resources).
+
+    Parameters
+    ----------
+    report : Report
+        The report.
+
+    Returns
+    -------
+    str
+        The HTML (figures embedded as PNG data).
+    """
     from .. import __version__
 
     parts = [
@@ -158,6 +192,22 @@ def write_report(report: Report, path: str | Path, *, inputs=(), force: bool = F
     """Write the report's HTML atomically (temporary file in the target folder, then rename).
 
     ``path`` must not be one of ``inputs`` unless ``force`` (:func:`robovib.io.atomic_output`).
+
+    Parameters
+    ----------
+    report : Report
+        The report.
+    path : str or pathlib.Path
+        The ``.html`` file to write.
+    inputs : sequence of path
+        Files the report was made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
     """
     from ..io.safe_write import atomic_output
 

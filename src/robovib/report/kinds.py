@@ -46,6 +46,11 @@ def result_report(
         Plain text shown above the table; notes are highlighted.
     settings, provenance
         Shown at the end of the page; ``settings`` defaults to ``result.settings`` when present.
+
+    Returns
+    -------
+    Report
+        One section: the paragraphs, the result's table and the figures.
     """
     if not hasattr(result, "to_frame"):
         raise TypeError(f"{type(result).__name__} has no to_frame(); cannot tabulate it")
@@ -130,7 +135,20 @@ def report_provenance(provenance=None, inputs=()) -> dict:
 
 
 def chapter3_report(study, provenance: Mapping[str, Any] | None = None) -> Report:
-    """The chapter-3 study (GPR vs thesis Table 2, MLR, external validation) as a report."""
+    """The chapter-3 study (GPR vs thesis Table 2, MLR, external validation) as a report.
+
+    Parameters
+    ----------
+    study : object
+        A :class:`robovib.studies.chapter3.Chapter3Study` (``to_frame()``, ``settings``).
+    provenance : mapping, optional
+        Provenance shown at the end (default: this run's command and inputs).
+
+    Returns
+    -------
+    Report
+        Thesis Table 2 beside this run's figures, and the RMSE-ratio figure.
+    """
     frame = study.to_frame()
     thesis_cols = [c for c in frame.columns if c.startswith("thesis_")]
     ours = frame.drop(columns=thesis_cols)
@@ -244,6 +262,18 @@ def plot_pose_model_slice(model, ax=None, n: int = 60):
 def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
     """Report of a saved pose model (campaign/user model, or a hybrid FRF model).
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The model's HDF5 file.
+    provenance : mapping, optional
+        Provenance shown at the end (default: this run's command and inputs).
+
+    Returns
+    -------
+    Report
+        Input ranges, fit on the training data, cross-validation and the file's provenance.
+
     Raises
     ------
     ValueError
@@ -345,7 +375,22 @@ def _frf_model_report(model, path, prov) -> Report:
 
 # --------------------------------------------------------------------------------- lobes
 def lobes_report(chart, settings: Mapping[str, Any], provenance=None) -> Report:
-    """A stability chart (:class:`robovib.milling.chart.LobesChart`) as a report."""
+    """A stability chart (:class:`robovib.milling.chart.LobesChart`) as a report.
+
+    Parameters
+    ----------
+    chart : LobesChart
+        The chart.
+    settings : mapping
+        The settings that produced it.
+    provenance : mapping, optional
+        Provenance shown at the end (default: this run's command and inputs).
+
+    Returns
+    -------
+    Report
+        Summary, sampled critical depths and the chart figure.
+    """
     import pandas as pd
 
     from ..milling.chart import plot_lobes_chart
@@ -396,6 +441,30 @@ def lobes_study_report(
     The defaults are those of ``robovib mill lobes`` (semi-discretization, 200 speeds from 100 to
     3000 rpm, 40 steps per period): the page and the command give the same answer.
 
+    Parameters
+    ----------
+    x_mm, y_mm, rz_deg : float
+        The pose [mm, mm, deg].
+    ae_mm : float
+        Radial depth of cut [mm].
+    material : {"al7075", "acetal"}
+        Cutting-force coefficients.
+    feed : {"x", "y"}
+        Feed direction.
+    rpm_range : str
+        Spindle speeds ``start:stop:count`` [rpm].
+    method : str
+        Stability method (``"sdm"`` or ``"zoa"``).
+    model : object, optional
+        Pose model (default: the shipped chapter-3 model).
+    rng : int
+        Seed of the chapter-3 model.
+
+    Returns
+    -------
+    Report
+        The stability chart at the pose (:func:`lobes_report`).
+
     Raises
     ------
     ValueError
@@ -436,7 +505,24 @@ def lobes_study_report(
 
 # ------------------------------------------------------------------------------- control
 def control_report(schedule, table9_rows, settings: Mapping[str, Any], provenance=None) -> Report:
-    """Gain schedule along a path and the Table 9 comparison as a report."""
+    """Gain schedule along a path and the Table 9 comparison as a report.
+
+    Parameters
+    ----------
+    schedule : GainSchedule
+        Gains along the path (:func:`robovib.control.schedule.schedule_gains`).
+    table9_rows : sequence of dict
+        Rows of the Table 9 comparison.
+    settings : mapping
+        The settings that produced them.
+    provenance : mapping, optional
+        Provenance shown at the end (default: this run's command and inputs).
+
+    Returns
+    -------
+    Report
+        The gain schedule and the Table 9 comparison.
+    """
     import pandas as pd
 
     sched = pd.DataFrame({"s_m": schedule.s_m, "w1_m_per_m": schedule.w1, "w2_s": schedule.w2,
