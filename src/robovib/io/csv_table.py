@@ -87,6 +87,8 @@ class CsvTable:
         File line number of each row (the header line is ``header_line``).
     delimiter, decimal, encoding
         What was sniffed.
+    header_line
+        File line number of the header.
     ends_with_newline
         False when the file's last line has no line end (a file cut short, often).
     """
@@ -111,7 +113,18 @@ class CsvTable:
         )
 
     def index(self, name: str) -> int:
-        """Position of column ``name``; ValueError naming the columns the file has."""
+        """Position of column ``name``; ValueError naming the columns the file has.
+
+        Parameters
+        ----------
+        name : str
+            Column name (normalised).
+
+        Returns
+        -------
+        int
+            Its position in the header.
+        """
         try:
             return self.header.index(name)
         except ValueError:
@@ -120,7 +133,18 @@ class CsvTable:
             ) from None
 
     def column(self, name: str) -> list[str]:
-        """The cells of column ``name`` (strings)."""
+        """The cells of column ``name`` (strings).
+
+        Parameters
+        ----------
+        name : str
+            Column name (normalised).
+
+        Returns
+        -------
+        list of str
+            The cells, one per row.
+        """
         i = self.index(name)
         return [r[i] for r in self.rows]
 
@@ -156,7 +180,18 @@ class CsvTable:
         return out
 
     def matrix(self, names) -> np.ndarray:
-        """Columns ``names`` as a (n_rows, n_names) float array (errors name the line)."""
+        """Columns ``names`` as a (n_rows, n_names) float array (errors name the line).
+
+        Parameters
+        ----------
+        names : sequence of str
+            Column names (normalised).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_rows, n_names) floats.
+        """
         idx = [self.index(n) for n in names]
         try:
             return np.array([[r[i] for i in idx] for r in self.rows], dtype=float)
@@ -167,7 +202,13 @@ class CsvTable:
 
     def to_frame(self):
         """A :class:`pandas.DataFrame`: numeric columns as floats (empty cells NaN), others
-        as strings."""
+        as strings.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One column per header name.
+        """
         import pandas as pd
 
         data = {}

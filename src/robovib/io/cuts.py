@@ -23,7 +23,17 @@ __all__ = ["MeasuredCuts", "read_cuts_csv"]
 
 @dataclass(frozen=True)
 class MeasuredCuts:
-    """Test cuts: speeds [rpm], axial depths [m], chatter observed (bool), all (n,)."""
+    """Test cuts: speeds [rpm], axial depths [m], chatter observed (bool), all (n,).
+
+    Attributes
+    ----------
+    spindle_rpm
+        Spindle speeds [rpm].
+    depth_m
+        Axial depths of cut [m].
+    chatter
+        Whether chatter was observed (bool).
+    """
 
     spindle_rpm: np.ndarray
     depth_m: np.ndarray
@@ -42,7 +52,18 @@ _FALSE = {"stable", "0", "false", "no"}
 
 
 def read_cuts_csv(path: str | Path) -> MeasuredCuts:
-    """Read measured cuts (module docs); raises ``ValueError`` naming the bad row or column."""
+    """Read measured cuts (module docs); raises ``ValueError`` naming the bad row or column.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file (``spindle_rpm``, a depth column with its unit, ``result``).
+
+    Returns
+    -------
+    MeasuredCuts
+        The cuts, depths in metres.
+    """
     p = Path(path)
     with p.open(newline="") as fh:
         rows = list(csv.reader(line for line in fh if line.strip() and not line.startswith("#")))

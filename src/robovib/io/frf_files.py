@@ -197,6 +197,17 @@ def write_frfs_uff(
     a frequency axis not representable in the 13-character abscissa fields) is refused, never
     dropped; ordinates keep 12 significant digits (UFF's E20.11).
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``.uff``/``.unv`` file to write.
+    frfs : sequence of FRF
+        The FRFs (evenly spaced frequency axes).
+    inputs : sequence of path
+        Files the FRFs were made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
+
     Raises
     ------
     OutputPathError
@@ -299,7 +310,18 @@ def write_frfs_uff(
 
 
 def read_frfs_uff(path: str | Path) -> list[FRF]:
-    """Read every dataset 58 FRF (function type 4) of a UFF file, converting units to SI."""
+    """Read every dataset 58 FRF (function type 4) of a UFF file, converting units to SI.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The UFF file.
+
+    Returns
+    -------
+    list of FRF
+        One per FRF record, in SI, with its coherence and metadata.
+    """
     import pyuff
 
     from .units import si_factor
@@ -454,6 +476,16 @@ def read_frfs_csv(path: str | Path) -> list[FRF]:
     """FRFs from CSV (``frequency_hz``, ``[x_|y_|z_]real_<unit>``, ``[x_|y_|z_]imag_<unit>``):
     :func:`robovib.io.read_frf_csv`, converted to SI compliance.
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+
+    Returns
+    -------
+    list of FRF
+        One compliance FRF [m/N] per direction.
+
     Raises
     ------
     ValueError
@@ -467,7 +499,23 @@ def read_frfs_csv(path: str | Path) -> list[FRF]:
 def write_frfs(
     path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
 ) -> None:
-    """Write FRFs by file extension: .h5/.hdf5 or .uff/.unv (atomic; output != input)."""
+    """Write FRFs by file extension: .h5/.hdf5 or .uff/.unv (atomic; output != input).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to write; its extension picks the format.
+    frfs : sequence of FRF
+        The FRFs.
+    inputs : sequence of path
+        Files the FRFs were made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
+
+    Returns
+    -------
+    None
+    """
     suffix = Path(path).suffix.lower()
     if suffix in (".h5", ".hdf5"):
         return write_frfs_hdf5(path, frfs, inputs=inputs, force=force)
@@ -481,7 +529,18 @@ def write_frfs(
 
 
 def read_frfs(path: str | Path) -> list[FRF]:
-    """Read FRFs by file extension: .h5/.hdf5 or .uff/.unv."""
+    """Read FRFs by file extension: .h5/.hdf5 or .uff/.unv.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The FRF file.
+
+    Returns
+    -------
+    list of FRF
+        Every FRF of the file, in SI.
+    """
     suffix = Path(path).suffix.lower()
     if suffix in (".h5", ".hdf5"):
         return read_frfs_hdf5(path)

@@ -48,6 +48,16 @@ def _as_str(v) -> str:
 def file_format(path) -> tuple[str, int]:
     """``(format, format_version)`` of an HDF5 file (``("", -1)`` when untagged).
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The HDF5 file.
+
+    Returns
+    -------
+    tuple of (str, int)
+        The format tag and its version.
+
     Raises
     ------
     ValueError

@@ -33,6 +33,13 @@ def json_safe(obj: Any, _path: str = "", _reasons: dict | None = None) -> tuple[
         Only dict/list/str/int/float/bool/None; floats are finite.
     reasons : dict[str, str]
         JSON path of every non-finite number replaced by ``None`` -> why.
+
+    Parameters
+    ----------
+    obj : object
+        The document.
+    _path, _reasons
+        Recursion state (JSON path so far, reasons found so far); leave them out.
     """
     reasons = {} if _reasons is None else _reasons
     if isinstance(obj, dict):
@@ -64,6 +71,18 @@ def dumps(doc: Any, *, indent: int | None = 2) -> str:
 
     When something was replaced and ``doc`` is a dict, a ``"null_reasons"`` entry is added (or
     merged with an existing one).
+
+    Parameters
+    ----------
+    doc : object
+        The document (dicts, lists, numbers, numpy arrays/scalars).
+    indent : int, optional
+        Indentation of the JSON text.
+
+    Returns
+    -------
+    str
+        The JSON text.
     """
     clean, reasons = json_safe(doc)
     if reasons:

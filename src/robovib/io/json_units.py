@@ -91,7 +91,18 @@ KEY_UNITS: dict[str, str] = {
 
 def unit_of_json_key(key: str) -> str | None:
     """Unit of a JSON key: from its suffix (``_hz``, ``_n_per_m`` ...), ``n_*`` (a count) or
-    :data:`KEY_UNITS`."""
+    :data:`KEY_UNITS`.
+
+    Parameters
+    ----------
+    key : str
+        The key.
+
+    Returns
+    -------
+    str or None
+        The unit, or None when unknown.
+    """
     key = str(key)
     if key in KEY_UNITS:
         return KEY_UNITS[key]
@@ -130,6 +141,20 @@ def self_describing_document(
 
     Keys of ``doc`` that collide with the added ones are kept as ``result_<key>``; keys with no
     known unit are listed as ``"unknown"`` so a test can find them.
+
+    Parameters
+    ----------
+    doc : mapping
+        The command's result document.
+    provenance : mapping
+        The run's provenance (:func:`robovib.io.provenance.run_provenance`).
+    units : mapping, optional
+        Units of keys whose names carry none.
+
+    Returns
+    -------
+    dict
+        The self-describing document.
     """
     raw = dict(doc)
     raw.pop("robovib_version", None)

@@ -70,7 +70,18 @@ UNIT_SUFFIXES: tuple[tuple[str, str], ...] = (
 
 def unit_of_key(key: str) -> str | None:
     """The unit a key name carries in its suffix (``"natural_frequency_hz"`` -> ``"Hz"``), or
-    None when the name carries none."""
+    None when the name carries none.
+
+    Parameters
+    ----------
+    key : str
+        The key name.
+
+    Returns
+    -------
+    str or None
+        The unit.
+    """
     k = str(key).lower()
     for suffix, unit in UNIT_SUFFIXES:
         if k.endswith(suffix) or k == suffix[1:]:
@@ -83,12 +94,35 @@ _PROVIDER: ContextVar[Callable[[], dict] | None] = ContextVar("robovib_run_info"
 
 def set_run_info_provider(provider: Callable[[], dict] | None):
     """Register a callable returning ``{"command": [...], "settings": {...}, "units": {...},
-    "inputs": [paths]}`` for the run in progress (the CLI does this); returns a reset token."""
+    "inputs": [paths]}`` for the run in progress (the CLI does this); returns a reset token.
+
+    Parameters
+    ----------
+    provider : callable or None
+        The callable (None: no run in progress).
+
+    Returns
+    -------
+    object
+        Token that restores the previous provider.
+    """
     return _PROVIDER.set(provider)
 
 
 def file_sha256(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
     """SHA-256 hex digest of a file's bytes.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    chunk : int
+        Bytes read at a time.
+
+    Returns
+    -------
+    str
+        Hex digest.
 
     Raises
     ------
@@ -169,6 +203,15 @@ def write_provenance(h5, provenance: Mapping | None = None, **kwargs) -> None:
     ``units`` (JSON object: setting -> unit); one subgroup ``inputs/<i>`` per input file with
     attributes ``path`` and ``sha256``. ``provenance`` defaults to :func:`run_provenance`
     (``kwargs`` go to it).
+
+    Parameters
+    ----------
+    h5 : h5py.Group
+        Open file or group to write into.
+    provenance : mapping, optional
+        The provenance (default: :func:`run_provenance`).
+    **kwargs
+        Passed to :func:`run_provenance`.
     """
     prov = dict(provenance) if provenance is not None else run_provenance(**kwargs)
     if "provenance" in h5:
@@ -187,6 +230,16 @@ def write_provenance(h5, provenance: Mapping | None = None, **kwargs) -> None:
 
 def read_provenance(path_or_h5) -> dict:
     """The ``provenance`` group of an HDF5 file (path or open h5py object) as a dict.
+
+    Parameters
+    ----------
+    path_or_h5 : str, pathlib.Path or h5py.Group
+        The file, or an open h5py file or group.
+
+    Returns
+    -------
+    dict
+        ``robovib_version``, ``command``, ``settings``, ``units`` and ``inputs`` (path, sha256).
 
     Raises
     ------
@@ -218,7 +271,15 @@ def read_provenance(path_or_h5) -> dict:
 
 
 def set_units(dataset, unit: str) -> None:
-    """Set the ``units`` attribute of an h5py dataset (``"1"`` for dimensionless)."""
+    """Set the ``units`` attribute of an h5py dataset (``"1"`` for dimensionless).
+
+    Parameters
+    ----------
+    dataset : h5py.Dataset
+        The dataset.
+    unit : str
+        Its unit.
+    """
     if not unit:
         raise ValueError(f"empty unit for dataset {dataset.name}")
     dataset.attrs["units"] = unit

@@ -115,6 +115,25 @@ class HammerRecording:
     ``direction`` is the response direction, ``reference_direction`` the force direction
     (None where the file does not say); a recording with both set and different is a cross
     measurement. ``report`` says how the reader formed the hits.
+
+    Attributes
+    ----------
+    forces
+        (n_hits, n) forces [N].
+    responses
+        (n_hits, n) responses in SI of ``response_quantity``.
+    sample_rate_hz
+        Sample rate [Hz].
+    response_quantity
+        ``"acceleration"``, ``"velocity"`` or ``"displacement"``.
+    direction, reference_direction
+        Response and force directions (None: not in the file).
+    pose
+        (X, Y, Z [m], Rx, Ry, Rz [deg]) when the file gives it.
+    response_node
+        Response node of a multi-channel file.
+    report
+        How the reader formed the hits.
     """
 
     forces: np.ndarray  #: (n_hits, n_samples)
@@ -165,6 +184,13 @@ class Sensitivity:
 
     E.g. ``Sensitivity(2.25, "N")`` for a PCB 086D05 hammer, ``Sensitivity(10.0, "g")`` for an
     accelerometer.
+
+    Attributes
+    ----------
+    mv_per_unit
+        Millivolts per ``unit``.
+    unit
+        The physical unit (``"N"``, ``"g"``, ``"m/s^2"``, ``"m/s"``, ``"m"``).
     """
 
     mv_per_unit: float
@@ -712,6 +738,20 @@ def select_channel(
     With ``direction=None`` the only channel, or the direct one (response along the force),
     is returned. A channel without a direction in the file takes ``direction``.
 
+    Parameters
+    ----------
+    channels : list of HammerRecording
+        The channels of one file.
+    direction : {"x", "y", "z"} or None
+        The direction asked for.
+    where : str
+        The file, named in errors.
+
+    Returns
+    -------
+    HammerRecording
+        The channel.
+
     Raises
     ------
     ValueError
@@ -859,6 +899,22 @@ def read_recording(
     Voltage channels (unit V or mV) are converted with the given sensitivities; ``segment_kw``
     go to :func:`read_recording_channels`. The result's ``report`` says how hits were formed.
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The recording.
+    direction : {"x", "y", "z"}, optional
+        Response channel to read (default: the only or the direct one).
+    force_sensitivity, response_sensitivity : Sensitivity, optional
+        For channels in V or mV.
+    **segment_kw
+        Hit segmentation of continuous records (:func:`read_recording_channels`).
+
+    Returns
+    -------
+    HammerRecording
+        The hits of that channel, in SI.
+
     Raises
     ------
     ValueError
@@ -910,6 +966,17 @@ def write_recording_uff(
     One pass over the hits (linear in their number), atomic (:func:`robovib.io.atomic_output`):
     a failed or interrupted write leaves any previous file untouched; ``path`` must not be one
     of ``inputs`` unless ``force``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``.uff`` file to write.
+    recording : HammerRecording
+        The hits.
+    inputs : sequence of path
+        Files the output was made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
     """
     from .uff58 import write_uff58
 

@@ -184,6 +184,24 @@ def save_figure(
 ) -> Path:
     """Save a matplotlib figure atomically; the format comes from the suffix of ``path``.
 
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or os.PathLike
+        The image file (``.png``, ``.svg``, ``.pdf`` ...).
+    dpi : int
+        Resolution of raster formats.
+    inputs : sequence of path
+        Files the output was made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
     Raises
     ------
     OutputPathError

@@ -80,6 +80,17 @@ def write_recording_csv(
 
     The layout is the one :func:`robovib.io.read_recording_csv` reads.
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``.csv`` file to write.
+    recording : HammerRecording
+        The hits.
+    inputs : sequence of path
+        Files the output was made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
+
     Raises
     ------
     ValueError
@@ -102,6 +113,17 @@ def write_recording(
     path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
 ) -> None:
     """Write a hammer recording as UFF 58 (``.uff``/``.unv``) or CSV (``.csv``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to write; its suffix picks the format.
+    recording : HammerRecording
+        The hits.
+    inputs : sequence of path
+        Files the output was made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
 
     Raises
     ------
@@ -127,6 +149,11 @@ def read_force_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     force_n
         (n, 3) forces in the base frame [N].
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+
     Raises
     ------
     ValueError
@@ -146,6 +173,11 @@ def read_path_modes_csv(path: str | Path) -> tuple[np.ndarray, list[ModalParamet
     modes
         One :class:`~robovib.modal.ModalParameters` per row.
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+
     Raises
     ------
     ValueError
@@ -159,6 +191,19 @@ def write_path_modes_csv(
     path: str | Path, s_m, modes: Sequence[ModalParameters], *, inputs=(), force: bool = False
 ) -> None:
     """Write the table :func:`read_path_modes_csv` reads.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file to write.
+    s_m : array_like
+        (n,) path coordinates [m].
+    modes : sequence of ModalParameters
+        One mode per coordinate.
+    inputs : sequence of path
+        Files the output was made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
 
     Raises
     ------
@@ -187,6 +232,11 @@ def read_milling_record_csv(path: str | Path) -> dict[str, np.ndarray]:
     dict
         ``time_s`` (n,), ``force_n`` (n, 3) [N], ``displacement_m`` (n, 3) [m], and
         ``path_s_m`` (n,) [m] or ``pose`` (n, 3) [m, m, deg].
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
 
     Raises
     ------
@@ -219,6 +269,11 @@ def read_compliance_tests_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray,
         (n, 6) applied force [N] and moment [N m].
     displacement
         (n, 3) or (n, 6) measured translation [m] (and rotation [rad]).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
 
     Raises
     ------

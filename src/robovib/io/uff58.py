@@ -20,7 +20,27 @@ __all__ = ["Record58", "format_58", "write_uff58"]
 
 @dataclass(frozen=True)
 class Record58:
-    """One dataset 58 record: evenly spaced abscissa ``x0 + i dx``, real or complex ordinates."""
+    """One dataset 58 record: evenly spaced abscissa ``x0 + i dx``, real or complex ordinates.
+
+    Attributes
+    ----------
+    data
+        (n,) real or complex ordinates.
+    x0, dx
+        First abscissa value and spacing.
+    func_type
+        UFF function type (1 time response, 4 FRF, 6 coherence, 0 general).
+    ordinate_spec, ordinate_label, abscissa_spec, abscissa_label
+        UFF data-characteristic codes and unit labels of the axes.
+    denominator_spec, denominator_label
+        Same for the ordinate denominator (an FRF's force).
+    load_case_id
+        Load case (groups the records of one hit or one FRF).
+    rsp_node, rsp_dir, ref_node, ref_dir
+        Response and reference node and direction codes.
+    ids
+        The five ID lines.
+    """
 
     data: np.ndarray
     x0: float
@@ -68,7 +88,18 @@ def _e13(x: float) -> str:
 
 
 def format_58(rec: Record58) -> str:
-    """The ASCII text of one dataset 58 record (delimiters included)."""
+    """The ASCII text of one dataset 58 record (delimiters included).
+
+    Parameters
+    ----------
+    rec : Record58
+        The record.
+
+    Returns
+    -------
+    str
+        The record's lines.
+    """
     data = np.asarray(rec.data)
     complex_ = np.iscomplexobj(data)
     if complex_:
@@ -103,6 +134,17 @@ def write_uff58(path: str | Path, records, *, inputs=(), force: bool = False) ->
     """Write dataset 58 records to ``path`` in one pass (temporary file, then rename).
 
     See :func:`robovib.io.atomic_output` for ``inputs`` and ``force``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to write.
+    records : iterable of Record58
+        The records, in file order.
+    inputs : sequence of path
+        Files the output was made from (never overwritten unless ``force``).
+    force : bool
+        Allow ``path`` to be one of ``inputs``.
     """
     records = list(records)
     if not records:

@@ -33,6 +33,20 @@ def si_factor(label: str, expected: str | None = None) -> tuple[str, float]:
 
     Raises ``ValueError`` for unknown labels, or when the quantity differs from ``expected``.
     Voltage labels (V, mV) need a sensor sensitivity: convert with :func:`apply_sensitivity`.
+
+    Parameters
+    ----------
+    label : str
+        The unit label.
+    expected : str, optional
+        The quantity the label must be of.
+
+    Returns
+    -------
+    quantity : str
+        ``"force"``, ``"acceleration"``, ``"velocity"``, ``"displacement"`` ...
+    factor : float
+        Multiplier to SI.
     """
     key = label.strip().lower().replace(" ", "")
     if key not in _UNITS:
@@ -47,7 +61,26 @@ def si_factor(label: str, expected: str | None = None) -> tuple[str, float]:
 
 
 def apply_sensitivity(values, voltage_label: str, sensitivity: float, per_unit: str):
-    """Convert a voltage channel to SI: ``values [V or mV] / sensitivity [mV per per_unit]``."""
+    """Convert a voltage channel to SI: ``values [V or mV] / sensitivity [mV per per_unit]``.
+
+    Parameters
+    ----------
+    values : array_like
+        The channel's values in ``voltage_label``.
+    voltage_label : {"V", "mV"}
+        Their unit.
+    sensitivity : float
+        Sensor sensitivity [mV per ``per_unit``].
+    per_unit : str
+        Physical unit of the sensitivity (``"N"``, ``"g"``, ``"m/s^2"`` ...).
+
+    Returns
+    -------
+    quantity : str
+        The physical quantity.
+    values : numpy.ndarray
+        The values in SI.
+    """
     key = voltage_label.strip().lower()
     if key not in ("v", "mv"):
         raise ValueError(f"{voltage_label!r} is not a voltage unit (V or mV)")
