@@ -43,7 +43,19 @@ TABLE_4_JOINT_STIFFNESS = np.array([3.93, 3.46, 2.77, 1.57, 0.24, 0.17]) * 1e6
 
 @dataclass(frozen=True)
 class LinkSolid:
-    """A link as a uniform solid cylinder along the segment p0 -> p1 of its DH frame [m]."""
+    """A link as a uniform solid cylinder along the segment p0 -> p1 of its DH frame [m].
+
+    Attributes
+    ----------
+    mass_kg
+        Link mass [kg].
+    radius_m
+        Cylinder radius [m].
+    p0, p1
+        Ends of the cylinder axis in the link's DH frame [m].
+    frame
+        The DH frame (1-6) the link moves with.
+    """
 
     mass_kg: float
     radius_m: float
@@ -84,7 +96,22 @@ def _check_joint_stiffness(k_theta) -> np.ndarray:
 
 
 def complementary_stiffness(robot: KR500, joints_deg, wrench) -> np.ndarray:
-    """K_c (6, 6): derivative of J^T w w.r.t. the joint angles (central differences)."""
+    """K_c (6, 6): derivative of J^T w w.r.t. the joint angles (central differences).
+
+    Parameters
+    ----------
+    robot : KR500
+        The kinematic model.
+    joints_deg : array_like
+        (6,) joint angles [deg].
+    wrench : array_like
+        (6,) tool-tip wrench (F [N], M [N m]), base frame.
+
+    Returns
+    -------
+    numpy.ndarray
+        (6, 6) complementary stiffness [N m/rad].
+    """
     w = np.asarray(wrench, float)
     q = np.asarray(joints_deg, float)
     out = np.zeros((6, 6))
@@ -143,7 +170,24 @@ def cartesian_stiffness(
 
 
 def deflection(robot: KR500, joints_deg, wrench, k_theta=TABLE_4_JOINT_STIFFNESS) -> np.ndarray:
-    """Eq. 12: tool-tip screw displacement (dx, dphi) under a wrench (K_c neglected)."""
+    """Eq. 12: tool-tip screw displacement (dx, dphi) under a wrench (K_c neglected).
+
+    Parameters
+    ----------
+    robot : KR500
+        The kinematic model.
+    joints_deg : array_like
+        (6,) joint angles [deg].
+    wrench : array_like
+        (6,) tool-tip wrench (F [N], M [N m]), base frame.
+    k_theta : array_like
+        (6,) joint stiffnesses [N m/rad] (default: thesis Table 4).
+
+    Returns
+    -------
+    numpy.ndarray
+        (6,) translation [m] and rotation [rad].
+    """
     w = np.asarray(wrench, float)
     if w.shape != (6,):
         raise ValueError(f"wrench must have shape (6,) = (F [N], M [N m]), got {w.shape}")
@@ -156,6 +200,8 @@ def identify_joint_stiffness(robot: KR500, joints_deg, wrenches, displacements) 
 
     Parameters
     ----------
+    robot
+        The kinematic model (:class:`KR500`).
     joints_deg
         (n_tests, 6) robot configurations.
     wrenches
@@ -163,6 +209,11 @@ def identify_joint_stiffness(robot: KR500, joints_deg, wrenches, displacements) 
     displacements
         (n_tests, 6) or (n_tests, 3) measured screw displacement (translation [m] and, if
         given, rotation [rad]).
+
+    Returns
+    -------
+    numpy.ndarray
+        (6,) joint stiffnesses [N m/rad] (least squares over the tests).
     """
     q = np.atleast_2d(np.asarray(joints_deg, float))
     w = np.atleast_2d(np.asarray(wrenches, float))
@@ -221,7 +272,22 @@ def _axis_frame(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
 
 
 def joint_space_inertia(robot: KR500, joints_deg, links=LINK_SOLIDS) -> np.ndarray:
-    """Eq. 13-14: M_q (6, 6) [kg m^2] from the links as uniform solid cylinders."""
+    """Eq. 13-14: M_q (6, 6) [kg m^2] from the links as uniform solid cylinders.
+
+    Parameters
+    ----------
+    robot : KR500
+        The kinematic model.
+    joints_deg : array_like
+        (6,) joint angles [deg].
+    links : sequence of LinkSolid
+        The link inertias.
+
+    Returns
+    -------
+    numpy.ndarray
+        (6, 6) joint-space inertia [kg m^2].
+    """
     frames = robot.link_frames(joints_deg)
     jac_frames = [(frames[i][:3, 2], frames[i][:3, 3]) for i in range(6)]
     from .kinematics import KUKA_SIGNS
@@ -251,7 +317,19 @@ def joint_space_inertia(robot: KR500, joints_deg, links=LINK_SOLIDS) -> np.ndarr
 
 @dataclass(frozen=True)
 class CartesianModes:
-    """Translational tool-tip modes: natural frequencies [Hz] and unit directions (columns)."""
+    """Translational tool-tip modes: natural frequencies [Hz] and unit directions (columns).
+
+    Attributes
+    ----------
+    natural_frequencies_hz
+        (3,) natural frequencies [Hz], ascending.
+    directions
+        (3, 3) unit mode directions in the base frame (columns).
+    stiffness_n_per_m
+        (3, 3) translational stiffness matrix K_t [N/m].
+    mass_kg
+        (3, 3) translational mass matrix M_t [kg].
+    """
 
     natural_frequencies_hz: np.ndarray  #: (3,) ascending
     directions: np.ndarray  #: (3, 3) mode shapes (columns), base frame
@@ -259,7 +337,13 @@ class CartesianModes:
     mass_kg: np.ndarray  #: (3, 3) translational operational-space inertia M_t
 
     def directional_stiffness(self) -> np.ndarray:
-        """Stiffness along base X, Y, Z: 1 / (K_t^-1)_ii [N/m]."""
+        """Stiffness along base X, Y, Z: 1 / (K_t^-1)_ii [N/m].
+
+        Returns
+        -------
+        numpy.ndarray
+            (3,) stiffness along X, Y, Z [N/m].
+        """
         return 1.0 / np.diag(np.linalg.inv(self.stiffness_n_per_m))
 
     def principal_stiffness(self) -> tuple[np.ndarray, np.ndarray]:
@@ -279,7 +363,24 @@ class CartesianModes:
 def cartesian_modes(
     robot: KR500, joints_deg, k_theta=TABLE_4_JOINT_STIFFNESS, links=LINK_SOLIDS
 ) -> CartesianModes:
-    """Eq. 15-16 for the translational tool-tip dynamics: K_t U = w^2 M_t U."""
+    """Eq. 15-16 for the translational tool-tip dynamics: K_t U = w^2 M_t U.
+
+    Parameters
+    ----------
+    robot : KR500
+        The kinematic model.
+    joints_deg : array_like
+        (6,) joint angles [deg].
+    k_theta : array_like
+        (6,) joint stiffnesses [N m/rad] (default: thesis Table 4).
+    links : sequence of LinkSolid
+        The link inertias.
+
+    Returns
+    -------
+    CartesianModes
+        The three translational modes.
+    """
     k = _check_joint_stiffness(k_theta)
     jac = robot.jacobian(joints_deg)
     _inverse(jac)  # singularity check

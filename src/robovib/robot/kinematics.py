@@ -74,7 +74,18 @@ def _dh(d, a, alpha, theta):
 
 
 def euler_zyx(a_deg: float, b_deg: float, c_deg: float) -> np.ndarray:
-    """KUKA A, B, C (Z-Y'-X'') rotation matrix: ``Rz(A) Ry(B) Rx(C)``."""
+    """KUKA A, B, C (Z-Y'-X'') rotation matrix: ``Rz(A) Ry(B) Rx(C)``.
+
+    Parameters
+    ----------
+    a_deg, b_deg, c_deg : float
+        KUKA A, B, C angles [deg].
+
+    Returns
+    -------
+    numpy.ndarray
+        (3, 3) rotation matrix.
+    """
     a, b, c = np.radians([a_deg, b_deg, c_deg])
     rz = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
     ry = np.array([[math.cos(b), 0, math.sin(b)], [0, 1, 0], [-math.sin(b), 0, math.cos(b)]])
@@ -87,6 +98,16 @@ def tool_down_orientation(rz_deg: float) -> np.ndarray:
 
     Our reading of the chapter-3 poses "Rx = Ry = 0, Rz" (tool axis perpendicular to the
     X-Y plane): ``Rz(rz) Ry(180°)``.
+
+    Parameters
+    ----------
+    rz_deg : float
+        Rotation about the vertical [deg].
+
+    Returns
+    -------
+    numpy.ndarray
+        (3, 3) rotation matrix.
     """
     return euler_zyx(rz_deg, 180.0, 0.0)
 
@@ -111,7 +132,15 @@ def _rotation_error(r_target: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class KR500:
-    """KR500-3 kinematic model with a tool (flange -> tool-tip transform, metres)."""
+    """KR500-3 kinematic model with a tool (flange -> tool-tip transform, metres).
+
+    Attributes
+    ----------
+    tool
+        (4, 4) flange -> tool-tip homogeneous transform [m].
+    joint_limits_deg
+        (6, 2) joint limits [deg].
+    """
 
     tool: np.ndarray = field(default_factory=lambda: _translation(0.0, 0.0, 0.35))
     joint_limits_deg: np.ndarray = field(default_factory=lambda: JOINT_LIMITS_DEG.copy())
@@ -136,7 +165,18 @@ class KR500:
             )
 
     def link_frames(self, joints_deg) -> list[np.ndarray]:
-        """Base -> frame i transforms for i = 0 (base), 1..6 (DH frames), 7 (tool tip)."""
+        """Base -> frame i transforms for i = 0 (base), 1..6 (DH frames), 7 (tool tip).
+
+        Parameters
+        ----------
+        joints_deg : array_like
+            (6,) joint angles [deg].
+
+        Returns
+        -------
+        list of numpy.ndarray
+            Eight (4, 4) homogeneous transforms [m].
+        """
         q = self._check_joints(joints_deg)
         theta = KUKA_SIGNS * np.radians(q) + DH_TABLE[:, 3]
         frames = [np.eye(4)]
@@ -181,6 +221,16 @@ class KR500:
         """Geometric Jacobian (6, 6) of the tool tip w.r.t. the KUKA joint angles [rad].
 
         Rows: linear velocity (m/s), angular velocity (rad/s), base frame.
+
+        Parameters
+        ----------
+        joints_deg : array_like
+            (6,) joint angles [deg].
+
+        Returns
+        -------
+        numpy.ndarray
+            (6, 6) Jacobian.
         """
         frames = self.link_frames(joints_deg)
         p_tip = frames[7][:3, 3]
@@ -193,7 +243,18 @@ class KR500:
         return jac
 
     def condition_number(self, joints_deg) -> float:
-        """2-norm condition number of the Jacobian with the rotation rows scaled by 1 m."""
+        """2-norm condition number of the Jacobian with the rotation rows scaled by 1 m.
+
+        Parameters
+        ----------
+        joints_deg : array_like
+            (6,) joint angles [deg].
+
+        Returns
+        -------
+        float
+            The condition number.
+        """
         return float(np.linalg.cond(self.jacobian(joints_deg)))
 
     def manipulability(self, joints_deg) -> float:
@@ -225,6 +286,26 @@ class KR500:
         fails (or ends outside the joint limits) a few perturbed starts are tried, and the
         converged solution inside the limits nearest the reference is returned. Raises :class:`IKError` if none converges (unreachable target),
         if every solution violates the limits, or if the pose is singular.
+
+        Parameters
+        ----------
+        position_m : array_like
+            (3,) tool-tip position in the base frame [m].
+        rotation : numpy.ndarray
+            (3, 3) tool orientation.
+        reference_deg : array_like
+            (6,) start and preferred configuration [deg].
+        tol_m, tol_rad : float
+            Position and orientation tolerances.
+        max_iter : int
+            Iterations per start.
+        max_condition : float
+            Jacobian condition number above which the pose counts as singular.
+
+        Returns
+        -------
+        numpy.ndarray
+            (6,) joint angles [deg].
         """
         target_p = np.asarray(position_m, float)
         target_r = np.asarray(rotation, float)
