@@ -39,7 +39,17 @@ _CROSS_COUPLING = 0.05
 
 @dataclass(frozen=True)
 class SimulatedCampaign:
-    """Paths of a simulated campaign."""
+    """Paths of a simulated campaign.
+
+    Attributes
+    ----------
+    manifest
+        The campaign manifest CSV.
+    truth
+        ``truth.csv``: the dominant modes at unseen poses.
+    recordings
+        The recording files written.
+    """
 
     manifest: Path
     truth: Path
@@ -69,6 +79,18 @@ def truth_table(robot: VirtualRobot, poses) -> object:
 
     Columns: ``x_mm, y_mm, z_mm, rz_deg`` and per direction ``<d>_fn_hz``,
     ``<d>_stiffness_n_per_m``, ``<d>_damping_ns_per_m``, ``<d>_damping_ratio``.
+
+    Parameters
+    ----------
+    robot : VirtualRobot
+        The virtual robot.
+    poses : array_like
+        (n, 3) poses ``x_mm, y_mm, rz_deg``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per pose.
     """
     import pandas as pd
 

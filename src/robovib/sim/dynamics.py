@@ -29,6 +29,18 @@ def zoh_transition(fn_hz, stiffness_n_per_m, damping_ratio, dt_s: float):
     """Per-sample Phi (4 components, each shape like the inputs) and Gamma (2 components).
 
     Returns ``(p00, p01, p10, p11, g0, g1)``; underdamped modes only (zeta < 1).
+
+    Parameters
+    ----------
+    fn_hz, stiffness_n_per_m, damping_ratio : array_like
+        Mode parameters per sample (same shape).
+    dt_s : float
+        Sample period [s].
+
+    Returns
+    -------
+    p00, p01, p10, p11, g0, g1 : numpy.ndarray
+        Transition matrix and input vector entries, shaped like the inputs.
     """
     fn = np.asarray(fn_hz, float)
     k = np.asarray(stiffness_n_per_m, float)
@@ -81,6 +93,22 @@ def affine_scan(p00, p01, p10, p11, b0, b1, x0=(0.0, 0.0), block: int | None = N
     start state; pass 2 re-runs the blocks from their start states. Exact up to rounding.
 
     Returns ``(x, v)`` of shape (..., n + 1) including the initial state.
+
+    Parameters
+    ----------
+    p00, p01, p10, p11 : numpy.ndarray
+        (..., n) entries of the per-step 2x2 matrices P_i.
+    b0, b1 : numpy.ndarray
+        (..., n) entries of the per-step inputs b_i.
+    x0 : tuple of float
+        Initial state.
+    block : int, optional
+        Steps per block (default: max(32, sqrt(n))).
+
+    Returns
+    -------
+    x, v : numpy.ndarray
+        (..., n + 1) the two state components, from ``x0`` on.
     """
     comps = [np.asarray(p, dtype=float) for p in (p00, p01, p10, p11, b0, b1)]
     batch, n = comps[0].shape[:-1], comps[0].shape[-1]
@@ -139,6 +167,8 @@ def modal_response(fn_hz, stiffness_n_per_m, damping_ratio, force, dt_s: float, 
         (n_modes, n) per-sample parameters (constant rows for a fixed pose).
     force
         (n,) force [N], zero-order held over each sample.
+    dt_s
+        Sample period [s].
     command
         Optional (n,) actuator command [m] (already delayed/held), entering as ``k_s u``.
 

@@ -39,6 +39,13 @@ class LinearMove:
     ``domain="workspace"``: ``start``/``end`` are ``(x_m, y_m, rz_deg)``; the feed direction
     is the XY direction of the move. ``domain="path"``: ``start``/``end`` are distances along
     the chapter-4 path [m]; the path runs in -Y of the base frame.
+
+    Attributes
+    ----------
+    domain
+        ``"workspace"`` or ``"path"``.
+    start, end
+        Start and end coordinates.
     """
 
     domain: str
@@ -62,7 +69,13 @@ class LinearMove:
         return math.hypot(self.end[0] - self.start[0], self.end[1] - self.start[1])
 
     def feed_direction(self) -> np.ndarray:
-        """Unit feed vector in the base frame (x, y, 0)."""
+        """Unit feed vector in the base frame (x, y, 0).
+
+        Returns
+        -------
+        numpy.ndarray
+            (3,) unit vector.
+        """
         if self.domain == "path":
             return np.array([0.0, -1.0 if self.end[0] >= self.start[0] else 1.0, 0.0])
         d = np.array([self.end[0] - self.start[0], self.end[1] - self.start[1], 0.0])
@@ -72,7 +85,18 @@ class LinearMove:
         return d / norm
 
     def coords_at(self, fraction) -> np.ndarray:
-        """Pose coordinates at fractions in [0, 1] of the move: (n, 3) or (n,)."""
+        """Pose coordinates at fractions in [0, 1] of the move: (n, 3) or (n,).
+
+        Parameters
+        ----------
+        fraction : array_like
+            Fractions of the move in [0, 1].
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 3) workspace or (n,) path coordinates.
+        """
         f = np.asarray(fraction, float)
         s, e = np.asarray(self.start), np.asarray(self.end)
         c = s[None, :] + f[:, None] * (e - s)[None, :]
@@ -81,7 +105,27 @@ class LinearMove:
 
 @dataclass(frozen=True)
 class MotionRecord:
-    """Synchronised sensor records of a moving experiment (sensor grid: ``time_s``)."""
+    """Synchronised sensor records of a moving experiment (sensor grid: ``time_s``).
+
+    Attributes
+    ----------
+    time_s
+        (n,) sample times [s].
+    force_n
+        (n, 3) measured force X, Y, Z [N] (sensor rate).
+    displacement_m
+        (n, 3) tracker displacement [m] (noise, 0.01 mm resolution).
+    coords
+        (n, 3) workspace or (n,) path coordinates.
+    domain
+        ``"workspace"`` or ``"path"``.
+    true_displacement_m
+        (n, 3) noise-free tool-tip vibration [m].
+    true_force_n
+        (n, 3) force acting on the tool (cutting + background) [N].
+    meta
+        Settings and extra records of the run.
+    """
 
     time_s: np.ndarray  #: (n,)
     force_n: np.ndarray  #: (n, 3) measured force X, Y, Z (sensor rate)
@@ -98,7 +142,17 @@ class MotionRecord:
         return np.abs(self.true_displacement_m).max(axis=0)
 
     def to_csv(self, path, *, inputs=(), force: bool = False) -> None:
-        """CSV with ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m`` and the pose columns."""
+        """CSV with ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m`` and the pose columns.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The CSV file to write.
+        inputs : sequence of path
+            Files the output was made from (never overwritten unless ``force``).
+        force : bool
+            Allow ``path`` to be one of ``inputs``.
+        """
         import pandas as pd
 
         cols = {"time_s": self.time_s}
@@ -310,6 +364,38 @@ def simulate_milling(
     ``background_noise_rel`` x the RMS of each cutting-force component about its mean): the
     excitation that makes OMA possible (§5.2.2). The tool tip responds through the
     pose-varying modes of the robot along the path.
+
+    Parameters
+    ----------
+    robot : VirtualRobot
+        The virtual robot.
+    move : LinearMove
+        The pass.
+    tool : MillingTool
+        The cutter.
+    conditions : CuttingConditions
+        Spindle speed, feed, depths.
+    coefficients : CuttingCoefficients
+        Cutting-force coefficients of the material.
+    background_noise_rel : float
+        Background force relative to the RMS cutting force.
+    sensor_rate_hz : float
+        Rate of the recorded channels [Hz].
+    force_noise_n : float
+        Force-sensor white noise (std) [N].
+    simulation_rate_hz : float
+        Simulation rate [Hz].
+    tracker_noise_m, tracker_resolution_m : float
+        Laser tracker white noise (std) and quantisation [m].
+    allow_extrapolation : bool
+        Allow poses outside the robot's calibrated range.
+    rng : int or numpy.random.Generator, optional
+        Seed of the noise.
+
+    Returns
+    -------
+    MotionRecord
+        Forces, tracker and true displacements along the pass.
     """
     _check_positive(simulation_rate_hz=simulation_rate_hz, sensor_rate_hz=sensor_rate_hz)
     if background_noise_rel < 0:
@@ -366,6 +452,22 @@ def offset_mass_force(
 
     Thesis Eq. 27 with the physical frequency: ``m_o L (2 pi f)^2 [cos, sin](2 pi f t)``,
     ``f = rpm / 60`` (the printed ``sin(2 pi t / Omega)`` with Omega in rpm is a typo).
+
+    Parameters
+    ----------
+    time_s : array_like
+        (n,) times [s].
+    spindle_rpm : float
+        Spindle speed [rpm].
+    mass_kg : float
+        Offset mass [kg].
+    radius_m : float
+        Its radius [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) force [N].
     """
     _check_positive(spindle_rpm=spindle_rpm, mass_kg=mass_kg, radius_m=radius_m)
     w = 2 * math.pi * spindle_rpm / 60.0
@@ -388,7 +490,34 @@ def simulate_offset_mass(
     allow_extrapolation: bool = False,
     rng=None,
 ) -> MotionRecord:
-    """Open-loop rotating offset-mass run along ``move`` (§4.3.2-4.3.3; defaults: 1 kg, 50.8 mm, 84 mm/s)."""
+    """Open-loop rotating offset-mass run along ``move`` (§4.3.2-4.3.3; defaults: 1 kg, 50.8 mm, 84 mm/s).
+
+    Parameters
+    ----------
+    robot : VirtualRobot
+        The virtual robot.
+    move : LinearMove
+        The move.
+    spindle_rpm : float
+        Spindle speed [rpm] (the unbalance frequency is rpm / 60).
+    speed_m_per_s : float
+        Feed speed [m/s].
+    mass_kg, radius_m : float
+        Offset mass [kg] and its radius [m].
+    simulation_rate_hz : float
+        Simulation rate [Hz].
+    tracker_noise_m, tracker_resolution_m : float
+        Laser tracker white noise (std) and quantisation [m].
+    allow_extrapolation : bool
+        Allow poses outside the robot's calibrated range.
+    rng : int or numpy.random.Generator, optional
+        Seed of the noise.
+
+    Returns
+    -------
+    MotionRecord
+        Forces, tracker and true displacements along the move.
+    """
     _check_positive(speed_m_per_s=speed_m_per_s)
     gen = _rng(rng)
     duration = move.length_m / speed_m_per_s
@@ -421,7 +550,18 @@ def simulate_offset_mass(
 
 
 def default_path_move(reverse: bool = False) -> LinearMove:
-    """The whole chapter-4 path (start -> end, or end -> start as in the offset-mass runs)."""
+    """The whole chapter-4 path (start -> end, or end -> start as in the offset-mass runs).
+
+    Parameters
+    ----------
+    reverse : bool
+        End -> start.
+
+    Returns
+    -------
+    LinearMove
+        The move along the path.
+    """
     return LinearMove(
         "path", (PATH_LENGTH_M,) if reverse else (0.0,), (0.0,) if reverse else (PATH_LENGTH_M,)
     )

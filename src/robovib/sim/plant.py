@@ -77,6 +77,21 @@ class CommandChannel:
     sample (about half a sample of phase lead against the continuous stage).
 
     ``CommandChannel()`` is the pure 32 ms transport delay (:data:`PURE_DELAY`).
+
+    Attributes
+    ----------
+    delay_s
+        Transport delay [s].
+    lag_s
+        First-order lag time constant [s].
+    rate_limit_m_per_s
+        Rate limit of the applied correction [m/s].
+    breakaway_m
+        Half-width of the stiction band [m].
+    hold_periods
+        Extra command periods of RSI hold.
+    servo_hz, servo_damping
+        Second-order servo natural frequency [Hz] and damping ratio.
     """
 
     delay_s: float = 0.032
@@ -123,6 +138,18 @@ class CommandChannel:
         simulator's rounding of the delay to whole samples and the half sample of lead of its
         discrete stages are left out, and so are the breakaway band and the rate limit (they
         are amplitude dependent and only reduce the gain).
+
+        Parameters
+        ----------
+        frequency_hz : array_like
+            Frequencies [Hz].
+        command_period_s : float
+            Command period [s] (the hold periods are multiples of it).
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex frequency response.
 
         Raises
         ------
@@ -208,6 +235,11 @@ class ConstantModesRobot:
     (1, n_modes)); directions not given get a stiff, well-damped placeholder mode
     (100 Hz, 100 MN/m, zeta 0.2) so that they barely move. Used as ``robot`` with a
     ``LinearMove("path", ...)`` of any coordinates.
+
+    Parameters
+    ----------
+    modes : dict of str to ModeSet
+        Direction -> modes.
     """
 
     def __init__(self, modes: dict[str, ModeSet]):
@@ -321,6 +353,8 @@ def run_closed_loop(
         Force-sensor white noise (std) [N] of the force samples given to ``command`` objects.
     max_command_m
         A commanded correction above this [m] is taken as an unstable loop.
+    allow_extrapolation
+        Allow poses outside the robot's calibrated range.
     method
         ``"blocked"`` (one Python step per command period) or ``"per-sample"`` (reference).
     rng

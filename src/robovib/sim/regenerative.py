@@ -53,6 +53,27 @@ class RegenerativeCut:
     log-slope, ``chatter`` (b,) bool,
         ``off_harmonic_fraction`` (b,) energy fraction away from tooth-passing harmonics,
         ``chatter_hz`` (b,) strongest off-harmonic frequency.
+
+    Attributes
+    ----------
+    time_s
+        (n,) times [s].
+    depth_m
+        (b,) axial depths [m].
+    displacement_m, force_n
+        (b, n, 2) feed/normal tool-tip displacement [m] and force [N].
+    growth
+        (b,) Poincaré-difference growth ratio.
+    decay_rate_per_period
+        (b,) its log-slope per tooth period.
+    chatter
+        (b,) chatter found.
+    off_harmonic_fraction
+        (b,) energy fraction away from the tooth-passing harmonics.
+    chatter_hz
+        (b,) strongest off-harmonic frequency [Hz].
+    tooth_passing_hz
+        Tooth-passing frequency [Hz].
     """
 
     time_s: np.ndarray
@@ -223,6 +244,14 @@ def simulated_stability_limit(
 
     Parameters
     ----------
+    modes_x, modes_y : sequence of ModalParameters
+        Tool-tip modes along feed and normal.
+    tool : MillingTool
+        The cutter.
+    conditions : CuttingConditions
+        Spindle speed, feed and radial depth.
+    coefficients : CuttingCoefficients
+        Cutting-force coefficients.
     depth_bracket_m : (low, high)
         Depths [m] expected stable and chattering (checked: raises if not).
     n_bisections : int

@@ -61,7 +61,17 @@ _SECONDARY = (2.6, 10.0, 0.05)  # fn factor, k factor, zeta
 
 @dataclass(frozen=True)
 class ModeSet:
-    """Modes of one direction at n poses: arrays (n, n_modes) of fn [Hz], k [N/m], zeta."""
+    """Modes of one direction at n poses: arrays (n, n_modes) of fn [Hz], k [N/m], zeta.
+
+    Attributes
+    ----------
+    fn_hz
+        (n, n_modes) natural frequencies [Hz].
+    stiffness_n_per_m
+        (n, n_modes) modal stiffnesses [N/m].
+    damping_ratio
+        (n, n_modes) damping ratios.
+    """
 
     fn_hz: np.ndarray
     stiffness_n_per_m: np.ndarray
@@ -78,11 +88,23 @@ class ModeSet:
         return 2 * self.damping_ratio * self.stiffness_n_per_m / (2 * np.pi * self.fn_hz)
 
     def peak_compliance(self) -> np.ndarray:
-        """1 / (2 zeta k) per mode (n, n_modes): the height of each resonance peak."""
+        """1 / (2 zeta k) per mode (n, n_modes): the height of each resonance peak.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_modes) peak compliance [m/N].
+        """
         return 1.0 / (2 * self.damping_ratio * self.stiffness_n_per_m)
 
     def dominant(self) -> ModeSet:
-        """The mode with the largest peak compliance at each pose, as (n, 1) arrays."""
+        """The mode with the largest peak compliance at each pose, as (n, 1) arrays.
+
+        Returns
+        -------
+        ModeSet
+            One mode per pose.
+        """
         idx = np.argmax(self.peak_compliance(), axis=1)[:, None]
         take = lambda a: np.take_along_axis(a, idx, axis=1)  # noqa: E731
         return ModeSet(take(self.fn_hz), take(self.stiffness_n_per_m), take(self.damping_ratio))
@@ -96,7 +118,18 @@ class ModeSet:
         ]
 
     def compliance(self, frequency_hz) -> np.ndarray:
-        """Receptance (n, n_f) of the sum of the modes."""
+        """Receptance (n, n_f) of the sum of the modes.
+
+        Parameters
+        ----------
+        frequency_hz : array_like
+            (n_f,) frequencies [Hz].
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_f) complex compliance [m/N].
+        """
         r = np.asarray(frequency_hz, float)[None, None, :] / self.fn_hz[:, :, None]
         terms = 1.0 / (
             self.stiffness_n_per_m[:, :, None]
@@ -168,12 +201,38 @@ class WorkspaceTruth:
         return c
 
     def switch_weight(self, coords) -> np.ndarray:
-        """s(pose) in [0, 1]: how strongly the ~63 Hz X mode is excited (1 = dominant regime)."""
+        """s(pose) in [0, 1]: how strongly the ~63 Hz X mode is excited (1 = dominant regime).
+
+        Parameters
+        ----------
+        coords : array_like
+            (n, 3) poses ``(x_m, y_m, rz_deg)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) weights in [0, 1].
+        """
         c = np.atleast_2d(np.asarray(coords, float))
         return 1.0 / (1.0 + np.exp(-(c[:, 0] - 2.62) / 0.02)) * np.cos(np.radians(c[:, 2])) ** 8
 
     def modes(self, coords, direction: str, *, allow_extrapolation: bool = False) -> ModeSet:
-        """All modes of ``direction`` at the poses ``coords`` (n, 3)."""
+        """All modes of ``direction`` at the poses ``coords`` (n, 3).
+
+        Parameters
+        ----------
+        coords : array_like
+            (n, 3) poses ``(x_m, y_m, rz_deg)``.
+        direction : {"x", "y", "z"}
+            Direction.
+        allow_extrapolation : bool
+            Allow poses outside the workspace.
+
+        Returns
+        -------
+        ModeSet
+            Dominant, secondary (and in X the ~63 Hz) modes per pose.
+        """
         if direction not in DIRECTIONS:
             raise ValueError(f"unknown direction {direction!r}; expected x, y or z")
         c = self.check_coords(coords, allow_extrapolation)
