@@ -140,7 +140,9 @@ def _parameter_errors(name: str) -> list[str]:
     if inspect.isclass(obj):  # a dataclass documents its fields under Attributes
         doc = ClassDoc(obj)
         documented = {
-            n.strip() for p in [*doc["Parameters"], *doc["Attributes"]] for n in p.name.split(",")
+            n.strip().lstrip("*")
+            for p in [*doc["Parameters"], *doc["Attributes"]]
+            for n in p.name.split(",")
         }
         try:
             params = set(inspect.signature(obj).parameters) - {"self", "args", "kwargs"}

@@ -55,6 +55,13 @@ class ScheduledTable:
     """Values designed at path distances ``s_m`` (n,), rows ``values`` (n, m); linear lookup.
 
     A single row (n = 1) is a constant. Outside ``s_m`` the end values are held.
+
+    Attributes
+    ----------
+    s_m
+        (n,) path distances [m].
+    values
+        (n, m) rows designed there.
     """
 
     s_m: np.ndarray
@@ -76,7 +83,18 @@ class ScheduledTable:
         return cls(np.array([0.0]), np.atleast_2d(np.asarray(values, float)))
 
     def at(self, coords) -> np.ndarray:
-        """Rows at the path distances ``coords`` (n,) [m] (first column of (n, 3) poses)."""
+        """Rows at the path distances ``coords`` (n,) [m] (first column of (n, 3) poses).
+
+        Parameters
+        ----------
+        coords : array_like
+            (n,) path distances [m] or (n, 3) poses (first column used).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, m) interpolated rows.
+        """
         c = np.asarray(coords, float)
         s = c if c.ndim == 1 else c[:, 0]
         if self.s_m.size == 1:
@@ -129,6 +147,17 @@ class KalmanDesign:
 
     ``phi`` (2, 2), ``gamma_u`` (2,) (applied correction [m] -> state), ``gain`` (2,) the
     filter gain ``L`` of the update ``x += L (y - x[0])``, ``p`` the a-priori covariance.
+
+    Attributes
+    ----------
+    phi
+        (2, 2) state transition over one sensor sample.
+    gamma_u
+        (2,) applied correction [m] -> state.
+    gain
+        (2,) filter gain ``L``.
+    p
+        (2, 2) a-priori covariance.
     """
 
     phi: np.ndarray
@@ -151,6 +180,22 @@ def design_kalman(
     sample; the tracker noise variance is ``tracker_noise_m**2 + tracker_resolution_m**2 / 12``
     (quantisation). The steady-state a-priori covariance solves the filter Riccati equation
     (SciPy DARE on the dual problem; the same as python-control ``dlqe``, tested).
+
+    Parameters
+    ----------
+    mode : ModalParameters
+        The (model) mode.
+    dt_s : float
+        Sensor sample period [s].
+    force_std_n : float
+        Std of the unmeasured force [N] (process noise).
+    tracker_noise_m, tracker_resolution_m : float
+        Tracker white noise (std) and quantisation [m].
+
+    Returns
+    -------
+    KalmanDesign
+        The steady-state filter.
     """
     a, bu = continuous_model(mode, input="displacement")
     _, bf = continuous_model(mode, input="force")
@@ -396,13 +441,39 @@ class RepetitiveFeedback:
         self.max_harmonic_ratio = float(max_harmonic_ratio)
 
     def harmonics_used(self, mode: ModalParameters) -> np.ndarray:
-        """Frequencies [Hz] of the harmonics this controller cancels for a model ``mode``."""
+        """Frequencies [Hz] of the harmonics this controller cancels for a model ``mode``.
+
+        Parameters
+        ----------
+        mode : ModalParameters
+            The (model) mode.
+
+        Returns
+        -------
+        numpy.ndarray
+            Harmonic frequencies [Hz].
+        """
         f = np.arange(1, self.n_harmonics + 1) / self.excitation_period_s
         return f[f <= self.max_harmonic_ratio * mode.natural_frequency_hz]
 
     def loop_radius(self, plant: Sequence[ModalParameters], model: ModalParameters,
                     period_s: float = 0.004) -> float:  # fmt: skip
-        """Worst :func:`repetitive_loop_radius` over the used harmonics for a true ``plant``."""
+        """Worst :func:`repetitive_loop_radius` over the used harmonics for a true ``plant``.
+
+        Parameters
+        ----------
+        plant : sequence of ModalParameters
+            The true modes.
+        model : ModalParameters
+            The controller's model mode.
+        period_s : float
+            Command period [s].
+
+        Returns
+        -------
+        float
+            Largest spectral radius (< 1: the learning loop converges).
+        """
         f = self.harmonics_used(model)
         if f.size == 0:
             return 0.0
@@ -456,7 +527,13 @@ class RepetitiveFeedback:
 
 
 class Combined:
-    """Sum of the commands of several controllers (e.g. feedforward + feedback)."""
+    """Sum of the commands of several controllers (e.g. feedforward + feedback).
+
+    Parameters
+    ----------
+    *parts
+        The controllers (each with ``reset`` and ``command``).
+    """
 
     def __init__(self, *parts):
         if not parts:
@@ -489,6 +566,24 @@ def implemented_loop_matrix(
     (``"exact"``). ``gains`` has 2 entries ([w1, w2]) or 2 + ``delay_steps`` (delay-aware).
     State ``[modes' (x, v)..., (x_{k-1}), u_{k-1}, ..., u_{k-d}]``. Stable iff the spectral
     radius < 1.
+
+    Parameters
+    ----------
+    mode : ModalParameters or sequence of ModalParameters
+        One mode or a sum of modes.
+    gains : sequence of float
+        ``[g0, g1, g2 ...]``.
+    period_s : float
+        Command period [s].
+    delay_steps : int
+        Transport delay in command periods.
+    velocity : str
+        How the velocity is obtained (``"difference"``: backward difference).
+
+    Returns
+    -------
+    numpy.ndarray
+        The closed-loop state matrix over one command period.
     """
     modes = [mode] if isinstance(mode, ModalParameters) else list(mode)
     g = np.asarray(gains, float)
@@ -544,6 +639,22 @@ def repetitive_loop_radius(
     delay) and ``L = window_cycles`` (the DFT window of one excitation period). The
     characteristic polynomial ``z^M (z - 1) + (gain ratio / L) sum_q z^{M-q}``
     (``M = m + L - 1``) has all roots inside the unit circle iff the learning converges.
+
+    Parameters
+    ----------
+    ratio : complex
+        ``P_true / P_model`` at the harmonic.
+    gain : float
+        Learning gain.
+    delay_cycles : int
+        Transport delay in command cycles.
+    window_cycles : int
+        DFT window in command cycles.
+
+    Returns
+    -------
+    float
+        Largest root magnitude of the characteristic polynomial.
     """
     m, L = int(delay_cycles), max(1, int(window_cycles))
     big_m = m + L - 1
@@ -559,6 +670,18 @@ def modal_correction_frf(modes: Sequence[ModalParameters], frequency_hz) -> np.n
     """Correction-to-tip FRF of a sum of modes (a held correction moves the tip by itself).
 
     ``sum_r (k_s / k_r) wn_r^2 / (wn_r^2 - w^2 + 2 j zeta_r wn_r w)``, ``k_s = 1 / sum(1 / k_r)``.
+
+    Parameters
+    ----------
+    modes : sequence of ModalParameters
+        The modes.
+    frequency_hz : array_like
+        Frequencies [Hz].
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex tip displacement per correction [m/m].
     """
     w = 2 * np.pi * np.asarray(frequency_hz, float)
     k_s = 1.0 / sum(1.0 / m.stiffness_n_per_m for m in modes)
@@ -586,6 +709,24 @@ def lqg_loop_matrix(
     propagating the basis of the state ``[plant (x, v per mode), filter prior (2),
     u_{k-1} .. u_{k-d-1}]`` through the samples of one period. Stable iff its spectral
     radius < 1. Needs ``delay_samples`` to be a whole number of command periods.
+
+    Parameters
+    ----------
+    plant : sequence of ModalParameters
+        The true modes.
+    gains : sequence of float
+        Delay-aware gains ``[K_x, K_v, K_u1..K_ud]``.
+    kalman : KalmanDesign
+        The filter.
+    period_s, dt_s : float
+        Command and sensor periods [s].
+    delay_samples : int
+        Transport delay in sensor samples.
+
+    Returns
+    -------
+    numpy.ndarray
+        The period map (its spectral radius < 1: stable).
     """
     every = round(period_s / dt_s)
     if delay_samples % every:
@@ -661,7 +802,34 @@ def design_tuned_state_feedback(
     for every plant in ``plants`` with a decay margin (spectral radius of
     :func:`implemented_loop_matrix` < ``max_radius``) and that amplify the 2nd and 3rd
     harmonics by at most ``max_harmonic_gain``. With 32 ms of delay the best gains at 8 Hz are *negative* (the delay turns the phase by ~100°).
-    Returns ``(gains, |S| at the frequency, worst spectral radius)``.
+
+    Parameters
+    ----------
+    plants : sequence of sequence of ModalParameters
+        True plants (sums of modes) the loop must be stable for.
+    nominal : ModalParameters
+        The mode the sensitivity is computed for.
+    frequency_hz : float
+        The disturbance frequency [Hz].
+    period_s, delay_s : float
+        Command period and transport delay [s].
+    w1_range, w2_range : tuple of float
+        Grid ranges of the gains.
+    n_grid : int
+        Grid points per gain.
+    max_harmonic_gain : float
+        Largest |S| allowed at the 2nd and 3rd harmonics.
+    max_radius : float
+        Largest spectral radius allowed (decay margin).
+
+    Returns
+    -------
+    gains : numpy.ndarray
+        (2,) ``[w1, w2]`` (zeros when no grid point beats the open loop).
+    sensitivity : float
+        |S| at ``frequency_hz``.
+    radius : float
+        Worst spectral radius over ``plants``.
     """
     d = round(delay_s / period_s)
     best = (np.zeros(2), 1.0, max(spectral_radius(implemented_loop_matrix(p, (0.0, 0.0), period_s, d)) for p in plants))  # fmt: skip
@@ -682,14 +850,42 @@ def design_tuned_state_feedback(
 
 
 def spectral_radius(matrix: np.ndarray) -> float:
-    """Largest eigenvalue magnitude (< 1: the discrete loop is stable)."""
+    """Largest eigenvalue magnitude (< 1: the discrete loop is stable).
+
+    Parameters
+    ----------
+    matrix : numpy.ndarray
+        Square matrix.
+
+    Returns
+    -------
+    float
+        max |eigenvalue|.
+    """
     return float(np.max(np.abs(np.linalg.eigvals(matrix))))
 
 
 def delay_aware_gains(
     mode: ModalParameters, r: float, period_s: float, delay_s: float
 ) -> np.ndarray:
-    """Delay-aware LQR gains (2 + d,) with thesis Q and ``R = r`` (see ``design_delay_aware_lqr``)."""
+    """Delay-aware LQR gains (2 + d,) with thesis Q and ``R = r`` (see ``design_delay_aware_lqr``).
+
+    Parameters
+    ----------
+    mode : ModalParameters
+        The (model) mode.
+    r : float
+        Control weight R.
+    period_s : float
+        Command period [s].
+    delay_s : float
+        Transport delay [s] (whole periods).
+
+    Returns
+    -------
+    numpy.ndarray
+        (2 + d,) gains on ``[x, v, u_1 .. u_d]``.
+    """
     return design_delay_aware_lqr(mode, period_s, delay_s, r=[[r]]).gains
 
 

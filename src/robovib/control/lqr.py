@@ -58,7 +58,22 @@ def continuous_model(
     input: Literal["displacement", "force"] = "displacement",
     formulation: Literal["physical", "thesis_printed"] = "physical",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Continuous (A, B) of one mode (see module docs)."""
+    """Continuous (A, B) of one mode (see module docs).
+
+    Parameters
+    ----------
+    mode : ModalParameters
+        The mode.
+    input : {"displacement", "force"}
+        What the control input is.
+    formulation : {"physical", "thesis_printed"}
+        The physical model, or the thesis' printed matrices.
+
+    Returns
+    -------
+    a, b : numpy.ndarray
+        (2, 2) and (2, 1) state-space matrices.
+    """
     wn, z, k, m = mode.omega_n, mode.damping_ratio, mode.stiffness_n_per_m, mode.mass_kg
     if formulation == "thesis_printed":
         c_printed = 2 * m * wn / max(z, 1e-12)
@@ -76,7 +91,20 @@ def continuous_model(
 
 
 def discretize(a: np.ndarray, b: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation (Eq. 19-20) via the augmented matrix exponential."""
+    """Exact zero-order-hold discretisation (Eq. 19-20) via the augmented matrix exponential.
+
+    Parameters
+    ----------
+    a, b : numpy.ndarray
+        Continuous state-space matrices.
+    period_s : float
+        Sample period [s].
+
+    Returns
+    -------
+    ad, bd : numpy.ndarray
+        Discrete matrices.
+    """
     if not (np.isfinite(period_s) and period_s > 0):
         raise ValueError(f"the sampling period must be positive, got {period_s!r}")
     n, m = a.shape[0], b.shape[1]
@@ -100,7 +128,19 @@ def _check_weights(q, r):
 
 @dataclass(frozen=True)
 class LQRDesign:
-    """Discrete model, Riccati solution and gains W = [w1, w2] of one mode."""
+    """Discrete model, Riccati solution and gains W = [w1, w2] of one mode.
+
+    Attributes
+    ----------
+    ad, bd
+        Discrete model (A_d, B_d).
+    p
+        Riccati solution.
+    gains
+        (2,) w1 [u per m], w2 [u per m/s].
+    period_s
+        Command period [s].
+    """
 
     ad: np.ndarray
     bd: np.ndarray
@@ -200,6 +240,18 @@ def closed_loop_with_delay(design: LQRDesign, delay_steps: int) -> np.ndarray:
     """Closed-loop matrix with the command applied ``delay_steps`` periods late.
 
     State ``[x_k, v_k, u_{k-1}, ..., u_{k-d}]``; ``u_k = -W [x_k, v_k]``, the plant sees ``u_{k-d}``.
+
+    Parameters
+    ----------
+    design : LQRDesign
+        The design.
+    delay_steps : int
+        Delay in command periods.
+
+    Returns
+    -------
+    numpy.ndarray
+        (2 + d, 2 + d) closed-loop matrix.
     """
     big_a, big_b = _delay_augmented(design.ad, design.bd, delay_steps)
     gains = np.zeros(big_a.shape[0])
@@ -209,6 +261,20 @@ def closed_loop_with_delay(design: LQRDesign, delay_steps: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class DelayAnalysis:
+    """Stability of an LQR loop with a transport delay.
+
+    Attributes
+    ----------
+    delay_steps
+        The delay in command periods.
+    spectral_radius
+        Of the delayed closed loop (< 1: stable).
+    stable
+        Whether the loop is stable with that delay.
+    max_stable_delay_steps, max_stable_delay_s
+        The largest stable delay (periods, seconds).
+    """
+
     delay_steps: int
     spectral_radius: float
     stable: bool
@@ -254,6 +320,22 @@ def delay_analysis(
     The delay must be a whole number of command periods: ``rounding="reject"`` (default)
     raises otherwise, ``"round"`` rounds to the nearest period. The largest stable delay is
     searched up to ``max_search_steps`` periods (reported as that bound if all are stable).
+
+    Parameters
+    ----------
+    design : LQRDesign
+        The design.
+    delay_s : float
+        Transport delay [s].
+    rounding : {"reject", "round"}
+        What to do with a delay that is not a whole number of periods.
+    max_search_steps : int
+        Longest delay searched [periods].
+
+    Returns
+    -------
+    DelayAnalysis
+        Stability with ``delay_s`` and the largest stable delay.
     """
     steps = _delay_steps(delay_s, design.period_s, rounding)
     from .._checks import check_int
@@ -285,6 +367,26 @@ def tune_r_for_delay(
     delayed closed loop has the smallest spectral radius (the fastest-decaying slowest pole).
     Merely stable designs can have a closed-loop pole closer to the unit circle than the open
     loop and amplify disturbances near it. Raises ``ValueError`` if no R is stable.
+
+    Parameters
+    ----------
+    mode : ModalParameters
+        The mode.
+    period_s, delay_s : float
+        Command period and transport delay [s].
+    q : numpy.ndarray
+        (2, 2) state weight (thesis: diag(1, 0.001)).
+    r_grid : array_like, optional
+        Candidate R values.
+    input : {"displacement", "force"}
+        What the control input is.
+
+    Returns
+    -------
+    design : LQRDesign
+        The design with the chosen R.
+    r : float
+        The chosen R.
     """
     grid = np.logspace(-3, 4, 57) if r_grid is None else np.asarray(r_grid, float)
     if grid.ndim != 1 or grid.size == 0 or not np.all(np.isfinite(grid) & (grid > 0)):
@@ -305,7 +407,19 @@ def tune_r_for_delay(
 
 @dataclass(frozen=True)
 class DelayAwareDesign:
-    """LQR of the delay-augmented model: ``u_k = -K [x_k, v_k, u_{k-1}, ..., u_{k-d}]``."""
+    """LQR of the delay-augmented model: ``u_k = -K [x_k, v_k, u_{k-1}, ..., u_{k-d}]``.
+
+    Attributes
+    ----------
+    gains
+        (2 + d,) gains K.
+    delay_steps
+        d, the delay in command periods.
+    period_s
+        Command period [s].
+    closed_loop
+        The delayed closed-loop matrix.
+    """
 
     gains: np.ndarray  #: (2 + d,)
     delay_steps: int
@@ -334,6 +448,26 @@ def design_delay_aware_lqr(
     command history — the discrete equivalent of a Smith predictor. It is stable by
     construction with the delay, unlike ``[w1, w2]`` designed without it. A beyond-thesis
     option: the thesis' controller is :func:`design_lqr`.
+
+    Parameters
+    ----------
+    mode : ModalParameters
+        The mode.
+    period_s, delay_s : float
+        Command period and transport delay [s].
+    q : numpy.ndarray
+        (2, 2) state weight (thesis: diag(1, 0.001)).
+    r : numpy.ndarray
+        (1, 1) control weight.
+    input : {"displacement", "force"}
+        What the control input is.
+    rounding : {"reject", "round"}
+        What to do with a delay that is not a whole number of periods.
+
+    Returns
+    -------
+    DelayAwareDesign
+        Gains on the augmented state and the closed loop.
     """
     q, r = _check_weights(q, r)
     d = _delay_steps(delay_s, period_s, rounding)
@@ -353,6 +487,17 @@ class LoopMargins:
 
     Every crossing is reported (a lightly damped plant can cross |L| = 1 more than once), like
     python-control's ``stability_margins(..., returnall=True)``.
+
+    Attributes
+    ----------
+    gain_margins
+        Factors at the -180° phase crossings.
+    phase_crossovers_hz
+        Frequencies of those crossings [Hz].
+    phase_margins_deg
+        Phase margins at the |L| = 1 crossings [deg], wrapped to (-180, 180].
+    gain_crossovers_hz
+        Frequencies of the |L| = 1 crossings [Hz].
     """
 
     gain_margins: np.ndarray  #: factors at the -180° phase crossings
@@ -367,6 +512,20 @@ def loop_margins(design: LQRDesign, delay_steps: int = 0, n_points: int = 20000)
     Evaluated on a dense frequency grid up to Nyquist with linear interpolation at the
     crossings (tested against python-control). A delay of d periods adds ``-w T d`` of phase:
     this is what limits the bandwidth of the pose-dependent controller (thesis §4.3.2).
+
+    Parameters
+    ----------
+    design : LQRDesign
+        The design.
+    delay_steps : int
+        Delay in command periods.
+    n_points : int
+        Frequency grid points up to Nyquist.
+
+    Returns
+    -------
+    LoopMargins
+        Every gain and phase crossing.
     """
     t = design.period_s
     w = np.linspace(1e-4, np.pi / t, int(n_points))

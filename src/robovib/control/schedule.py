@@ -23,7 +23,21 @@ __all__ = ["GainSchedule", "ModelSchedule", "schedule_along_line", "schedule_gai
 
 @dataclass(frozen=True)
 class GainSchedule:
-    """Gains w1, w2 at path distances ``s_m`` with polynomial fits (coefficients high->low)."""
+    """Gains w1, w2 at path distances ``s_m`` with polynomial fits (coefficients high->low).
+
+    Attributes
+    ----------
+    s_m
+        (n,) path distances [m].
+    w1, w2
+        (n,) gains at those points.
+    r
+        (n,) the R used at each point.
+    stable_with_delay
+        (n,) bool: the loop is stable with the transport delay.
+    w1_poly, w2_poly
+        Polynomial fits of the gains over ``s_m`` (coefficients high -> low).
+    """
 
     s_m: np.ndarray
     w1: np.ndarray
@@ -205,7 +219,21 @@ def schedule_gains(
 
 @dataclass(frozen=True)
 class ModelSchedule:
-    """Gains along a straight line through a pose model's workspace."""
+    """Gains along a straight line through a pose model's workspace.
+
+    Attributes
+    ----------
+    schedule
+        The gains along the line (``s_m``: path distance [m], see :func:`schedule_along_line`).
+    poses
+        (n, n_inputs) poses in the model's input units.
+    input_names
+        The model's input names.
+    modes
+        The predicted mode at each pose (SI).
+    extrapolating
+        (n,) bool: pose outside the model's training data.
+    """
 
     schedule: GainSchedule
     poses: np.ndarray  #: (n, n_inputs) poses in the model's input units
