@@ -54,6 +54,20 @@ GAMMA_GRID = (0.5, 1.0)
 def grouped_folds(X: np.ndarray, n_folds: int, rng=0) -> np.ndarray:
     """(n,) fold of each row: rows with identical inputs (one pose) share a fold.
 
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, d) inputs.
+    n_folds : int
+        Number of folds.
+    rng : int or numpy.random.Generator
+        Seed of the pose shuffle.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) fold index of each row.
+
     Raises
     ------
     ValueError
@@ -149,6 +163,8 @@ class BandCalibration:
         Family -> (n_outputs,) mean out-of-fold log predictive density after calibration.
     pit
         (n_rows, n_outputs) out-of-fold PIT values (NaN where not observed).
+    levels
+        Central levels the coverage is reported at.
     """
 
     output_names: tuple[str, ...]
@@ -170,7 +186,13 @@ class BandCalibration:
     levels: tuple[float, ...] = LEVELS
 
     def table(self):
-        """DataFrame, one row per output: coverage at each level, NLPD, RMSE, the choice."""
+        """DataFrame, one row per output: coverage at each level, NLPD, RMSE, the choice.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per output.
+        """
         import pandas as pd
 
         rows = []
@@ -188,7 +210,18 @@ class BandCalibration:
         return pd.DataFrame(rows)
 
     def warnings(self, tolerance: float = 0.05) -> list[str]:
-        """One line per output and level whose coverage is off by more than ``tolerance``."""
+        """One line per output and level whose coverage is off by more than ``tolerance``.
+
+        Parameters
+        ----------
+        tolerance : float
+            Allowed |coverage - level|.
+
+        Returns
+        -------
+        list of str
+            The warnings (empty: calibrated).
+        """
         out = []
         for j, name in enumerate(self.output_names):
             for i, lev in enumerate(self.levels):
@@ -352,7 +385,15 @@ _CAL_ARRAYS = {
 
 
 def write_calibration(group, cal) -> None:
-    """Store a :class:`~robovib.gp.calibration.BandCalibration` (arrays with units)."""
+    """Store a :class:`~robovib.gp.calibration.BandCalibration` (arrays with units).
+
+    Parameters
+    ----------
+    group : h5py.Group
+        Open group to write into.
+    cal : BandCalibration
+        The calibration.
+    """
     group.attrs["output_names"] = list(cal.output_names)
     group.attrs["covariance"] = list(cal.covariance)
     group.attrs["n_folds"] = int(cal.n_folds)
@@ -373,7 +414,18 @@ def write_calibration(group, cal) -> None:
 
 
 def read_calibration(group):
-    """Inverse of :func:`write_calibration`."""
+    """Inverse of :func:`write_calibration`.
+
+    Parameters
+    ----------
+    group : h5py.Group
+        The group written by :func:`write_calibration`.
+
+    Returns
+    -------
+    BandCalibration
+        The calibration.
+    """
     a = group.attrs
     d = {k: group[k][()] for k in _CAL_ARRAYS if k in group}
     return BandCalibration(

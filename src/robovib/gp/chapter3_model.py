@@ -38,6 +38,20 @@ def chapter3_training_data(
     """Table A1 as (X (180, 3) [mm, mm, deg], Y (180, 9) SI, groups (180,) test number).
 
     ``Y`` columns: fn [Hz], k [N/m], c [N·s/m] for X, Y, Z; NaN where a cell is missing.
+
+    Parameters
+    ----------
+    stiffness_reading : {"corrected", "printed"}
+        Reading of Table A1's shifted stiffness cells.
+
+    Returns
+    -------
+    X : numpy.ndarray
+        (180, 3) poses [mm, mm, deg].
+    Y : numpy.ndarray
+        (180, 9) modal outputs, SI.
+    groups : numpy.ndarray
+        (180,) test number of each row.
     """
     from ..datasets import load_table_a1, modal_output_columns, pose_columns
 
@@ -95,6 +109,11 @@ def fit_chapter3_model(
 def chapter3_model_path() -> Path:
     """Path of the shipped chapter-3 model file (package data).
 
+    Returns
+    -------
+    pathlib.Path
+        The HDF5 file.
+
     Raises
     ------
     FileNotFoundError
@@ -141,6 +160,11 @@ def load_chapter3_predictor() -> PosePredictor:
 
     Predictions equal :func:`load_chapter3_model`'s (to ~1e-12) without importing scikit-learn:
     what ``robovib gpr predict`` uses to answer in well under a second.
+
+    Returns
+    -------
+    PosePredictor
+        The model, ready to predict.
 
     Raises
     ------

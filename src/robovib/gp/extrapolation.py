@@ -104,13 +104,35 @@ class TrainingRegion:
         return cls(X.min(axis=0), X.max(axis=0), loc, scale, pts)
 
     def outside_inputs(self, X) -> np.ndarray:
-        """(n, d) bool: input value outside the training range of that input."""
+        """(n, d) bool: input value outside the training range of that input.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, d) bool.
+        """
         X = np.atleast_2d(np.asarray(X, float))
         tol = 1e-9 * np.maximum(1.0, self.hi - self.lo)
         return (self.lo - tol > X) | (self.hi + tol < X)
 
     def extrapolating(self, X) -> np.ndarray:
-        """(n,) bool: outside the box or the convex hull of the training inputs."""
+        """(n,) bool: outside the box or the convex hull of the training inputs.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) bool.
+        """
         X = np.atleast_2d(np.asarray(X, float))
         out = np.any(self.outside_inputs(X), axis=1)
         if self.hull_points is not None:
@@ -125,6 +147,16 @@ def training_range(model) -> tuple[np.ndarray, np.ndarray]:
 
     Works with :class:`~robovib.gp.BatchedGPRegressor` (``X_train_``), the mode-switching
     model (its low-mode GP), and models exposing ``pose_range_``.
+
+    Parameters
+    ----------
+    model : object
+        The fitted model.
+
+    Returns
+    -------
+    lo, hi : numpy.ndarray
+        (d,) per-input bounds.
 
     Raises
     ------
@@ -145,7 +177,20 @@ def training_range(model) -> tuple[np.ndarray, np.ndarray]:
 
 
 def extrapolating(model, X) -> np.ndarray:
-    """(n,) bool: rows of ``X`` (same units as the training inputs) outside the training range."""
+    """(n,) bool: rows of ``X`` (same units as the training inputs) outside the training range.
+
+    Parameters
+    ----------
+    model : object
+        A fitted model (see :func:`training_range`).
+    X : array_like
+        (n, d) inputs.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) bool.
+    """
     X = np.atleast_2d(np.asarray(X, float))
     if hasattr(model, "extrapolating") and not hasattr(model, "pose_range_"):
         return np.asarray(model.extrapolating(X), bool).reshape(-1)
@@ -157,7 +202,22 @@ def extrapolating(model, X) -> np.ndarray:
 
 
 def outside_inputs(model, x, names) -> tuple[str, ...]:
-    """Names of the inputs of one point ``x`` that lie outside the training range."""
+    """Names of the inputs of one point ``x`` that lie outside the training range.
+
+    Parameters
+    ----------
+    model : object
+        A fitted model (see :func:`training_range`).
+    x : array_like
+        (d,) one input point.
+    names : sequence of str
+        Input names.
+
+    Returns
+    -------
+    tuple of str
+        The names of the inputs outside their training range.
+    """
     x = np.asarray(x, float).reshape(-1)
     if hasattr(model, "outside_inputs") and hasattr(model, "input_names"):
         flags = np.asarray(model.outside_inputs(x[None, :]), bool).reshape(-1)

@@ -73,7 +73,13 @@ class ModeSwitchDetection:
     reason: str
 
     def to_dict(self) -> dict:
-        """Plain dict (JSON-ready; NaN stays NaN)."""
+        """Plain dict (JSON-ready; NaN stays NaN).
+
+        Returns
+        -------
+        dict
+            The detection's fields.
+        """
         return asdict(self)
 
 
@@ -166,7 +172,18 @@ def detect_mode_switch(
 
 
 def symmetric_rz_features(X: np.ndarray) -> np.ndarray:
-    """(X, Y, Rz [deg]) -> (X, Y, cos 2Rz): Rz and Rz + 180° give the same X-direction mode."""
+    """(X, Y, Rz [deg]) -> (X, Y, cos 2Rz): Rz and Rz + 180° give the same X-direction mode.
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, 3) inputs (X, Y, Rz [deg]).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) features (X, Y, cos 2Rz).
+    """
     X = np.asarray(X, float)
     return np.column_stack([X[:, 0], X[:, 1], np.cos(np.radians(2.0 * X[:, 2]))])
 
@@ -318,6 +335,22 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         hyperparameter (the GPs' and the classifier kernel's); ``"warm"`` re-optimises them from
         the current values.
 
+        Parameters
+        ----------
+        X_new, Y_new : array_like
+            New inputs and targets.
+        mask : array_like, optional
+            Observed targets (default: the finite ones).
+        groups : array_like, optional
+            Pose group of each new row.
+        mode : {"posterior", "warm"}
+            Keep the hyperparameters, or re-optimise them from the current values.
+
+        Returns
+        -------
+        ModeSwitchingGPRegressor
+            ``self``, updated.
+
         Raises
         ------
         NotFittedError
@@ -378,7 +411,18 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         return self
 
     def high_mode_probability(self, X) -> np.ndarray:
-        """Probability (n,) that the high mode is the dominant one at each input."""
+        """Probability (n,) that the high mode is the dominant one at each input.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) probabilities.
+        """
         self._require_fitted()
         X = np.asarray(X, float)
         if self.classifier_ is None:
@@ -407,6 +451,18 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         non-switching outputs repeat the low-mode GP in ``high``. A high mode seen fewer than 3
         times has no GP: its mean is the observed mean and its latent std
         :data:`~robovib.gp.predictive.UNMODELLED_MODE_RELATIVE_STD` of it.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+
+        Returns
+        -------
+        p_high : numpy.ndarray
+            (n,) probability of the high mode.
+        low, high : tuple of numpy.ndarray
+            ``(mean, latent_std, noise_std)`` of each mode.
         """
         from .predictive import UNMODELLED_MODE_RELATIVE_STD, noise_std_of
 
@@ -428,7 +484,22 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         return p, (mean, std, noise), (h_mean, h_std, h_noise)
 
     def predict(self, X, return_std: bool = False):
-        """Mean (and std) of every output; switching outputs from the more probable mode."""
+        """Mean (and std) of every output; switching outputs from the more probable mode.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+        return_std : bool
+            Also return the latent std.
+
+        Returns
+        -------
+        mean : numpy.ndarray
+            (n, n_outputs) means.
+        std : numpy.ndarray
+            (n, n_outputs) latent std (only with ``return_std``).
+        """
         self._require_fitted()
         X = np.asarray(X, float)
         mean, std = self.low_model_.predict(X, return_std=True)

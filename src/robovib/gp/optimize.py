@@ -26,7 +26,23 @@ BatchedObjective = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarr
 
 @dataclass(frozen=True)
 class BatchedMinimizeResult:
-    """Outcome per problem of :func:`batched_bfgs` (batch axis first)."""
+    """Outcome per problem of :func:`batched_bfgs` (batch axis first).
+
+    Attributes
+    ----------
+    x
+        (B, p) minimisers.
+    fun
+        (B,) objective values.
+    grad
+        (B, p) gradients at ``x``.
+    n_iter
+        (B,) quasi-Newton iterations (accepted steps).
+    n_fev
+        (B,) objective evaluations.
+    converged
+        (B,) gradient or function-change criterion met.
+    """
 
     x: np.ndarray  #: (B, p) minimisers
     fun: np.ndarray  #: (B,) objective values
@@ -92,11 +108,17 @@ def batched_bfgs(
         Stop a problem when the max-norm of its projected gradient falls below ``gtol``.
     ftol
         Stop when the relative decrease of ``f`` in one step falls below ``ftol``.
+    max_backtracks
+        Step halvings tried per line search.
+    armijo
+        Sufficient-decrease constant of the line search.
     same_problem
         Optional (B,) integer labels: rows with the same label are starts of one problem
         (restarts). When two active starts of a problem come within ``merge_tol`` (max-norm of
         ``x``) of each other they are in one basin; the one with the higher ``f`` stops there
         (not ``converged``), saving the evaluations of a duplicate descent.
+    merge_tol
+        Distance (max-norm) under which two starts of a problem count as one basin.
 
     Returns
     -------

@@ -69,7 +69,18 @@ class GPPosterior:
         return self.sf2[:, None, None] * correlation(r2, self.covariance)
 
     def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Mean and latent std (m, B) at inputs ``X`` (m, d), data units."""
+        """Mean and latent std (m, B) at inputs ``X`` (m, d), data units.
+
+        Parameters
+        ----------
+        X : numpy.ndarray
+            (m, d) inputs.
+
+        Returns
+        -------
+        mean, std : numpy.ndarray
+            (m, B) each.
+        """
         xq = (np.asarray(X, float) - self.x_loc) / self.x_scale
         k_star = self._cross(xq, self.x_s)  # (B, m, n)
         mean_s = self.mean_s[:, None] + np.matmul(k_star, self.alpha[:, :, None])[:, :, 0]
@@ -80,7 +91,18 @@ class GPPosterior:
         return mean, std
 
     def covariance_at(self, X: np.ndarray) -> np.ndarray:
-        """(B, m, m) latent posterior covariance at inputs ``X`` (m, d), data units."""
+        """(B, m, m) latent posterior covariance at inputs ``X`` (m, d), data units.
+
+        Parameters
+        ----------
+        X : numpy.ndarray
+            (m, d) inputs.
+
+        Returns
+        -------
+        numpy.ndarray
+            (B, m, m) covariance.
+        """
         xq = (np.asarray(X, float) - self.x_loc) / self.x_scale
         v = np.matmul(self.chol_inv, self._cross(xq, self.x_s).transpose(0, 2, 1))  # (B, n, m)
         cov_s = self._cross(xq, xq) - np.matmul(v.transpose(0, 2, 1), v)

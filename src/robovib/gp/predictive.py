@@ -190,6 +190,20 @@ class ModalPredictive:
 
         ``mode_logit`` (n_outputs, 2) ``(a, b)`` recalibrates the classifier's probability of the
         high mode, ``p → σ(a logit p + b)`` (Platt scaling; NaN rows: unchanged).
+
+        Parameters
+        ----------
+        scale, dof : array_like
+            (n_outputs, 2) calibration factor and Student-t dof per component.
+        gamma, ref_std : array_like, optional
+            (n_outputs, 2) shape of the band and its reference latent std.
+        mode_logit : array_like, optional
+            (n_outputs, 2) Platt scaling of the high-mode probability.
+
+        Returns
+        -------
+        ModalPredictive
+            The recalibrated predictive.
         """
         from dataclasses import replace
 
@@ -207,7 +221,13 @@ class ModalPredictive:
 
     def shaped_latent_std(self) -> np.ndarray:
         """(n, n_outputs, 2) ``ref^(1-γ) σ_latent^γ``: the GP's latent std with the pose
-        dependence of its band tempered by ``γ`` (1: the GP's own; 0: the same at every pose)."""
+        dependence of its band tempered by ``γ`` (1: the GP's own; 0: the same at every pose).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_outputs, 2) shaped latent std, SI.
+        """
         if self.gamma is None:
             return self.latent_std
         ref = self.ref_std[None]
@@ -220,7 +240,18 @@ class ModalPredictive:
             raise ValueError(f"unknown band kind {kind!r}; expected 'latent' or 'measurement'")
 
     def component_scale(self, kind: str = "measurement") -> np.ndarray:
-        """(n, n_outputs, 2) calibrated scale of each component (SI)."""
+        """(n, n_outputs, 2) calibrated scale of each component (SI).
+
+        Parameters
+        ----------
+        kind : {"measurement", "latent"}
+            Band of a new measurement or of the latent value.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_outputs, 2) scales.
+        """
         self._check_kind(kind)
         latent = self.scale[None] * self.shaped_latent_std()
         return latent if kind == "latent" else np.hypot(latent, self.noise_std)
@@ -232,7 +263,13 @@ class ModalPredictive:
         return np.stack([1.0 - p, p], axis=-1)
 
     def point(self) -> np.ndarray:
-        """(n, n_outputs) the more probable component's mean (never a blend of two modes)."""
+        """(n, n_outputs) the more probable component's mean (never a blend of two modes).
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_outputs) point predictions, SI.
+        """
         hi = self.high_probability > 0.5
         return np.where(hi, self.mean[..., 1], self.mean[..., 0])
 
@@ -240,6 +277,16 @@ class ModalPredictive:
         """(n, n_outputs) calibrated standard deviation of the more probable component.
 
         For ``dof`` <= 2 the Student-t variance is infinite; the scale is returned then.
+
+        Parameters
+        ----------
+        kind : {"measurement", "latent"}
+            Band of a new measurement or of the latent value.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_outputs) standard deviations, SI.
         """
         s = self.component_scale(kind)
         dof = np.broadcast_to(self.dof[None], s.shape)
@@ -252,7 +299,20 @@ class ModalPredictive:
 
     # ------------------------------------------------------------------ densities
     def logpdf(self, Y, kind: str = "measurement") -> np.ndarray:
-        """(n, n_outputs) log predictive density of ``Y`` (SI, NaN stays NaN)."""
+        """(n, n_outputs) log predictive density of ``Y`` (SI, NaN stays NaN).
+
+        Parameters
+        ----------
+        Y : array_like
+            (n, n_outputs) values, SI.
+        kind : {"measurement", "latent"}
+            Band of a new measurement or of the latent value.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_outputs) log densities.
+        """
         Y = self._check_Y(Y)
         s = self.component_scale(kind)
         z = (Y[..., None] - self.mean) / s
@@ -262,7 +322,20 @@ class ModalPredictive:
         return np.logaddexp(lw[..., 0] + lp[..., 0], lw[..., 1] + lp[..., 1])
 
     def cdf(self, Y, kind: str = "measurement") -> np.ndarray:
-        """(n, n_outputs) predictive CDF at ``Y``: the PIT value of an observation."""
+        """(n, n_outputs) predictive CDF at ``Y``: the PIT value of an observation.
+
+        Parameters
+        ----------
+        Y : array_like
+            (n, n_outputs) values, SI.
+        kind : {"measurement", "latent"}
+            Band of a new measurement or of the latent value.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_outputs) CDF values.
+        """
         Y = self._check_Y(Y)
         s = self.component_scale(kind)
         z = (Y[..., None] - self.mean) / s
@@ -346,7 +419,22 @@ class ModalPredictive:
         ]
 
     def contains(self, Y, level: float = 0.95, kind: str = "measurement") -> np.ndarray:
-        """(n, n_outputs) bool: ``Y`` lies in the ``level`` set (NaN targets give False)."""
+        """(n, n_outputs) bool: ``Y`` lies in the ``level`` set (NaN targets give False).
+
+        Parameters
+        ----------
+        Y : array_like
+            (n, n_outputs) values, SI.
+        level : float
+            Probability of the set.
+        kind : {"measurement", "latent"}
+            Band of a new measurement or of the latent value.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_outputs) bool.
+        """
         Y = self._check_Y(Y)
         sets = self.intervals(level, kind)
         return np.array(
@@ -363,6 +451,20 @@ class ModalPredictive:
 
         The fn, k and c of a direction come from the same mode (the only correlation the
         independent-output GPs carry); within a mode the outputs are drawn independently.
+
+        Parameters
+        ----------
+        n_samples : int
+            Number of draws.
+        rng : int or numpy.random.Generator, optional
+            Seed.
+        kind : {"measurement", "latent"}
+            Band of a new measurement or of the latent value.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_samples, n, n_outputs) draws, SI.
         """
         rng = np.random.default_rng(rng)
         s = self.component_scale(kind)

@@ -281,6 +281,16 @@ class PosePredictor:
     def load(cls, path) -> PosePredictor:
         """Read a ``robovib.PoseModalModel`` HDF5 file (format version 1).
 
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The model file.
+
+        Returns
+        -------
+        PosePredictor
+            The predictor.
+
         Raises
         ------
         ValueError
@@ -351,7 +361,22 @@ class PosePredictor:
         return X
 
     def predict(self, X, return_std: bool = False):
-        """Mean (n, 3 n_directions) SI and optionally the latent std, as PoseModalModel.predict."""
+        """Mean (n, 3 n_directions) SI and optionally the latent std, as PoseModalModel.predict.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+        return_std : bool
+            Also return the latent std.
+
+        Returns
+        -------
+        mean : numpy.ndarray
+            (n, 3 n_directions) SI.
+        std : numpy.ndarray
+            Same shape (only with ``return_std``).
+        """
         X = self._check_X(X)
         mean = np.empty((X.shape[0], self.n_outputs_))
         std = np.empty_like(mean)
@@ -362,7 +387,18 @@ class PosePredictor:
         return (mean, std) if return_std else mean
 
     def predictive(self, X):
-        """Calibrated predictive distribution, as :meth:`PoseModalModel.predictive`."""
+        """Calibrated predictive distribution, as :meth:`PoseModalModel.predictive`.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+
+        Returns
+        -------
+        ModalPredictive
+            The predictive distribution.
+        """
         from .predictive import assemble
 
         X = self._check_X(X)
@@ -382,16 +418,49 @@ class PosePredictor:
         )  # fmt: skip
 
     def outside_inputs(self, X) -> np.ndarray:
-        """(n, n_inputs) bool: input value outside the training range of that input."""
+        """(n, n_inputs) bool: input value outside the training range of that input.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, n_inputs) bool.
+        """
         return self.region_.outside_inputs(self._check_X(X))
 
     def extrapolating(self, X) -> np.ndarray:
         """(n,) bool: outside the box or the convex hull of the training inputs
-        (:class:`robovib.gp.extrapolation.TrainingRegion`)."""
+        (:class:`robovib.gp.extrapolation.TrainingRegion`).
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) bool.
+        """
         return self.region_.extrapolating(self._check_X(X))
 
     def mode_switch_probability(self, X) -> np.ndarray | None:
-        """(n, n_directions) probability that the high mode dominates; None without switches."""
+        """(n, n_directions) probability that the high mode dominates; None without switches.
+
+        Parameters
+        ----------
+        X : array_like
+            (n, d) inputs in the training units.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            (n, n_directions) probabilities.
+        """
         X = self._check_X(X)
         if not any(isinstance(e, _Switching) for e, _ in self._estimators):
             return None
@@ -407,6 +476,16 @@ def load_pose_predictor(path):
 
     The full model (scikit-learn imported, ~1 s more) is loaded only when the stored covariance
     needed jitter to factorise.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The model file.
+
+    Returns
+    -------
+    PosePredictor or PoseModalModel
+        A model with ``predict`` and ``predictive``.
     """
     try:
         return PosePredictor.load(path)
@@ -456,7 +535,13 @@ class PosePrediction:
     notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
-        """JSON-ready: ``predictions`` keyed by output name (unit suffix), each with its unit."""
+        """JSON-ready: ``predictions`` keyed by output name (unit suffix), each with its unit.
+
+        Returns
+        -------
+        dict
+            The prediction as plain JSON types.
+        """
         return {
             "pose": dict(self.pose),
             "extrapolating": self.extrapolating,

@@ -97,7 +97,18 @@ class GPHyperparameters:
     mean: np.ndarray
 
     def select(self, index) -> GPHyperparameters:
-        """The hyperparameters of the outputs ``index``."""
+        """The hyperparameters of the outputs ``index``.
+
+        Parameters
+        ----------
+        index : array_like
+            Output indices (any NumPy index).
+
+        Returns
+        -------
+        GPHyperparameters
+            Those outputs' hyperparameters.
+        """
         return GPHyperparameters(
             signal_std=self.signal_std[index],
             length_scales=self.length_scales[index],
@@ -742,6 +753,22 @@ class BatchedGPRegressor(BaseEstimator):
         iterations of that update. The internal input/target scaling is kept from the first fit
         so that the warm start stays meaningful. ``groups`` assigns the new samples to noise
         groups (needed when ``n_noise_groups > 1``).
+
+        Parameters
+        ----------
+        X_new, Y_new : array_like
+            New inputs and targets.
+        mask : array_like, optional
+            Observed targets (default: all).
+        reoptimize : bool
+            Re-optimise the hyperparameters from the current ones.
+        groups : array_like, optional
+            Pose group of each new row.
+
+        Returns
+        -------
+        BatchedGPRegressor
+            ``self``, updated.
         """
         with single_blas_thread():
             return self._add_observations(X_new, Y_new, mask, reoptimize, groups)
@@ -836,6 +863,16 @@ class BatchedGPRegressor(BaseEstimator):
 
         ``x`` is a single input of shape (n_features,); returns two (n_outputs,) arrays. No
         input validation beyond the shape, to stay well under 100 µs for hundreds of outputs.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            (n_features,) one input.
+
+        Returns
+        -------
+        mean, std : numpy.ndarray
+            (n_outputs,) each.
         """
         x = np.asarray(x, dtype=float)
         if x.shape != (self.n_features_in_,):

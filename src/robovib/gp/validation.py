@@ -38,7 +38,23 @@ __all__ = [
 
 @dataclass(frozen=True)
 class CVResult:
-    """Out-of-fold predictions and scores per output (batch axis: outputs last in arrays)."""
+    """Out-of-fold predictions and scores per output (batch axis: outputs last in arrays).
+
+    Attributes
+    ----------
+    predictions
+        (n_samples, n_outputs) out-of-fold predictions.
+    r2
+        (n_outputs,) coefficient of determination.
+    r2_corr
+        (n_outputs,) squared Pearson correlation.
+    rmse
+        (n_outputs,) root mean squared error.
+    folds
+        (n_samples,) fold index of each sample.
+    grouped
+        Whether the folds hold out whole poses.
+    """
 
     predictions: np.ndarray  #: (n_samples, n_outputs) out-of-fold predictions
     r2: np.ndarray  #: (n_outputs,) coefficient of determination
@@ -50,6 +66,20 @@ class CVResult:
 
 @dataclass(frozen=True)
 class ExternalValidationResult:
+    """Scores of a fitted model on an independent test set.
+
+    Attributes
+    ----------
+    predictions
+        (n_samples, n_outputs) predictions.
+    std
+        (n_samples, n_outputs) predictive std, if the model gives one.
+    rmse
+        (n_outputs,) root mean squared error.
+    mean_relative_error, max_relative_error
+        (n_outputs,) mean and max of |pred - meas| / |meas|.
+    """
+
     predictions: np.ndarray  #: (n_samples, n_outputs)
     std: np.ndarray | None  #: (n_samples, n_outputs) predictive std if the model gives one
     rmse: np.ndarray  #: (n_outputs,)
@@ -58,7 +88,20 @@ class ExternalValidationResult:
 
 
 def regression_scores(y_true, y_pred, mask=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """R² (coefficient of determination), squared correlation and RMSE per output column."""
+    """R² (coefficient of determination), squared correlation and RMSE per output column.
+
+    Parameters
+    ----------
+    y_true, y_pred : array_like
+        (n, n_outputs) targets and predictions.
+    mask : array_like, optional
+        Observed targets (default: the finite ones).
+
+    Returns
+    -------
+    r2, r2_corr, rmse : numpy.ndarray
+        (n_outputs,) each.
+    """
     y_true = np.atleast_2d(np.asarray(y_true, float).T).T
     y_pred = np.atleast_2d(np.asarray(y_pred, float).T).T
     if mask is None:
@@ -208,6 +251,11 @@ class PolynomialRegression(BaseEstimator):
     A full polynomial of ``degree`` in all inputs (standardised first), one independent
     least-squares fit per output column. Missing targets (``mask=False``) are left out of the
     fit of their output only.
+
+    Parameters
+    ----------
+    degree : int
+        Polynomial degree.
     """
 
     def __init__(self, degree: int = 2) -> None:
@@ -245,7 +293,22 @@ class PolynomialRegression(BaseEstimator):
 
 
 def external_validation(model, X_test, Y_test, mask=None) -> ExternalValidationResult:
-    """Score a fitted model on an independent test set (thesis Table A2 / Figure 9)."""
+    """Score a fitted model on an independent test set (thesis Table A2 / Figure 9).
+
+    Parameters
+    ----------
+    model : object
+        A fitted model with ``predict``.
+    X_test, Y_test : array_like
+        Test inputs and targets.
+    mask : array_like, optional
+        Observed targets (default: all; Y must then be finite).
+
+    Returns
+    -------
+    ExternalValidationResult
+        Predictions and scores per output.
+    """
     X_test, Y_test, mask = _check_validation_inputs(X_test, Y_test, mask)
     std = None
     try:
