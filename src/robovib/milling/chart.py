@@ -104,7 +104,20 @@ def cutting_setup(
 
 
 def parse_mode_spec(spec: str) -> tuple[str, ModalParameters]:
-    """``"x:FN_HZ,K_N_PER_M,ZETA"`` -> (direction, mode); e.g. ``"y:650,2.1e7,0.03"``."""
+    """``"x:FN_HZ,K_N_PER_M,ZETA"`` -> (direction, mode); e.g. ``"y:650,2.1e7,0.03"``.
+
+    Parameters
+    ----------
+    spec : str
+        The text given on the command line.
+
+    Returns
+    -------
+    direction : str
+        ``"x"`` or ``"y"``.
+    mode : ModalParameters
+        The mode.
+    """
     try:
         direction, rest = spec.split(":", 1)
         fn, k, zeta = (float(v) for v in rest.split(","))
@@ -125,7 +138,18 @@ def parse_mode_spec(spec: str) -> tuple[str, ModalParameters]:
 
 
 def parse_operating_point(spec: str) -> tuple[float, float]:
-    """``"RPM,DEPTH_MM"`` -> (rpm, depth [m])."""
+    """``"RPM,DEPTH_MM"`` -> (rpm, depth [m]).
+
+    Parameters
+    ----------
+    spec : str
+        The text given on the command line.
+
+    Returns
+    -------
+    rpm, depth_m : float
+        Speed [rpm] and depth [m].
+    """
     try:
         a, b = (float(v) for v in spec.split(","))
     except ValueError as exc:
@@ -140,7 +164,18 @@ def parse_operating_point(spec: str) -> tuple[float, float]:
 
 
 def parse_rpm_range(spec: str) -> np.ndarray:
-    """``"A:B:N"`` -> N speeds [rpm] from A to B."""
+    """``"A:B:N"`` -> N speeds [rpm] from A to B.
+
+    Parameters
+    ----------
+    spec : str
+        The text given on the command line.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N,) speeds [rpm].
+    """
     try:
         a, b, n = spec.split(":")
         lo, hi, count = float(a), float(b), int(n)
@@ -161,7 +196,31 @@ def _read_frfs(path: Path):
 
 @dataclass(frozen=True)
 class LobesChart:
-    """A stability chart with its inputs (everything the JSON output and the figure need)."""
+    """A stability chart with its inputs (everything the JSON output and the figure need).
+
+    Attributes
+    ----------
+    envelope
+        The stability envelope.
+    modes_x, modes_y
+        Tool-tip modes along feed and normal.
+    tool, conditions, coefficients
+        Cutter, cutting conditions and cutting coefficients.
+    title
+        Chart title.
+    cuts
+        Measured test cuts (:class:`robovib.io.MeasuredCuts`), if given.
+    operating_point, operating_point_stable
+        ``(rpm, depth [m])`` and whether it lies below the envelope.
+    frf_file
+        The measured FRF file the envelope came from, if any.
+    settings
+        Settings of the computation.
+    probability
+        :class:`~robovib.milling.uncertainty.StabilityProbability`, if computed.
+    notes
+        Which mode the deterministic envelope assumed where the pose model is unsure.
+    """
 
     envelope: LobeEnvelope
     modes_x: tuple[ModalParameters, ...]
@@ -180,7 +239,13 @@ class LobesChart:
     notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
-        """JSON document: ``rpm``, ``a_lim_m`` arrays, units in every key, all inputs."""
+        """JSON document: ``rpm``, ``a_lim_m`` arrays, units in every key, all inputs.
+
+        Returns
+        -------
+        dict
+            The chart as plain JSON types.
+        """
         from .. import __version__
 
         env = self.envelope.to_dict()
@@ -264,6 +329,13 @@ def lobes_chart(
     cuts_file : path, optional
         Test cuts CSV (:func:`robovib.io.read_cuts_csv`).
     operating_point : (rpm, depth [m]), optional
+        Marked on the chart, with its verdict.
+    steps_per_period : int
+        Semi-discretization steps per tooth period (``method="sdm"``).
+    feed_direction : {"x", "y"}
+        Feed direction in the base frame (picks the feed/normal modes of a pose model).
+    rng : int or numpy.random.Generator
+        Seed of the Monte-Carlo samples.
     pose_label, material_label : str, optional
         For the title.
     pose_model, pose : optional
@@ -391,6 +463,13 @@ def _assumed_mode_notes(model, pose, directions) -> tuple[str, ...]:
 
 def plot_lobes_chart(chart: LobesChart, ax=None):
     """The chart's envelope, shaded unstable region, best speed, operating point and cuts.
+
+    Parameters
+    ----------
+    chart : LobesChart
+        The chart.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
 
     Returns
     -------

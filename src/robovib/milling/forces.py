@@ -42,7 +42,15 @@ __all__ = [
 
 @dataclass(frozen=True)
 class CuttingCoefficients:
-    """Cutting (N/m²) and edge (N/m) coefficients: tangential, radial, axial."""
+    """Cutting (N/m²) and edge (N/m) coefficients: tangential, radial, axial.
+
+    Attributes
+    ----------
+    ktc, krc, kac
+        Tangential, radial and axial cutting coefficients [N/m²].
+    kte, kre, kae
+        Tangential, radial and axial edge coefficients [N/m].
+    """
 
     ktc: float
     krc: float
@@ -60,6 +68,20 @@ ACETAL = CuttingCoefficients(ktc=100e6, krc=40e6, kac=20e6, kte=3.0e3, kre=2.0e3
 
 @dataclass(frozen=True)
 class MillingTool:
+    """An end mill.
+
+    Attributes
+    ----------
+    diameter_m
+        Diameter [m].
+    n_flutes
+        Number of flutes.
+    helix_deg
+        Helix angle [deg].
+    runout_m, runout_angle_deg
+        Radial runout [m] and its angle [deg].
+    """
+
     diameter_m: float = 0.0254
     n_flutes: int = 2
     helix_deg: float = 30.0
@@ -79,7 +101,19 @@ class MillingTool:
 
 @dataclass(frozen=True)
 class CuttingConditions:
-    """Spindle speed [rpm], feed per tooth [m], axial and radial depth [m], milling mode."""
+    """Spindle speed [rpm], feed per tooth [m], axial and radial depth [m], milling mode.
+
+    Attributes
+    ----------
+    spindle_rpm
+        Spindle speed [rpm].
+    feed_per_tooth_m
+        Feed per tooth [m].
+    axial_depth_m, radial_depth_m
+        Axial and radial depth of cut [m].
+    down_milling
+        Down (climb) milling, else up milling.
+    """
 
     spindle_rpm: float
     feed_per_tooth_m: float
@@ -101,7 +135,20 @@ class CuttingConditions:
 
 
 def engagement_angles(tool: MillingTool, cond: CuttingConditions) -> tuple[float, float]:
-    """(phi_start, phi_exit) [rad] for the radial depth and the milling mode (slotting: 0, pi)."""
+    """(phi_start, phi_exit) [rad] for the radial depth and the milling mode (slotting: 0, pi).
+
+    Parameters
+    ----------
+    tool : MillingTool
+        The cutter.
+    cond : CuttingConditions
+        Radial depth and milling mode.
+
+    Returns
+    -------
+    phi_start, phi_exit : float
+        Engagement angles [rad].
+    """
     ratio = cond.radial_depth_m / tool.diameter_m
     if ratio > 1 + 1e-12:
         raise ValueError(
@@ -129,6 +176,28 @@ def milling_forces(
     At constant spindle speed the force is periodic in the spindle angle: with ``n_angles``
     (default 3600, 0.1°) it is evaluated on that angle grid over one revolution and
     interpolated (periodic, linear) at the samples; ``n_angles=None`` evaluates every sample.
+
+    Parameters
+    ----------
+    time_s : array_like
+        (n,) times [s].
+    tool : MillingTool
+        The cutter.
+    cond : CuttingConditions
+        Cutting conditions.
+    coeffs : CuttingCoefficients
+        Cutting coefficients.
+    n_slices : int
+        Axial slices of the helical flutes.
+    start_angle_rad : float
+        Spindle angle at t = 0 [rad].
+    n_angles : int or None
+        Angle grid over one revolution (None: every sample).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) force [N].
     """
     t = np.asarray(time_s, float)
     if t.ndim != 1 or not np.all(np.isfinite(t)):

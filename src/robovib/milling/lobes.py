@@ -30,6 +30,21 @@ class LobeEnvelope:
 
     ``kind`` per speed: ``hopf`` (chatter near a mode, lobes of both methods), ``flip`` (period
     doubling, chatter at odd multiples of half the tooth-passing frequency), ``fold``, ``none``.
+
+    Attributes
+    ----------
+    spindle_rpm
+        (n,) speeds [rpm].
+    a_lim_m
+        (n,) critical axial depth [m].
+    chatter_hz
+        (n,) chatter frequency at the limit [Hz].
+    kind
+        (n,) bifurcation kind.
+    method
+        ``"sdm"`` or ``"zoa"``.
+    settings
+        Settings of the computation.
     """
 
     spindle_rpm: np.ndarray
@@ -48,7 +63,18 @@ class LobeEnvelope:
                 )
 
     def critical_depth(self, spindle_rpm) -> np.ndarray:
-        """Critical depth [m] at other speeds [rpm] by linear interpolation (inside the range)."""
+        """Critical depth [m] at other speeds [rpm] by linear interpolation (inside the range).
+
+        Parameters
+        ----------
+        spindle_rpm : array_like
+            Speeds [rpm].
+
+        Returns
+        -------
+        numpy.ndarray
+            Critical depths [m].
+        """
         s = np.atleast_1d(np.asarray(spindle_rpm, float))
         rpm = np.asarray(self.spindle_rpm, float)
         if np.any(s < rpm.min()) or np.any(s > rpm.max()):
@@ -63,7 +89,18 @@ class LobeEnvelope:
         return np.interp(s, rpm, cap)
 
     def is_stable(self, spindle_rpm, depth_m) -> np.ndarray:
-        """True where the depth [m] lies below the envelope at the speed [rpm]."""
+        """True where the depth [m] lies below the envelope at the speed [rpm].
+
+        Parameters
+        ----------
+        spindle_rpm, depth_m : array_like
+            Speeds [rpm] and depths [m] (broadcast).
+
+        Returns
+        -------
+        numpy.ndarray
+            bool.
+        """
         return np.asarray(depth_m, float) < self.critical_depth(spindle_rpm)
 
     @property
@@ -77,6 +114,11 @@ class LobeEnvelope:
         A maximum at the first or last computed speed only says the lobe continues outside the
         search range, so it is not returned; ``None`` when the envelope has no interior maximum
         (widen the range).
+
+        Returns
+        -------
+        tuple of float or None
+            ``(rpm, depth_m)``, or None.
         """
         a = np.asarray(self.a_lim_m, float)
         a = np.where(np.isfinite(a), a, np.nan)
@@ -91,7 +133,13 @@ class LobeEnvelope:
         return float(self.spindle_rpm[best]), float(a[best])
 
     def to_dict(self) -> dict:
-        """JSON-ready arrays with units in the keys (``inf`` as ``None``)."""
+        """JSON-ready arrays with units in the keys (``inf`` as ``None``).
+
+        Returns
+        -------
+        dict
+            The envelope as plain JSON types.
+        """
 
         def clean(v):
             return [None if not np.isfinite(x) else float(x) for x in np.asarray(v, float)]
@@ -113,7 +161,22 @@ class LobeEnvelope:
 def zoa_envelope(
     lobes: StabilityLobes, spindle_rpm, *, settings: dict | None = None
 ) -> LobeEnvelope:
-    """Lower envelope of zero-order lobes on a speed grid [rpm] (chatter frequency of the lobe)."""
+    """Lower envelope of zero-order lobes on a speed grid [rpm] (chatter frequency of the lobe).
+
+    Parameters
+    ----------
+    lobes : StabilityLobes
+        The lobes.
+    spindle_rpm : array_like
+        Speed grid [rpm].
+    settings : dict, optional
+        Settings stored with the envelope.
+
+    Returns
+    -------
+    LobeEnvelope
+        The envelope (method ``"zoa"``).
+    """
     s = np.atleast_1d(np.asarray(spindle_rpm, float))
     depth = np.full(s.shape, np.inf)
     freq = np.full(s.shape, np.nan)
@@ -141,7 +204,18 @@ def lobes_title(
     material: str | None = None,
     extra: str | None = None,
 ) -> str:
-    """One- or two-line chart title from the pose, tool and material descriptions."""
+    """One- or two-line chart title from the pose, tool and material descriptions.
+
+    Parameters
+    ----------
+    pose, tool, material, extra : str, optional
+        Descriptions (left out when None).
+
+    Returns
+    -------
+    str
+        The title.
+    """
     parts = [p for p in (pose, tool, material) if p]
     title = " | ".join(parts) if parts else "stability lobes"
     return title + (f"\n{extra}" if extra else "")

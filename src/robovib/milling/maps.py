@@ -112,6 +112,18 @@ def mean_modes_at_poses(model, poses: np.ndarray) -> np.ndarray:
 
     Accepts a :class:`robovib.gp.PoseModalModel` (``modes(X)``) or a model whose ``predict(X)``
     returns the 9 chapter-3 outputs in thesis units (fn [Hz], k [MN/m], c [kN·s/m]).
+
+    Parameters
+    ----------
+    model : object
+        The pose model.
+    poses : numpy.ndarray
+        (n, 3) poses in the model's input units.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3, 3) modes.
     """
     from ..modal.parameters import ModalParameters
 
@@ -356,7 +368,20 @@ def _compute(tasks, scheduler: str, workers: int, progress):
 
 
 def save_lobe_map(ds, path: str | Path) -> Path:
-    """Write the map to NetCDF atomically (temporary file in the target folder, then rename)."""
+    """Write the map to NetCDF atomically (temporary file in the target folder, then rename).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The lobe map.
+    path : str or pathlib.Path
+        The ``.nc`` file.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
     target = Path(path)
     if target.suffix.lower() not in (".nc", ".netcdf", ".nc4"):
         raise ValueError(f"lobe maps are written as NetCDF (.nc), got {target.name!r}")
@@ -372,6 +397,17 @@ def plot_lobe_map(ds, ax=None, *, spindle_rpm: float | None = None, rz_deg: floa
     """Map image: critical depth [mm] over X-Y at one speed (nearest) and one Rz (nearest).
 
     Without ``spindle_rpm`` the depth stable at every speed (``minimum_depth_m``) is shown.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The lobe map (:func:`workspace_lobe_map`).
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
+    spindle_rpm : float, optional
+        Speed shown [rpm].
+    rz_deg : float, optional
+        Rz shown [deg] (default: the first).
 
     Returns
     -------

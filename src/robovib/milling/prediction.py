@@ -41,6 +41,20 @@ def resample_force(time_s, force, sample_rate_hz: float) -> np.ndarray:
 
     Polyphase filtering (:func:`scipy.signal.resample_poly`) with a rational approximation of
     the rate ratio; raises if the time axis is not uniform (nothing is silently interpolated).
+
+    Parameters
+    ----------
+    time_s : array_like
+        (n,) uniform times [s].
+    force : array_like
+        (n, ...) force [N].
+    sample_rate_hz : float
+        Target rate [Hz].
+
+    Returns
+    -------
+    numpy.ndarray
+        The resampled force.
     """
     from fractions import Fraction
 
@@ -81,6 +95,22 @@ def convolve_force(
     Give either ``modes`` (sum of modal receptances; exact) or a compliance ``frf`` (its
     complex compliance is interpolated onto the FFT grid; bins above its range get zero,
     below its first bin its first value — prefer FRFs that start near 0 Hz).
+
+    Parameters
+    ----------
+    force : array_like
+        (n,) force [N].
+    sample_rate_hz : float
+        Sample rate [Hz].
+    modes : sequence of ModalParameters, optional
+        Tool-tip modes.
+    frf : FRF, optional
+        Compliance FRF instead of ``modes``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) displacement [m].
     """
     f = np.asarray(force, float)
     if f.ndim != 1 or not np.all(np.isfinite(f)):
@@ -108,7 +138,22 @@ def convolve_force(
 def peak_to_valley_per_revolution(
     displacement, sample_rate_hz: float, spindle_rpm: float
 ) -> np.ndarray:
-    """Peak-to-valley displacement in each whole spindle revolution (n_rev,)."""
+    """Peak-to-valley displacement in each whole spindle revolution (n_rev,).
+
+    Parameters
+    ----------
+    displacement : array_like
+        (n,) displacement [m].
+    sample_rate_hz : float
+        Sample rate [Hz].
+    spindle_rpm : float
+        Spindle speed [rpm].
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_rev,) peak-to-valley [m].
+    """
     x = np.asarray(displacement, float)
     if not spindle_rpm > 0:
         raise ValueError(f"spindle_rpm must be positive, got {spindle_rpm!r}")
@@ -122,6 +167,16 @@ def peak_to_valley_per_revolution(
 
 @dataclass(frozen=True)
 class VibrationSummary:
+    """Mean deflection and per-revolution peak-to-valley of a tool-tip displacement.
+
+    Attributes
+    ----------
+    mean_deflection_m
+        Mean displacement [m].
+    peak_to_valley_m, peak_to_valley_std_m
+        Mean and std over the revolutions of the peak-to-valley displacement [m].
+    """
+
     mean_deflection_m: float
     peak_to_valley_m: float  #: average over revolutions
     peak_to_valley_std_m: float  #: spread over revolutions
@@ -130,7 +185,24 @@ class VibrationSummary:
 def summarise_vibration(
     displacement, sample_rate_hz: float, spindle_rpm: float, skip_s: float = 0.0
 ) -> VibrationSummary:
-    """Mean deflection and average per-revolution peak-to-valley (after ``skip_s`` of transient)."""
+    """Mean deflection and average per-revolution peak-to-valley (after ``skip_s`` of transient).
+
+    Parameters
+    ----------
+    displacement : array_like
+        (n,) displacement [m].
+    sample_rate_hz : float
+        Sample rate [Hz].
+    spindle_rpm : float
+        Spindle speed [rpm].
+    skip_s : float
+        Transient left out [s].
+
+    Returns
+    -------
+    VibrationSummary
+        Mean deflection and peak-to-valley.
+    """
     x = np.asarray(displacement, float)[round(skip_s * sample_rate_hz) :]
     pv = peak_to_valley_per_revolution(x, sample_rate_hz, spindle_rpm)
     return VibrationSummary(float(np.mean(x)), float(np.mean(pv)), float(np.std(pv)))

@@ -37,7 +37,20 @@ __all__ = ["StabilityLobes", "directional_coefficients", "stability_lobes"]
 def directional_coefficients(
     phi_st: float, phi_ex: float, kr: float
 ) -> tuple[float, float, float, float]:
-    """Average directional factors (a_xx, a_xy, a_yx, a_yy) over the engagement."""
+    """Average directional factors (a_xx, a_xy, a_yx, a_yy) over the engagement.
+
+    Parameters
+    ----------
+    phi_st, phi_ex : float
+        Engagement start and exit angles [rad].
+    kr : float
+        Ratio of radial to tangential cutting coefficient.
+
+    Returns
+    -------
+    a_xx, a_xy, a_yx, a_yy : float
+        The factors.
+    """
 
     def at(p):
         s2, c2 = math.sin(2 * p), math.cos(2 * p)
@@ -55,7 +68,19 @@ def directional_coefficients(
 
 @dataclass(frozen=True)
 class StabilityLobes:
-    """Lobes as separate branches: speeds [rpm] and critical axial depths [m], one row per lobe."""
+    """Lobes as separate branches: speeds [rpm] and critical axial depths [m], one row per lobe.
+
+    Attributes
+    ----------
+    spindle_rpm
+        Speeds [rpm] of each lobe.
+    depth_m
+        Critical depths [m] of each lobe.
+    chatter_hz
+        Chatter frequency of each lobe [Hz].
+    branch_chatter_hz
+        Chatter frequency along each lobe [Hz], if computed.
+    """
 
     spindle_rpm: list[np.ndarray]
     depth_m: list[np.ndarray]
@@ -63,7 +88,18 @@ class StabilityLobes:
     branch_chatter_hz: list[np.ndarray] | None = None
 
     def critical_depth(self, spindle_rpm) -> np.ndarray:
-        """Lowest critical depth over all lobes at the given speeds (inf where no lobe covers)."""
+        """Lowest critical depth over all lobes at the given speeds (inf where no lobe covers).
+
+        Parameters
+        ----------
+        spindle_rpm : array_like
+            Speeds [rpm].
+
+        Returns
+        -------
+        numpy.ndarray
+            Critical depths [m].
+        """
         s = np.atleast_1d(np.asarray(spindle_rpm, float))
         out = np.full(s.shape, np.inf)
         for rpm, depth in zip(self.spindle_rpm, self.depth_m, strict=True):

@@ -34,7 +34,17 @@ __all__ = [
 
 @dataclass(frozen=True)
 class ModeDistribution:
-    """Normal predictive distribution of one direction's dominant mode (SI units)."""
+    """Normal predictive distribution of one direction's dominant mode (SI units).
+
+    Attributes
+    ----------
+    fn_hz, stiffness_n_per_m, damping_ns_per_m
+        Means of fn [Hz], k [N/m], c [N·s/m].
+    fn_std_hz, stiffness_std_n_per_m, damping_std_ns_per_m
+        Their standard deviations.
+    draws
+        Optional (m, 3) joint draws of (fn, k, c) used instead of the normal.
+    """
 
     fn_hz: float
     stiffness_n_per_m: float
@@ -59,7 +69,20 @@ class ModeDistribution:
         )
 
     def sample(self, n: int, rng) -> list[ModalParameters]:
-        """``n`` physical draws (rejection of fn, k, c <= 0 and zeta >= 1)."""
+        """``n`` physical draws (rejection of fn, k, c <= 0 and zeta >= 1).
+
+        Parameters
+        ----------
+        n : int
+            Number of draws.
+        rng : int or numpy.random.Generator
+            Seed.
+
+        Returns
+        -------
+        list of ModalParameters
+            The draws.
+        """
         gen = np.random.default_rng(rng)
         mu = np.array([self.fn_hz, self.stiffness_n_per_m, self.damping_ns_per_m])
         sd = np.array([self.fn_std_hz, self.stiffness_std_n_per_m, self.damping_std_ns_per_m])
@@ -142,6 +165,21 @@ class StabilityProbability:
 
     ``a_lim_samples_m`` (n_samples, n_speeds) the sampled envelopes, ``minimum_depth_samples_m``
     (n_samples,) their minima, ``mean`` the envelope of the mean modes.
+
+    Attributes
+    ----------
+    spindle_rpm, depth_m
+        The grid [rpm], [m].
+    p_stable
+        (n_speeds, n_depths) probability of a stable cut.
+    a_lim_samples_m
+        (n_samples, n_speeds) sampled envelopes [m].
+    minimum_depth_samples_m
+        (n_samples,) their minima [m].
+    mean
+        Envelope of the mean modes.
+    settings
+        Settings of the computation.
     """
 
     spindle_rpm: np.ndarray
@@ -153,12 +191,34 @@ class StabilityProbability:
     settings: dict = field(default_factory=dict)
 
     def p_unconditionally_stable(self, depth_m) -> np.ndarray:
-        """Probability that the depth [m] is stable at every speed (below every sample's minimum)."""
+        """Probability that the depth [m] is stable at every speed (below every sample's minimum).
+
+        Parameters
+        ----------
+        depth_m : array_like
+            Depths [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            Probabilities.
+        """
         d = np.atleast_1d(np.asarray(depth_m, float))
         return np.mean(self.minimum_depth_samples_m[:, None] > d[None, :], axis=0)
 
     def depth_quantile_m(self, q: float) -> np.ndarray:
-        """Depth [m] at each speed that is stable with probability ``1 - q`` (e.g. q = 0.05)."""
+        """Depth [m] at each speed that is stable with probability ``1 - q`` (e.g. q = 0.05).
+
+        Parameters
+        ----------
+        q : float
+            Probability of chatter allowed.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_speeds,) depths [m].
+        """
         return np.quantile(self.a_lim_samples_m, q, axis=0, method="nearest")  # inf-safe
 
 
@@ -204,6 +264,9 @@ def stability_probability(
     feed_direction : {"x", "y"}
         Base-frame direction of the feed (the other horizontal one is the normal).
     rng : seed or Generator
+    **lobe_options
+        Passed to :func:`robovib.milling.sdm.sdm_lobes` (``method="sdm"``); ``n_lobes`` for
+        ``"zoa"``.
 
     Returns
     -------
@@ -259,6 +322,19 @@ def plot_stability_probability(
     cuts=None,
 ):
     """Shaded lobes: probability of a stable cut, mean envelope, 5 % / 95 % depth quantiles.
+
+    Parameters
+    ----------
+    result : StabilityProbability
+        The probability map.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
+    title : str, optional
+        Chart title.
+    operating_point : (rpm, depth [m]), optional
+        Marked on the chart.
+    cuts : MeasuredCuts, optional
+        Test cuts to mark.
 
     Returns
     -------

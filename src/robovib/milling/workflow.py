@@ -40,7 +40,20 @@ FEED_DIRECTIONS = ("x", "y")  #: feed along base +X or +Y (tool axis along Z)
 
 
 def base_frame_forces(local: np.ndarray, feed_direction: str) -> np.ndarray:
-    """Tool-frame (feed, normal, axial) forces -> base X, Y, Z for feed along +X or +Y."""
+    """Tool-frame (feed, normal, axial) forces -> base X, Y, Z for feed along +X or +Y.
+
+    Parameters
+    ----------
+    local : numpy.ndarray
+        (n, 3) forces (feed, normal, axial) [N].
+    feed_direction : {"x", "y"}
+        Feed direction.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) forces X, Y, Z [N].
+    """
     check_choice("feed_direction", feed_direction, FEED_DIRECTIONS)
     if feed_direction == "x":
         return np.column_stack([local[:, 0], local[:, 1], local[:, 2]])
@@ -55,6 +68,18 @@ def pose_modes(model, pose) -> dict:
     ``pose`` is one input row in the units of ``model.input_names`` (e.g. (x_mm, y_mm, rz_deg)).
     Each :class:`PoseMode` says whether it is an extrapolation; see also
     :func:`pose_extrapolation`.
+
+    Parameters
+    ----------
+    model : object
+        The pose model.
+    pose : array_like
+        One input row in the units of ``model.input_names``.
+
+    Returns
+    -------
+    dict of str to PoseMode
+        Direction -> mode with std and extrapolation flag.
 
     Raises
     ------
@@ -79,6 +104,18 @@ def pose_extrapolation(model, pose) -> tuple[str, ...]:
 
     Every prediction at such a pose is a GP extrapolation (towards the prior) and must be
     flagged as such.
+
+    Parameters
+    ----------
+    model : object
+        The pose model.
+    pose : array_like
+        One input row in the units of ``model.input_names``.
+
+    Returns
+    -------
+    tuple of str
+        The reasons (empty: inside).
     """
     from ..gp.extrapolation import extrapolating, outside_inputs
 
@@ -92,6 +129,24 @@ def pose_extrapolation(model, pose) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class DirectionPrediction:
+    """Predicted milling vibration in one direction at a pose.
+
+    Attributes
+    ----------
+    direction
+        ``"x"``, ``"y"`` or ``"z"``.
+    mean_deflection_m, peak_to_valley_m
+        Predicted mean deflection and per-revolution peak-to-valley [m].
+    mean_deflection_band_m, peak_to_valley_band_m
+        Their 2.5-97.5 % bands [m] over the modal-parameter draws (NaN without draws).
+    mode
+        The mean dominant mode.
+    extrapolation
+        Why the pose is an extrapolation (empty: interpolation).
+    n_draws_used
+        Modal-parameter draws used for the bands.
+    """
+
     direction: str
     mean_deflection_m: float
     peak_to_valley_m: float
@@ -263,7 +318,21 @@ def predict_at_pose(
 
 @dataclass(frozen=True)
 class PoseLobes:
-    """Stability lobes at a pose, sampled over a speed range, with the extrapolation flag."""
+    """Stability lobes at a pose, sampled over a speed range, with the extrapolation flag.
+
+    Attributes
+    ----------
+    lobes
+        The lobes.
+    spindle_rpm
+        (n,) speeds [rpm].
+    critical_depth_m
+        (n,) lowest critical depth [m] (inf: no lobe there).
+    feed_direction
+        ``"x"`` or ``"y"``.
+    extrapolation
+        Inputs of the pose outside the model's training range (empty: interpolation).
+    """
 
     lobes: StabilityLobes
     spindle_rpm: np.ndarray  #: (n,) speeds [rpm]
@@ -295,6 +364,32 @@ def lobes_at_pose(
 
     The feed direction picks which predicted mode is along the feed (x: X feed, Y normal;
     y: Y feed, X normal). The result says whether the pose is outside the training data.
+
+    Parameters
+    ----------
+    model : object
+        The pose model (inputs ``x_mm, y_mm, rz_deg``).
+    x_mm, y_mm, rz_deg : float
+        The pose.
+    coefficients : CuttingCoefficients
+        Cutting coefficients.
+    radial_depth_m : float
+        Radial depth of cut [m].
+    tool : MillingTool, optional
+        The cutter (default :class:`MillingTool`).
+    feed_direction : {"x", "y"}
+        Feed direction.
+    rpm_range : tuple of float
+        Speed range [rpm].
+    n_speeds : int
+        Speeds sampled.
+    n_lobes : int
+        Lobes computed.
+
+    Returns
+    -------
+    PoseLobes
+        The lobes and their lower envelope over the speeds.
 
     Raises
     ------
