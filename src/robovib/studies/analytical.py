@@ -40,35 +40,76 @@ class AnalyticalComparison:
     ``table`` has one row per pose (``test, x_m, y_m, rz_deg, extension_m`` and per direction
     ``fn_<d>_{analytical,measured}_hz``, ``stiffness_<d>_{analytical,measured}_n_per_m``,
     ``*_rel_error`` = analytical / measured - 1).
+
+    Attributes
+    ----------
+    table
+        The per-pose table described above.
     """
 
     table: pd.DataFrame
 
     def to_frame(self) -> pd.DataFrame:
-        """A copy of the per-pose table."""
+        """A copy of the per-pose table.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per pose.
+        """
         return self.table.copy()
 
     def summary(self) -> dict[str, dict[str, float]]:
-        """Mean, min and max relative error of fn and stiffness per direction."""
+        """Mean, min and max relative error of fn and stiffness per direction.
+
+        Returns
+        -------
+        dict
+            See :func:`comparison_summary`.
+        """
         return comparison_summary(self.table)
 
     def to_dict(self) -> dict:
-        """JSON-ready: summary and one record per pose (units in the keys)."""
+        """JSON-ready: summary and one record per pose (units in the keys).
+
+        Returns
+        -------
+        dict
+            The comparison as plain JSON types.
+        """
         return {"summary": self.summary(), "poses": self.table.to_dict(orient="records")}
 
 
 @dataclass(frozen=True)
 class GPInputComparison:
-    """Table A2 errors of the chapter-3 GP on Cartesian vs joint-angle inputs (thesis units)."""
+    """Table A2 errors of the chapter-3 GP on Cartesian vs joint-angle inputs (thesis units).
+
+    Attributes
+    ----------
+    table
+        One row per (inputs, output): ``rmse`` (output units) and ``mean_relative_error``.
+    """
 
     table: pd.DataFrame
 
     def to_frame(self) -> pd.DataFrame:
-        """One row per (inputs, output): ``rmse`` (output units) and ``mean_relative_error``."""
+        """One row per (inputs, output): ``rmse`` (output units) and ``mean_relative_error``.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The table.
+        """
         return self.table.copy()
 
     def to_dict(self) -> dict:
-        """JSON-ready records."""
+        """JSON-ready records.
+
+        Returns
+        -------
+        dict
+            The table as plain JSON types.
+        """
         return {"rows": self.table.to_dict(orient="records")}
 
 
@@ -76,7 +117,20 @@ _Z_M = 0.325
 
 
 def workspace_joints(robot: KR500, x_m, y_m, rz_deg) -> np.ndarray:
-    """IK joint angles [deg] (n, 6) of chapter-3 poses, each started from the previous one."""
+    """IK joint angles [deg] (n, 6) of chapter-3 poses, each started from the previous one.
+
+    Parameters
+    ----------
+    robot : KR500
+        The kinematic model.
+    x_m, y_m, rz_deg : array_like
+        (n,) poses [m, m, deg].
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 6) joint angles [deg].
+    """
     out = []
     ref = np.array([0.0, -30.0, 70.0, 0.0, 50.0, 0.0])
     for x, y, rz in zip(np.atleast_1d(x_m), np.atleast_1d(y_m), np.atleast_1d(rz_deg), strict=True):
@@ -88,7 +142,20 @@ def workspace_joints(robot: KR500, x_m, y_m, rz_deg) -> np.ndarray:
 def compare_with_table_a1(
     robot: KR500 | None = None, k_theta=TABLE_4_JOINT_STIFFNESS
 ) -> AnalyticalComparison:
-    """Per Table A1 pose: measured vs analytical fn [Hz] and stiffness [N/m] per direction."""
+    """Per Table A1 pose: measured vs analytical fn [Hz] and stiffness [N/m] per direction.
+
+    Parameters
+    ----------
+    robot : KR500, optional
+        The kinematic model (default :class:`~robovib.robot.KR500`).
+    k_theta : array_like
+        (6,) joint stiffnesses [N m/rad] (default: thesis Table 4).
+
+    Returns
+    -------
+    AnalyticalComparison
+        One row per pose.
+    """
     robot = robot or KR500()
     a1 = load_table_a1(units="si")
     means = a1.groupby("test").mean(numeric_only=True)
@@ -115,6 +182,11 @@ def comparison_summary(
     table: AnalyticalComparison | pd.DataFrame,
 ) -> dict[str, dict[str, float]]:
     """Mean, min and max relative error per quantity and direction of :func:`compare_with_table_a1`.
+
+    Parameters
+    ----------
+    table : AnalyticalComparison or pandas.DataFrame
+        The comparison (or its table).
 
     Returns
     -------
@@ -189,7 +261,20 @@ def plot_comparison(table: AnalyticalComparison | pd.DataFrame, ax=None):
 
 
 def gp_input_comparison(robot: KR500 | None = None, rng: int = 0) -> GPInputComparison:
-    """External-validation (Table A2) errors of GPs on Cartesian vs joint-angle inputs."""
+    """External-validation (Table A2) errors of GPs on Cartesian vs joint-angle inputs.
+
+    Parameters
+    ----------
+    robot : KR500, optional
+        The kinematic model for the joint angles (default :class:`~robovib.robot.KR500`).
+    rng : int
+        Seed of the GP fits.
+
+    Returns
+    -------
+    GPInputComparison
+        Errors per input set and output.
+    """
     robot = robot or KR500()
     a1 = load_table_a1(units="thesis")
     a2 = load_table_a2(units="thesis")

@@ -66,7 +66,27 @@ _TABLE2_NAMES = [f"{q}_{d}" for d in DIRECTIONS for q in MODAL_QUANTITIES]
 
 @dataclass(frozen=True)
 class Chapter3Study:
-    """Per-output figures of the chapter-3 study (arrays of length 9, Table-2 order)."""
+    """Per-output figures of the chapter-3 study (arrays of length 9, Table-2 order).
+
+    Attributes
+    ----------
+    outputs
+        The 9 output names.
+    thesis_gpr_r2, thesis_gpr_rmse, thesis_mlr_r2, thesis_mlr_rmse
+        Thesis Table 2 (targets to compare with).
+    gpr_plain_r2, gpr_plain_rmse
+        GPR cross-validation with replicates of a pose in the training folds (thesis protocol).
+    gpr_grouped_r2, gpr_grouped_rmse
+        GPR cross-validation holding out whole poses.
+    mlr_insample_r2, mlr_insample_rmse, mlr_cv_r2, mlr_cv_rmse
+        The 2nd-order MLR baseline, in sample and cross-validated.
+    external_rmse, external_mean_relative_error, external_max_relative_error
+        External validation on Table A2.
+    n_iter
+        Optimiser iterations per output.
+    settings
+        Settings of the run.
+    """
 
     outputs: tuple[str, ...]
     thesis_gpr_r2: np.ndarray
@@ -88,12 +108,24 @@ class Chapter3Study:
     settings: dict
 
     def to_frame(self) -> pd.DataFrame:
-        """One row per output, one column per figure (thesis units: Hz, MN/m, kN·s/m)."""
+        """One row per output, one column per figure (thesis units: Hz, MN/m, kN·s/m).
+
+        Returns
+        -------
+        pandas.DataFrame
+            The figures.
+        """
         data = {k: v for k, v in self.__dict__.items() if isinstance(v, np.ndarray)}
         return pd.DataFrame(data, index=list(self.outputs))
 
     def to_dict(self) -> dict:
-        """JSON-ready: settings, units and one record per output."""
+        """JSON-ready: settings, units and one record per output.
+
+        Returns
+        -------
+        dict
+            The study as plain JSON types.
+        """
         return {
             "settings": dict(self.settings),
             "units": {"fn": "Hz", "stiffness": "MN/m", "damping": "kN*s/m", "rmse": "output units"},
@@ -113,7 +145,22 @@ def make_chapter3_regressor(
     mode_switch: bool = True,
     rng: int | np.random.Generator | None = 0,
 ) -> BatchedGPRegressor | ModeSwitchingGPRegressor:
-    """An unfitted 9-output regressor in thesis units (Table-2 order, X outputs first)."""
+    """An unfitted 9-output regressor in thesis units (Table-2 order, X outputs first).
+
+    Parameters
+    ----------
+    kernel : {"ard", "isotropic"}
+        One length scale per input, or the thesis' isotropic kernel (Eq. 7).
+    mode_switch : bool
+        Classify the X-direction dominant-mode switch instead of smoothing over it.
+    rng : int or numpy.random.Generator, optional
+        Seed of the optimiser restarts.
+
+    Returns
+    -------
+    BatchedGPRegressor or ModeSwitchingGPRegressor
+        The unfitted regressor.
+    """
     if mode_switch:
         return ModeSwitchingGPRegressor(
             switching_outputs=(0, 1, 2),
@@ -132,7 +179,24 @@ def fit_chapter3_regressor(
     stiffness_reading: Literal["corrected", "printed"] = "corrected",
     rng: int | np.random.Generator | None = 0,
 ) -> BatchedGPRegressor | ModeSwitchingGPRegressor:
-    """The 9-output regressor of Table A1 over (X [mm], Y [mm], Rz [deg]), thesis units."""
+    """The 9-output regressor of Table A1 over (X [mm], Y [mm], Rz [deg]), thesis units.
+
+    Parameters
+    ----------
+    kernel : {"ard", "isotropic"}
+        One length scale per input, or the thesis' isotropic kernel (Eq. 7).
+    mode_switch : bool
+        Classify the X-direction dominant-mode switch instead of smoothing over it.
+    stiffness_reading : {"corrected", "printed"}
+        Reading of Table A1's shifted stiffness cells.
+    rng : int or numpy.random.Generator, optional
+        Seed of the optimiser restarts.
+
+    Returns
+    -------
+    BatchedGPRegressor or ModeSwitchingGPRegressor
+        The fitted regressor.
+    """
     _, X, Y, mask = _training_data(stiffness_reading)
     return make_chapter3_regressor(kernel, mode_switch, rng).fit(X, Y, mask=mask)
 
@@ -158,6 +222,11 @@ def chapter3_study(
         Classify the X-direction dominant-mode switch (default) instead of smoothing over it.
     rng
         Seed of the fold shuffles and the optimiser restarts.
+
+    Returns
+    -------
+    Chapter3Study
+        Per-output figures beside thesis Table 2.
     """
     a1, X, Y, mask = _training_data(stiffness_reading)
 

@@ -21,26 +21,58 @@ __all__ = ["HybridLearningCurve", "hybrid_learning_curve"]
 
 @dataclass(frozen=True)
 class HybridLearningCurve:
-    """Table A2 RMSE per (n_poses, repeat, model, output); fn in Hz, stiffness in MN/m."""
+    """Table A2 RMSE per (n_poses, repeat, model, output); fn in Hz, stiffness in MN/m.
+
+    Attributes
+    ----------
+    table
+        Long table: ``n_poses, repeat, model, output, rmse``.
+    settings
+        Settings of the run.
+    """
 
     table: pd.DataFrame
     settings: dict
 
     def to_frame(self) -> pd.DataFrame:
-        """Long table: ``n_poses, repeat, model, output, rmse``."""
+        """Long table: ``n_poses, repeat, model, output, rmse``.
+
+        Returns
+        -------
+        pandas.DataFrame
+            A copy of the table.
+        """
         return self.table.copy()
 
     def mean_rmse(self) -> pd.DataFrame:
-        """RMSE averaged over repeats: index (output, model), one column per n_poses."""
+        """RMSE averaged over repeats: index (output, model), one column per n_poses.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Mean RMSE.
+        """
         return self.table.groupby(["output", "model", "n_poses"]).rmse.mean().unstack("n_poses")
 
     def ratio(self) -> pd.DataFrame:
-        """Hybrid / pure-GP mean RMSE (< 1: the analytical mean helps)."""
+        """Hybrid / pure-GP mean RMSE (< 1: the analytical mean helps).
+
+        Returns
+        -------
+        pandas.DataFrame
+            The ratio per output and n_poses.
+        """
         t = self.mean_rmse()
         return t.xs("hybrid", level="model") / t.xs("pure GP", level="model")
 
     def to_dict(self) -> dict:
-        """JSON-ready: settings, units and the long table."""
+        """JSON-ready: settings, units and the long table.
+
+        Returns
+        -------
+        dict
+            The study as plain JSON types.
+        """
         return {
             "settings": dict(self.settings),
             "units": {"fn": "Hz", "stiffness": "MN/m"},
@@ -62,6 +94,22 @@ def hybrid_learning_curve(
     ``n_repeats`` random subsets of Table A1 poses (all replicates of a chosen pose) are drawn;
     the score is the RMSE on Table A2 in the thesis' units (Hz, MN/m), averaged over repeats.
     The ~63 Hz X-mode rows are left out of the X outputs (Table A2 has no such pose).
+
+    Parameters
+    ----------
+    n_poses : sequence of int
+        Training-set sizes (poses).
+    n_repeats : int
+        Random subsets per size.
+    robot : KR500, optional
+        The kinematic model of the analytical mean (default :class:`~robovib.robot.KR500`).
+    rng : int
+        Seed of the subsets and the GP fits.
+
+    Returns
+    -------
+    HybridLearningCurve
+        RMSE per size, repeat, model and output.
     """
     robot = robot or KR500()
     a1 = load_table_a1(units="thesis")

@@ -34,11 +34,23 @@ class Table9Comparison:
     period_s: float
 
     def to_frame(self) -> pd.DataFrame:
-        """One row per gain pair."""
+        """One row per gain pair.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The comparison.
+        """
         return pd.DataFrame(list(self.rows))
 
     def to_dict(self) -> dict:
-        """JSON-ready: settings and rows."""
+        """JSON-ready: settings and rows.
+
+        Returns
+        -------
+        dict
+            The comparison as plain JSON types.
+        """
         return {"period_s": self.period_s, "rows": [dict(r) for r in self.rows]}
 
 
