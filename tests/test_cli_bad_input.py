@@ -209,6 +209,13 @@ bad_options("frf-compute", "frf compute {rec} -o {out:.h5}", {
     "--force-window-ms": ["-1", "nan"], "--pretrigger-ms": ["-1", "inf"],
     "--exp-window-tau-ms": ["-1", "nan"], "--direction": ["q"],
 })  # fmt: skip
+for label, rng in (("reversed", "1e-3 1e-7"), ("nan", "nan 1e-3"), ("negative", "-1e-7 1e-3")):
+    case(
+        f"frf-compute-compliance-range-{label}",
+        f"frf compute {{rec}} -o {{out:.h5}} --compliance-range {rng}",
+    )
+    case(f"campaign-process-compliance-range-{label}",
+         f"campaign process {{mandup}} -o {{out:}} --compliance-range {rng}")  # fmt: skip
 
 # modal fit
 MODAL_T = "modal fit {IN}"

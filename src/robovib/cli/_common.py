@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 import sys
 from pathlib import Path
@@ -105,7 +106,12 @@ def plausible_ranges(level_check: bool, compliance_range: tuple[float, float] | 
         return None
     if compliance_range is None:
         return PlausibleRanges()
-    return PlausibleRanges(peak_compliance_m_per_n=tuple(map(float, compliance_range)))
+    lo, hi = map(float, compliance_range)
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise ValueError(
+            f"--compliance-range must be LOW HIGH with 0 <= LOW < HIGH [m/N], got {lo:g} {hi:g}"
+        )
+    return PlausibleRanges(peak_compliance_m_per_n=(lo, hi))
 
 
 def workspace_model(path: Path | None, seed: int = 0, require_inputs=("x_mm", "y_mm", "rz_deg")):
