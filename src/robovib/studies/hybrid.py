@@ -84,6 +84,26 @@ def ema_frf_on_grid(
 
     ``s_m`` is the path coordinate [m] (``domain="path"``) or a workspace pose
     ``(x_m, y_m, rz_deg)`` (``domain="workspace"``).
+
+    Parameters
+    ----------
+    robot : VirtualRobot
+        The virtual robot.
+    s_m : float or tuple of float
+        The pose (see above).
+    direction : {"x", "y", "z"}
+        Hit and response direction.
+    grid_hz : numpy.ndarray
+        Frequencies [Hz].
+    rng : int or numpy.random.Generator
+        Seed of the hammer test's noise.
+    domain : {"path", "workspace"}
+        How ``s_m`` is read.
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex compliance [m/N] on ``grid_hz``.
     """
     rec = simulate_hammer_test(
         robot,
@@ -110,13 +130,26 @@ class HybridStudyResult:
     (|H| error at the dominant-mode bin of the hammer FRF, as §5.4.1), ``peak_error_vs_truth_pct``,
     ``n_bins, n_oma_segments, flagged_fraction, rejected_fraction, iterations_mean,
     iterations_total, wall_time_s``.
+
+    Attributes
+    ----------
+    rows
+        The rows (keys above).
+    settings
+        Settings of the run.
     """
 
     rows: tuple[dict, ...]
     settings: dict = field(default_factory=dict)
 
     def to_frame(self):
-        """One row per (seed, direction, model) (pandas DataFrame)."""
+        """One row per (seed, direction, model) (pandas DataFrame).
+
+        Returns
+        -------
+        pandas.DataFrame
+            The rows.
+        """
         import pandas as pd
 
         return pd.DataFrame(list(self.rows))
@@ -126,6 +159,11 @@ class HybridStudyResult:
 
         ``change_pct`` is computed per seed on the RMSE vs truth and then averaged;
         ``worst_change_pct`` is the worst seed.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per (direction, model).
         """
         df = self.to_frame()
         base = df[df.model == "ema"].set_index(["seed", "direction"])["rmse_vs_truth_um_per_n"]
@@ -147,14 +185,31 @@ class HybridStudyResult:
 
     def rule_met(self, model: str = "robust") -> bool:
         """Issue 17's rule: X and Z improve >= 20 % (mean over seeds), no direction worse
-        than EMA alone by > 5 % (mean over seeds)."""
+        than EMA alone by > 5 % (mean over seeds).
+
+        Parameters
+        ----------
+        model : str
+            The model judged (``"robust"``: the robust update).
+
+        Returns
+        -------
+        bool
+            Whether the rule holds.
+        """
         s = self.summary().set_index(["direction", "model"])["change_pct"]
         dirs = sorted({r["direction"] for r in self.rows})
         ok = all(s[(d, model)] <= 5.0 for d in dirs)
         return ok and all(s[(d, model)] <= -20.0 for d in ("x", "z") if d in dirs)
 
     def to_dict(self) -> dict:
-        """JSON-friendly: settings, rows and the per-direction summary."""
+        """JSON-friendly: settings, rows and the per-direction summary.
+
+        Returns
+        -------
+        dict
+            The result as plain JSON types.
+        """
         return {
             "settings": dict(self.settings),
             "rows": [dict(r) for r in self.rows],
@@ -177,7 +232,25 @@ def _score(pred, val, truth) -> dict:
 
 @dataclass(frozen=True)
 class StudyData:
-    """One (seed, direction) of the study: EMA, OMA and validation FRFs on the OMA grid."""
+    """One (seed, direction) of the study: EMA, OMA and validation FRFs on the OMA grid.
+
+    Attributes
+    ----------
+    seed, direction
+        The simulator seed and the direction.
+    frequency_hz
+        (n_f,) the OMA grid [Hz].
+    ema_s_m, ema_m_per_n
+        EMA path coordinates [m] and their complex FRFs (3, n_f) [m/N].
+    oma_s_m, oma_m_per_n
+        OMA segment coordinates [m] and their complex FRFs (n_seg, n_f) [m/N].
+    oma_mask
+        (n_seg, n_f) bool, True = usable bin.
+    oma_error_m_per_n
+        (n_seg, n_f) H1 random error [m/N].
+    validation_m_per_n, truth_m_per_n
+        (n_f,) hammer FRF and true FRF at the validation pose [m/N].
+    """
 
     seed: int
     direction: str
@@ -203,7 +276,32 @@ def study_data(
     f_range_hz=(2.0, 40.0),
     background_noise_rel: float = 1.0,
 ):
-    """Yield :class:`StudyData` per direction for one seed (the data every model sees)."""
+    """Yield :class:`StudyData` per direction for one seed (the data every model sees).
+
+    Parameters
+    ----------
+    robot : VirtualRobot, optional
+        The virtual robot (default :class:`~robovib.sim.VirtualRobot`).
+    seed : int
+        Simulator seed.
+    ema_s_m : sequence of float
+        EMA path coordinates [m].
+    validation_s_m : float
+        Validation path coordinate [m].
+    directions : sequence of str
+        Directions.
+    oma_kwargs : dict, optional
+        OMA estimator settings.
+    f_range_hz : tuple of float
+        Frequency band [Hz].
+    background_noise_rel : float
+        Background force of the milling pass relative to the cutting force RMS.
+
+    Yields
+    ------
+    StudyData
+        One per direction.
+    """
     robot = robot or VirtualRobot()
     oma_kwargs = oma_kwargs or {}
     gen = np.random.default_rng(seed)
@@ -277,6 +375,16 @@ def _one_seed(
 def parse_seeds(text: str) -> list[int]:
     """Simulator seeds from ``"0-4"`` (inclusive range) or ``"0,1,2"``.
 
+    Parameters
+    ----------
+    text : str
+        The seeds as typed.
+
+    Returns
+    -------
+    list of int
+        The seeds.
+
     Raises
     ------
     ValueError
@@ -318,6 +426,8 @@ def hybrid_study(
         The virtual robot (default :class:`robovib.sim.VirtualRobot`).
     seeds
         Simulator/GP seeds; one full run (milling pass, hammer tests, GPs) per seed.
+    directions
+        Directions studied.
     ema_s_m, validation_s_m
         EMA and validation path coordinates [m] (thesis: 0, 0.585, 1.235; validation 1.040).
     nperseg, noverlap, window, segment_length_m
@@ -367,7 +477,13 @@ def hybrid_study(
 
 @dataclass(frozen=True)
 class OMASettingsResult:
-    """RMSE (robust update, vs truth) and bin count per OMA estimator setting."""
+    """RMSE (robust update, vs truth) and bin count per OMA estimator setting.
+
+    Attributes
+    ----------
+    rows
+        One dict per setting.
+    """
 
     rows: tuple[dict, ...]
 
@@ -439,7 +555,19 @@ def oma_settings_study(
 
 @dataclass(frozen=True)
 class NextPoses:
-    """Proposed hammer-test path coordinates from a virtual EMA at the tested ones."""
+    """Proposed hammer-test path coordinates from a virtual EMA at the tested ones.
+
+    Attributes
+    ----------
+    tested_s_m
+        (n,) tested path coordinates [m].
+    next_s_m
+        (k,) proposed ones [m].
+    candidates_s_m
+        (m,) fine grid along the path [m].
+    integrated_variance
+        (m,) integrated predictive variance of the model before the picks [(µm/N)^2].
+    """
 
     tested_s_m: np.ndarray  #: (n,) [m]
     next_s_m: np.ndarray  #: (k,) [m]
@@ -456,6 +584,22 @@ def propose_next_poses(tested_s_m, k: int = 3, direction: str = "x", rng=0) -> N
     Virtual EMA FRFs (2-40 Hz, 1 Hz grid) at ``tested_s_m`` [m] train an
     :class:`~robovib.hybrid.FRFPoseModel`; :meth:`~robovib.hybrid.FRFPoseModel.next_poses`
     picks ``k`` of 50 candidates.
+
+    Parameters
+    ----------
+    tested_s_m : array_like
+        Tested path coordinates [m].
+    k : int
+        Poses to propose.
+    direction : {"x", "y", "z"}
+        Direction of the FRFs.
+    rng : int
+        Seed of the virtual EMA and the model.
+
+    Returns
+    -------
+    NextPoses
+        Tested, proposed and candidate coordinates with the variance.
 
     Raises
     ------
@@ -475,6 +619,13 @@ def propose_next_poses(tested_s_m, k: int = 3, direction: str = "x", rng=0) -> N
 
 def plot_next_poses(result: NextPoses, ax=None):
     """Integrated predictive variance along the path with tested and proposed poses.
+
+    Parameters
+    ----------
+    result : NextPoses
+        The proposal.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
 
     Returns
     -------
@@ -501,7 +652,23 @@ def plot_next_poses(result: NextPoses, ax=None):
 
 @dataclass(frozen=True)
 class WorkspaceStudyResult:
-    """Whole-workspace FRF model (EMA at poses + OMA along a path) checked at unseen poses."""
+    """Whole-workspace FRF model (EMA at poses + OMA along a path) checked at unseen poses.
+
+    Attributes
+    ----------
+    model
+        The fitted and updated model (inputs ``x_m, y_m, rz_deg``).
+    report
+        :class:`~robovib.hybrid.UpdateReport` of the OMA update.
+    test_poses
+        (m, 3) unseen poses.
+    truth_m_per_n
+        (m, n_f) complex true compliance [m/N].
+    ema_only_m_per_n, predicted_m_per_n
+        (m, n_f) predictions of the EMA-only and the updated model [m/N].
+    std_m_per_n
+        (m, n_f) predictive std after the update [m/N].
+    """
 
     model: FRFPoseModel  #: fitted and updated model, inputs ("x_m", "y_m", "rz_deg")
     report: object  #: UpdateReport of the OMA update
@@ -512,13 +679,35 @@ class WorkspaceStudyResult:
     std_m_per_n: np.ndarray  #: (m, n_f) predictive std after the update
 
     def relative_rmse(self, which: str = "updated") -> np.ndarray:
-        """(m,) RMSE over the grid / max |truth| at each test pose."""
+        """(m,) RMSE over the grid / max |truth| at each test pose.
+
+        Parameters
+        ----------
+        which : {"updated", "ema"}
+            The updated model's prediction or the EMA-only one.
+
+        Returns
+        -------
+        numpy.ndarray
+            (m,) relative RMSE.
+        """
         pred = self.predicted_m_per_n if which == "updated" else self.ema_only_m_per_n
         rmse = np.sqrt(np.mean(np.abs(pred - self.truth_m_per_n) ** 2, axis=1))
         return rmse / np.abs(self.truth_m_per_n).max(axis=1)
 
     def band_coverage(self, k: float = 2.0) -> float:
-        """Fraction of (pose, bin) where |prediction - truth| <= k std."""
+        """Fraction of (pose, bin) where |prediction - truth| <= k std.
+
+        Parameters
+        ----------
+        k : float
+            Band half-width in standard deviations.
+
+        Returns
+        -------
+        float
+            The fraction.
+        """
         return float(
             np.mean(np.abs(self.predicted_m_per_n - self.truth_m_per_n) <= k * self.std_m_per_n)
         )
@@ -561,6 +750,25 @@ def workspace_study(
     (default: a 3 x 3 grid over X 2.1-2.7 m, Y -0.3-0.6 m at Rz = 45°) and OMA FRFs from a
     milling pass from ``oma_start`` to ``oma_end`` (50 mm segments, robust update), predicted
     with a band at ``test_poses`` and compared with the simulator's true FRF.
+
+    Parameters
+    ----------
+    direction : {"x", "y", "z"}
+        Direction of the FRFs.
+    ema_poses : array_like, optional
+        (n, 3) hammer-test poses ``(x_m, y_m, rz_deg)``.
+    oma_start, oma_end : tuple of float
+        Ends of the milling pass.
+    test_poses : sequence of tuple
+        Unseen poses the model is checked at.
+    f_range_hz : tuple of float
+        Frequency band [Hz].
+    nperseg : int
+        OMA segment length [samples].
+    background_noise_rel : float
+        Background force relative to the cutting force RMS.
+    seed : int
+        Simulator seed.
 
     Returns
     -------
