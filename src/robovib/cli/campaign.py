@@ -36,6 +36,14 @@ def process(
         bool,
         typer.Option(help="Refuse implausible force/response/compliance levels (unit mix-ups)."),
     ] = True,
+    modes_band: Annotated[
+        str | None,
+        typer.Option(
+            "--modes-band",
+            help="LO,HI [Hz]: also fit every mode in this band and "
+            "track it across poses into modes.csv (issue 29; default: dominant only).",
+        ),
+    ] = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Every recording of the manifest -> averaged FRF (hit QC) -> dominant mode, in parallel."""
@@ -45,7 +53,15 @@ def process(
 
     from ..campaign import ProcessingSettings, process_campaign
 
-    settings = ProcessingSettings(f_min_hz=f_min_hz, f_max_hz=f_max_hz)
+    band = None
+    if modes_band is not None:
+        try:
+            band = tuple(float(v) for v in modes_band.split(","))
+        except ValueError:
+            band = ()
+        if len(band) != 2:
+            raise typer.BadParameter(f"--modes-band wants LO,HI in Hz, got {modes_band!r}")
+    settings = ProcessingSettings(f_min_hz=f_min_hz, f_max_hz=f_max_hz, modes_band_hz=band)
     if not level_check:
         settings = replace(settings, plausible=None)
     with Progress(disable=json_out, transient=True) as bar:
@@ -60,7 +76,8 @@ def process(
     if json_out:
         emit_json({
             "manifest": str(manifest), "output_dir": str(output),
-            "files": [str(output / n) for n in ("frfs.h5", "modal.csv", "campaign.json")],
+            "files": [str(output / n) for n in ("frfs.h5", "modal.csv", "campaign.json")]
+            + ([str(output / "modes.csv")] if band else []),
             "n_rows": len(table), "n_frfs": res.n_frfs,
             "skipped": [{"line": line, "reason": why} for line, why in res.skipped],
             "rows": table.to_dict(orient="records"), "reader_reports": list(res.reports),
