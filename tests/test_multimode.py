@@ -94,8 +94,20 @@ def test_multimode_pose_model_predicts_every_mode(tmp_path):
     d = mode_distributions_at_pose(back, pose[0], n_draws=200)
     assert [m.name for m in d["x"]] == ["x1", "x2"] and [m.name for m in d["y"]] == ["y1"]
     assert d["x"][1].presence == pytest.approx(15 / 16)
+    # mill lobes with the model: the envelope of every modelled mean mode, and it says so
+    from robovib.milling.chart import lobes_chart
+
+    rpm = np.array([1500.0, 2500.0])
+    chart = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=rpm,
+                        method="sdm", steps_per_period=20,
+                        pose_model=back, pose=tuple(pose[0]))  # fmt: skip
+    mx = [m.mean for m in d["x"]]
+    my = [m.mean for m in d["y"]]
+    direct = sdm_lobes(mx, my, TOOL, COND, ALUMINIUM_7075, rpm, steps_per_period=20)
+    np.testing.assert_allclose(chart.envelope.a_lim_m, direct.a_lim_m, rtol=1e-9)
+    assert any("x1, x2, y1" in n for n in chart.notes)
     with pytest.raises(ValueError, match="mode_id"):
-        fit_multimode_pose_model(table.drop(columns="true_id"))
+        fit_multimode_pose_model(table.drop(columns="mode_id", errors="ignore"))
 
 
 TOOL = MillingTool()
