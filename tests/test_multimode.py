@@ -156,3 +156,34 @@ def test_modes_band_setting_checked():
     with pytest.raises(ValueError, match="modes_band_hz"):
         ProcessingSettings(modes_band_hz=(50.0, 10.0))
     assert ProcessingSettings(modes_band_hz=[5, 100]).modes_band_hz == (5.0, 100.0)
+
+
+def test_campaign_process_tracks_the_virtual_robots_modes(tmp_path):
+    """modes.csv of a virtual campaign holds the truth's modes under consistent ids."""
+    pytest.importorskip("pyuff")
+    import warnings
+
+    from robovib.campaign import process_campaign
+    from robovib.sim import VirtualRobot, simulate_campaign
+
+    rng = np.random.default_rng(5)
+    poses = np.column_stack([rng.uniform(2150, 2500, 5), rng.uniform(-250, 550, 5),
+                             rng.uniform(10, 170, 5)])  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = simulate_campaign(poses, tmp_path, rng=2, n_hits=2, directions=("x", "y"),
+                                n_truth=0, scatter=(0.0, 0.0, 0.0))  # fmt: skip
+        process_campaign(sim.manifest, tmp_path / "out", n_workers=1,
+                         settings=ProcessingSettings(modes_band_hz=(5.0, 100.0)))  # fmt: skip
+    modes = pd.read_csv(tmp_path / "out" / "modes.csv")
+    robot = VirtualRobot()
+    for d in ("x", "y"):
+        coords = np.column_stack([poses[:, 0] / 1e3, poses[:, 1] / 1e3, poses[:, 2]])
+        truth = robot.workspace.modes(coords, d)
+        sub = modes[modes["direction"] == d]
+        assert set(sub["mode_id"]) == {f"{d}{j + 1}" for j in range(truth.n_modes)}
+        for i in range(len(poses)):
+            at = sub[np.isclose(sub["x_mm"], poses[i, 0], atol=0.1)].sort_values("mode_id")
+            np.testing.assert_allclose(at["fn_hz"], truth.fn_hz[i], rtol=0.02)
+            np.testing.assert_allclose(at["stiffness_n_per_m"], truth.stiffness_n_per_m[i],
+                                       rtol=0.1)  # fmt: skip
