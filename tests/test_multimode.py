@@ -106,6 +106,23 @@ def test_multimode_pose_model_predicts_every_mode(tmp_path):
     direct = sdm_lobes(mx, my, TOOL, COND, ALUMINIUM_7075, rpm, steps_per_period=20)
     np.testing.assert_allclose(chart.envelope.a_lim_m, direct.a_lim_m, rtol=1e-9)
     assert any("x1, x2, y1" in n for n in chart.notes)
+    # milling vibration with every mode: the sum of the modal receptances filters the force
+    from robovib.milling.forces import milling_forces
+    from robovib.milling.workflow import base_frame_forces, predict_at_pose
+
+    res = predict_at_pose(back, 2350.0, 100.0, 60.0, COND, coefficients=ALUMINIUM_7075,
+                          duration_s=1.0, n_samples=3)  # fmt: skip
+    assert [r.direction for r in res] == ["x", "y"]
+    assert len(res[0].modes) == 2 and len(res[1].modes) == 1
+    t = np.arange(1000) / 1000.0
+    fx = base_frame_forces(milling_forces(t, TOOL, COND, ALUMINIUM_7075), "x")[:, 0]
+    n_fft = 1 << 17
+    freq = np.fft.rfftfreq(n_fft, 1e-3)
+    h = sum(m.compliance(freq) for m in mx)
+    x = np.fft.irfft(np.fft.rfft(fx, n_fft) * h, n_fft)[:1000]
+    per_rev = 1000 * 60 / COND.spindle_rpm
+    revs = [x[round(a) : round(a + per_rev)] for a in np.arange(500, 1000 - per_rev, per_rev)]
+    assert res[0].peak_to_valley_m == pytest.approx(np.mean([np.ptp(r) for r in revs]), rel=0.05)
     with pytest.raises(ValueError, match="mode_id"):
         fit_multimode_pose_model(table.drop(columns="mode_id", errors="ignore"))
 
