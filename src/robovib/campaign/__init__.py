@@ -5,6 +5,8 @@
   atomically to ``frfs.h5``, ``modal.csv`` and ``campaign.json``;
 * :func:`fit_pose_model_from_table` — the pose model of every output from ``modal.csv``, with
   a cross-validation table grouped by pose;
+* :func:`fit_multimode_pose_model` — every tracked mode (``modes.csv``, written when
+  ``ProcessingSettings.modes_band_hz`` is set) as a pose model (issue 29);
 * :func:`next_poses` — where to hammer next (largest integrated variance reduction).
 """
 
@@ -26,6 +28,7 @@ from .model import (
     predict_at,
     save_pose_model,
 )
+from .multimode import fit_multimode_pose_model, track_modes
 from .plot import plot_next_poses
 from .process import CampaignResult, ProcessingSettings, process_campaign, process_row
 
@@ -39,6 +42,7 @@ __all__ = [
     "PoseModelFit",
     "PosePrediction",
     "ProcessingSettings",
+    "fit_multimode_pose_model",
     "fit_pose_model_from_table",
     "load_pose_model",
     "mode_switches_found",
@@ -49,4 +53,5 @@ __all__ = [
     "process_row",
     "read_manifest",
     "save_pose_model",
+    "track_modes",
 ]

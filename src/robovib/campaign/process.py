@@ -76,6 +76,10 @@ class ProcessingSettings:
     min_fit_bins
         Fewest FRF lines in the dominant-mode fit band; fewer (hits too short for the band)
         is an error naming the resolution.
+    modes_band_hz
+        Band [Hz] in which *every* mode of each direct FRF is fitted as well (LSCF/LSFD,
+        :func:`robovib.campaign.multimode.fit_row_modes`) and tracked across poses into
+        ``modes.csv``; None (default): the dominant mode only.
     """
 
     estimator: str = "H1"
@@ -91,6 +95,7 @@ class ProcessingSettings:
     min_coherence: float = 0.8
     plausible: object = field(default_factory=_default_ranges)
     min_fit_bins: int = 5
+    modes_band_hz: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.estimator not in ("H1", "H2"):
@@ -115,6 +120,13 @@ class ProcessingSettings:
                 "plausible",
                 PlausibleRanges(**{k: tuple(v) for k, v in self.plausible.items()}),
             )
+        if self.modes_band_hz is not None:
+            lo, hi = (float(v) for v in self.modes_band_hz)
+            if not (0 < lo < hi):
+                raise ValueError(
+                    f"modes_band_hz needs 0 < low < high Hz, got {self.modes_band_hz!r}"
+                )
+            object.__setattr__(self, "modes_band_hz", (lo, hi))
         if not (isinstance(self.min_fit_bins, int) and self.min_fit_bins >= 3):
             raise ValueError(f"min_fit_bins must be an integer >= 3, got {self.min_fit_bins!r}")
 
@@ -128,6 +140,7 @@ class RowResult:
     frfs: tuple = ()
     report: dict | None = None
     error: str | None = None
+    modes: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -300,7 +313,17 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
         "n_frfs": len(frfs),
         "flags": "; ".join(flags),
     }
-    return RowResult(row.row, modal, tuple(frfs), report.to_dict() if report else None)
+    modes = ()
+    if s.modes_band_hz is not None:
+        from .multimode import fit_row_modes
+
+        keys = {k: modal[k] for k in ("row", "file", "direction", *row.pose, "replicate")}
+        try:
+            modes = tuple({**keys, **m} for m in fit_row_modes(frf, s.modes_band_hz))
+        except ValueError as exc:  # no stable mode: the row keeps its dominant mode
+            modal["flags"] = "; ".join(filter(None, [modal["flags"], f"multi-mode fit: {exc}"]))
+    return RowResult(row.row, modal, tuple(frfs), report.to_dict() if report else None,
+                     modes=modes)  # fmt: skip
 
 
 def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) -> tuple:
@@ -312,6 +335,14 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
 
     good = [r for r in results if r.modal is not None]
     table = pd.DataFrame([r.modal for r in good])
+    modes_table, presence = None, None
+    if settings.modes_band_hz is not None:
+        from .multimode import track_modes
+
+        inputs = [c for c in ("x_mm", "y_mm", "z_mm", "rz_deg") if c in table.columns]
+        modes_table = pd.DataFrame([m for r in good for m in r.modes])
+        if len(modes_table):
+            modes_table, presence = track_modes(modes_table, inputs)
     frfs = [f for r in good for f in r.frfs]
     accounting = campaign_accounting(results)
     settings_json = json.dumps(asdict(settings))
@@ -325,6 +356,8 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
         "skipped": [{"line": line, "reason": why} for line, why in skipped],
         "reports": [{"line": r.row, **(r.report or {})} for r in good],
     }
+    if presence is not None:
+        doc["mode_presence"] = presence
     with (
         atomic_output(out_dir / "frfs.h5") as t_h5,
         atomic_output(out_dir / "modal.csv") as t_csv,
@@ -338,6 +371,9 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
             h5.attrs["units"] = "SI (frequency Hz, compliance m/N); pose (m, m, m, deg, deg, deg)"
         table.to_csv(t_csv, index=False, float_format="%.9g")
         t_json.write_text(json_dumps(doc, indent=2))  # NaN -> null + reason
+    if modes_table is not None:
+        with atomic_output(out_dir / "modes.csv") as t_modes:
+            modes_table.to_csv(t_modes, index=False, float_format="%.9g")
     return table, len(frfs)
 
 

@@ -44,6 +44,14 @@ def process(
     f_max_hz: Annotated[float, typer.Option("--fmax", help="Highest frequency kept [Hz].")] = 200.0,
     level_check: LevelCheckOpt = True,
     compliance_range: ComplianceRangeOpt = None,
+    modes_band: Annotated[
+        str | None,
+        typer.Option(
+            "--modes-band",
+            help="LO,HI [Hz]: also fit every mode in this band and "
+            "track it across poses into modes.csv (issue 29; default: dominant only).",
+        ),
+    ] = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Every recording of the manifest -> averaged FRF (hit QC) -> dominant mode, in parallel."""
@@ -53,7 +61,15 @@ def process(
 
     from ..campaign import ProcessingSettings, process_campaign
 
-    settings = ProcessingSettings(f_min_hz=f_min_hz, f_max_hz=f_max_hz)
+    band = None
+    if modes_band is not None:
+        try:
+            band = tuple(float(v) for v in modes_band.split(","))
+        except ValueError:
+            band = ()
+        if len(band) != 2:
+            raise typer.BadParameter(f"--modes-band wants LO,HI in Hz, got {modes_band!r}")
+    settings = ProcessingSettings(f_min_hz=f_min_hz, f_max_hz=f_max_hz, modes_band_hz=band)
     settings = replace(settings, plausible=plausible_ranges(level_check, compliance_range))
     with Progress(disable=json_out, transient=True) as bar:
         task = bar.add_task("processing recordings", total=None)
@@ -67,7 +83,8 @@ def process(
     if json_out:
         emit_json({
             "manifest": str(manifest), "output_dir": str(output),
-            "files": [str(output / n) for n in ("frfs.h5", "modal.csv", "campaign.json")],
+            "files": [str(output / n) for n in ("frfs.h5", "modal.csv", "campaign.json")]
+            + ([str(output / "modes.csv")] if band else []),
             "n_rows": len(table), "n_frfs": res.n_frfs,
             "skipped": [{"line": line, "reason": why} for line, why in res.skipped],
             "rows": table.to_dict(orient="records"), "reader_reports": list(res.reports),

@@ -69,7 +69,7 @@ def predict(
          "mean_deflection_band_mm": [1e3 * v for v in r.mean_deflection_band_m],
          "peak_to_valley_mm": 1e3 * r.peak_to_valley_m,
          "peak_to_valley_band_mm": [1e3 * v for v in r.peak_to_valley_band_m],
-         "mode": r.mode.to_dict()}
+         "mode": r.mode.to_dict(), "modes": [m.to_dict() for m in r.modes or (r.mode,)]}
         for r in res
     ]  # fmt: skip
     outside = list(res[0].extrapolation)
@@ -80,8 +80,8 @@ def predict(
     band = "[{:.4f}, {:.4f}]".format
     print_table(
         f"Milling vibration at X={x:g}, Y={y:g} mm, Rz={rz:g}° ({rpm:g} rpm, fz {fz} mm, ap {ap} mm, ae {ae} mm)",
-        ("dir", "mode fn [Hz]", "mean deflection [mm]", "95 % band", "P-V / rev [mm]", "95 % band"),
-        [(r["direction"].upper(), f"{r['mode']['natural_frequency_hz']:.2f}", f"{r['mean_deflection_mm']:.4f}",
+        ("dir", "mode(s) fn [Hz]", "mean deflection [mm]", "95 % band", "P-V / rev [mm]", "95 % band"),
+        [(r["direction"].upper(), ", ".join(f"{m['natural_frequency_hz']:.2f}" for m in r["modes"]), f"{r['mean_deflection_mm']:.4f}",
           band(*r["mean_deflection_band_mm"]), f"{r['peak_to_valley_mm']:.4f}", band(*r["peak_to_valley_band_mm"]))
          for r in rows],
     )  # fmt: skip

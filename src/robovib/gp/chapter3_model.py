@@ -4,6 +4,12 @@
 package data (``robovib/datasets/data/chapter3_model.h5``, written by
 ``scripts/build_chapter3_model.py`` and checked against a fresh fit by the tests), so that pose
 commands answer without refitting.
+
+It is a *dominant-mode* model (one mode per direction, as the thesis measured): lobes from it
+miss the secondary modes (e.g. the virtual robot's ~43 and ~63.5 Hz X modes and ~22 Hz Y mode),
+which can move the stability limit by tens of percent. A campaign processed with every mode
+(``campaign process --modes-band``) gives a multi-mode model instead
+(:func:`robovib.campaign.fit_multimode_pose_model`, issue 29).
 """
 
 from __future__ import annotations

@@ -160,7 +160,8 @@ class PoseModalModel(BaseEstimator):
         Names of the input columns with their unit as suffix (``"x_mm"``, ``"rz_deg"``,
         ``"s_m"``); ``X`` is given in those units.
     directions
-        Directions modelled; ``Y`` has 3 columns per direction.
+        Directions modelled; ``Y`` has 3 columns per direction. A multi-mode model uses mode
+        ids as directions (``x1``, ``x2``, ``y1``: :func:`robovib.campaign.fit_multimode_pose_model`).
     kernel
         ``"ard"`` (one length scale per input) or ``"isotropic"`` (thesis Eq. 7).
     mode_switch

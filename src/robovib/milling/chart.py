@@ -384,10 +384,24 @@ def lobes_chart(
             raise ValueError("a pose (x_mm, y_mm, rz_deg) is needed with a pose model")
         if feed_direction not in ("x", "y"):
             raise ValueError(f"feed_direction must be 'x' or 'y', got {feed_direction!r}")
-        dist = mode_distribution_at_pose(pose_model, pose)
         normal = "y" if feed_direction == "x" else "x"
-        notes = _assumed_mode_notes(pose_model, pose, (feed_direction, normal))
-        modes_x, modes_y = (dist[feed_direction].mean,), (dist[normal].mean,)
+        if set(pose_model.directions) >= {"x", "y"}:  # dominant-mode model (chapter 3)
+            dist = mode_distribution_at_pose(pose_model, pose)
+            notes = _assumed_mode_notes(pose_model, pose, (feed_direction, normal))
+            modes_x, modes_y = (dist[feed_direction].mean,), (dist[normal].mean,)
+        else:  # multi-mode model: directions are mode ids x1, x2, ..., y1, ... (issue 29)
+            from .uncertainty import mode_distributions_at_pose
+
+            dist = mode_distributions_at_pose(pose_model, pose)
+            for d in (feed_direction, normal):
+                if d not in dist:
+                    raise ValueError(f"the pose model has no mode in direction {d!r}")
+            modes_x = tuple(m.mean for m in dist[feed_direction])
+            modes_y = tuple(m.mean for m in dist[normal])
+            notes = (
+                "every modelled mode used: "
+                + ", ".join(m.name for d in (feed_direction, normal) for m in dist[d]),
+            )
         if int(n_samples) > 0:
             probability = stability_probability(
                 dist, tool, conditions, coefficients, rpm, n_samples=int(n_samples),

@@ -9,11 +9,20 @@ fn, k, c <= 0 or zeta >= 1 are redrawn), a stability envelope is computed for ev
 (semi-discretization or zero-order method) and at each (speed, depth) the probability of a
 stable cut is the fraction of samples whose envelope lies above that depth. A
 :class:`ModeDistribution` given by hand (mean and std) is sampled as independent normals.
+
+**Every mode** (issue 29): a direction may carry a list of :class:`ModeDistribution` — e.g.
+:func:`mode_distributions_at_pose` of a multi-mode pose model
+(:func:`robovib.campaign.fit_multimode_pose_model`, directions ``x1, x2, ..., y1, ...``). A
+sample then holds one draw of every mode; when all modes carry joint draws of one predictive
+distribution the same draw row is used for all of them (their correlations are kept); a mode
+seen at only a fraction of the campaign's recordings is kept in a sample with that probability
+(``presence``). The lobes of a sample are those of all its modes (SDM / ZOA on the multi-mode
+structure). The chapter-3 default stays one (dominant) mode per direction.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -27,6 +36,7 @@ __all__ = [
     "ModeDistribution",
     "StabilityProbability",
     "mode_distribution_at_pose",
+    "mode_distributions_at_pose",
     "plot_stability_probability",
     "stability_probability",
 ]
@@ -55,8 +65,14 @@ class ModeDistribution:
     #: Optional (m, 3) joint draws of (fn_hz, stiffness_n_per_m, damping_ns_per_m) from a pose
     #: model's calibrated predictive distribution; sampled instead of the normals when given.
     draws: np.ndarray | None = field(default=None, compare=False, repr=False)
+    #: Probability that the mode is there at all (fraction of recordings where it was seen).
+    presence: float = 1.0
+    #: Name of the mode (e.g. ``"x2"``), for reports.
+    name: str = ""
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.presence) and 0 < self.presence <= 1):
+            raise ValueError(f"presence must be in (0, 1], got {self.presence!r}")
         for name in ("fn_std_hz", "stiffness_std_n_per_m", "damping_std_ns_per_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
@@ -159,6 +175,76 @@ def mode_distribution_at_pose(
     )
 
 
+def mode_distributions_at_pose(
+    model, pose, *, n_draws: int = 4000, rng=0
+) -> dict[str, list[ModeDistribution]]:
+    """Every modelled mode per physical direction at one pose (multi-mode pose model).
+
+    Parameters
+    ----------
+    model
+        A fitted :class:`robovib.gp.PoseModalModel` whose directions are mode ids (``x1``,
+        ``x2``, ``y1``: :func:`robovib.campaign.fit_multimode_pose_model`); a dominant-mode
+        model (directions ``x``, ``y``, ``z``) gives one mode per direction.
+    pose, n_draws, rng
+        As for :func:`mode_distribution_at_pose` (the draws of all modes are joint).
+
+    Returns
+    -------
+    dict direction -> list of ModeDistribution
+        Sorted by mode id; ``presence`` from the model's provenance ``mode_presence``
+        (1 where it does not say).
+    """
+    import json
+
+    per_id = mode_distribution_at_pose(model, pose, n_draws=n_draws, rng=rng)
+    prov = getattr(model, "provenance_", None) or {}
+    presence = json.loads(prov["mode_presence"]) if "mode_presence" in prov else {}
+    out: dict[str, list[ModeDistribution]] = {}
+    for k, dist in per_id.items():
+        d = k.rstrip("0123456789") or k  # "x2" -> "x"; "x" stays
+        frac = float(presence.get(k, {}).get("presence", 1.0))
+        out.setdefault(d, []).append(replace(dist, presence=frac, name=k))
+    return out
+
+
+def _as_list(dist) -> list[ModeDistribution]:
+    return [dist] if isinstance(dist, ModeDistribution) else list(dist)
+
+
+def _kept(params: list, keep: np.ndarray, modes: list[ModeDistribution]) -> list:
+    """The kept modes of one direction; never none (then the most often seen one stays)."""
+    out = [p for p, k in zip(params, keep, strict=True) if k]
+    return out or [params[int(np.argmax([m.presence for m in modes]))]]
+
+
+def _sample_all(feed: list[ModeDistribution], norm: list[ModeDistribution], n: int, gen):
+    """``n`` samples of every mode of both directions (joint draw rows where all have them)."""
+    modes = feed + norm
+    joint = all(m.draws is not None for m in modes) and len({len(m.draws) for m in modes}) == 1
+    if joint:
+        out = []
+        for r in gen.permutation(len(modes[0].draws)):
+            s = [m.draws[r] for m in modes]
+            if any(np.any(v <= 0) for v in s):
+                continue
+            ps = [ModalParameters.from_fn_k_c(*v) for v in s]
+            if all(p.damping_ratio < 1 for p in ps):
+                out.append(ps)
+            if len(out) == n:
+                break
+        if len(out) < n:
+            raise ValueError("the predictive distribution is mostly non-physical (fn, k, c <= 0)")
+    else:
+        cols = [m.sample(n, gen) for m in modes]
+        out = [list(v) for v in zip(*cols, strict=True)]
+    keep = np.column_stack([gen.uniform(size=n) < m.presence for m in modes])
+    nf = len(feed)
+    feed_s = [_kept(s[:nf], k[:nf], feed) for s, k in zip(out, keep, strict=True)]
+    norm_s = [_kept(s[nf:], k[nf:], norm) for s, k in zip(out, keep, strict=True)]
+    return feed_s, norm_s
+
+
 @dataclass(frozen=True)
 class StabilityProbability:
     """``p_stable`` (n_speeds, n_depths) over ``spindle_rpm`` [rpm] × ``depth_m`` [m].
@@ -250,8 +336,9 @@ def stability_probability(
 
     Parameters
     ----------
-    distribution : dict direction -> ModeDistribution
-        E.g. :func:`mode_distribution_at_pose`; ``x`` and ``y`` are used.
+    distribution : dict direction -> ModeDistribution or list of ModeDistribution
+        E.g. :func:`mode_distribution_at_pose` (dominant mode) or
+        :func:`mode_distributions_at_pose` (every mode); ``x`` and ``y`` are used.
     tool, conditions, coefficients
         As for :func:`robovib.milling.sdm.sdm_lobes`.
     spindle_rpm : array_like (n_speeds,)
@@ -282,17 +369,26 @@ def stability_probability(
         raise ValueError(f"n_samples must be >= 2, got {n_samples}")
     rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
     gen = np.random.default_rng(rng)
-    feed_s = distribution[feed_direction].sample(int(n_samples), gen)
-    norm_s = distribution[normal].sample(int(n_samples), gen)
+    n = int(n_samples)
+    multi = not all(isinstance(distribution[d], ModeDistribution) for d in (feed_direction, normal))
+    if multi:
+        feed_l, norm_l = _as_list(distribution[feed_direction]), _as_list(distribution[normal])
+        if not feed_l or not norm_l:
+            raise ValueError("every direction needs at least one mode")
+        feed_s, norm_s = _sample_all(feed_l, norm_l, n, gen)
+        mean_f, mean_n = [m.mean for m in feed_l], [m.mean for m in norm_l]
+    else:
+        feed_s = [[m] for m in distribution[feed_direction].sample(n, gen)]
+        norm_s = [[m] for m in distribution[normal].sample(n, gen)]
+        mean_f, mean_n = [distribution[feed_direction].mean], [distribution[normal].mean]
     mean_env, _ = _envelope(
-        [distribution[feed_direction].mean], [distribution[normal].mean],
-        tool, conditions, coefficients, rpm, method, **lobe_options,
-    )  # fmt: skip
-    a_s = np.empty((int(n_samples), rpm.size))
-    mins = np.empty(int(n_samples))
+        mean_f, mean_n, tool, conditions, coefficients, rpm, method, **lobe_options
+    )
+    a_s = np.empty((n, rpm.size))
+    mins = np.empty(n)
     for i, (mf, mn) in enumerate(zip(feed_s, norm_s, strict=True)):
         env, mins[i] = _envelope(
-            [mf], [mn], tool, conditions, coefficients, rpm, method, **lobe_options
+            mf, mn, tool, conditions, coefficients, rpm, method, **lobe_options
         )
         a_s[i] = env.a_lim_m
     if depth_m is None:
@@ -308,8 +404,10 @@ def stability_probability(
          "sampling": (
              "joint draws of the pose model's calibrated latent predictive distribution "
              "(Student-t bands, mode mixture)"
-             if distribution[feed_direction].draws is not None
-             else "independent normals on fn_hz, stiffness_n_per_m, damping_ns_per_m")},
+             if _as_list(distribution[feed_direction])[0].draws is not None
+             else "independent normals on fn_hz, stiffness_n_per_m, damping_ns_per_m"),
+         "modes": {d: [m.name or f"{d}{j + 1}" for j, m in enumerate(_as_list(distribution[d]))]
+                   for d in (feed_direction, normal)}},
     )  # fmt: skip
 
 

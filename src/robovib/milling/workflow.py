@@ -157,6 +157,8 @@ class DirectionPrediction:
     extrapolation: tuple[str, ...] = ()
     #: modal-parameter draws used for the bands (bands are NaN when 0)
     n_draws_used: int = 0
+    #: every mode used (a multi-mode model: all modelled modes of the direction; else ``(mode,)``)
+    modes: tuple[ModalParameters, ...] = ()
 
     @property
     def extrapolating(self) -> bool:
@@ -183,7 +185,9 @@ def predict_at_pose(
     """Predicted mean deflection and peak-to-valley per revolution in X, Y, Z at a pose.
 
     The pose model's modes at the pose (with their uncertainty) filter the cutting forces:
-    measured ones, or the mechanistic model's. See ``docs/methods.md`` section 5.
+    measured ones, or the mechanistic model's. See ``docs/methods.md`` section 5. A multi-mode
+    model (directions ``x1, x2, ..., y1``: :func:`robovib.campaign.fit_multimode_pose_model`)
+    filters with every modelled mode of a direction and predicts only the directions it has.
 
     Parameters
     ----------
@@ -257,21 +261,29 @@ def predict_at_pose(
     if not np.all(np.isfinite(forces_n)):
         raise ValueError("forces_n contains NaN or inf")
     pose = pose_modes(model, (x_mm, y_mm, rz_deg))
-    modes = {d: pose[d].parameters for d in DIRECTIONS}
+    # dominant-mode model: one mode per direction; multi-mode model (mode ids x1, x2, ..., y1):
+    # every modelled mode of a direction, and only the directions it has (issue 29)
+    per_dir: dict[str, list] = {}
+    for k, pm in pose.items():
+        per_dir.setdefault(k if k in DIRECTIONS else k.rstrip("0123456789"), []).append(pm)
     outside = pose_extrapolation(model, (x_mm, y_mm, rz_deg))
     gen = np.random.default_rng(rng)
     out = []
     for i, d in enumerate(DIRECTIONS):
+        if d not in per_dir:
+            continue
+        pms = per_dir[d]
         f = forces_n[:, i]
         central = summarise_vibration(
-            convolve_force(f, sample_rate_hz, [modes[d]]),
+            convolve_force(f, sample_rate_hz, [p.parameters for p in pms]),
             sample_rate_hz,
             conditions.spindle_rpm,
             skip_s,
         )
-        p = pose[d]
-        mu = [modes[d].natural_frequency_hz, modes[d].stiffness_n_per_m, modes[d].damping_ns_per_m]
-        sd = [p.fn_std_hz, p.stiffness_std_n_per_m, p.damping_std_ns_per_m]
+        mu = np.array([[p.parameters.natural_frequency_hz, p.parameters.stiffness_n_per_m,
+                        p.parameters.damping_ns_per_m] for p in pms])  # fmt: skip
+        sd = np.array([[p.fn_std_hz, p.stiffness_std_n_per_m, p.damping_std_ns_per_m]
+                       for p in pms])  # fmt: skip
         pv, md = [], []
         draws = 0
         while len(pv) < n_samples and draws < 20 * n_samples:
@@ -280,13 +292,13 @@ def predict_at_pose(
             if np.any(s <= 0):
                 continue
             try:
-                m = ModalParameters.from_fn_k_c(s[0], s[1], s[2])
+                ms = [ModalParameters.from_fn_k_c(*row) for row in s]
             except ValueError:
                 continue
-            if m.damping_ratio >= 1:
+            if any(m.damping_ratio >= 1 for m in ms):
                 continue
             summ = summarise_vibration(
-                convolve_force(f, sample_rate_hz, [m]),
+                convolve_force(f, sample_rate_hz, ms),
                 sample_rate_hz,
                 conditions.spindle_rpm,
                 skip_s,
@@ -308,9 +320,10 @@ def predict_at_pose(
                 central.peak_to_valley_m,
                 band(md),
                 band(pv),
-                modes[d],
+                pms[0].parameters,
                 outside,
                 len(pv),
+                tuple(p.parameters for p in pms),
             )
         )
     return out
