@@ -49,7 +49,7 @@ def process(
         typer.Option(
             "--modes-band",
             help="LO,HI [Hz]: also fit every mode in this band and "
-            "track it across poses into modes.csv (issue 29; default: dominant only).",
+            "track it across poses into modes.csv (default: dominant only).",
         ),
     ] = None,
     json_out: JsonFlag = False,
