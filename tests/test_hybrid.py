@@ -486,3 +486,17 @@ def test_robust_update_keeps_the_dominant_peak_bin_of_the_ema_model():
     s_val = np.array([0.3, 0.9])
     np.testing.assert_allclose(model.predict(s_val)[:, k], ema_only.predict(s_val)[:, k], rtol=1e-6)
     assert any("dominant peak bin" in r for r in rep.reasons)
+
+
+def test_robust_update_finds_a_source_gain_in_noisy_oma():
+    """A 1.7 source gain (e.g. a coarsely quantised displacement) under 40 % random error per
+    bin: most bins disagree with neither 1 nor 1.7 on their own, the pooled gain is still
+    significant and applied; an unbiased source with the same noise is left alone."""
+    rng = np.random.default_rng(7)
+    f, s_ema, h_ema, s_oma, h_oma = _ema_oma(rng, n_oma=12, noise=0.4)
+    model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
+    rep = model.update(s_oma, 1.7 * h_oma, oma_resolution_hz=0.0)
+    assert rep.scale_applied and abs(rep.scale - 1.7) < 0.25
+    model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
+    rep = model.update(s_oma, h_oma, oma_resolution_hz=0.0)
+    assert not rep.scale_applied

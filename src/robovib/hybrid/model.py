@@ -571,9 +571,10 @@ class FRFPoseModel(BaseEstimator):
             if np.count_nonzero(ok_f) >= 3:
                 a_f = np.sum(w * np.conj(mc) * yc, axis=0)[ok_f] / den_f[ok_f]
                 var_f = 1.0 / den_f[ok_f]
-                a = complex(
-                    _weighted_median(a_f.real, 1 / var_f), _weighted_median(a_f.imag, 1 / var_f)
-                )
+                # Weights capped at 3 x their median: the per-bin precisions rest on the
+                # coherence of 2-3 Welch averages; one bin must not decide the source gain.
+                w_f = np.minimum(1 / var_f, 3 * np.median(1 / var_f))
+                a = complex(_weighted_median(a_f.real, w_f), _weighted_median(a_f.imag, w_f))
                 scale = a
                 scale_std = float(1.4826 * np.median(np.abs(a_f - a)) / np.sqrt(a_f.size))
                 # A property of the source (a sensor gain: e.g. a displacement quantised
