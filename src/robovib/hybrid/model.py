@@ -24,7 +24,9 @@ hyperparameters (§5.2.4: different sensors). Updating with OMA FRFs (:meth:`FRF
   1. a complex scale of the OMA source (sensor-to-tool transfer, force-sensor gain, the
      Bussgang gain of a displacement quantised coarser than the vibration): per bin by
      weighted least squares on the predictive check, pooled by a weighted median; applied
-     when it is off 1 by > 10 % and by > 2 x its spread over the bins;
+     when it is off 1 by > 10 % and by more than its spread over the bins (std of the pooled
+     estimate), if that spread is < 25 % of it; off 1 but less precise, the source gain is
+     ambiguous and the direction is held back (neither 1 nor the estimate is established);
   2. per bin: the mean standardised residual over the OMA segments (a systematic offset in
      that bin: leakage at a sharp peak, a sensor resonance, a harmonic); bins whose bias
      test exceeds ``chi2_reject`` are rejected for OMA;
@@ -106,7 +108,7 @@ _FORMAT = "robovib-frf-pose-model"
 _VERSION = 2
 _SCALE = 1e6  # m/N -> um/N: O(1) numbers inside the GPs
 _MIN_GAIN_NATS = 1.0  # held-out log-density gain OMA must bring (per bin, per direction)
-_SCALE_SIGNIFICANCE = 2.0  # source scale applied when |a - 1| > this x its std (and > 10 %)
+_SCALE_PRECISION = 0.25  # a source gain off 1 is applied when known to this relative std
 UPDATE_MODES = ("robust", "posterior", "warm")
 
 
@@ -567,7 +569,7 @@ class FRFPoseModel(BaseEstimator):
             w = np.where(keep, 1.0 / vc, 0.0)
             den_f = np.sum(w * np.abs(mc) ** 2, axis=0)
             ok_f = den_f > 0
-            scale, scale_std, applied = 1.0 + 0.0j, 0.0, False
+            scale, scale_std, applied, ambiguous = 1.0 + 0.0j, 0.0, False, False
             if np.count_nonzero(ok_f) >= 3:
                 a_f = np.sum(w * np.conj(mc) * yc, axis=0)[ok_f] / den_f[ok_f]
                 var_f = 1.0 / den_f[ok_f]
@@ -580,7 +582,9 @@ class FRFPoseModel(BaseEstimator):
                 # A property of the source (a sensor gain: e.g. a displacement quantised
                 # coarser than the vibration has a Bussgang gain > 1): significant against
                 # the spread of the per-bin estimates, not only against each bin's noise.
-                if abs(a - 1) > max(0.1, _SCALE_SIGNIFICANCE * scale_std):
+                significant = abs(a - 1) > max(0.1, scale_std)
+                ambiguous = significant and scale_std > _SCALE_PRECISION * abs(a)
+                if significant and not ambiguous:
                     applied = True
                     yc = yc / a
                     sig = sig / abs(a)
@@ -660,7 +664,15 @@ class FRFPoseModel(BaseEstimator):
         thr_dir = max(_MIN_GAIN_NATS, float(np.log(max(np.count_nonzero(tested), 1))))
         hold = tested & (gain_f <= _MIN_GAIN_NATS)
         total_gain = float(np.nansum(gain_f)) if np.any(tested) else None
-        if total_gain is not None and total_gain <= thr_dir:
+        if ambiguous:
+            held_all = True
+            reasons.append(
+                f"update held back for this direction: the OMA source gain is ambiguous "
+                f"({abs(scale):.2f} +- {scale_std:.2f} against the EMA model: neither 1 nor "
+                "the estimate is established, so the OMA levels cannot be trusted)"
+            )
+            m_new = np.zeros_like(m_new)
+        elif total_gain is not None and total_gain <= thr_dir:
             held_all = True
             reasons.append(
                 "update held back for this direction: held-out OMA segments are predicted no "
