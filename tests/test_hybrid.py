@@ -178,7 +178,8 @@ def test_robust_update_keeps_unbiased_data_and_estimates_noise():
         rng.normal(size=(40, f.size)) + 1j * rng.normal(size=(40, f.size))
     )
     model = FRFPoseModel(f, rng=0).fit(s_ema, _family(s_ema, f))
-    rep = model.update(s_oma, h_oma, mode="robust")
+    # Exact FRFs plus noise, no Welch window: no window bias at the peak (resolution 0 Hz).
+    rep = model.update(s_oma, h_oma, mode="robust", oma_resolution_hz=0.0)
     assert not rep.scale_applied and rep.rejected_bins_hz == ()
     assert rep.rejected_fraction < 0.01
     noise = model.gp_.hyperparameters_.noise_std[:, 1] / 1e6
@@ -216,10 +217,12 @@ def test_oma_random_error_and_quality_warning(robot):
                         spindle_rpm=cond.spindle_rpm, f_max_hz=30.0, window="hann", noverlap=128)  # fmt: skip
     err = segs[0].random_error_m_per_n
     coh = segs[0].frf.coherence
-    # Bendat & Piersol: error / |H| = sqrt(1 - g2) / (|g| sqrt(2 n_d)), larger where coherence is lower.
+    # Bendat & Piersol: error / |H| = sqrt(1 - g2) / (|g| sqrt(2 n_d)), larger where coherence
+    # is lower, with g2 debiased for n_d averages: (n_d g2_hat - 1) / (n_d - 1), >= 1e-3.
     n_d = segs[0].frf.n_averages
+    g2 = np.maximum((n_d * coh - 1) / (n_d - 1), 1e-3)
     np.testing.assert_allclose(
-        err / np.abs(segs[0].frf.values), np.sqrt((1 - coh) / (2 * n_d * coh)), rtol=1e-9
+        err / np.abs(segs[0].frf.values), np.sqrt((1 - g2) / (2 * n_d * g2)), rtol=1e-9
     )
     with pytest.raises(ValueError, match="noverlap"):
         oma_frfs(run.time_s, run.force_n, run.displacement_m, run.coords, noverlap=600)
@@ -402,3 +405,98 @@ def test_background_study_table_and_bad_input():
     r, e = rows[(1.0, "robust")], rows[(1.0, "ema")]
     want = 100 * (r["rmse_vs_truth_um_per_n"] / e["rmse_vs_truth_um_per_n"] - 1)
     assert tab[1]["rmse_change_mean_pct"] == pytest.approx(want)
+
+
+def test_debiased_coherence_of_unrelated_and_related_signals():
+    """SciPy's Welch coherence with n_d = 4 averages: of a known true coherence 0.5 (y = x +
+    unit noise) it is biased up, the debiased one less; of unrelated noises the raw value
+    averages 1/n_d and the debiased one is 0 in the Beta(1, n_d - 1) share below 1/n_d;
+    a noise-free relation keeps 1; one average carries no information."""
+    from scipy import signal
+
+    from robovib.hybrid import debiased_coherence
+
+    rng = np.random.default_rng(0)
+    n_d, nperseg = 4, 256
+    a, b = rng.normal(size=(2, 400, n_d * nperseg))
+
+    def coh(u, v):
+        return np.array(
+            [signal.coherence(u[i], v[i], nperseg=nperseg, noverlap=0)[1] for i in range(len(u))]
+        )[:, 1:-1]
+
+    half = coh(a, a + b)  # true coherence 1 / (1 + 1) = 0.5
+    raw_bias = half.mean() - 0.5  # biased up by ~(1 - 0.5) / n_d = 0.125 to first order
+    assert raw_bias > 0.06
+    assert abs(debiased_coherence(half, n_d).mean() - 0.5) < 0.7 * raw_bias
+    raw = coh(a, b)
+    assert abs(raw.mean() - 1 / n_d) < 0.02
+    zero_share = np.mean(debiased_coherence(raw, n_d) == 0.0)
+    assert abs(zero_share - (1 - (1 - 1 / n_d) ** (n_d - 1))) < 0.02
+    _, same = signal.coherence(a[0], 2 * a[0], nperseg=nperseg, noverlap=0)
+    np.testing.assert_allclose(debiased_coherence(same, n_d), 1.0, atol=1e-9)
+    assert np.all(debiased_coherence(np.full(5, 0.9), 1) == 0.0)
+
+
+def test_hann_window_bias_ratio_matches_welch_h1_of_a_sharp_mode():
+    """E[H1] / H of a Hann Welch estimate at a sharp resonance (zeta 1 %, 1 Hz bins) from a
+    long white-noise simulation (SciPy csd / welch) vs the one-mode-fit prediction."""
+    from scipy import signal
+
+    from robovib.hybrid.model import _hann_bias_ratio
+
+    fs, nperseg = 64.0, 64  # 1 Hz resolution
+    fn, zeta = 12.3, 0.01
+    wn = 2 * np.pi * fn
+    b, a = signal.bilinear([1.0], [1.0, 2 * zeta * wn, wn**2], fs=fs)
+    x = np.random.default_rng(1).normal(size=400_000)
+    y = signal.lfilter(b, a, x)
+    f, gxy = signal.csd(x, y, fs=fs, window="hann", nperseg=nperseg, noverlap=nperseg // 2)
+    _, gxx = signal.welch(x, fs=fs, window="hann", nperseg=nperseg, noverlap=nperseg // 2)
+    sel = (f >= 2) & (f <= 30)
+    f, h1 = f[sel], (gxy / gxx)[sel]
+    _, h = signal.freqz(b, a, worN=f, fs=fs)
+    band = np.abs(f - fn) <= 2.0
+    ratio = _hann_bias_ratio(f, h, band)
+    measured = h1 / h
+    assert np.all(ratio[~band] == 1.0)
+    assert np.max(np.abs(measured[band] - 1)) > 0.5  # the window smears the peak: a real bias
+    np.testing.assert_allclose(ratio[band], measured[band], atol=0.04)
+
+
+def test_robust_update_keeps_the_dominant_peak_bin_of_the_ema_model():
+    """A sharp mode on a coarse grid (window bias > 5 %): the OMA data are not used at the
+    dominant peak bin, so the prediction there is the EMA model's; the report says so."""
+    f = np.arange(2.0, 30.0, 1.0)
+
+    def fam(s):
+        r = f[None, :] / (10.3 - 0.5 * s)[:, None]
+        return 1e-6 / (1 - r**2 + 0.04j * r)
+
+    s_ema = np.array([0.0, 0.6, 1.2])
+    s_oma = np.linspace(0.05, 1.15, 16)
+    rng = np.random.default_rng(3)
+    h_oma = fam(s_oma) * (
+        1 + 0.03 * (rng.normal(size=(16, f.size)) + 1j * rng.normal(size=(16, f.size)))
+    )
+    ema_only = FRFPoseModel(f, rng=0).fit(s_ema, fam(s_ema))
+    model = FRFPoseModel(f, rng=0).fit(s_ema, fam(s_ema))
+    rep = model.update(s_oma, h_oma)
+    k = int(np.argmax(np.mean(np.abs(ema_only.predict(s_oma)) ** 2, axis=0)))
+    s_val = np.array([0.3, 0.9])
+    np.testing.assert_allclose(model.predict(s_val)[:, k], ema_only.predict(s_val)[:, k], rtol=1e-6)
+    assert any("dominant peak bin" in r for r in rep.reasons)
+
+
+def test_robust_update_finds_a_source_gain_in_noisy_oma():
+    """A 1.7 source gain (e.g. a coarsely quantised displacement) under 40 % random error per
+    bin: most bins disagree with neither 1 nor 1.7 on their own, the pooled gain is still
+    significant and applied; an unbiased source with the same noise is left alone."""
+    rng = np.random.default_rng(7)
+    f, s_ema, h_ema, s_oma, h_oma = _ema_oma(rng, n_oma=12, noise=0.4)
+    model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
+    rep = model.update(s_oma, 1.7 * h_oma, oma_resolution_hz=0.0)
+    assert rep.scale_applied and abs(rep.scale - 1.7) < 0.25
+    model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
+    rep = model.update(s_oma, h_oma, oma_resolution_hz=0.0)
+    assert not rep.scale_applied

@@ -45,7 +45,10 @@ def print_background_table(tab: list[dict]) -> None:
     cols = ("rmse_change_mean_pct", "rmse_change_worst_pct", "peak_error_ema_pct",
             "peak_error_robust_pct", "peak_change_worst_pts")  # fmt: skip
     print_table("Robust vs EMA alone at the validation pose, vs the true FRF: RMSE change % "
-                "(mean, worst seed), peak |H| error % (EMA, robust: mean), worst peak change (pts)",
-                ("background", "dir", "RMSE mean", "RMSE worst", "peak EMA", "peak rob.", "peak worst"),
-                [(f"{r['background']:g}", r["direction"].upper(), *(f"{r[c]:+.1f}" for c in cols))
+                "(mean, worst seed), peak |H| error % (EMA, robust: mean), worst peak change (pts), "
+                "seeds where the whole direction was held back",
+                ("background", "dir", "RMSE mean", "RMSE worst", "peak EMA", "peak rob.",
+                 "peak worst", "held back"),
+                [(f"{r['background']:g}", r["direction"].upper(), *(f"{r[c]:+.1f}" for c in cols),
+                  f"{100 * r.get('held_back_fraction', 0.0):.0f} %")
                  for r in tab])  # fmt: skip

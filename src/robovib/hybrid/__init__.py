@@ -1,7 +1,7 @@
 """Hybrid EMA + OMA statistical model of the robot FRF with Bayesian updating (thesis ch. 5)."""
 
 from .model import UPDATE_MODES, FRFPoseModel, UpdateReport, frequency_grid
-from .oma import OMAQualityWarning, OMASegment, oma_frfs
+from .oma import OMAQualityWarning, OMASegment, debiased_coherence, h1_random_error, oma_frfs
 from .workflow import (
     INPUT_SETS,
     FRFPrediction,
@@ -23,12 +23,14 @@ __all__ = [
     "OMAQualityWarning",
     "OMASegment",
     "UpdateReport",
+    "debiased_coherence",
     "fit_frf_model",
     "flagged_fraction",
     "frequency_grid",
     "frf_pose",
     "frfs_on_grid",
     "frfs_on_path_grid",
+    "h1_random_error",
     "oma_frfs",
     "oma_frfs_with_path",
     "plot_frf_prediction",

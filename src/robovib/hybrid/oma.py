@@ -29,7 +29,13 @@ import numpy as np
 from ..frf.core import FRF
 from ..frf.estimate import estimate_frf
 
-__all__ = ["OMAQualityWarning", "OMASegment", "oma_frfs"]
+__all__ = [
+    "OMAQualityWarning",
+    "OMASegment",
+    "debiased_coherence",
+    "h1_random_error",
+    "oma_frfs",
+]
 
 
 class OMAQualityWarning(UserWarning):
@@ -49,9 +55,35 @@ class OMASegment:
     @property
     def random_error_m_per_n(self) -> np.ndarray:
         """(n_f,) H1 random error std per bin [m/N] (Bendat & Piersol, from the coherence)."""
-        coh = np.clip(np.asarray(self.frf.coherence, float), 1e-6, 1.0)
-        n_d = max(int(self.frf.n_averages), 1)
-        return np.abs(self.frf.values) * np.sqrt((1 - coh) / (2 * n_d * coh))
+        return h1_random_error(self.frf.values, self.frf.coherence, self.frf.n_averages)
+
+
+def debiased_coherence(coherence, n_averages: int) -> np.ndarray:
+    """Coherence corrected for its estimation bias with few averages, in [0, 1].
+
+    With ``n_d`` Welch averages the estimate of γ² is biased upwards by about
+    ``(1 - γ²) / n_d`` (Bendat & Piersol §9.2.3: two unrelated signals give γ̂² ≈ 1 / n_d,
+    one average always gives 1). Inverting ``E[γ̂²] ≈ γ² + (1 - γ²) / n_d`` gives
+    ``γ² ≈ (n_d γ̂² - 1) / (n_d - 1)``; with one average nothing is known (0 returned).
+    """
+    coh = np.clip(np.asarray(coherence, float), 0.0, 1.0)
+    n_d = int(n_averages)
+    if n_d < 2:
+        return np.zeros_like(coh)
+    return np.clip((n_d * coh - 1.0) / (n_d - 1.0), 0.0, 1.0)
+
+
+def h1_random_error(values, coherence, n_averages: int) -> np.ndarray:
+    """H1 random error std per bin [units of ``values``] from the coherence.
+
+    Bendat & Piersol's normalised random error ``sqrt(1 - γ²) / (|γ| sqrt(2 n_d))`` x |H|,
+    with γ² the *debiased* coherence (:func:`debiased_coherence`): with the 2-3 averages of
+    a 50 mm OMA segment the raw coherence of a bin without coherent content is ~0.5 and
+    would understate its error several times. Floored at γ² = 1e-3 (error ~22 x |H|).
+    """
+    n_d = max(int(n_averages), 1)
+    coh = np.maximum(debiased_coherence(coherence, n_d), 1e-3)
+    return np.abs(np.asarray(values)) * np.sqrt((1 - coh) / (2 * n_d * coh))
 
 
 def oma_frfs(

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..frf.core import FRF
 from .model import FRFPoseModel
-from .oma import oma_frfs
+from .oma import h1_random_error, oma_frfs
 
 __all__ = [
     "INPUT_SETS",
@@ -155,8 +155,7 @@ def frfs_on_grid(
         vals.append(on_grid.values)
         masks.append(~flagged[nearest] & ~outside)
         if f.coherence is not None:
-            coh = np.clip(np.asarray(f.coherence, float), 1e-6, 1.0)
-            err = np.abs(f.values) * np.sqrt((1 - coh) / (2 * max(int(f.n_averages), 1) * coh))
+            err = h1_random_error(f.values, f.coherence, f.n_averages)
             errs.append(np.interp(grid, f.frequency_hz, err))
         else:
             errs.append(np.zeros(grid.size))

@@ -128,8 +128,11 @@ class HybridStudyResult:
     Row keys: ``seed, direction, model, rmse_um_per_n`` (vs the validation hammer test, as
     Table 12), ``rmse_vs_truth_um_per_n`` (vs the simulator's true FRF), ``peak_error_pct``
     (|H| error at the dominant-mode bin of the hammer FRF, as §5.4.1), ``peak_error_vs_truth_pct``,
-    ``n_bins, n_oma_segments, flagged_fraction, rejected_fraction, iterations_mean,
-    iterations_total, wall_time_s``.
+    ``n_bins, n_oma_segments, flagged_fraction, rejected_fraction, held_back_all`` (the
+    robust update kept EMA alone for that direction), ``iterations_mean, iterations_total``
+    (quasi-Newton iterations per GP of the call that made the model: the EMA fit for
+    ``"ema"``, the update for the others; 0 = hyperparameters kept, none re-optimised),
+    ``wall_time_s``.
 
     Attributes
     ----------
@@ -346,7 +349,7 @@ def _one_seed(
                   "n_oma_segments": len(oma_x), "flagged_fraction": float(1 - oma_mask.mean())}  # fmt: skip
         for name in models:
             t0 = time.perf_counter()
-            rejected, iters, total = 0.0, 0.0, 0
+            rejected, iters, total, held_all = 0.0, 0.0, 0, False
             if name == "retrain":
                 m = FRFPoseModel(grid, rng=seed).fit(
                     np.concatenate([ema_x, oma_x]),
@@ -364,10 +367,12 @@ def _one_seed(
                     rep = m.update(oma_x, oma_h, mask=oma_mask, mode=mode, noise_std=oma_err,
                                    reoptimize=name == "robust_warm")  # fmt: skip
                     rejected = rep.rejected_fraction
+                    held_all = bool(rep.held_back_all)
             iters, total = rep.iterations_mean_per_gp, rep.iterations_total
             wall = time.perf_counter() - t0
             rows.append({**common, "model": name, **_score(m.predict([validation_s_m])[0], val, truth),
-                         "rejected_fraction": rejected, "iterations_mean": iters,
+                         "rejected_fraction": rejected, "held_back_all": held_all,
+                         "iterations_mean": iters,
                          "iterations_total": total, "wall_time_s": wall})  # fmt: skip
     return rows
 
@@ -857,7 +862,8 @@ def background_table(result: HybridStudyResult) -> list[dict]:
         ``background, direction, rmse_change_mean_pct, rmse_change_worst_pct`` (relative
         change of the RMSE vs truth, per seed), ``peak_error_ema_pct, peak_error_robust_pct``
         (mean over seeds) and ``peak_change_worst_pts`` (worst seed, robust minus EMA, in
-        percentage points of the dominant-peak |H| error).
+        percentage points of the dominant-peak |H| error), ``held_back_fraction`` (of the
+        seeds where the evidence test held the whole direction back: EMA alone).
     """
     import pandas as pd
 
@@ -868,12 +874,13 @@ def background_table(result: HybridStudyResult) -> list[dict]:
     t = pd.DataFrame({
         "d_rmse": 100 * (r.rmse_vs_truth_um_per_n / e.rmse_vs_truth_um_per_n - 1),
         "pk_e": e.peak_error_vs_truth_pct, "pk_r": r.peak_error_vs_truth_pct,
+        "held": r.held_back_all.astype(float),
     })  # fmt: skip
     t["d_pk"] = t.pk_r - t.pk_e
     g = t.groupby(level=["background", "direction"]).agg(
         rmse_change_mean_pct=("d_rmse", "mean"), rmse_change_worst_pct=("d_rmse", "max"),
         peak_error_ema_pct=("pk_e", "mean"), peak_error_robust_pct=("pk_r", "mean"),
-        peak_change_worst_pts=("d_pk", "max"),
+        peak_change_worst_pts=("d_pk", "max"), held_back_fraction=("held", "mean"),
     )  # fmt: skip
     return [{k: (float(v) if k != "direction" else v) for k, v in row.items()}
             for row in g.reset_index().to_dict(orient="records")]  # fmt: skip
