@@ -52,9 +52,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .forces import CuttingCoefficients, CuttingConditions, MillingTool, engagement_angles
 from ..modal.parameters import ModalParameters
 from ..modal.stepping import zoh_transition
+from .forces import CuttingCoefficients, CuttingConditions, MillingTool, engagement_angles
 
 __all__ = [
     "RegenerativeCut",
@@ -151,9 +151,7 @@ def simulate_regenerative_cut(
     if n_entry < 0:
         raise ValueError(f"entry_tooth_periods must be >= 0, got {entry_tooth_periods}")
     if not (np.isfinite(chatter_fraction_of_feed) and chatter_fraction_of_feed > 0):
-        raise ValueError(
-            f"chatter_fraction_of_feed must be > 0, got {chatter_fraction_of_feed!r}"
-        )
+        raise ValueError(f"chatter_fraction_of_feed must be > 0, got {chatter_fraction_of_feed!r}")
     n_fl = int(tool.n_flutes)
     tau = 60.0 / (n_fl * conditions.spindle_rpm)
     dt = tau / m_steps
@@ -315,7 +313,7 @@ def time_domain_limit_ratio(
     spindle_rpm,
     linear_limit_m,
     *,
-    factors: Sequence[float] = (0.6, 0.7, 0.8, 0.85, 0.9, 0.95, 1.0),
+    factors: Sequence[float] = (0.6, 0.7, 0.8, 0.825, 0.85, 0.875, 0.9, 0.925, 0.95, 0.975, 1.0),
     **simulation,
 ) -> np.ndarray:
     """Ratio of the time-domain stability limit to a linear one, per speed.
