@@ -92,8 +92,10 @@ def main(argv=None) -> None:
     for i, pose in enumerate(unseen):
         cond = CuttingConditions(float(rpm[0]), 0.058e-3, 1e-3, 6e-3)
         dist = mode_distribution_at_pose(model, pose, rng=i)
-        prob = stability_probability(dist, tool, cond, ALUMINIUM_7075, rpm, n_samples=args.samples,
-                                     method="zoa", rng=i, time_domain_margin=True)  # fmt: skip
+        kw = dict(n_samples=args.samples, method="zoa", rng=i)
+        prob = stability_probability(dist, tool, cond, ALUMINIUM_7075, rpm, **kw,
+                                     time_domain_margin=True)  # fmt: skip
+        linear = stability_probability(dist, tool, cond, ALUMINIUM_7075, rpm, **kw)
         ratio = np.asarray(prob.settings["time_domain_ratio"])
         coords = (pose[0] / 1e3, pose[1] / 1e3, pose[2])
         truth = {}
@@ -114,7 +116,7 @@ def main(argv=None) -> None:
                 stable = ~cut.chatter
             samples = prob.a_lim_samples_m[:, s, None]
             p_rows += list(np.mean(samples > depths[None, :], axis=0))
-            plin_rows += list(np.mean(samples / ratio[s] > depths[None, :], axis=0))
+            plin_rows += list(np.mean(linear.a_lim_samples_m[:, s, None] > depths[None, :], axis=0))
             det_rows += list((depths < limit).astype(float))
             detm_rows += list((depths < limit * ratio[s]).astype(float))
             out_rows += list(stable.astype(float))

@@ -138,3 +138,29 @@ def test_stability_probability_with_the_time_domain_margin_is_never_more_optimis
     assert ratio.shape == (2,) and np.all((ratio > 0) & (ratio <= 1))
     assert np.all(mar.p_stable <= lin.p_stable)
     assert lin.settings["time_domain_ratio"] is None
+
+
+def test_mill_lobes_time_domain_margin_from_the_cli():
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    args = ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "45", "--method", "zoa",
+            "--rpm-range", "1750:2400:2", "--samples", "8", "--json"]  # fmt: skip
+    plain = json.loads(CliRunner().invoke(app, args).stdout)
+    res = CliRunner().invoke(app, [*args, "--time-domain-margin"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    ratio = np.asarray(doc["probability"]["time_domain_ratio"])
+    assert ratio.shape == (2,) and np.all((ratio > 0) & (ratio <= 1))
+    assert plain["probability"]["time_domain_ratio"] is None
+    assert any("time-domain margin" in n for n in doc["notes"])
+    # The linear envelope itself is unchanged; only P(stable) moves, never upwards.
+    assert doc["a_lim_m"] == plain["a_lim_m"]
+    assert np.all(np.asarray(doc["probability"]["a_lim_p05_m"])
+                  <= np.asarray(plain["probability"]["a_lim_p05_m"]))  # fmt: skip
+    bad = CliRunner().invoke(app, [a for a in args if a not in ("--samples", "8")]
+                             + ["--time-domain-margin"])  # fmt: skip
+    assert bad.exit_code != 0 and "n_samples" in bad.output

@@ -314,8 +314,9 @@ def time_domain_limit_ratio(
     linear_limit_m,
     *,
     factors: Sequence[float] = (0.6, 0.7, 0.8, 0.825, 0.85, 0.875, 0.9, 0.925, 0.95, 0.975, 1.0),
+    return_bracket: bool = False,
     **simulation,
-) -> np.ndarray:
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Ratio of the time-domain stability limit to a linear one, per speed.
 
     Linear theory (semi-discretization, zero-order method) assumes the flutes never leave the
@@ -326,7 +327,7 @@ def time_domain_limit_ratio(
     batch); the ratio is the midpoint between the deepest factor that stays stable below the
     first chattering one and that one. It is never above 1 (a simulated limit above the linear
     one is taken as the linear one: the simulation's finite record can miss slow growth) and is
-    ``0.9 * factors[0]`` where even the first factor chatters.
+    ``0.75 * factors[0]`` where even the first factor chatters (bracket ``[0.5, 1] * factors[0]``).
 
     Parameters
     ----------
@@ -341,6 +342,9 @@ def time_domain_limit_ratio(
         The linear limit [m] at each speed (e.g. ``sdm_lobes(...).a_lim_m``).
     factors : sequence of float
         Fractions of the linear limit simulated, increasing, in (0, 1].
+    return_bracket : bool
+        Also return where the ratio lies: ``(low, high)`` arrays (the stable and the chattering
+        factor; both 1 where nothing chatters).
     **simulation
         Passed to :func:`simulate_regenerative_cut` (``n_tooth_periods``, ``steps_per_tooth``,
         ``entry_tooth_periods``, ...).
@@ -348,7 +352,8 @@ def time_domain_limit_ratio(
     Returns
     -------
     numpy.ndarray (n,)
-        Time-domain limit / linear limit at each speed, in (0, 1].
+        Time-domain limit / linear limit at each speed, in (0, 1]; with ``return_bracket`` the
+        tuple ``(low, high)`` instead (the ratio is their midpoint).
 
     Examples
     --------
@@ -369,7 +374,7 @@ def time_domain_limit_ratio(
         raise ValueError(f"spindle_rpm {rpm.shape} and linear_limit_m {lim.shape} differ in shape")
     if f.ndim != 1 or f.size < 2 or np.any(np.diff(f) <= 0) or f[0] <= 0 or f[-1] > 1:
         raise ValueError("factors must increase within (0, 1] (at least two)")
-    ratio = np.ones(rpm.size)
+    low, high = np.ones(rpm.size), np.ones(rpm.size)
     for i, (speed, a_lin) in enumerate(zip(rpm, lim, strict=True)):
         if not (np.isfinite(a_lin) and a_lin > 0):
             raise ValueError(f"linear_limit_m at {speed:g} rpm must be a positive depth [m]")
@@ -379,5 +384,5 @@ def time_domain_limit_ratio(
         ).chatter
         if chat.any():
             j = int(np.argmax(chat))
-            ratio[i] = 0.9 * f[0] if j == 0 else 0.5 * (f[j - 1] + f[j])
-    return ratio
+            low[i], high[i] = (0.5 * f[0], f[0]) if j == 0 else (f[j - 1], f[j])
+    return (low, high) if return_bracket else 0.5 * (low + high)

@@ -208,7 +208,8 @@ def stability_probability(
     rng : seed or Generator
     time_domain_margin : bool
         Scale every sampled envelope, per speed, by the ratio of the time-domain limit to the
-        linear one at the mean modes (:func:`robovib.milling.time_domain.time_domain_limit_ratio`):
+        linear one at the mean modes (:func:`robovib.milling.time_domain.time_domain_limit_ratio`,
+        each sample's ratio drawn uniformly inside the simulated bracket):
         linear theory assumes the flutes never leave the cut, but a cut that enters at full
         depth can be thrown into the chatter that coexists with the stable cut 5-15 % below
         the linear limit (with edge forces). One batched time-domain simulation per speed
@@ -247,13 +248,15 @@ def stability_probability(
     if time_domain_margin:
         from .time_domain import time_domain_limit_ratio
 
-        ratio = time_domain_limit_ratio(
+        low, high = time_domain_limit_ratio(
             [distribution[feed_direction].mean], [distribution[normal].mean], tool,
-            conditions, coefficients, rpm, mean_env.a_lim_m,
+            conditions, coefficients, rpm, mean_env.a_lim_m, return_bracket=True,
             entry_tooth_periods=int(entry_tooth_periods),
         )  # fmt: skip
-        a_s = a_s * ratio[None, :]
-        mins = mins * float(ratio.min())
+        ratio = 0.5 * (low + high)
+        # The simulated limit is known to its bracket: each sample's ratio is drawn inside it.
+        a_s = a_s * gen.uniform(low[None, :], high[None, :], size=a_s.shape)
+        mins = mins * float(low.min())
     if depth_m is None:
         depth = np.linspace(0, 3 * mean_env.minimum_depth_m, 121)[1:]
     else:
