@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from robovib.milling import CuttingCoefficients, CuttingConditions, MillingTool
+from robovib.milling import ALUMINIUM_7075, CuttingCoefficients, CuttingConditions, MillingTool
 from robovib.milling.sdm import floquet_multipliers, sdm_lobes
+from robovib.milling.time_domain import time_domain_limit_ratio
 from robovib.modal import ModalParameters
 from robovib.sim import VirtualRobot, simulate_regenerative_cut, simulated_stability_limit
 
@@ -73,3 +74,93 @@ def test_simulated_limit_confirms_sdm_within_10_percent(pose):
     lo, hi = simulated_stability_limit(mx, my, TOOL, cond, AL_NO_EDGE, (0.7 * a_lim, 1.4 * a_lim),
                                        n_bisections=3, n_tooth_periods=300, steps_per_tooth=60)  # fmt: skip
     assert abs(0.5 * (lo + hi) / a_lim - 1) < 0.10
+
+
+def test_a_small_grazing_subharmonic_is_not_chatter_but_saturated_chatter_is():
+    # With edge forces a flute grazes in and out of the cut at the entry angle: far below the
+    # linear limit the Poincaré differences settle at ~1 % of the feed instead of decaying.
+    # Linear theory (SDM) calls 0.5x its limit stable and 1.25x unstable; so must the simulation.
+    mx, my = _pose_modes(POSES[0])
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3)
+    a_lim = sdm_lobes(mx, my, TOOL, cond, ALUMINIUM_7075, [RPM]).a_lim_m[0]
+    cut = simulate_regenerative_cut(mx, my, TOOL, cond, ALUMINIUM_7075, a_lim * np.array([0.5, 1.25]),
+                                    steps_per_tooth=60)  # fmt: skip
+    assert list(cut.chatter) == [False, True]
+    feed = cond.feed_per_tooth_m
+    assert cut.chatter_amplitude_m[0] < 0.05 * feed < 0.5 * feed < cut.chatter_amplitude_m[1]
+
+
+def test_entry_ramp_lengthens_the_record_and_keeps_a_stable_cut_stable():
+    mx, my = _pose_modes(POSES[0])
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3, down_milling=True)
+    a_lim = sdm_lobes(mx, my, TOOL, cond, AL_NO_EDGE, [RPM]).a_lim_m[0]
+    cut = simulate_regenerative_cut(mx, my, TOOL, cond, AL_NO_EDGE, [0.7 * a_lim],
+                                    n_tooth_periods=100, steps_per_tooth=40,
+                                    entry_tooth_periods=50)  # fmt: skip
+    assert cut.time_s.size == 150 * 40 and cut.entry_tooth_periods == 50
+    assert not cut.chatter[0]
+    with pytest.raises(ValueError, match="entry_tooth_periods"):
+        simulate_regenerative_cut(mx, my, TOOL, cond, AL_NO_EDGE, [1e-3], entry_tooth_periods=-1)
+
+
+@pytest.mark.parametrize("down", [True, False])
+def test_time_domain_limit_matches_linear_theory_without_edge_forces(down):
+    # No edge forces: the tool stays in the cut below the limit, the system is the linear one
+    # the semi-discretization solves, so the time-domain limit is the SDM limit (to the 5 % grid).
+    mx, my = _pose_modes(POSES[1])
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3, down_milling=down)
+    lim = sdm_lobes(mx, my, TOOL, cond, AL_NO_EDGE, [RPM]).a_lim_m
+    ratio = time_domain_limit_ratio(mx, my, TOOL, cond, AL_NO_EDGE, [RPM], lim, steps_per_tooth=60)
+    assert 0.95 <= ratio[0] <= 1.0
+    with pytest.raises(ValueError, match="factors"):
+        time_domain_limit_ratio(mx, my, TOOL, cond, AL_NO_EDGE, [RPM], lim, factors=(0.9, 0.8))
+    with pytest.raises(ValueError, match="shape"):
+        time_domain_limit_ratio(mx, my, TOOL, cond, AL_NO_EDGE, [RPM, 2000.0], lim)
+
+
+def test_stability_probability_with_the_time_domain_margin_is_never_more_optimistic():
+    from robovib.milling.uncertainty import ModeDistribution, stability_probability
+
+    mx, my = _pose_modes(POSES[0])
+    dist = {
+        d: ModeDistribution(m.natural_frequency_hz, m.stiffness_n_per_m, m.damping_ns_per_m,
+                            0.02 * m.natural_frequency_hz, 0.05 * m.stiffness_n_per_m,
+                            0.08 * m.damping_ns_per_m)
+        for d, m in (("x", mx[0]), ("y", my[0]))
+    }  # fmt: skip
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3)
+    rpm = [1750.0, 2400.0]
+    kw = dict(n_samples=20, method="zoa", rng=3)
+    lin = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, **kw)
+    mar = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, depth_m=lin.depth_m,
+                                time_domain_margin=True, **kw)  # fmt: skip
+    ratio = np.asarray(mar.settings["time_domain_ratio"])
+    assert ratio.shape == (2,) and np.all((ratio > 0) & (ratio <= 1))
+    assert np.all(mar.p_stable <= lin.p_stable)
+    assert lin.settings["time_domain_ratio"] is None
+
+
+def test_mill_lobes_time_domain_margin_from_the_cli():
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    args = ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "45", "--method", "zoa",
+            "--rpm-range", "1750:2400:2", "--samples", "8", "--json"]  # fmt: skip
+    plain = json.loads(CliRunner().invoke(app, args).stdout)
+    res = CliRunner().invoke(app, [*args, "--time-domain-margin"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    ratio = np.asarray(doc["probability"]["time_domain_ratio"])
+    assert ratio.shape == (2,) and np.all((ratio > 0) & (ratio <= 1))
+    assert plain["probability"]["time_domain_ratio"] is None
+    assert any("time-domain margin" in n for n in doc["notes"])
+    # The linear envelope itself is unchanged; only P(stable) moves, never upwards.
+    assert doc["a_lim_m"] == plain["a_lim_m"]
+    assert np.all(np.asarray(doc["probability"]["a_lim_p05_m"])
+                  <= np.asarray(plain["probability"]["a_lim_p05_m"]))  # fmt: skip
+    bad = CliRunner().invoke(app, [a for a in args if a not in ("--samples", "8")]
+                             + ["--time-domain-margin"])  # fmt: skip
+    assert bad.exit_code != 0 and "n_samples" in bad.output

@@ -286,6 +286,7 @@ class LobesChart:
                 "a_lim_p05_m": p.depth_quantile_m(0.05),
                 "a_lim_p95_m": p.depth_quantile_m(0.95),
                 "sampling": p.settings["sampling"],
+                "time_domain_ratio": p.settings.get("time_domain_ratio"),
             }
         return doc
 
@@ -310,6 +311,7 @@ def lobes_chart(
     feed_direction: str = "x",
     n_samples: int = 0,
     rng=0,
+    time_domain_margin: bool = False,
 ) -> LobesChart:
     """Stability envelope from modes or a measured FRF file, with cuts and an operating point.
 
@@ -344,6 +346,9 @@ def lobes_chart(
     n_samples : int
         With a pose model: Monte-Carlo samples of its predictive distribution for the probability
         of a stable cut (:func:`robovib.milling.uncertainty.stability_probability`); 0 = none.
+    time_domain_margin : bool
+        With ``n_samples``: scale the sampled envelopes by the time-domain limit / linear limit
+        of the mean modes at each speed (a cut entering at full depth; ~1 s per speed).
 
     Returns
     -------
@@ -355,6 +360,8 @@ def lobes_chart(
 
     steps_per_period = check_int("steps_per_period", steps_per_period, lo=2, hi=10_000)
     n_samples = check_int("n_samples", n_samples, lo=0, hi=100_000)
+    if time_domain_margin and n_samples == 0:
+        raise ValueError("the time-domain margin applies to P(stable): give n_samples > 0")
     rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
     modes_x, modes_y = tuple(modes_x), tuple(modes_y)
     frfs = {}
@@ -406,8 +413,15 @@ def lobes_chart(
             probability = stability_probability(
                 dist, tool, conditions, coefficients, rpm, n_samples=int(n_samples),
                 method=method, feed_direction=feed_direction, rng=rng,
+                time_domain_margin=bool(time_domain_margin),
                 **({"steps_per_period": steps_per_period} if method == "sdm" else {}),
             )  # fmt: skip
+            if time_domain_margin:
+                r = np.asarray(probability.settings["time_domain_ratio"])
+                notes = (*notes, (
+                    "P(stable) includes the time-domain margin: time-domain limit / linear "
+                    f"limit of the mean modes {r.min():.3f}-{r.max():.3f} over the speeds "
+                    "(a cut entering at full depth)"))  # fmt: skip
     if not modes_x and not modes_y and not frfs:
         raise ValueError("give at least one mode (--mode x:FN,K,ZETA) or an FRF file")
     if method == "sdm":

@@ -1,0 +1,421 @@
+"""Regenerative milling in the time domain: the chip thickness remembers the previous tooth.
+
+At a fixed pose (a short cut, so the modes do not change), each flute ``j`` at the immersion
+angle ``phi_j`` (the convention of :mod:`robovib.milling.forces`) removes the chip::
+
+    h_j(t) = f_z sin(phi_j) + (x(t) - x(t - tau)) sin(phi_j) + (y(t) - y(t - tau)) cos(phi_j)
+
+``tau = 60 / (N n)`` (tooth period), ``x`` feed and ``y`` normal tool-tip displacement. The
+edge forces are ``F_t = a (K_tc h + K_te)``, ``F_r = a (K_rc h + K_re)`` where the flute is in
+the engagement and ``h > 0`` (it leaves the cut otherwise: the nonlinearity that bounds chatter),
+projected as in :func:`robovib.milling.forces.milling_forces`. The helix is ignored (as in
+:mod:`robovib.milling.sdm`). The modes of each direction advance exactly over each step
+(:func:`robovib.modal.stepping.zoh_transition`) with the force held; the step is ``tau /
+steps_per_tooth`` so the delayed displacement is a stored sample.
+
+Chatter indicator: the motion is sampled once per tooth period (a Poincaré section). A stable
+cut settles on the tooth-periodic forced vibration, so successive samples stop changing and their
+differences decay like ``|mu|^k`` (``mu`` the critical Floquet multiplier); chatter makes them grow
+until the tool leaves the cut, where they stay. ``growth`` is the RMS of those differences over the
+last 15 % of the periods divided by that over 5-20 %; ``decay_rate_per_period`` is the slope of
+``log`` of the differences over the second half: in the linear regime it is ``log |mu|`` of the
+critical multiplier (compared with the semi-discretization in the tests).
+``chatter_amplitude_m`` is the RMS of the differences over the last 15 %: the vibration that is not
+tooth-periodic, i.e. the modulation of the chip thickness. A cut chatters when that modulation is
+still growing (``decay_rate_per_period > 1e-3``, the linear regime above the limit) or when it has
+settled at a size that marks the surface: ``growth > 0.5`` *and* ``chatter_amplitude_m`` more than
+``chatter_fraction_of_feed`` (10 %) of the feed per tooth. The second condition keeps a stable cut
+with a small self-sustained sub-harmonic (a flute grazing in and out of the cut at the entry angle
+with the edge force switching on and off: ~1 µm, 2 % of the feed, seen at 0.5x the linear limit)
+from being called chatter; saturated chatter is 50-150 % of the feed.
+
+Entry: a cut that starts at full depth at ``t = 0`` is hit by a step force whose transient can
+throw the tool out of the cut and into the large-amplitude chatter that coexists with the stable
+cut slightly below the linear limit (the fly-over "unsafe zone"). A tool entering a part along the
+feed engages gradually: ``entry_tooth_periods`` ramps the engagement (the force scale) from 0 to
+full over that many tooth periods (``sqrt(a_e (D - a_e)) / f_z`` for a straight entry across the
+part's edge, e.g. 186 for a 6 mm step of a 25.4 mm tool at 0.058 mm/tooth); the indicators are
+computed over the ``n_tooth_periods`` that follow. The spectral fraction of vibration energy away
+from the tooth-passing harmonics (last half of the record) and the strongest off-harmonic
+frequency are reported too.
+
+The comparison with linear stability theory holds while the tool stays in the cut in a stable
+cut: with large edge forces (``K_te``) or a compliant robot the forced vibration alone can exceed
+the feed per tooth, the flute then loses contact and the cut is nonlinear even below the limit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..modal.parameters import ModalParameters
+from ..modal.stepping import zoh_transition
+from .forces import CuttingCoefficients, CuttingConditions, MillingTool, engagement_angles
+
+__all__ = [
+    "RegenerativeCut",
+    "simulate_regenerative_cut",
+    "simulated_stability_limit",
+    "time_domain_limit_ratio",
+]
+
+
+@dataclass(frozen=True)
+class RegenerativeCut:
+    """A simulated cut at one pose for a batch of axial depths.
+
+        ``displacement_m`` (b, n, 2) feed/normal tool-tip displacement, ``force_n`` (b, n, 2),
+        ``growth`` (b,) Poincaré-difference growth ratio, ``decay_rate_per_period`` (b,) their
+    log-slope, ``chatter_amplitude_m`` (b,) their late RMS [m], ``chatter`` (b,) bool,
+        ``off_harmonic_fraction`` (b,) energy fraction away from tooth-passing harmonics,
+        ``chatter_hz`` (b,) strongest off-harmonic frequency.
+
+    Attributes
+    ----------
+    time_s
+        (n,) times [s].
+    depth_m
+        (b,) axial depths [m].
+    displacement_m, force_n
+        (b, n, 2) feed/normal tool-tip displacement [m] and force [N].
+    growth
+        (b,) Poincaré-difference growth ratio.
+    decay_rate_per_period
+        (b,) its log-slope per tooth period.
+    chatter
+        (b,) chatter found.
+    off_harmonic_fraction
+        (b,) energy fraction away from the tooth-passing harmonics.
+    chatter_hz
+        (b,) strongest off-harmonic frequency [Hz].
+    tooth_passing_hz
+        Tooth-passing frequency [Hz].
+    chatter_amplitude_m
+        (b,) RMS of the Poincaré differences over the last 15 % [m].
+    entry_tooth_periods
+        Tooth periods of the entry ramp before the record.
+    """
+
+    time_s: np.ndarray
+    depth_m: np.ndarray
+    displacement_m: np.ndarray
+    force_n: np.ndarray
+    growth: np.ndarray
+    decay_rate_per_period: np.ndarray
+    chatter: np.ndarray
+    off_harmonic_fraction: np.ndarray
+    chatter_hz: np.ndarray
+    tooth_passing_hz: float
+    chatter_amplitude_m: np.ndarray | None = None
+    entry_tooth_periods: int = 0
+
+
+def _mode_arrays(modes: Sequence[ModalParameters]):
+    return (
+        np.array([m.natural_frequency_hz for m in modes]),
+        np.array([m.stiffness_n_per_m for m in modes]),
+        np.array([m.damping_ratio for m in modes]),
+    )
+
+
+def simulate_regenerative_cut(
+    modes_x: Sequence[ModalParameters],
+    modes_y: Sequence[ModalParameters],
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    depth_m=None,
+    *,
+    n_tooth_periods: int = 300,
+    steps_per_tooth: int = 120,
+    entry_tooth_periods: int = 0,
+    chatter_fraction_of_feed: float = 0.1,
+) -> RegenerativeCut:
+    """Simulate regenerative milling at one pose for one or several axial depths (batched).
+
+    Parameters
+    ----------
+    modes_x, modes_y : sequence of ModalParameters
+        Tool-tip modes in the feed (x) and normal (y) directions.
+    tool, conditions, coefficients
+        Tool (flutes, diameter; helix ignored), speed / feed / radial depth / up-down milling,
+        cutting and edge coefficients.
+    depth_m : array_like (b,), optional
+        Axial depths [m] to simulate side by side (default: the conditions' depth).
+    n_tooth_periods : int
+        Length of the cut in tooth periods after the entry (the indicators' record).
+    steps_per_tooth : int
+        Time steps per tooth period (the delay is exactly this many steps).
+    entry_tooth_periods : int
+        Tooth periods over which the engagement ramps from 0 to full before the record (module
+        docs; 0: full depth from the first step).
+    chatter_fraction_of_feed : float
+        Settled non-tooth-periodic vibration (RMS of the Poincaré differences) above which a
+        non-decaying cut is called chatter, as a fraction of the feed per tooth.
+
+    Returns
+    -------
+    RegenerativeCut
+    """
+    modes = list(modes_x) + list(modes_y)
+    if not modes:
+        raise ValueError("at least one mode (x or y) is needed")
+    depth = np.atleast_1d(
+        np.asarray(conditions.axial_depth_m if depth_m is None else depth_m, float)
+    )
+    if depth.ndim != 1 or not (np.all(np.isfinite(depth)) and np.all(depth > 0)):
+        raise ValueError("depth_m must be positive axial depths [m]")
+    m_steps, n_per = int(steps_per_tooth), int(n_tooth_periods)
+    if m_steps < 8 or n_per < 20:
+        raise ValueError("need steps_per_tooth >= 8 and n_tooth_periods >= 20")
+    n_entry = int(entry_tooth_periods)
+    if n_entry < 0:
+        raise ValueError(f"entry_tooth_periods must be >= 0, got {entry_tooth_periods}")
+    if not (np.isfinite(chatter_fraction_of_feed) and chatter_fraction_of_feed > 0):
+        raise ValueError(f"chatter_fraction_of_feed must be > 0, got {chatter_fraction_of_feed!r}")
+    n_fl = int(tool.n_flutes)
+    tau = 60.0 / (n_fl * conditions.spindle_rpm)
+    dt = tau / m_steps
+    fn, k, z = _mode_arrays(modes)
+    if np.any(fn * dt > 0.1):
+        raise ValueError(
+            f"steps_per_tooth={m_steps} gives {1 / (fn.max() * dt):.1f} steps per period of the "
+            f"{fn.max():.4g} Hz mode; use more (>= 10 per period)"
+        )
+    p00, p01, p10, p11, g0, g1 = zoh_transition(fn, k, z, dt)
+    nx = len(modes_x)
+    selx = np.zeros(len(modes))
+    selx[:nx] = 1.0
+    sely = 1.0 - selx
+    phi_st, phi_ex = engagement_angles(tool, conditions)
+    pitch = 2 * math.pi / n_fl
+    # Flute angles repeat every tooth period (shifted by one flute): tabulate one period.
+    ang = (np.arange(m_steps)[:, None] / m_steps * pitch + pitch * np.arange(n_fl)[None, :]) % (
+        2 * math.pi
+    )
+    s_tab, c_tab = np.sin(ang), np.cos(ang)
+    g_tab = (ang >= phi_st) & (ang <= phi_ex)
+    c = coefficients
+    fz = conditions.feed_per_tooth_m
+    b = depth.size
+    xi = np.zeros((b, len(modes)))
+    vi = np.zeros((b, len(modes)))
+    hist_x = np.zeros((m_steps, b))
+    hist_y = np.zeros((m_steps, b))
+    n_ramp = m_steps * n_entry
+    n_steps = m_steps * (n_per + n_entry)
+    disp = np.empty((b, n_steps, 2))
+    force = np.empty((b, n_steps, 2))
+    x = np.zeros(b)
+    y = np.zeros(b)
+    a_col = depth[:, None]
+    for i in range(n_steps):
+        kk = i % m_steps
+        if i < n_ramp:
+            a_col = depth[:, None] * ((i + 1) / n_ramp)
+        s, co, g = s_tab[kk], c_tab[kk], g_tab[kk]
+        dx = x - hist_x[kk]
+        dy = y - hist_y[kk]
+        hist_x[kk] = x
+        hist_y[kk] = y
+        h = fz * s + dx[:, None] * s + dy[:, None] * co
+        on = g & (h > 0)
+        h = np.where(on, h, 0.0)
+        ft = a_col * (c.ktc * h + c.kte * on)
+        fr = a_col * (c.krc * h + c.kre * on)
+        fx = np.sum(-ft * co - fr * s, axis=1)
+        fy = np.sum(ft * s - fr * co, axis=1)
+        f = fx[:, None] * selx + fy[:, None] * sely
+        xi, vi = p00 * xi + p01 * vi + g0 * f, p10 * xi + p11 * vi + g1 * f
+        x = xi @ selx
+        y = xi @ sely
+        disp[:, i, 0], disp[:, i, 1] = x, y
+        force[:, i, 0], force[:, i, 1] = fx, fy
+    t = (np.arange(n_steps) + 1) * dt
+    growth, rate, frac, fch, amp = _indicators(disp[:, n_ramp:], m_steps, dt, 1.0 / tau)
+    chatter = (rate > 1e-3) | ((growth > 0.5) & (amp > chatter_fraction_of_feed * fz))
+    return RegenerativeCut(
+        t, depth, disp, force, growth, rate, chatter, frac, fch, 1.0 / tau, amp, n_entry
+    )
+
+
+def _indicators(disp: np.ndarray, m_steps: int, dt: float, tpf: float):
+    n_per = disp.shape[1] // m_steps
+    poincare = disp[:, m_steps - 1 :: m_steps, :][:, :n_per]
+    diff = np.linalg.norm(np.diff(poincare, axis=1), axis=-1)  # (b, n_per - 1)
+    n = diff.shape[1]
+    early = np.sqrt(
+        np.mean(diff[:, int(0.05 * n) : max(int(0.2 * n), int(0.05 * n) + 1)] ** 2, axis=1)
+    )
+    late = np.sqrt(np.mean(diff[:, int(0.85 * n) :] ** 2, axis=1))
+    growth = late / np.maximum(early, 1e-300)
+    amplitude = late
+    k = np.arange(n // 2, n)
+    logd = np.log(np.maximum(diff[:, n // 2 :], 1e-300))
+    rate = np.polyfit(k, logd.T, 1)[0]
+    half = disp[:, disp.shape[1] // 2 :, :]
+    half = half - half.mean(axis=1, keepdims=True)
+    spec = np.sum(
+        np.abs(np.fft.rfft(half * np.hanning(half.shape[1])[None, :, None], axis=1)) ** 2, axis=2
+    )
+    f = np.fft.rfftfreq(half.shape[1], dt)
+    df = f[1]
+    harmonic = np.abs(f / tpf - np.round(f / tpf)) * tpf <= 3 * df
+    off = np.where(harmonic[None, :], 0.0, spec)
+    frac = off.sum(axis=1) / np.maximum(spec.sum(axis=1), 1e-300)
+    fch = f[np.argmax(off, axis=1)]
+    return growth, rate, frac, fch, amplitude
+
+
+def simulated_stability_limit(
+    modes_x: Sequence[ModalParameters],
+    modes_y: Sequence[ModalParameters],
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    depth_bracket_m: tuple[float, float],
+    *,
+    n_bisections: int = 6,
+    n_parallel: int = 3,
+    **simulation,
+) -> tuple[float, float]:
+    """Bracket [m] of the simulated stability limit by batched bisection on the axial depth.
+
+    Each round simulates ``n_parallel`` depths spread inside the current bracket at once and
+    keeps the interval between the deepest stable and the shallowest chattering one.
+
+    Parameters
+    ----------
+    modes_x, modes_y : sequence of ModalParameters
+        Tool-tip modes along feed and normal.
+    tool : MillingTool
+        The cutter.
+    conditions : CuttingConditions
+        Spindle speed, feed and radial depth.
+    coefficients : CuttingCoefficients
+        Cutting-force coefficients.
+    depth_bracket_m : (low, high)
+        Depths [m] expected stable and chattering (checked: raises if not).
+    n_bisections : int
+        Rounds of refinement.
+    n_parallel : int
+        Depths per round.
+    **simulation
+        Passed to :func:`simulate_regenerative_cut`.
+
+    Returns
+    -------
+    (low, high) : depths [m], the limit lies between them.
+    """
+    lo, hi = (float(v) for v in depth_bracket_m)
+    if not 0 < lo < hi:
+        raise ValueError(f"depth_bracket_m must be 0 < low < high [m], got {depth_bracket_m}")
+    ends = simulate_regenerative_cut(
+        modes_x, modes_y, tool, conditions, coefficients, [lo, hi], **simulation
+    ).chatter
+    if ends[0] or not ends[1]:
+        raise ValueError(
+            f"the bracket must be stable at {lo:g} m and chatter at {hi:g} m "
+            f"(simulated: {'chatter' if ends[0] else 'stable'}, "
+            f"{'chatter' if ends[1] else 'stable'})"
+        )
+    for _ in range(int(n_bisections)):
+        trial = np.linspace(lo, hi, int(n_parallel) + 2)[1:-1]
+        chat = simulate_regenerative_cut(
+            modes_x, modes_y, tool, conditions, coefficients, trial, **simulation
+        ).chatter
+        stable = trial[~chat]
+        unstable = trial[chat]
+        if stable.size:
+            lo = max(lo, float(stable.max()))
+        if unstable.size:
+            hi = min(hi, float(unstable.min()))
+    return lo, hi
+
+
+def time_domain_limit_ratio(
+    modes_x: Sequence[ModalParameters],
+    modes_y: Sequence[ModalParameters],
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    spindle_rpm,
+    linear_limit_m,
+    *,
+    factors: Sequence[float] = (0.6, 0.7, 0.8, 0.825, 0.85, 0.875, 0.9, 0.925, 0.95, 0.975, 1.0),
+    return_bracket: bool = False,
+    **simulation,
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Ratio of the time-domain stability limit to a linear one, per speed.
+
+    Linear theory (semi-discretization, zero-order method) assumes the flutes never leave the
+    cut. The time-domain cut (:func:`simulate_regenerative_cut`, with its edge forces and its
+    entry) can chatter below that limit: the large-amplitude chatter that coexists with the
+    stable cut just below the linear limit is reached from the entry transient (the fly-over
+    "unsafe zone"). At each speed the cut is simulated at ``factors`` × the linear limit (one
+    batch); the ratio is the midpoint between the deepest factor that stays stable below the
+    first chattering one and that one. It is never above 1 (a simulated limit above the linear
+    one is taken as the linear one: the simulation's finite record can miss slow growth) and is
+    ``0.75 * factors[0]`` where even the first factor chatters (bracket ``[0.5, 1] * factors[0]``).
+
+    Parameters
+    ----------
+    modes_x, modes_y : sequence of ModalParameters
+        Tool-tip modes in the feed and normal directions.
+    tool, conditions, coefficients
+        As for :func:`simulate_regenerative_cut` (the conditions' speed is replaced by each
+        ``spindle_rpm``).
+    spindle_rpm : array_like (n,)
+        Speeds [rpm].
+    linear_limit_m : array_like (n,)
+        The linear limit [m] at each speed (e.g. ``sdm_lobes(...).a_lim_m``).
+    factors : sequence of float
+        Fractions of the linear limit simulated, increasing, in (0, 1].
+    return_bracket : bool
+        Also return where the ratio lies: ``(low, high)`` arrays (the stable and the chattering
+        factor; both 1 where nothing chatters).
+    **simulation
+        Passed to :func:`simulate_regenerative_cut` (``n_tooth_periods``, ``steps_per_tooth``,
+        ``entry_tooth_periods``, ...).
+
+    Returns
+    -------
+    numpy.ndarray (n,)
+        Time-domain limit / linear limit at each speed, in (0, 1]; with ``return_bracket`` the
+        tuple ``(low, high)`` instead (the ratio is their midpoint).
+
+    Examples
+    --------
+    >>> from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    >>> from robovib.milling.sdm import sdm_lobes
+    >>> from robovib.modal import ModalParameters
+    >>> mx, my = [ModalParameters(16.5, 4.2e6, 0.1)], [ModalParameters(8.4, 9e5, 0.15)]
+    >>> cond = CuttingConditions(1750.0, 0.058e-3, 3e-3, 6e-3)
+    >>> lim = sdm_lobes(mx, my, MillingTool(), cond, ALUMINIUM_7075, [1750.0]).a_lim_m
+    >>> r = time_domain_limit_ratio(mx, my, MillingTool(), cond, ALUMINIUM_7075, [1750.0], lim)
+    >>> bool(0 < r[0] <= 1)
+    True
+    """
+    rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
+    lim = np.atleast_1d(np.asarray(linear_limit_m, float))
+    f = np.asarray(factors, float)
+    if rpm.shape != lim.shape:
+        raise ValueError(f"spindle_rpm {rpm.shape} and linear_limit_m {lim.shape} differ in shape")
+    if f.ndim != 1 or f.size < 2 or np.any(np.diff(f) <= 0) or f[0] <= 0 or f[-1] > 1:
+        raise ValueError("factors must increase within (0, 1] (at least two)")
+    low, high = np.ones(rpm.size), np.ones(rpm.size)
+    for i, (speed, a_lin) in enumerate(zip(rpm, lim, strict=True)):
+        if not (np.isfinite(a_lin) and a_lin > 0):
+            raise ValueError(f"linear_limit_m at {speed:g} rpm must be a positive depth [m]")
+        cond = replace(conditions, spindle_rpm=float(speed))
+        chat = simulate_regenerative_cut(
+            modes_x, modes_y, tool, cond, coefficients, a_lin * f, **simulation
+        ).chatter
+        if chat.any():
+            j = int(np.argmax(chat))
+            low[i], high[i] = (0.5 * f[0], f[0]) if j == 0 else (f[j - 1], f[j])
+    return (low, high) if return_bracket else 0.5 * (low + high)
