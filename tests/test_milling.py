@@ -144,3 +144,27 @@ def test_mill_cli(tmp_path):
         app, ["mill", "predict", "--x", "2400", "--y", "0", "--rz", "0", "--material", "wood"]
     )
     assert res.exit_code == 1
+
+
+def test_zoa_envelope_of_several_modes_never_lies_above_its_own_lobes():
+    # With several modes per direction a lobe branch turns back in speed and has gaps in its
+    # chatter-frequency scan; the envelope must follow the lobe points, not interpolate across.
+    from robovib.milling.lobes import zoa_envelope
+    from robovib.modal import ModalParameters
+
+    mx = [ModalParameters(16.5, 4.2e6, 0.10), ModalParameters(43.0, 2.0e7, 0.05),
+          ModalParameters(63.5, 1.5e7, 0.04)]  # fmt: skip
+    my = [ModalParameters(8.4, 9.0e5, 0.15), ModalParameters(22.0, 6.0e6, 0.06)]
+    cond = CuttingConditions(1750.0, 0.058e-3, 1e-3, 6e-3)
+    lobes = stability_lobes(mx, my, MillingTool(), cond, ALUMINIUM_7075, n_lobes=20)
+    pts_rpm = np.concatenate(lobes.spindle_rpm)
+    pts_depth = np.concatenate(lobes.depth_m)
+    grid = np.linspace(1000.0, 3000.0, 400)
+    env = zoa_envelope(lobes, grid).a_lim_m
+    checked = 0
+    for g, a in zip(grid, env, strict=True):
+        near = np.abs(pts_rpm - g) < 2.0
+        if near.any():
+            checked += 1
+            assert a <= 1.02 * pts_depth[near].min()
+    assert checked > 100

@@ -181,20 +181,48 @@ def zoa_envelope(
     depth = np.full(s.shape, np.inf)
     freq = np.full(s.shape, np.nan)
     branch_f = lobes.branch_chatter_hz or [None] * len(lobes.depth_m)
-    for rpm, d, fb in zip(lobes.spindle_rpm, lobes.depth_m, branch_f, strict=True):
-        if rpm.size < 2:
-            continue
-        order = np.argsort(rpm)
-        r, dd = rpm[order], d[order]
-        inside = (s >= r[0]) & (s <= r[-1])
-        val = np.interp(s[inside], r, dd)
-        better = val < depth[inside]
-        idx = np.flatnonzero(inside)[better]
-        depth[idx] = val[better]
-        if fb is not None:
-            freq[idx] = np.interp(s[idx], r, np.asarray(fb)[order])
+    for rpm_b, d_b, fb_b in zip(lobes.spindle_rpm, lobes.depth_m, branch_f, strict=True):
+        for piece in _monotone_pieces(rpm_b, fb_b):
+            if piece.size < 2:
+                continue
+            rpm, d = rpm_b[piece], d_b[piece]
+            order = np.argsort(rpm)
+            r, dd = rpm[order], d[order]
+            inside = (s >= r[0]) & (s <= r[-1])
+            val = np.interp(s[inside], r, dd)
+            better = val < depth[inside]
+            idx = np.flatnonzero(inside)[better]
+            depth[idx] = val[better]
+            if fb_b is not None:
+                freq[idx] = np.interp(s[idx], r, np.asarray(fb_b)[piece][order])
     kind = np.where(np.isfinite(depth), "hopf", "none")
     return LobeEnvelope(s, depth, freq, kind, "zoa", dict(settings or {}))
+
+
+def _monotone_pieces(rpm, chatter_hz) -> list[np.ndarray]:
+    """Index runs of one lobe branch along which the speed is monotone and the scan contiguous.
+
+    With several modes a branch's speed turns back as the chatter frequency passes between
+    modes, and the scan skips frequencies where no lobe exists; interpolating the whole branch
+    over speed would join unrelated pieces (a depth far above the true lobe).
+    """
+    n = np.asarray(rpm).size
+    if n < 3:
+        return [np.arange(n)]
+    direction = np.sign(np.diff(rpm))
+    turns = set((np.flatnonzero(direction[1:] * direction[:-1] < 0) + 1).tolist())
+    gaps: set[int] = set()
+    if chatter_hz is not None:
+        step = np.diff(np.asarray(chatter_hz, float))
+        typical = np.median(np.abs(step))
+        if typical > 0:
+            gaps = set((np.flatnonzero(np.abs(step) > 1.5 * typical) + 1).tolist())
+    pieces = np.split(np.arange(n), sorted(turns | gaps))
+    # A turning point belongs to both pieces it joins (no speed left uncovered between them).
+    return [
+        np.append(p, nxt[0]) if nxt[0] in turns and nxt[0] not in gaps else p
+        for p, nxt in zip(pieces, [*pieces[1:], np.array([-1])], strict=True)
+    ]
 
 
 def lobes_title(
