@@ -29,7 +29,23 @@ __all__ = ["fit_multimode_pose_model", "fit_row_modes", "mode_direction", "track
 
 
 def mode_direction(mode_id: str) -> str:
-    """Physical direction of a mode id (``"x2"`` -> ``"x"``)."""
+    """Physical direction of a mode id (``"x2"`` -> ``"x"``).
+
+    Parameters
+    ----------
+    mode_id : str
+        A mode id: direction letter(s) followed by the mode number.
+
+    Returns
+    -------
+    str
+        The direction.
+
+    Raises
+    ------
+    ValueError
+        Not a direction followed by a number.
+    """
     d = str(mode_id).rstrip("0123456789")
     if not d or d == mode_id:
         raise ValueError(f"not a mode id (direction + number): {mode_id!r}")

@@ -65,6 +65,18 @@ def debiased_coherence(coherence, n_averages: int) -> np.ndarray:
     ``(1 - γ²) / n_d`` (Bendat & Piersol §9.2.3: two unrelated signals give γ̂² ≈ 1 / n_d,
     one average always gives 1). Inverting ``E[γ̂²] ≈ γ² + (1 - γ²) / n_d`` gives
     ``γ² ≈ (n_d γ̂² - 1) / (n_d - 1)``; with one average nothing is known (0 returned).
+
+    Parameters
+    ----------
+    coherence : array_like
+        Estimated coherence γ̂² per bin, in [0, 1].
+    n_averages : int
+        Welch averages behind the estimate.
+
+    Returns
+    -------
+    numpy.ndarray
+        Debiased coherence per bin, in [0, 1].
     """
     coh = np.clip(np.asarray(coherence, float), 0.0, 1.0)
     n_d = int(n_averages)
@@ -80,6 +92,20 @@ def h1_random_error(values, coherence, n_averages: int) -> np.ndarray:
     with γ² the *debiased* coherence (:func:`debiased_coherence`): with the 2-3 averages of
     a 50 mm OMA segment the raw coherence of a bin without coherent content is ~0.5 and
     would understate its error several times. Floored at γ² = 1e-3 (error ~22 x |H|).
+
+    Parameters
+    ----------
+    values : array_like
+        H1 estimate per bin (complex or magnitude).
+    coherence : array_like
+        Estimated coherence per bin.
+    n_averages : int
+        Welch averages behind the estimate.
+
+    Returns
+    -------
+    numpy.ndarray
+        Random-error standard deviation per bin, in the units of ``values``.
     """
     n_d = max(int(n_averages), 1)
     coh = np.maximum(debiased_coherence(coherence, n_d), 1e-3)

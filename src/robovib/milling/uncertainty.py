@@ -54,6 +54,10 @@ class ModeDistribution:
         Their standard deviations.
     draws
         Optional (m, 3) joint draws of (fn, k, c) used instead of the normal.
+    presence
+        Probability that the mode is there at all (fraction of recordings where it was seen).
+    name
+        Name of the mode (e.g. ``"x2"``), for reports.
     """
 
     fn_hz: float

@@ -145,6 +145,8 @@ class DirectionPrediction:
         Why the pose is an extrapolation (empty: interpolation).
     n_draws_used
         Modal-parameter draws used for the bands.
+    modes
+        Every mode used (a multi-mode model: all modelled modes of the direction).
     """
 
     direction: str
