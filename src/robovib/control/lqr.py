@@ -371,15 +371,10 @@ def loop_margins(design: LQRDesign, delay_steps: int = 0, n_points: int = 20000)
     t = design.period_s
     w = np.linspace(1e-4, np.pi / t, int(n_points))
     z = np.exp(1j * w * t)
-    eye = np.eye(2)
-    resp = np.array(
-        [
-            design.gains
-            @ np.linalg.solve(zi * eye - design.ad, design.bd[:, 0])
-            * zi ** (-int(delay_steps))
-            for zi in z
-        ]
-    )
+    n = design.ad.shape[0]
+    lhs = z[:, None, None] * np.eye(n) - design.ad  # (m, n, n), one solve per frequency
+    rhs = np.broadcast_to(design.bd[:, :1], (z.size, n, 1))
+    resp = (np.linalg.solve(lhs, rhs)[:, :, 0] @ design.gains) * z ** (-int(delay_steps))
     mag = np.abs(resp)
     phase = np.unwrap(np.angle(resp))
 
