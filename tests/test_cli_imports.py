@@ -54,10 +54,10 @@ def _next_poses_args() -> list[str]:
          UNNEEDED | {"scipy", "pandas"}),
         (["mill", "lobes", "--method", "sdm", "--rpm-range", "1000:3000:4", *POSE],
          "robovib.milling.sdm", UNNEEDED | {"pandas"}),
-        # the LQR needs scipy.linalg (Riccati equation), nothing else of SciPy
-        (["control", "gains", *POSE], "robovib.control.lqr", UNNEEDED | {"pandas"}),
-        # the candidates CSV is read with pandas; the model without scikit-learn
-        (None, "robovib.campaign.selection", UNNEEDED),
+        # the LQR's Riccati equation and matrix exponential in NumPy (robovib._linalg)
+        (["control", "gains", *POSE], "robovib.control.lqr", UNNEEDED | {"scipy", "pandas"}),
+        # the candidates CSV and the model read without pandas and scikit-learn
+        (None, "robovib.campaign.selection", UNNEEDED | {"scipy", "pandas"}),
     ],
     ids=["mill-predict", "mill-lobes-zoa", "mill-lobes-sdm", "control-gains", "model-next-poses"],
 )  # fmt: skip

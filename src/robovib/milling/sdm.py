@@ -57,6 +57,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .._linalg import batched_expm
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool, engagement_angles
 from .lobes import LobeEnvelope
@@ -183,44 +184,6 @@ def milling_force_matrices(
                 total += np.where(inside[:, None, None], diff, 0.0)
     width = b - a
     return total / width[:, None, None], width / pitch
-
-
-# -- batched matrix exponential -------------------------------------------------------------
-
-_PADE13 = (
-    64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0,
-    129060195264000.0, 10559470521600.0, 670442572800.0, 33522128640.0, 1323241920.0,
-    40840800.0, 960960.0, 16380.0, 182.0, 1.0,
-)  # fmt: skip
-
-
-def batched_expm(a: np.ndarray) -> np.ndarray:
-    """``exp(A)`` for a stack of square matrices (..., s, s), vectorised over the stack.
-
-    Scaling and squaring with the degree-13 Padé approximant (Higham, *SIAM J. Matrix Anal.
-    Appl.* 26, 2005): each matrix is scaled by ``2^-s`` so its 1-norm is <= 5.37, the Padé
-    approximant is one batched linear solve, then squared ``s`` times (``s`` per matrix). SciPy's
-    ``expm`` gives the same numbers but loops over the stack in Python.
-    """
-    a = np.asarray(a, float)
-    if a.ndim < 2 or a.shape[-1] != a.shape[-2]:
-        raise ValueError(f"expected a stack of square matrices (..., s, s), got {a.shape}")
-    norm = np.max(np.sum(np.abs(a), axis=-2), axis=-1)
-    s = np.maximum(0, np.ceil(np.log2(np.maximum(norm, 1e-300) / 5.371920351148152))).astype(int)
-    a = a / (2.0**s)[..., None, None]
-    b = _PADE13
-    eye = np.broadcast_to(np.eye(a.shape[-1]), a.shape)
-    a2 = a @ a
-    a4 = a2 @ a2
-    a6 = a4 @ a2
-    u = a @ (a6 @ (b[13] * a6 + b[11] * a4 + b[9] * a2) + b[7] * a6 + b[5] * a4 + b[3] * a2
-             + b[1] * eye)  # fmt: skip
-    v = a6 @ (b[12] * a6 + b[10] * a4 + b[8] * a2) + b[6] * a6 + b[4] * a4 + b[2] * a2 + b[0] * eye
-    r = np.linalg.solve(v - u, v + u)
-    for k in range(int(s.max(initial=0))):
-        sq = (s > k)[..., None, None]
-        r = np.where(sq, r @ r, r)
-    return r
 
 
 # -- dominant Floquet multipliers --------------------------------------------------------------
