@@ -52,7 +52,7 @@ products and eigenvalues in NumPy).
 Only the largest multiplier is needed. It is found by a few Arnoldi iterations on the monodromy
 matrix (:func:`dominant_eigenvalues`: 12 batched matrix-vector products instead of a dense
 eigendecomposition of the ``(d + n (m + 1))``-square matrix, each Ritz value's residual checked,
-with a dense fallback), which made a 200-speed chart 3-5 times faster at the same limits (to
+with a dense fallback), which made a 200-speed chart 2.5-5 times faster at the same limits (to
 ~1e-10); ``eigensolver="dense"`` computes every eigenvalue, the reference.
 """
 
