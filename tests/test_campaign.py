@@ -191,15 +191,22 @@ def test_plot_next_poses(campaign, tmp_path):
     assert (tmp_path / "next.png").stat().st_size > 5000
 
 
-def test_pose_table_errors(tmp_path):
-    from robovib.io import read_pose_table
+@pytest.mark.parametrize("reader", ["read_pose_table", "read_pose_array"])
+def test_pose_table_errors(tmp_path, reader):
+    import robovib.io
 
+    read = getattr(robovib.io, reader)
     p = tmp_path / "poses.csv"
     p.write_text("x_mm,y_mm,rz_deg\n2100,0,0\n2200,abc,0\n")
     with pytest.raises(ValueError, match=r"line 3: y_mm = 'abc' is not a finite number"):
-        read_pose_table(p, ["x_mm", "y_mm", "rz_deg"])
+        read(p, ["x_mm", "y_mm", "rz_deg"])
     with pytest.raises(ValueError, match="lacks column"):
-        read_pose_table(p, ["a1_deg"])
+        read(p, ["a1_deg"])
+    p.write_text("x_mm,y_mm,rz_deg\n")
+    with pytest.raises(ValueError, match="no rows"):
+        read(p, ["x_mm"])
+    with pytest.raises(ValueError, match="no such pose table"):
+        read(tmp_path / "none.csv", ["x_mm"])
 
 
 def test_mode_switch_detected_end_to_end(tmp_path):

@@ -12,7 +12,9 @@ import sys
 import pytest
 
 POSE = ["--x", "2400", "--y", "0", "--rz", "45"]
-UNNEEDED = {"scipy.signal", "matplotlib"}
+#: Never needed to answer at one pose: FRF estimation (scipy.signal), plotting, fitting
+#: (scikit-learn and the SciPy distributions it pulls in).
+UNNEEDED = {"scipy.signal", "matplotlib", "sklearn", "scipy.stats", "scipy.optimize"}
 
 
 _RUN = """
@@ -36,29 +38,59 @@ def _imported(args: list[str]) -> set[str]:
     return set(line.removeprefix("MODULES:").split(","))
 
 
+def _next_poses_args() -> list[str]:
+    from robovib.datasets import example_path
+    from robovib.gp.chapter3_model import chapter3_model_path
+
+    return ["model", "next-poses", "--model", str(chapter3_model_path()), "--candidates",
+            str(example_path("poses.csv")), "--k", "3"]  # fmt: skip
+
+
 @pytest.mark.parametrize(
-    ("args", "used"),
+    ("args", "used", "unneeded"),
     [
-        (["mill", "predict", *POSE], "robovib.milling.workflow"),
-        (["mill", "lobes", "--method", "zoa", *POSE], "robovib.milling.lobes"),
-        (["control", "gains", *POSE], "robovib.control.lqr"),
+        (["mill", "predict", *POSE], "robovib.milling.workflow", UNNEEDED | {"scipy", "pandas"}),
+        (["mill", "lobes", "--method", "zoa", *POSE], "robovib.milling.lobes",
+         UNNEEDED | {"scipy", "pandas"}),
+        (["mill", "lobes", "--method", "sdm", "--rpm-range", "1000:3000:4", *POSE],
+         "robovib.milling.sdm", UNNEEDED | {"pandas"}),
+        # the LQR's Riccati equation and matrix exponential in NumPy (robovib._linalg)
+        (["control", "gains", *POSE], "robovib.control.lqr", UNNEEDED | {"scipy", "pandas"}),
+        # the candidates CSV and the model read without pandas and scikit-learn
+        (None, "robovib.campaign.selection", UNNEEDED | {"scipy", "pandas"}),
     ],
-    ids=["mill-predict", "mill-lobes-zoa", "control-gains"],
-)
-def test_single_pose_command_skips_frf_estimation_and_plotting(args, used):
-    imported = _imported(args)
+    ids=["mill-predict", "mill-lobes-zoa", "mill-lobes-sdm", "control-gains", "model-next-poses"],
+)  # fmt: skip
+def test_single_pose_command_loads_only_what_it_computes_with(args, used, unneeded):
+    """Issue 27: every single-pose command reads the saved pose model with NumPy and h5py
+    (:class:`robovib.gp.predictor.PosePredictor`), never scikit-learn or SciPy's statistics."""
+    imported = _imported(_next_poses_args() if args is None else args)
     assert used in imported  # the report is read right: the command's own module is listed
-    assert not imported & UNNEEDED, sorted(imported & UNNEEDED)
+    assert "robovib.gp.predictor" in imported
+    assert not imported & unneeded, sorted(imported & unneeded)
+
+
+def test_library_packages_import_light():
+    """``import robovib.control / milling / campaign / gp`` pulls neither FRF estimation nor
+    scikit-learn: the heavy modules are imported where they are used."""
+    code = (
+        "import sys, robovib.control, robovib.milling, robovib.campaign, robovib.gp\n"
+        "heavy = {'scipy.signal', 'scipy.stats', 'sklearn', 'matplotlib', 'pandas'}\n"
+        "print(sorted(heavy & set(sys.modules)))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr[-2000:]
 
 
 def test_lazy_packages_still_export_every_name():
-    """``robovib.frf`` / ``robovib.modal`` load names on first use; all of ``__all__`` resolves."""
+    """``robovib.frf`` / ``modal`` / ``campaign`` load names on first use; all of ``__all__``
+    resolves."""
     code = (
-        "import sys, robovib.frf as f, robovib.modal as m\n"
+        "import sys, robovib.frf as f, robovib.modal as m, robovib.campaign as c\n"
         "assert 'scipy.signal' not in sys.modules\n"
         "from robovib.modal import ModalParameters\n"
         "assert 'scipy.signal' not in sys.modules\n"
-        "missing = [n for p in (f, m) for n in p.__all__ if getattr(p, n, None) is None]\n"
+        "missing = [n for p in (f, m, c) for n in p.__all__ if getattr(p, n, None) is None]\n"
         "assert not missing, missing\n"
         "assert 'scipy.signal' in sys.modules\n"
         "print('ok')\n"

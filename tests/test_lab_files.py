@@ -482,6 +482,11 @@ def test_pose_table_from_a_spreadsheet(tmp_path):
         t[["x_mm", "y_mm", "rz_deg"]].to_numpy(), [[2100.5, -12.25, 90.0], [2200.0, 0.0, 45.5]]
     )
     assert list(t["note"]) == ["a", "b"]
+    from robovib.io import read_pose_array  # the same, without pandas (next-poses)
+
+    np.testing.assert_array_equal(
+        read_pose_array(p, ["rz_deg", "x_mm"]), [[90.0, 2100.5], [45.5, 2200.0]]
+    )
     p.write_text("x_mm;y_mm;rz_deg\n2100;0;0\n2200;1,5.3;0\n")
     with pytest.raises(ValueError, match=r"line 3: y_mm = '1,5.3' is not a finite number"):
         read_pose_table(p, ["x_mm", "y_mm", "rz_deg"])

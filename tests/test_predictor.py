@@ -60,6 +60,34 @@ def test_predict_at_is_the_same_for_both(shipped):
         assert b["predictions"][name]["mean"] == pytest.approx(ref["mean"], rel=1e-10)
 
 
+def test_modes_and_next_poses_are_the_same_for_both(shipped):
+    """Issue 27: the pose commands (mill, control, next-poses) read the predictor; its modes
+    and next-pose choice equal the full model's."""
+    from robovib.campaign import next_poses
+
+    full, fast = shipped
+    X = full.X_train_[::15] + np.array([10.0, -10.0, 5.0])  # near training poses: physical modes
+    assert len(X) >= 10
+    for a, b in zip(full.modes(X), fast.modes(X), strict=True):
+        assert a.keys() == b.keys()
+        for d in a:
+            pa, pb = a[d], b[d]
+            assert pb.parameters.natural_frequency_hz == pytest.approx(
+                pa.parameters.natural_frequency_hz, rel=1e-10
+            )
+            assert pb.parameters.damping_ratio == pytest.approx(
+                pa.parameters.damping_ratio, rel=1e-9
+            )
+            assert pb.fn_std_hz == pytest.approx(pa.fn_std_hz, rel=1e-8)
+            assert pb.extrapolating == pa.extrapolating
+            assert pb.high_mode_probability == pytest.approx(pa.high_mode_probability, abs=1e-10)
+    cand = _poses(full, 40, 2)[:40]
+    ref, got = next_poses(full, cand, k=4), next_poses(fast, cand, k=4)
+    np.testing.assert_array_equal(got.indices, ref.indices)
+    np.testing.assert_allclose(got.variance_reduction, ref.variance_reduction, rtol=1e-8)
+    assert got.total_variance_before == pytest.approx(ref.total_variance_before, rel=1e-8)
+
+
 def test_laplace_classifier_matches_scikit_learn():
     from sklearn.gaussian_process import GaussianProcessClassifier
     from sklearn.gaussian_process.kernels import RBF

@@ -11,6 +11,7 @@ from robovib.milling.lobes import LobeEnvelope, zoa_envelope
 from robovib.milling.sdm import (
     batched_expm,
     critical_depths,
+    dominant_eigenvalues,
     floquet_multipliers,
     milling_force_matrices,
     sdm_lobes,
@@ -88,7 +89,8 @@ def _turning_boundary(mode, h, delays, n_w=200000):
     return out
 
 
-def test_turning_limit_closed_form_and_lobes():
+@pytest.mark.parametrize("eigensolver", ["arnoldi", "dense"])
+def test_turning_limit_closed_form_and_lobes(eigensolver):
     mode = ModalParameters(150.0, 2e7, 0.025)
     h = 8e8
     m = 80
@@ -96,7 +98,7 @@ def test_turning_limit_closed_form_and_lobes():
     hmat[:, 1, 1] = h
     frac = np.full(m, 1 / m)
     delays = np.geomspace(0.6 / 150, 5 / 150, 60)
-    a_lim, mu = critical_depths([], [mode], hmat, frac, delays)
+    a_lim, mu = critical_depths([], [mode], hmat, frac, delays, eigensolver=eigensolver)
     a_min = turning_minimum_depth(mode, h)
     assert a_min == pytest.approx(2 * 2e7 * 0.025 * 1.025 / h)
     assert np.min(a_lim) == pytest.approx(a_min, rel=0.01)
@@ -108,8 +110,48 @@ def test_turning_limit_closed_form_and_lobes():
     # x direction works the same as y.
     hx = np.zeros((m, 2, 2))
     hx[:, 0, 0] = h
-    ax, _ = critical_depths([mode], [], hx, frac, delays[:5])
+    ax, _ = critical_depths([mode], [], hx, frac, delays[:5], eigensolver=eigensolver)
     np.testing.assert_allclose(ax, a_lim[:5], rtol=1e-6)
+
+
+def test_dominant_eigenvalues_match_numpy_and_fall_back_when_unconverged():
+    rng = np.random.default_rng(4)
+    n = 60
+    # A dominant complex pair and a real multiplier over a cloud near zero (as a monodromy).
+    q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    lam = np.concatenate(
+        [[0.9 * np.exp(0.7j), 0.9 * np.exp(-0.7j), -0.6], 0.05 * rng.normal(size=n - 3)]
+    )
+    blocks = np.diag(lam.real)
+    blocks[0, 0] = blocks[1, 1] = lam[0].real
+    blocks[0, 1], blocks[1, 0] = lam[0].imag, -lam[0].imag
+    a = q @ blocks @ np.linalg.inv(q)
+    # ... and a matrix with no gap at all (random orthogonal: every |mu| = 1) -> dense fallback.
+    stack = np.stack([a, np.linalg.qr(rng.normal(size=(n, n)))[0]])
+    got = dominant_eigenvalues(stack, 3)
+    ref = np.linalg.eigvals(stack)
+    ref = np.take_along_axis(ref, np.argsort(-np.abs(ref), axis=1)[:, :3], axis=1)
+    np.testing.assert_allclose(
+        np.sort(np.abs(got), axis=1), np.sort(np.abs(ref), axis=1), rtol=1e-9
+    )
+    np.testing.assert_allclose(np.sort_complex(got[0]), np.sort_complex(ref[0]), atol=1e-9)
+    assert np.abs(got[0, 0]) == pytest.approx(0.9, rel=1e-9)
+
+
+def test_arnoldi_chart_equals_dense_sdm_on_robot_modes():
+    """Issue 27: a 2-DOF chart with the robot's low modes (fn 16 and 8.5 Hz, 40 speeds, the
+    low ones needing long delays) by Arnoldi iterations equals the dense-eigenvalue SDM."""
+    mx, my = ModalParameters(16.4, 4.19e6, 0.114), ModalParameters(8.49, 9.38e5, 0.191)
+    tool = MillingTool(diameter_m=0.0254, n_flutes=2, helix_deg=30.0)
+    cond = CuttingConditions(1750.0, 1e-4, 1e-3, 6e-3)
+    rpm = np.linspace(100, 3000, 40)
+    fast = sdm_lobes([mx], [my], tool, cond, ALUMINIUM_7075, rpm)
+    dense = sdm_lobes([mx], [my], tool, cond, ALUMINIUM_7075, rpm, eigensolver="dense")
+    np.testing.assert_allclose(fast.a_lim_m, dense.a_lim_m, rtol=1e-7)
+    assert list(fast.kind) == list(dense.kind)
+    assert fast.settings["eigensolver"] == "arnoldi"
+    with pytest.raises(ValueError, match="eigensolver"):
+        sdm_lobes([mx], [my], tool, cond, ALUMINIUM_7075, rpm[:2], eigensolver="qr")
 
 
 def test_sdm_agrees_with_zero_order_at_full_immersion():

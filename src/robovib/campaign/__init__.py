@@ -8,50 +8,47 @@
 * :func:`fit_multimode_pose_model` — every tracked mode (``modes.csv``, written when
   ``ProcessingSettings.modes_band_hz`` is set) as a pose model (issue 29);
 * :func:`next_poses` — where to hammer next (largest integrated variance reduction).
+
+Names are imported on first use (PEP 562): ``robovib model next-poses`` reads a saved model
+without scikit-learn (:mod:`robovib.campaign.selection`).
 """
 
-from .manifest import (
-    JOINT_COLUMNS,
-    OPTIONAL_POSE_COLUMNS,
-    POSE_COLUMNS,
-    CampaignRow,
-    read_manifest,
-)
-from .model import (
-    NextPoses,
-    PoseModelFit,
-    PosePrediction,
-    fit_pose_model_from_table,
-    load_pose_model,
-    mode_switches_found,
-    next_poses,
-    predict_at,
-    save_pose_model,
-)
-from .multimode import fit_multimode_pose_model, track_modes
-from .plot import plot_next_poses
-from .process import CampaignResult, ProcessingSettings, process_campaign, process_row
+from importlib import import_module
 
-__all__ = [
-    "JOINT_COLUMNS",
-    "OPTIONAL_POSE_COLUMNS",
-    "POSE_COLUMNS",
-    "CampaignResult",
-    "CampaignRow",
-    "NextPoses",
-    "PoseModelFit",
-    "PosePrediction",
-    "ProcessingSettings",
-    "fit_multimode_pose_model",
-    "fit_pose_model_from_table",
-    "load_pose_model",
-    "mode_switches_found",
-    "next_poses",
-    "plot_next_poses",
-    "predict_at",
-    "process_campaign",
-    "process_row",
-    "read_manifest",
-    "save_pose_model",
-    "track_modes",
-]
+_WHERE = {
+    "CampaignResult": "process",
+    "CampaignRow": "manifest",
+    "JOINT_COLUMNS": "manifest",
+    "NextPoses": "selection",
+    "OPTIONAL_POSE_COLUMNS": "manifest",
+    "POSE_COLUMNS": "manifest",
+    "PoseModelFit": "model",
+    "PosePrediction": "model",
+    "ProcessingSettings": "process",
+    "fit_multimode_pose_model": "multimode",
+    "track_modes": "multimode",
+    "fit_pose_model_from_table": "model",
+    "load_pose_model": "model",
+    "mode_switches_found": "model",
+    "next_poses": "selection",
+    "plot_next_poses": "plot",
+    "predict_at": "model",
+    "process_campaign": "process",
+    "process_row": "process",
+    "read_manifest": "manifest",
+    "save_pose_model": "model",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))

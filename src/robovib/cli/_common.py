@@ -116,14 +116,32 @@ def plausible_ranges(level_check: bool, compliance_range: tuple[float, float] | 
 
 def workspace_model(path: Path | None, seed: int = 0, require_inputs=("x_mm", "y_mm", "rz_deg")):
     """The pose model to predict with: the user's file (its inputs checked when
-    ``require_inputs``) or the shipped chapter-3 model."""
+    ``require_inputs``) or the shipped chapter-3 model.
+
+    A saved model is read as a :class:`~robovib.gp.predictor.PosePredictor` (NumPy and h5py
+    only, the same predictions as the full model): a command at one pose starts in well under
+    a second. Only a chapter-3 model with another optimiser ``seed`` is refitted (scikit-learn).
+    """
     if path is None:
+        if seed == 0:
+            from ..gp.chapter3_model import load_chapter3_predictor
+
+            try:
+                return load_chapter3_predictor()
+            except FileNotFoundError:
+                pass
         from ..gp import get_chapter3_model
 
         return get_chapter3_model(rng=seed)
-    from ..gp import load_pose_model
+    from ..gp.predictor import load_pose_predictor
 
-    return load_pose_model(path, require_inputs=require_inputs)
+    model = load_pose_predictor(path)
+    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
+        raise ValueError(
+            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
+            f"the model has {', '.join(model.input_names)}"
+        )
+    return model
 
 
 try:  # Typer >= 0.2x vendors Click as typer._click: its context stack and exceptions are those

@@ -114,12 +114,12 @@ def next_poses_cmd(
     json_out: JsonFlag = False,
 ) -> None:
     """Where to hammer next: largest integrated variance reduction over the candidates."""
-    from ..campaign import next_poses
-    from ..gp import load_pose_model
-    from ..io import read_pose_table
+    from ..campaign.selection import next_poses
+    from ..gp.predictor import load_pose_predictor
+    from ..io.poses import read_pose_array
 
-    m = load_pose_model(model)
-    cand = read_pose_table(candidates, m.input_names)
+    m = load_pose_predictor(model)  # NumPy only: the full model would import scikit-learn
+    cand = read_pose_array(candidates, m.input_names)  # no pandas
     res = next_poses(m, cand, k)
     names = list(m.input_names)
     rows = [{**dict(zip(names, map(float, p), strict=True)), "candidate_index": int(i),

@@ -32,8 +32,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg
 
+from .._linalg import solve_dare
 from ..modal.parameters import ModalParameters
 from .lqr import continuous_model, design_delay_aware_lqr, discretize
 
@@ -179,7 +179,8 @@ def design_kalman(
     The unmeasured force is white process noise of std ``force_std_n`` [N] held over each
     sample; the tracker noise variance is ``tracker_noise_m**2 + tracker_resolution_m**2 / 12``
     (quantisation). The steady-state a-priori covariance solves the filter Riccati equation
-    (SciPy DARE on the dual problem; the same as python-control ``dlqe``, tested).
+    (DARE on the dual problem, :func:`robovib._linalg.solve_dare`; the same as python-control
+    ``dlqe``, tested).
 
     Parameters
     ----------
@@ -204,7 +205,7 @@ def design_kalman(
     qn = (gf @ gf.T) * force_std_n**2
     rn = np.array([[tracker_noise_m**2 + tracker_resolution_m**2 / 12.0]])
     c = np.array([[1.0, 0.0]])
-    p = linalg.solve_discrete_are(phi.T, c.T, qn, rn)
+    p = solve_dare(phi.T, c.T, qn, rn)
     gain = (p @ c.T @ np.linalg.inv(c @ p @ c.T + rn))[:, 0]
     return KalmanDesign(phi, gu[:, 0], gain, p)
 

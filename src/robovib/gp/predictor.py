@@ -139,6 +139,7 @@ class _GP:
             chol_inv, self.covariance,
         )  # fmt: skip
         self.noise_std = noise[:, 0] * y_scale  # first (reference) noise group, data units
+        self.signal_std = np.sqrt(sf2) * y_scale  # data units
         self.X_train = X
 
     def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -416,6 +417,31 @@ class PosePredictor:
             *((None,) * 5 if cal is None
               else (cal.scale, cal.dof, cal.gamma, cal.ref_std, cal.mode_logit)),
         )  # fmt: skip
+
+    def modes(self, X) -> list[dict]:
+        """The dominant mode per direction at each pose, as :meth:`PoseModalModel.modes`
+        (``{direction: PoseMode}`` per row of ``X``, :func:`robovib.gp.pose_mode.modes_at`)."""
+        from .pose_mode import modes_at
+
+        return modes_at(self, self._check_X(X))
+
+    def gp_posteriors(self) -> list[tuple[GPPosterior, np.ndarray, np.ndarray, np.ndarray, int]]:
+        """Every GP of the model: ``(posterior, noise_std, signal_std, columns, mode)``.
+
+        ``noise_std`` and ``signal_std`` (B,) in data units (the reference noise group),
+        ``columns`` the model outputs of its B targets, ``mode`` 0 for the low (or only) mode
+        and 1 for the high mode of a switching direction; what
+        :func:`robovib.campaign.next_poses` needs, in the order of ``PoseModalModel``.
+        """
+        out = []
+        for est, cols in self._estimators:
+            cols = np.asarray(cols, int)
+            low = est.low if isinstance(est, _Switching) else est
+            out.append((low.posterior, low.noise_std, low.signal_std, cols, 0))
+            if isinstance(est, _Switching) and est.high is not None:
+                h = est.high
+                out.append((h.posterior, h.noise_std, h.signal_std, cols[est.switching], 1))
+        return out
 
     def outside_inputs(self, X) -> np.ndarray:
         """(n, n_inputs) bool: input value outside the training range of that input.

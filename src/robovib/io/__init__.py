@@ -37,6 +37,7 @@ _WHERE = {
     "read_frfs_uff": ("frf_files", "read_frfs_uff"),
     "read_milling_record_csv": ("tables", "read_milling_record_csv"),
     "read_path_modes_csv": ("tables", "read_path_modes_csv"),
+    "read_pose_array": ("poses", "read_pose_array"),
     "read_pose_table": ("poses", "read_pose_table"),
     "normalise_column_name": ("csv_table", "normalise_column_name"),
     "read_recording": ("recording", "read_recording"),

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["read_pose_table"]
+__all__ = ["read_pose_array", "read_pose_table"]
 
 
 def _float(text: str) -> float:
@@ -15,6 +15,39 @@ def _float(text: str) -> float:
         return float(text)
     except ValueError:
         return float("nan")
+
+
+def _read_checked(path: str | Path, columns: Sequence[str]):
+    """The table as read and the required columns as checked finite floats."""
+    from .csv_table import read_table
+
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such pose table")
+    try:
+        raw = read_table(path, what="pose table")
+    except ValueError as exc:
+        if "has a header but no data rows" in str(exc):
+            raise ValueError(f"{path}: pose table has no rows") from None
+        raise
+    missing = [c for c in columns if c not in raw.header]
+    if missing:
+        raise ValueError(
+            f"{path}: pose table lacks column(s) {', '.join(missing)} (has {', '.join(raw.header)})"
+        )
+    if not raw.rows:
+        raise ValueError(f"{path}: pose table has no rows")
+    values = {}
+    for c in columns:
+        v = np.array([_float(x) for x in raw.column(c)])
+        bad = ~np.isfinite(v)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(
+                f"{path} line {raw.lines[i]}: {c} = {raw.column(c)[i]!r} is not a finite number"
+            )
+        values[c] = v
+    return raw, values
 
 
 def read_pose_table(path: str | Path, columns: Sequence[str]):
@@ -37,32 +70,23 @@ def read_pose_table(path: str | Path, columns: Sequence[str]):
     ValueError
         Missing file or columns, no rows, non-numeric or non-finite cells (line named).
     """
-    from .csv_table import read_table
-
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such pose table")
-    try:
-        raw = read_table(path, what="pose table")
-    except ValueError as exc:
-        if "has a header but no data rows" in str(exc):
-            raise ValueError(f"{path}: pose table has no rows") from None
-        raise
+    raw, values = _read_checked(path, columns)
     table = raw.to_frame()
-    missing = [c for c in columns if c not in table.columns]
-    if missing:
-        raise ValueError(
-            f"{path}: pose table lacks column(s) {', '.join(missing)} (has {', '.join(table.columns)})"
-        )
-    if table.empty:
-        raise ValueError(f"{path}: pose table has no rows")
-    for c in columns:
-        values = np.array([_float(v) for v in raw.column(c)])
-        bad = ~np.isfinite(values)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise ValueError(
-                f"{path} line {raw.lines[i]}: {c} = {raw.column(c)[i]!r} is not a finite number"
-            )
-        table[c] = values
+    for c, v in values.items():
+        table[c] = v
     return table
+
+
+def read_pose_array(path: str | Path, columns: Sequence[str]) -> np.ndarray:
+    """The ``columns`` of a CSV of poses as an (n, len(columns)) float array (no pandas).
+
+    The same file layouts and checks as :func:`read_pose_table`; what a command at a few
+    poses reads (``robovib model next-poses``) without importing pandas.
+
+    Raises
+    ------
+    ValueError
+        Missing file or columns, no rows, non-numeric or non-finite cells (line named).
+    """
+    _, values = _read_checked(path, columns)
+    return np.column_stack([values[c] for c in columns])

@@ -1,0 +1,165 @@
+"""Where to hammer next: greedy integrated-variance reduction over candidate poses.
+
+:func:`next_poses` (see :mod:`robovib.campaign.model`) needs only the GP posteriors, so it runs
+on a saved model read without scikit-learn (:class:`robovib.gp.predictor.PosePredictor`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from ..gp.regressor import BatchedGPRegressor
+
+__all__ = ["NextPoses", "next_poses"]
+
+
+@dataclass(frozen=True)
+class NextPoses:
+    """Chosen poses and what each pick removes.
+
+    Attributes
+    ----------
+    poses
+        (k, n_inputs) chosen candidates, in pick order.
+    indices
+        (k,) their rows in the candidate set.
+    variance_reduction
+        (k,) integrated normalised variance removed by each pick.
+    total_variance_before
+        Integrated normalised variance over the candidates before any pick.
+    """
+
+    poses: np.ndarray
+    indices: np.ndarray
+    variance_reduction: np.ndarray
+    total_variance_before: float
+
+
+def _gps_of(model) -> list[tuple[BatchedGPRegressor, np.ndarray]]:
+    """The BatchedGPRegressors of a fitted pose model with the calibration factor of each of
+    their outputs (``calibration_.scale``, 1 where uncalibrated); the per-mode GPs of a
+    mode-switching direction included."""
+    from ..gp.regressor import BatchedGPRegressor
+
+    cal = getattr(model, "calibration_", None)
+    out = []
+    for est, cols in zip(
+        getattr(model, "estimators_", []) or [],
+        getattr(model, "estimator_columns_", []) or [],
+        strict=True,
+    ):
+        cols = np.asarray(cols, int)
+        scale = np.ones((cols.size, 2)) if cal is None else np.asarray(cal.scale)[cols]
+        if isinstance(est, BatchedGPRegressor):
+            out.append((est, scale[:, 0]))
+            continue
+        out.append((est.low_model_, scale[:, 0]))
+        if getattr(est, "high_model_", None) is not None:
+            out.append((est.high_model_, scale[np.asarray(est.switching_outputs, int), 1]))
+    if not out:
+        raise ValueError("next_poses needs a fitted pose model (no GPs found in estimators_)")
+    return out
+
+
+def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
+    """Latent posterior covariance (B, m, m) at Xc, noise and prior variances (B,), in target
+    units (the regressor's own posterior, :class:`robovib.gp.posterior.GPPosterior`)."""
+    from ..gp.predictive import noise_std_of
+
+    hp = gp.hyperparameters_
+    return (
+        gp.posterior_.covariance_at(Xc),
+        noise_std_of(hp) ** 2,
+        np.asarray(hp.signal_std, float) ** 2,
+    )
+
+
+def _covariances(model, Xc: np.ndarray) -> list:
+    """``((cov, noise var, prior var), c²)`` of every GP of the model at the candidates.
+
+    A :class:`~robovib.gp.predictor.PosePredictor` (a saved model read without scikit-learn)
+    gives its posteriors through ``gp_posteriors``; a :class:`~robovib.gp.PoseModalModel`
+    through its fitted regressors (:func:`_gps_of`). Same numbers from the same file.
+    """
+    if hasattr(model, "gp_posteriors"):
+        cal = getattr(model, "calibration_", None)
+        out = []
+        for post, noise, signal, cols, mode in model.gp_posteriors():
+            c = np.ones(cols.size) if cal is None else np.asarray(cal.scale)[cols, mode]
+            out.append(((post.covariance_at(Xc), noise**2, signal**2), c**2))
+        return out
+    return [(_posterior_cov(gp, Xc), c**2) for gp, c in _gps_of(model)]
+
+
+def next_poses(model, candidates, k: int = 5) -> NextPoses:
+    """The ``k`` candidate poses whose measurement most reduces the integrated variance.
+
+    Parameters
+    ----------
+    model
+        A fitted :class:`robovib.gp.PoseModalModel` or its read-only
+        :class:`~robovib.gp.predictor.PosePredictor` (all its GPs count, the per-mode GPs of a
+        switching direction included).
+    candidates
+        (m, n_inputs) array, or a DataFrame / CSV path with the model's input columns.
+    k
+        Poses to choose (1 <= k <= m).
+
+    Returns
+    -------
+    NextPoses
+
+    Raises
+    ------
+    ValueError
+        Missing input columns, bad ``k``, an unfitted model.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robovib.campaign import next_poses
+    >>> from robovib.gp import load_chapter3_model
+    >>> cand = np.array([[2100.0, -300.0, 0.0], [2400.0, 0.0, 45.0], [2700.0, 600.0, 90.0]])
+    >>> len(next_poses(load_chapter3_model(), cand, k=2).poses)
+    2
+    """
+    names = tuple(model.input_names)
+    if isinstance(candidates, str | Path):
+        from ..io import read_pose_table
+
+        candidates = read_pose_table(candidates, names)
+    if hasattr(candidates, "columns"):
+        missing = [c for c in names if c not in candidates.columns]
+        if missing:
+            raise ValueError(f"candidates lack the model's input column(s) {', '.join(missing)}")
+        candidates = candidates[list(names)].to_numpy(float)
+    C = np.atleast_2d(np.asarray(candidates, float))
+    if C.ndim != 2 or C.shape[1] != len(names):
+        raise ValueError(f"candidates must be (m, {len(names)}) = {names}, got {C.shape}")
+    if not np.all(np.isfinite(C)):
+        raise ValueError("candidates contain NaN or inf")
+    if not 1 <= int(k) <= len(C):
+        raise ValueError(f"k must be in [1, {len(C)}], got {k}")
+    # Calibrated bands (issue 24): latent and noise variance both scaled by c² per output, so an
+    # output whose plain GP band was too narrow weighs more in the choice.
+    parts = _covariances(model, C)
+    cov = np.concatenate([c2[:, None, None] * c / p[:, None, None] for (c, _, p), c2 in parts])
+    noise = np.concatenate([c2 * n / p for (_, n, p), c2 in parts])
+    before = float(np.sum(np.trace(cov, axis1=1, axis2=2)))
+    chosen, gains = [], []
+    for _ in range(int(k)):
+        diag = np.diagonal(cov, axis1=1, axis2=2)  # (B, m)
+        score = np.sum(np.sum(cov**2, axis=1) / (diag + noise[:, None]), axis=0)
+        score[chosen] = -np.inf
+        c = int(np.argmax(score))
+        chosen.append(c)
+        gains.append(float(score[c]))
+        col = cov[:, :, c]  # (B, m)
+        cov = cov - col[:, :, None] * col[:, None, :] / (diag[:, c] + noise)[:, None, None]
+    idx = np.array(chosen)
+    return NextPoses(C[idx], idx, np.array(gains), before)
