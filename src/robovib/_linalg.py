@@ -27,6 +27,16 @@ def batched_expm(a: np.ndarray) -> np.ndarray:
     Appl.* 26, 2005): each matrix is scaled by ``2^-s`` so its 1-norm is <= 5.37, the Padé
     approximant is one batched linear solve, then squared ``s`` times (``s`` per matrix). SciPy's
     ``expm`` gives the same numbers but loops over the stack in Python.
+
+    Parameters
+    ----------
+    a : numpy.ndarray (..., s, s)
+        The stack of matrices.
+
+    Returns
+    -------
+    numpy.ndarray (..., s, s)
+        ``exp`` of each matrix.
     """
     a = np.asarray(a, float)
     if a.ndim < 2 or a.shape[-1] != a.shape[-2]:

@@ -50,7 +50,13 @@ class PoseMode:
     intervals_95: tuple | None = None
 
     def to_dict(self) -> dict:
-        """JSON-ready, units in the keys (fn, k, c, ζ with the std of fn, k, c)."""
+        """JSON-ready, units in the keys (fn, k, c, ζ with the std of fn, k, c).
+
+        Returns
+        -------
+        dict
+            The mode, its latent and measurement std and the mode-switch probability.
+        """
         p = self.parameters
         extra = {}
         if self.measurement_std is not None:
@@ -88,6 +94,18 @@ def modes_at(model, X: np.ndarray) -> list[dict[str, PoseMode]]:
     ``model`` offers ``predictive``, ``extrapolating``, ``mode_switch_probability``,
     ``directions_`` and ``input_names_`` (a fitted :class:`~robovib.gp.PoseModalModel` or a
     :class:`~robovib.gp.predictor.PosePredictor`); see :meth:`PoseModalModel.modes`.
+
+    Parameters
+    ----------
+    model : PoseModalModel or PosePredictor
+        The fitted pose model.
+    X : numpy.ndarray (n, d)
+        Checked poses in the units of ``model.input_names_``.
+
+    Returns
+    -------
+    list of dict
+        One ``{direction: PoseMode}`` per row of ``X``.
 
     Raises
     ------

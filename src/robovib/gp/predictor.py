@@ -419,8 +419,18 @@ class PosePredictor:
         )  # fmt: skip
 
     def modes(self, X) -> list[dict]:
-        """The dominant mode per direction at each pose, as :meth:`PoseModalModel.modes`
-        (``{direction: PoseMode}`` per row of ``X``, :func:`robovib.gp.pose_mode.modes_at`)."""
+        """The dominant mode per direction at each pose, as :meth:`PoseModalModel.modes`.
+
+        Parameters
+        ----------
+        X : array_like (n, d)
+            Poses in the units of ``input_names_``.
+
+        Returns
+        -------
+        list of dict
+            ``{direction: PoseMode}`` per row of ``X`` (:func:`robovib.gp.pose_mode.modes_at`).
+        """
         from .pose_mode import modes_at
 
         return modes_at(self, self._check_X(X))
@@ -432,6 +442,11 @@ class PosePredictor:
         ``columns`` the model outputs of its B targets, ``mode`` 0 for the low (or only) mode
         and 1 for the high mode of a switching direction; what
         :func:`robovib.campaign.next_poses` needs, in the order of ``PoseModalModel``.
+
+        Returns
+        -------
+        list of tuple
+            ``(posterior, noise_std, signal_std, columns, mode)`` per GP.
         """
         out = []
         for est, cols in self._estimators:

@@ -83,6 +83,18 @@ def read_pose_array(path: str | Path, columns: Sequence[str]) -> np.ndarray:
     The same file layouts and checks as :func:`read_pose_table`; what a command at a few
     poses reads (``robovib model next-poses``) without importing pandas.
 
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    columns : sequence of str
+        Columns to read, in this order.
+
+    Returns
+    -------
+    numpy.ndarray (n, len(columns))
+        The poses.
+
     Raises
     ------
     ValueError
