@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..control.adaptive import FadeGuard, PeriodTracker, TrackingFeedforward, TrackingRepetitive
 from ..control.controllers import (
     Combined,
     DelayAwareFeedback,
@@ -45,7 +46,6 @@ from ..milling.forces import (
     CuttingCoefficients,
     CuttingConditions,
     MillingTool,
-    milling_forces,
 )
 from ..modal.parameters import ModalParameters
 from ..modal.sdof import fit_dominant_mode
@@ -56,6 +56,7 @@ from ..sim import (
     PURE_DELAY,
     CommandChannel,
     ConstantModesRobot,
+    CutDisturbances,
     LinearMove,
     ModeSet,
     VirtualRobot,
@@ -68,6 +69,7 @@ __all__ = [
     "ACTUATORS",
     "CALIBRATED_CHANNEL",
     "CONTROLLERS",
+    "DEFAULT_CONTROLLER",
     "SECOND_MODE_HYPOTHESES",
     "TABLE_10_CONDITIONS",
     "THESIS_OFFSET_MASS_MODE",
@@ -101,7 +103,13 @@ CONTROLLERS = (
     "feedforward",
     "feedforward+robust",
     "repetitive",
+    "adaptive",
+    "adaptive+robust",
+    "adaptive-feedforward",
 )
+
+#: The controller recommended for real cuts (period tracking, adaptive harmonics, guard).
+DEFAULT_CONTROLLER = "adaptive"
 
 #: §4.3.2: the Y-direction mode measured at the offset-mass pose (8.5 Hz, 0.775 MN/m, 0.179).
 THESIS_OFFSET_MASS_MODE = ModalParameters(8.5, 0.775e6, 0.179)
@@ -364,6 +372,35 @@ def build_controllers(
             for a, d in axes.items()
         }  # fmt: skip
         out["repetitive"] = RepetitiveFeedback(modes, excitation_period_s, delay_s)
+    adaptive = {"adaptive", "adaptive+robust", "adaptive-feedforward"} & set(names)
+    if adaptive:
+        if excitation_period_s is None:
+            raise ValueError("the adaptive controllers need the nominal excitation_period_s [s]")
+        fz = {
+            a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
+                                              for m in (path_mode(model, si, d) for si in grid)]))
+            for a, d in axes.items()
+        }  # fmt: skip
+        stiff = {
+            a: ScheduledTable(grid, np.array([[path_mode(model, si, d).stiffness_n_per_m] for si in grid]))
+            for a, d in axes.items()
+        }  # fmt: skip
+        if robust is None:
+            robust = {
+                a: ScheduledTable(grid, np.array([
+                    _robust_r(_model_set(model, si, d), path_mode(model, si, d), period_s, delay_s, r_grid)[1]
+                    for si in grid]))
+                for a, d in axes.items()
+            }  # fmt: skip
+        for name in adaptive:
+            tracker = PeriodTracker(excitation_period_s)
+            if name == "adaptive-feedforward":
+                parts = [TrackingFeedforward(stiff, tracker, delay_s)]
+            else:
+                parts = [TrackingRepetitive(fz, tracker, delay_s)]
+            if name != "adaptive":
+                parts.append(DelayAwareFeedback(robust))
+            out[name] = FadeGuard(Combined(*parts), tracker, fz, delay_s)
     unknown = set(names) - set(CONTROLLERS)
     if unknown:
         raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
@@ -433,9 +470,10 @@ def stability_over_band(
 
 
 # --------------------------------------------------------------------------- runs
-def _run(robot, move, force, controller, rng, channel):
+def _run(robot, move, force, controller, rng, channel, **sensor):
     try:
-        rec = run_closed_loop(robot, move, force, 1000.0, controller, channel=channel, rng=rng)
+        rec = run_closed_loop(robot, move, force, 1000.0, controller, channel=channel, rng=rng,
+                              **sensor)  # fmt: skip
         return rec.true_displacement_m, None
     except ValueError as exc:
         return None, str(exc)
@@ -767,16 +805,27 @@ def milling_study(
     radial_depth_m: float = 6e-3,
     cut_length_m: float = 0.05,
     background_noise_rel: float = 0.15,
+    disturbances: CutDisturbances | None = None,
     keep_traces: bool = False,
     rng=0,
 ) -> list[dict]:
     """Table 10 analogue: RMS X and Z vibration [mm] (about the mean) open vs each controller.
+
+    ``disturbances`` (:class:`~robovib.sim.disturbances.CutDisturbances`) make the cut real:
+    spindle-speed error, runout, non-periodic force, engagement, force-sensor noise and bias
+    (on the force the controllers see), actuator gain and delay errors (of the true channel;
+    the controllers keep the nominal ones). A guarded controller's fade-out events go to the
+    row's ``guard_events``.
 
     One row per cut, position and controller with ``x_rms_mm``, ``z_rms_mm``, the open-loop
     values and the reductions [%] (NaN and ``unstable`` set when the loop went unstable).
     The RMS is taken after the first fifth of the cut (start-up transient).
     """
     tool = tool or MillingTool()
+    dist = disturbances or CutDisturbances()
+    true_channel = dist.channel(channel)
+    sensor = {"force_noise_n": math.hypot(0.5, dist.force_noise_n),
+              "force_bias_n": dist.force_bias_n}  # fmt: skip
     gen = np.random.default_rng(rng)
     rows = []
     for pos_name, s_mid in positions:
@@ -786,7 +835,7 @@ def milling_study(
             cond = CuttingConditions(rpm, fz, ap, radial_depth_m)
             n = round(move.length_m / cond.feed_speed_m_per_s(tool) * 1000.0)
             t = np.arange(n) / 1000.0
-            local = milling_forces(t, tool, cond, coefficients)
+            local = dist.cutting_force(t, tool, cond, coefficients, rng=gen)
             # Feed along the path (-Y); normal = Z x feed = +X; axial = Z.
             force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
             force += gen.normal(size=force.shape) * background_noise_rel * force.std(axis=0)
@@ -797,8 +846,12 @@ def milling_study(
                     "axial_depth_mm": ap * 1e3}  # fmt: skip
             open_rms = None
             for name, ctrl in ctrls.items():
-                disp, err = _run(robot, move, force, ctrl, rng, channel)
+                disp, err = _run(robot, move, force, ctrl, rng, true_channel, **sensor)
                 row = {**base, "controller": name, "unstable": err}
+                if isinstance(ctrl, FadeGuard):
+                    row["guard_events"] = "; ".join(
+                        f"{e.time_s:.2f} s -> {e.target:g}: {e.reason}" for e in ctrl.all_events()
+                    )
                 for axis, d in ((0, "x"), (2, "z")):
                     rms = np.nan if disp is None else 1e3 * np.std(disp[n // 5 :, axis])
                     row[f"{d}_rms_mm"] = rms
