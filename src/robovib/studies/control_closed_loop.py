@@ -67,7 +67,6 @@ from ..sim import (
 
 __all__ = [
     "ACTUATORS",
-    "CALIBRATED_CHANNEL",
     "CONTROLLERS",
     "DEFAULT_CONTROLLER",
     "SECOND_MODE_HYPOTHESES",
@@ -116,22 +115,17 @@ THESIS_OFFSET_MASS_MODE = ModalParameters(8.5, 0.775e6, 0.179)
 #: §4.3.2 gains (w1, w2) the thesis computed for that mode.
 THESIS_OFFSET_MASS_GAINS = (0.079, 0.0059)
 
-#: Channel fitted by :func:`calibrate_channel` (``python benchmarks/study_control.py
-#: calibrate``) with the delay held at the 32 ms the thesis measured: over lag 0-40 ms,
-#: breakaway 0-50 µm, rate limit 0.02 m/s-inf and 0-1 extra RSI hold, the pure delay fits
-#: §4.3.2 best (RMS log error of the ratios 0.78, i.e. a factor 2.2). No non-amplifying
-#: channel can do much better: :func:`sensitivity_bound` limits the closed/open ratio of the
-#: thesis' gains on the thesis' measured mode to >= 0.53 at 8 Hz and >= 0.81 at 16 Hz, against
-#: the thesis' 0.42 and 0.42; :func:`required_channel_gain` says the channel would have to
-#: amplify >= 1.6x at 8 Hz and >= 6x at 16 Hz. Amplifying channels (a lightly damped
-#: second-order servo, ``CommandChannel(servo_hz=...)``) were searched too, on the hammer mode
-#: and on the mode fitted to the open-loop amplitudes (:func:`operating_mode`). With the
-#: measured 32 ms none comes near. Within 20 % come only a 16-19 ms delay with a servo
-#: resonance of zeta 0.01-0.03 at 16.4-16.6 Hz, next to the 960 rpm excitation
-#: (``calibrate-fine``: 41 of 396, best within 1 %), and every one of them makes the thesis'
-#: Eq. 28-29 schedule unstable on the Table 7 path at both speeds, where the thesis measured
-#: 62-67 % reductions: Table 7 refutes them, and the pure delay stays.
-CALIBRATED_CHANNEL = CommandChannel(delay_s=0.032)
+# The §4.3.2 calibration target is withdrawn (issue 25). The thesis reports the offset mass
+# at 8.5 Hz going from 0.93 to 0.39 mm with the gains 0.079 / 0.0059 (closed/open 0.42 at 480
+# and 960 rpm). No command channel of gain <= 1 can do that: :func:`sensitivity_bound` limits
+# the closed/open ratio of those gains on the thesis' measured mode to >= 0.53 at 8 Hz and
+# >= 0.81 at 16 Hz (:func:`required_channel_gain`: the channel would have to amplify >= 1.6x at
+# 8 Hz and >= 6x at 16 Hz). :func:`calibrate_channel` searched lag, breakaway, rate limit, RSI
+# hold and lightly damped servos: the pure 32 ms delay fits best among the non-amplifying
+# channels (RMS log error of the ratios 0.78) and the amplifying servos that come within 20 %
+# make the Eq. 28-29 schedule unstable on the Table 7 path, which the thesis measured stable.
+# The studies therefore use the pure delay (:data:`~robovib.sim.PURE_DELAY`) and no
+# "calibrated" channel exists.
 
 
 def path_modal_model(
@@ -943,7 +937,7 @@ def plot_milling(rows: list[dict], direction: str = "x", ax=None):
 
 # --------------------------------------------------------------------------- one entry point
 #: Command-channel choices of ``robovib control simulate --actuator``.
-ACTUATORS = {"pure-delay": PURE_DELAY, "calibrated": CALIBRATED_CHANNEL}
+ACTUATORS = {"pure-delay": PURE_DELAY}
 
 
 @dataclass(frozen=True)
@@ -991,6 +985,7 @@ def simulate_control(
     *,
     actuator: str = "pure-delay",
     speeds_rpm=(480.0, 960.0),
+    disturbances: CutDisturbances | None = None,
     keep_traces: bool = False,
     rng=0,
 ) -> ControlSimulation:
@@ -1004,9 +999,13 @@ def simulate_control(
     controllers
         Names from :data:`CONTROLLERS` (default: all).
     actuator
-        ``"pure-delay"`` (32 ms) or ``"calibrated"`` (:data:`CALIBRATED_CHANNEL`).
+        ``"pure-delay"`` (32 ms), the only channel (the §4.3.2 calibration is withdrawn: no
+        channel of gain <= 1 reproduces it, :func:`sensitivity_bound`).
     speeds_rpm
         Offset-mass spindle speeds [rev/min].
+    disturbances
+        Milling only: the disturbances of a real cut
+        (:class:`~robovib.sim.disturbances.CutDisturbances`, e.g. from ``CutDisturbances.parse``).
     keep_traces
         Keep the displacement records (for :meth:`ControlSimulation.plot`).
     rng
@@ -1015,7 +1014,7 @@ def simulate_control(
     Raises
     ------
     ValueError
-        Unknown experiment, controller or actuator.
+        Unknown experiment, controller or actuator; disturbances with the offset mass.
     """
     if experiment not in ("offset-mass", "milling"):
         raise ValueError(f"unknown experiment {experiment!r}; expected 'offset-mass' or 'milling'")
@@ -1026,6 +1025,8 @@ def simulate_control(
     if unknown:
         raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
     channel = ACTUATORS[actuator]
+    if disturbances is not None and disturbances.active() and experiment != "milling":
+        raise ValueError("disturbances apply to the milling experiment only")
     robot = VirtualRobot()
     model = path_modal_model(
         robot, directions=("x",) if experiment == "offset-mass" else ("x", "z"), rng=rng
@@ -1035,8 +1036,9 @@ def simulate_control(
                                  keep_traces=keep_traces, rng=rng)  # fmt: skip
     else:
         rows = milling_study(robot, model, controllers=names, channel=channel,
-                             keep_traces=keep_traces, rng=rng)  # fmt: skip
+                             disturbances=disturbances, keep_traces=keep_traces, rng=rng)  # fmt: skip
     settings = {"controllers": list(names), "actuator": actuator, "channel": channel.to_dict(),
                 "command_period_s": 0.004, "sample_rate_hz": 1000.0, "seed": rng,
-                "speeds_rpm": list(speeds_rpm) if experiment == "offset-mass" else None}  # fmt: skip
+                "speeds_rpm": list(speeds_rpm) if experiment == "offset-mass" else None,
+                "disturbances": (disturbances or CutDisturbances()).active()}  # fmt: skip
     return ControlSimulation(experiment, tuple(rows), settings)
