@@ -94,12 +94,13 @@ def estimate_period(
     seg = a[-w:]
     e0 = float(np.sum(seg * seg))
     lags = np.arange(lo - 1, hi + 2)
-    r = np.empty(lags.size)
     end = a.shape[0]
-    for j, lag in enumerate(lags):
-        prev = a[end - w - lag : end - lag]
-        den = math.sqrt(e0 * float(np.sum(prev * prev)))
-        r[j] = float(np.sum(seg * prev)) / den if den > 0 else 0.0
+    # Windows ending ``lag`` samples before the newest, all lags at once (a strided view).
+    view = np.lib.stride_tricks.sliding_window_view(a, w, axis=0)  # (end - w + 1, m, w)
+    prev = view[end - w - lags]  # (n_lags, m, w)
+    num = np.einsum("lmw,wm->l", prev, seg)
+    den = np.sqrt(e0 * np.einsum("lmw,lmw->l", prev, prev))
+    r = np.divide(num, den, out=np.zeros(lags.size), where=den > 0)
     j = int(np.argmax(r[1:-1])) + 1
     y0, y1, y2 = r[j - 1], r[j], r[j + 1]
     curv = y0 - 2 * y1 + y2
