@@ -20,9 +20,8 @@ import sys
 import numpy as np
 import pandas as pd
 
-from robovib.sim import POSITION_1_S_M, POSITION_2_S_M, CommandChannel, VirtualRobot
+from robovib.sim import POSITION_1_S_M, POSITION_2_S_M, PURE_DELAY, CommandChannel, VirtualRobot
 from robovib.studies.control_closed_loop import (
-    CALIBRATED_CHANNEL,
     CONTROLLERS,
     THESIS_OFFSET_MASS_MODE,
     build_controllers,
@@ -152,7 +151,7 @@ def table7() -> None:
     robot = VirtualRobot()
     model = path_modal_model(robot, directions=("x",))
     rows = offset_mass_study(robot, model, controllers=CONTROLLERS, thesis_gains=True,
-                             channel=CALIBRATED_CHANNEL)  # fmt: skip
+                             channel=PURE_DELAY)  # fmt: skip
     for r in rows:
         ref = THESIS_T7.get(r["speed_rpm"], {}).get(r["controller"].replace("thesis-printed-", "constant-").replace("thesis-printed", "thesis"))  # fmt: skip
         r["thesis_start_mm"], r["thesis_end_mm"] = ref if ref else (np.nan, np.nan)
@@ -163,7 +162,7 @@ def table7() -> None:
     print(df.round(3).to_string(index=False))
 
 
-def table10(channel=CALIBRATED_CHANNEL) -> None:
+def table10(channel=PURE_DELAY) -> None:
     robot = VirtualRobot()
     model = path_modal_model(robot)
     rows = milling_study(robot, model, controllers=("thesis", *CONTROLLERS[3:]), channel=channel)

@@ -250,12 +250,28 @@ def simulate(
         typer.Option(
             "--controller",
             help="Controller(s), repeatable: thesis, constant-start, constant-end, tuned, lqg, "
-            "robust, feedforward, feedforward+robust, repetitive. Default: all.",
+            "robust, feedforward, feedforward+robust, repetitive, adaptive (period tracking, "
+            "adaptive harmonics, fade-out guard; recommended for real cuts), adaptive+robust, "
+            "adaptive-feedforward. Default: all.",
         ),
     ] = None,
     actuator: Annotated[
-        str, typer.Option(help="Command channel: pure-delay (32 ms) or calibrated.")
+        str,
+        typer.Option(
+            help="Command channel: pure-delay (32 ms; the §4.3.2 'calibrated' channel is "
+            "withdrawn: no channel of gain <= 1 reproduces it)."
+        ),
     ] = "pure-delay",
+    disturbance: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--disturbance",
+            help="Milling: a real-cut disturbance NAME=VALUE, repeatable. speed_error_pct, "
+            "speed_drift_pct (%), runout_um (µm), nonperiodic_rel (x force std), engagement_pct "
+            "(%), force_noise_n, force_bias_n (N), actuator_gain_pct (%), delay_error_ms (ms); "
+            "all=F: every one at F x its realistic level. All off by default.",
+        ),
+    ] = None,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -270,13 +286,18 @@ def simulate(
     check_output(plot)
     from rich.progress import Progress
 
+    from ..sim import CutDisturbances
     from ..studies.control_closed_loop import simulate_control
 
+    try:
+        dist = CutDisturbances.parse(disturbance or [])
+    except ValueError as exc:
+        fail(str(exc))
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task("virtual EMA along the path, designs, closed-loop runs", total=None)
         try:
             result = simulate_control(experiment, controller or None, actuator=actuator,
-                                      keep_traces=plot is not None, rng=seed)  # fmt: skip
+                                      disturbances=dist, keep_traces=plot is not None, rng=seed)  # fmt: skip
         except ValueError as exc:
             fail(str(exc))
         bar.update(task, completed=1)

@@ -5,6 +5,7 @@ robot fitted to the thesis' data, not a claim about the real one).
 """
 
 from .campaign import LAYOUTS, SimulatedCampaign, simulate_campaign, truth_table
+from .disturbances import DISTURBANCE_UNITS, REALISTIC_LEVELS, CutDisturbances
 from .dynamics import affine_scan, modal_response, zoh_transition
 from .experiments import (
     LinearMove,
@@ -29,14 +30,17 @@ from .truth import (
 )
 
 __all__ = [
+    "DISTURBANCE_UNITS",
     "LAYOUTS",
     "PATH_LENGTH_M",
     "POSITION_1_S_M",
     "POSITION_2_S_M",
     "PURE_DELAY",
+    "REALISTIC_LEVELS",
     "WORKSPACE_BOUNDS",
     "CommandChannel",
     "ConstantModesRobot",
+    "CutDisturbances",
     "LinearMove",
     "ModeSet",
     "MotionRecord",

@@ -76,6 +76,9 @@ class CommandChannel:
     1 kHz sample; the value applied over sample ``i`` is the stage state at the end of that
     sample (about half a sample of phase lead against the continuous stage).
 
+    6. a static gain ``gain`` (1: the robot applies what it is told; 1.1: a 10 % actuator gain
+       error the controller does not know).
+
     ``CommandChannel()`` is the pure 32 ms transport delay (:data:`PURE_DELAY`).
 
     Attributes
@@ -101,8 +104,11 @@ class CommandChannel:
     hold_periods: int = 0
     servo_hz: float = math.inf
     servo_damping: float = 0.7
+    gain: float = 1.0
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.gain) and self.gain > 0):
+            raise ValueError(f"gain must be a finite number > 0, got {self.gain!r}")
         for name in ("delay_s", "lag_s", "breakaway_m"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
@@ -163,7 +169,7 @@ class CommandChannel:
         f = np.asarray(frequency_hz, float)
         s = 2j * np.pi * f
         total = self.delay_s + int(self.hold_periods) * command_period_s
-        g = np.exp(-s * total) / (1.0 + s * self.lag_s)
+        g = self.gain * np.exp(-s * total) / (1.0 + s * self.lag_s)
         if math.isfinite(self.servo_hz):
             ws = 2 * np.pi * self.servo_hz
             g = g * ws**2 / (s**2 + 2 * self.servo_damping * ws * s + ws**2)
@@ -178,6 +184,7 @@ class CommandChannel:
             "hold_periods": int(self.hold_periods),
             "servo_hz": self.servo_hz,
             "servo_damping": self.servo_damping,
+            "gain": self.gain,
         }
 
 
@@ -321,6 +328,7 @@ def run_closed_loop(
     tracker_noise_m: float = 2e-6,
     tracker_resolution_m: float = 1e-5,
     force_noise_n: float = 0.5,
+    force_bias_n=0.0,
     max_command_m: float = 0.01,
     allow_extrapolation: bool = False,
     method: Literal["blocked", "per-sample"] = "blocked",
@@ -351,6 +359,8 @@ def run_closed_loop(
         Laser tracker white noise (std) and quantisation [m].
     force_noise_n
         Force-sensor white noise (std) [N] of the force samples given to ``command`` objects.
+    force_bias_n
+        Force-sensor bias [N] (scalar or (3,)) added to those samples.
     max_command_m
         A commanded correction above this [m] is taken as an unstable loop.
     allow_extrapolation
@@ -399,6 +409,11 @@ def run_closed_loop(
     coords = move.coords_at(t / (n * dt))
     tracker_noise = gen.normal(size=(n, 3)) * tracker_noise_m
     force_meas = force + gen.normal(size=(n, 3)) * force_noise_n if force_noise_n > 0 else force
+    bias = np.broadcast_to(np.asarray(force_bias_n, float), (3,))
+    if not np.all(np.isfinite(bias)):
+        raise ValueError(f"force_bias_n must be finite [N], got {force_bias_n!r}")
+    if np.any(bias != 0):
+        force_meas = force_meas + bias
     base_key = (id(robot), move, n, dt, allow_extrapolation)
     p, k_static, owner = _cached(
         ("transitions", *base_key),
@@ -465,6 +480,7 @@ def _per_sample(force, force_meas, noise, p, k_static, owner, every, delay_steps
             _check_command(held, t[i], max_command_m)
         commands[i + delay_steps] = held
         u = commands[i] if state is None else state.advance(commands[i][None, :])[0]
+        u = u * channel.gain
         applied[i] = u
         f_eff = force[i][owner] + k_static[:, i] * u[owner]
         x, v = (
@@ -590,6 +606,8 @@ def _blocked(force, force_meas, noise, p, k_static, owner, every, delay_steps, c
         u = cmds[src_idx[j]]
         if state is not None:
             u = state.advance(u)
+        if channel.gain != 1.0:
+            u = u * channel.gain
         applied[lo:hi] = u
         raw = (
             (Obs[j] @ S).reshape(length, 3)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..control.adaptive import FadeGuard, PeriodTracker, TrackingFeedforward, TrackingRepetitive
 from ..control.controllers import (
     Combined,
     DelayAwareFeedback,
@@ -45,7 +46,6 @@ from ..milling.forces import (
     CuttingCoefficients,
     CuttingConditions,
     MillingTool,
-    milling_forces,
 )
 from ..modal.parameters import ModalParameters
 from ..modal.sdof import fit_dominant_mode
@@ -56,6 +56,7 @@ from ..sim import (
     PURE_DELAY,
     CommandChannel,
     ConstantModesRobot,
+    CutDisturbances,
     LinearMove,
     ModeSet,
     VirtualRobot,
@@ -66,8 +67,8 @@ from ..sim import (
 
 __all__ = [
     "ACTUATORS",
-    "CALIBRATED_CHANNEL",
     "CONTROLLERS",
+    "DEFAULT_CONTROLLER",
     "SECOND_MODE_HYPOTHESES",
     "TABLE_10_CONDITIONS",
     "THESIS_OFFSET_MASS_MODE",
@@ -101,29 +102,30 @@ CONTROLLERS = (
     "feedforward",
     "feedforward+robust",
     "repetitive",
+    "adaptive",
+    "adaptive+robust",
+    "adaptive-feedforward",
 )
+
+#: The controller recommended for real cuts (period tracking, adaptive harmonics, guard).
+DEFAULT_CONTROLLER = "adaptive"
 
 #: §4.3.2: the Y-direction mode measured at the offset-mass pose (8.5 Hz, 0.775 MN/m, 0.179).
 THESIS_OFFSET_MASS_MODE = ModalParameters(8.5, 0.775e6, 0.179)
 #: §4.3.2 gains (w1, w2) the thesis computed for that mode.
 THESIS_OFFSET_MASS_GAINS = (0.079, 0.0059)
 
-#: Channel fitted by :func:`calibrate_channel` (``python benchmarks/study_control.py
-#: calibrate``) with the delay held at the 32 ms the thesis measured: over lag 0-40 ms,
-#: breakaway 0-50 µm, rate limit 0.02 m/s-inf and 0-1 extra RSI hold, the pure delay fits
-#: §4.3.2 best (RMS log error of the ratios 0.78, i.e. a factor 2.2). No non-amplifying
-#: channel can do much better: :func:`sensitivity_bound` limits the closed/open ratio of the
-#: thesis' gains on the thesis' measured mode to >= 0.53 at 8 Hz and >= 0.81 at 16 Hz, against
-#: the thesis' 0.42 and 0.42; :func:`required_channel_gain` says the channel would have to
-#: amplify >= 1.6x at 8 Hz and >= 6x at 16 Hz. Amplifying channels (a lightly damped
-#: second-order servo, ``CommandChannel(servo_hz=...)``) were searched too, on the hammer mode
-#: and on the mode fitted to the open-loop amplitudes (:func:`operating_mode`). With the
-#: measured 32 ms none comes near. Within 20 % come only a 16-19 ms delay with a servo
-#: resonance of zeta 0.01-0.03 at 16.4-16.6 Hz, next to the 960 rpm excitation
-#: (``calibrate-fine``: 41 of 396, best within 1 %), and every one of them makes the thesis'
-#: Eq. 28-29 schedule unstable on the Table 7 path at both speeds, where the thesis measured
-#: 62-67 % reductions: Table 7 refutes them, and the pure delay stays.
-CALIBRATED_CHANNEL = CommandChannel(delay_s=0.032)
+# The §4.3.2 calibration target is withdrawn (issue 25). The thesis reports the offset mass
+# at 8.5 Hz going from 0.93 to 0.39 mm with the gains 0.079 / 0.0059 (closed/open 0.42 at 480
+# and 960 rpm). No command channel of gain <= 1 can do that: :func:`sensitivity_bound` limits
+# the closed/open ratio of those gains on the thesis' measured mode to >= 0.53 at 8 Hz and
+# >= 0.81 at 16 Hz (:func:`required_channel_gain`: the channel would have to amplify >= 1.6x at
+# 8 Hz and >= 6x at 16 Hz). :func:`calibrate_channel` searched lag, breakaway, rate limit, RSI
+# hold and lightly damped servos: the pure 32 ms delay fits best among the non-amplifying
+# channels (RMS log error of the ratios 0.78) and the amplifying servos that come within 20 %
+# make the Eq. 28-29 schedule unstable on the Table 7 path, which the thesis measured stable.
+# The studies therefore use the pure delay (:data:`~robovib.sim.PURE_DELAY`) and no
+# "calibrated" channel exists.
 
 
 def path_modal_model(
@@ -364,6 +366,35 @@ def build_controllers(
             for a, d in axes.items()
         }  # fmt: skip
         out["repetitive"] = RepetitiveFeedback(modes, excitation_period_s, delay_s)
+    adaptive = {"adaptive", "adaptive+robust", "adaptive-feedforward"} & set(names)
+    if adaptive:
+        if excitation_period_s is None:
+            raise ValueError("the adaptive controllers need the nominal excitation_period_s [s]")
+        fz = {
+            a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
+                                              for m in (path_mode(model, si, d) for si in grid)]))
+            for a, d in axes.items()
+        }  # fmt: skip
+        stiff = {
+            a: ScheduledTable(grid, np.array([[path_mode(model, si, d).stiffness_n_per_m] for si in grid]))
+            for a, d in axes.items()
+        }  # fmt: skip
+        if robust is None:
+            robust = {
+                a: ScheduledTable(grid, np.array([
+                    _robust_r(_model_set(model, si, d), path_mode(model, si, d), period_s, delay_s, r_grid)[1]
+                    for si in grid]))
+                for a, d in axes.items()
+            }  # fmt: skip
+        for name in adaptive:
+            tracker = PeriodTracker(excitation_period_s)
+            if name == "adaptive-feedforward":
+                parts = [TrackingFeedforward(stiff, tracker, delay_s)]
+            else:
+                parts = [TrackingRepetitive(fz, tracker, delay_s)]
+            if name != "adaptive":
+                parts.append(DelayAwareFeedback(robust))
+            out[name] = FadeGuard(Combined(*parts), tracker, fz, delay_s)
     unknown = set(names) - set(CONTROLLERS)
     if unknown:
         raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
@@ -433,9 +464,10 @@ def stability_over_band(
 
 
 # --------------------------------------------------------------------------- runs
-def _run(robot, move, force, controller, rng, channel):
+def _run(robot, move, force, controller, rng, channel, **sensor):
     try:
-        rec = run_closed_loop(robot, move, force, 1000.0, controller, channel=channel, rng=rng)
+        rec = run_closed_loop(robot, move, force, 1000.0, controller, channel=channel, rng=rng,
+                              **sensor)  # fmt: skip
         return rec.true_displacement_m, None
     except ValueError as exc:
         return None, str(exc)
@@ -767,16 +799,27 @@ def milling_study(
     radial_depth_m: float = 6e-3,
     cut_length_m: float = 0.05,
     background_noise_rel: float = 0.15,
+    disturbances: CutDisturbances | None = None,
     keep_traces: bool = False,
     rng=0,
 ) -> list[dict]:
     """Table 10 analogue: RMS X and Z vibration [mm] (about the mean) open vs each controller.
+
+    ``disturbances`` (:class:`~robovib.sim.disturbances.CutDisturbances`) make the cut real:
+    spindle-speed error, runout, non-periodic force, engagement, force-sensor noise and bias
+    (on the force the controllers see), actuator gain and delay errors (of the true channel;
+    the controllers keep the nominal ones). A guarded controller's fade-out events go to the
+    row's ``guard_events``.
 
     One row per cut, position and controller with ``x_rms_mm``, ``z_rms_mm``, the open-loop
     values and the reductions [%] (NaN and ``unstable`` set when the loop went unstable).
     The RMS is taken after the first fifth of the cut (start-up transient).
     """
     tool = tool or MillingTool()
+    dist = disturbances or CutDisturbances()
+    true_channel = dist.channel(channel)
+    sensor = {"force_noise_n": math.hypot(0.5, dist.force_noise_n),
+              "force_bias_n": dist.force_bias_n}  # fmt: skip
     gen = np.random.default_rng(rng)
     rows = []
     for pos_name, s_mid in positions:
@@ -786,7 +829,7 @@ def milling_study(
             cond = CuttingConditions(rpm, fz, ap, radial_depth_m)
             n = round(move.length_m / cond.feed_speed_m_per_s(tool) * 1000.0)
             t = np.arange(n) / 1000.0
-            local = milling_forces(t, tool, cond, coefficients)
+            local = dist.cutting_force(t, tool, cond, coefficients, rng=gen)
             # Feed along the path (-Y); normal = Z x feed = +X; axial = Z.
             force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
             force += gen.normal(size=force.shape) * background_noise_rel * force.std(axis=0)
@@ -797,8 +840,12 @@ def milling_study(
                     "axial_depth_mm": ap * 1e3}  # fmt: skip
             open_rms = None
             for name, ctrl in ctrls.items():
-                disp, err = _run(robot, move, force, ctrl, rng, channel)
+                disp, err = _run(robot, move, force, ctrl, rng, true_channel, **sensor)
                 row = {**base, "controller": name, "unstable": err}
+                if isinstance(ctrl, FadeGuard):
+                    row["guard_events"] = "; ".join(
+                        f"{e.time_s:.2f} s -> {e.target:g}: {e.reason}" for e in ctrl.all_events()
+                    )
                 for axis, d in ((0, "x"), (2, "z")):
                     rms = np.nan if disp is None else 1e3 * np.std(disp[n // 5 :, axis])
                     row[f"{d}_rms_mm"] = rms
@@ -890,7 +937,7 @@ def plot_milling(rows: list[dict], direction: str = "x", ax=None):
 
 # --------------------------------------------------------------------------- one entry point
 #: Command-channel choices of ``robovib control simulate --actuator``.
-ACTUATORS = {"pure-delay": PURE_DELAY, "calibrated": CALIBRATED_CHANNEL}
+ACTUATORS = {"pure-delay": PURE_DELAY}
 
 
 @dataclass(frozen=True)
@@ -938,6 +985,7 @@ def simulate_control(
     *,
     actuator: str = "pure-delay",
     speeds_rpm=(480.0, 960.0),
+    disturbances: CutDisturbances | None = None,
     keep_traces: bool = False,
     rng=0,
 ) -> ControlSimulation:
@@ -951,9 +999,13 @@ def simulate_control(
     controllers
         Names from :data:`CONTROLLERS` (default: all).
     actuator
-        ``"pure-delay"`` (32 ms) or ``"calibrated"`` (:data:`CALIBRATED_CHANNEL`).
+        ``"pure-delay"`` (32 ms), the only channel (the §4.3.2 calibration is withdrawn: no
+        channel of gain <= 1 reproduces it, :func:`sensitivity_bound`).
     speeds_rpm
         Offset-mass spindle speeds [rev/min].
+    disturbances
+        Milling only: the disturbances of a real cut
+        (:class:`~robovib.sim.disturbances.CutDisturbances`, e.g. from ``CutDisturbances.parse``).
     keep_traces
         Keep the displacement records (for :meth:`ControlSimulation.plot`).
     rng
@@ -962,7 +1014,7 @@ def simulate_control(
     Raises
     ------
     ValueError
-        Unknown experiment, controller or actuator.
+        Unknown experiment, controller or actuator; disturbances with the offset mass.
     """
     if experiment not in ("offset-mass", "milling"):
         raise ValueError(f"unknown experiment {experiment!r}; expected 'offset-mass' or 'milling'")
@@ -973,6 +1025,8 @@ def simulate_control(
     if unknown:
         raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
     channel = ACTUATORS[actuator]
+    if disturbances is not None and disturbances.active() and experiment != "milling":
+        raise ValueError("disturbances apply to the milling experiment only")
     robot = VirtualRobot()
     model = path_modal_model(
         robot, directions=("x",) if experiment == "offset-mass" else ("x", "z"), rng=rng
@@ -982,8 +1036,9 @@ def simulate_control(
                                  keep_traces=keep_traces, rng=rng)  # fmt: skip
     else:
         rows = milling_study(robot, model, controllers=names, channel=channel,
-                             keep_traces=keep_traces, rng=rng)  # fmt: skip
+                             disturbances=disturbances, keep_traces=keep_traces, rng=rng)  # fmt: skip
     settings = {"controllers": list(names), "actuator": actuator, "channel": channel.to_dict(),
                 "command_period_s": 0.004, "sample_rate_hz": 1000.0, "seed": rng,
-                "speeds_rpm": list(speeds_rpm) if experiment == "offset-mass" else None}  # fmt: skip
+                "speeds_rpm": list(speeds_rpm) if experiment == "offset-mass" else None,
+                "disturbances": (disturbances or CutDisturbances()).active()}  # fmt: skip
     return ControlSimulation(experiment, tuple(rows), settings)

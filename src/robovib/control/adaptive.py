@@ -1,0 +1,432 @@
+"""Controllers that survive a real cut: period tracking, adaptive harmonics and a fade-out guard.
+
+The controllers of :mod:`robovib.control.controllers` take the excitation period from the
+nominal spindle speed; a real spindle turns a few per cent off it and drifts, and a
+feedforward that predicts one tooth period ahead then predicts the wrong force. Here:
+
+* :func:`estimate_period` — the period of a signal near a nominal one: the lag of the largest
+  normalised autocorrelation within ``±rel_range`` of the nominal lag, refined by a parabola
+  through the peak (sub-sample). The peak value is a periodicity measure (1: exactly periodic,
+  ~0: white noise).
+* :class:`PeriodTracker` — runs :func:`estimate_period` on the measured force about once per
+  excitation period and smooths it; shared by the controllers of one loop.
+* :class:`TrackingFeedforward` — :class:`~robovib.control.controllers.ForceFeedforward` with
+  the period from the tracker.
+* :class:`TrackingRepetitive` — :class:`~robovib.control.controllers.RepetitiveFeedback` whose
+  harmonics follow the tracked period (a running phase instead of a fixed ``w0 t``): the
+  per-harmonic phasors adapt amplitude and phase from the tracker signal, so the gain and
+  phase errors of the actuator and of the model are learnt out.
+* :class:`FadeGuard` — fades a controller's correction out, with a logged reason, when the
+  force stops being periodic or the tracker signal is no smaller than the vibration the
+  pose model says the cut would cause without the correction (a disturbance observer).
+
+All follow the ``reset`` / ``command`` protocol of :mod:`robovib.control.controllers`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+from ..modal.parameters import ModalParameters
+from .controllers import ForceFeedforward, RepetitiveFeedback, ScheduledTable
+
+__all__ = [
+    "FadeGuard",
+    "GuardEvent",
+    "PeriodTracker",
+    "TrackingFeedforward",
+    "TrackingRepetitive",
+    "estimate_period",
+]
+
+
+def estimate_period(
+    x,
+    sample_rate_hz: float,
+    nominal_s: float,
+    *,
+    rel_range: float = 0.1,
+    window_periods: float = 2.0,
+) -> tuple[float, float]:
+    """Period [s] of ``x`` near ``nominal_s`` and the normalised autocorrelation at it.
+
+    Parameters
+    ----------
+    x
+        (n,) or (n, m) samples (columns are summed in the correlation); the newest are used.
+    sample_rate_hz
+        Sample rate [Hz].
+    nominal_s
+        Expected period [s]; lags within ``nominal_s * (1 ± rel_range)`` are searched.
+    rel_range
+        Relative search range (0.1: ±10 %).
+    window_periods
+        Length of the correlated window in nominal periods.
+
+    Returns
+    -------
+    period_s, correlation
+        The refined period [s] and the normalised correlation at the best lag (≤ 1).
+
+    Raises
+    ------
+    ValueError
+        Bad arguments or fewer samples than window + largest lag.
+    """
+    a = np.asarray(x, float)
+    if a.ndim == 1:
+        a = a[:, None]
+    fs = float(sample_rate_hz)
+    if not (fs > 0 and nominal_s > 0 and 0 < rel_range < 1 and window_periods > 0):
+        raise ValueError("sample_rate_hz, nominal_s, window_periods > 0 and 0 < rel_range < 1")
+    n0 = nominal_s * fs
+    lo = max(2, math.floor(n0 * (1 - rel_range)))
+    hi = math.ceil(n0 * (1 + rel_range))
+    w = max(4, round(window_periods * n0))
+    if a.shape[0] < w + hi + 1:
+        raise ValueError(f"need at least {w + hi + 1} samples, got {a.shape[0]}")
+    a = a[-(w + hi + 1) :]
+    a = a - a.mean(axis=0)
+    seg = a[-w:]
+    e0 = float(np.sum(seg * seg))
+    lags = np.arange(lo - 1, hi + 2)
+    end = a.shape[0]
+    # Windows ending ``lag`` samples before the newest, all lags at once (a strided view).
+    view = np.lib.stride_tricks.sliding_window_view(a, w, axis=0)  # (end - w + 1, m, w)
+    prev = view[end - w - lags]  # (n_lags, m, w)
+    num = np.einsum("lmw,wm->l", prev, seg)
+    den = np.sqrt(e0 * np.einsum("lmw,lmw->l", prev, prev))
+    r = np.divide(num, den, out=np.zeros(lags.size), where=den > 0)
+    j = int(np.argmax(r[1:-1])) + 1
+    y0, y1, y2 = r[j - 1], r[j], r[j + 1]
+    curv = y0 - 2 * y1 + y2
+    off = 0.5 * (y0 - y2) / curv if curv < 0 else 0.0
+    off = float(np.clip(off, -0.5, 0.5))
+    return (lags[j] + off) / fs, float(y1)
+
+
+class PeriodTracker:
+    """Online excitation period from the measured force (shared by the controllers of a loop).
+
+    Every ``update_periods`` excitation periods :func:`estimate_period` runs on the latest force
+    samples; the estimate is smoothed (``smoothing``: weight of the new value) and kept within
+    ``rel_range`` of the nominal period. ``correlation`` is the latest periodicity measure
+    (NaN until the first estimate). Feed it once per command instant with :meth:`update`
+    (repeated calls for the same ``k`` are ignored).
+    """
+
+    def __init__(
+        self,
+        nominal_period_s: float,
+        *,
+        rel_range: float = 0.1,
+        window_periods: float = 2.0,
+        update_periods: float = 1.0,
+        smoothing: float = 0.5,
+    ):
+        if not (math.isfinite(nominal_period_s) and nominal_period_s > 0):
+            raise ValueError(f"nominal_period_s must be > 0 [s], got {nominal_period_s!r}")
+        if not 0 < smoothing <= 1:
+            raise ValueError("smoothing must lie in (0, 1]")
+        self.nominal_period_s = float(nominal_period_s)
+        self.rel_range = float(rel_range)
+        self.window_periods = float(window_periods)
+        self.update_periods = float(update_periods)
+        self.smoothing = float(smoothing)
+
+    def reset(self, n_samples: int, sample_rate_hz: float) -> None:
+        self._fs = float(sample_rate_hz)
+        self._buf = np.zeros((int(n_samples), 3))
+        self._len = 0
+        self._last_k = -1
+        self._next = 0
+        self.period_s = self.nominal_period_s
+        self.correlation = math.nan
+        self.history: list[tuple[float, float, float]] = []  #: (time [s], period [s], corr)
+
+    def update(self, k: int, force_n: np.ndarray) -> None:
+        if k <= self._last_k:
+            return
+        self._last_k = k
+        m = force_n.shape[0]
+        self._buf[self._len : self._len + m] = force_n
+        self._len += m
+        n0 = self.nominal_period_s * self._fs
+        need = round(self.window_periods * n0) + math.ceil(n0 * (1 + self.rel_range)) + 1
+        if self._len < need or self._len < self._next:
+            return
+        self._next = self._len + round(self.update_periods * n0)
+        p, r = estimate_period(self._buf[: self._len], self._fs, self.nominal_period_s,
+                               rel_range=self.rel_range, window_periods=self.window_periods)  # fmt: skip
+        self.correlation = r
+        if r > 0.3:  # only a periodic signal moves the estimate
+            self.period_s += self.smoothing * (p - self.period_s)
+        self.history.append((self._len / self._fs, self.period_s, r))
+
+
+class TrackingFeedforward(ForceFeedforward):
+    """:class:`~robovib.control.controllers.ForceFeedforward` with the period of a :class:`PeriodTracker`."""
+
+    def __init__(self, stiffness, tracker: PeriodTracker, delay_s: float = 0.032, **kwargs):
+        super().__init__(stiffness, tracker.nominal_period_s, delay_s, **kwargs)
+        self.tracker = tracker
+
+    def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
+        super().reset(coords, period_s, sample_rate_hz)
+        self._fs = float(sample_rate_hz)
+        self.tracker.reset(self._buf.shape[0], sample_rate_hz)  # before any update: harmless
+
+    def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        self.tracker.update(k, force_n)
+        self._n = self.tracker.period_s * self._fs
+        self._p0 = max(1, math.ceil((self._delay + self._every) / self._n))
+        return super().command(k, tracker_m, force_n)
+
+
+class TrackingRepetitive(RepetitiveFeedback):
+    """:class:`~robovib.control.controllers.RepetitiveFeedback` on the tracked period.
+
+    The harmonics are those of a running phase ``theta`` advanced every sample by ``2 pi dt /
+    T_est`` (``T_est`` from the :class:`PeriodTracker`); the residual's harmonics are the DFT of
+    the last estimated period against ``theta`` and the correction is evaluated at the phase the
+    correction will land at. The phasors therefore stay put when the spindle is off its nominal
+    speed, and learn the amplitude and phase errors of the model, the actuator and the delay.
+
+    A harmonic whose learning diverges (a delay or model error turning its loop phase past
+    90°) is dropped: each harmonic's residual magnitude is smoothed over ``learning_time_s``
+    and, once it exceeds ``divergence_ratio`` x its value in the first window (the open-loop
+    residual: the largest over the first 2 learning times), its phasor is zeroed and the harmonic left alone for the rest of the run
+    (:attr:`events` says which and when).
+    """
+
+    def __init__(
+        self,
+        modes,
+        tracker: PeriodTracker,
+        delay_s: float = 0.032,
+        *,
+        divergence_ratio: float = 1.2,
+        **kwargs,
+    ):
+        super().__init__(modes, tracker.nominal_period_s, delay_s, **kwargs)
+        if not divergence_ratio > 0:
+            raise ValueError("divergence_ratio must be > 0")
+        self.tracker = tracker
+        self.divergence_ratio = float(divergence_ratio)
+
+    def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
+        super().reset(coords, period_s, sample_rate_hz)
+        n = self._y.shape[0]
+        self.tracker.reset(n, sample_rate_hz)
+        self._theta = np.zeros(n)
+        self._phase = 0.0
+        self._h = np.arange(1, self.n_harmonics + 1)
+        self._fs = float(sample_rate_hz)
+        self._on = {a: np.ones(self.n_harmonics, bool) for a in self._pinv}
+        self._mag = None
+        self._mag0 = None
+        self.events: list[GuardEvent] = []
+
+    def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        self.tracker.update(k, force_n)
+        w_dt = 2 * math.pi * self._dt / self.tracker.period_s
+        m = tracker_m.shape[0]
+        self._theta[self._len : self._len + m] = self._phase + w_dt * np.arange(1, m + 1)
+        self._phase += w_dt * m
+        self._y[self._len : self._len + m] = tracker_m
+        self._len += m
+        window = max(2, round(self.tracker.period_s * self._fs))
+        if self._len >= window:
+            lo = self._len - window
+            seg = self._y[lo : self._len]
+            seg = seg - seg.mean(axis=0)
+            th = self._theta[lo : self._len]
+            resid = 2.0 / window * (np.exp(-1j * np.outer(self._h, th)) @ seg)
+            mag = np.abs(resid)
+            if self._mag is None:
+                self._mag0 = mag.copy()
+                self._mag = mag.copy()
+                self._ref_until = self._len + round(2 * self.learning_time_s * self._fs)
+            else:
+                self._mag += self._gain * (mag - self._mag)
+            if self._len <= self._ref_until:  # the open-loop reference: first 2 learning times
+                self._mag0 = np.maximum(self._mag0, mag)
+            for a, pinv in self._pinv.items():
+                bad = self._on[a] & (self._mag[:, a] > self.divergence_ratio * self._mag0[:, a])
+                bad &= pinv[k] != 0
+                for h in np.flatnonzero(bad):
+                    self._on[a][h] = False
+                    self._u[h, a] = 0.0
+                    self.events.append(GuardEvent(self._len / self._fs, 0.0,
+                        f"direction {a} harmonic {h + 1}: learning diverged (residual "
+                        f"{self._mag[h, a] * 1e3:.4f} mm > {self.divergence_ratio:g} x open loop "
+                        f"{self._mag0[h, a] * 1e3:.4f} mm), dropped"))  # fmt: skip
+                self._u[:, a] -= self._gain * resid[:, a] * pinv[k] * self._on[a]
+        target = self._phase + w_dt * (self._delay + np.arange(self._every))
+        phase = np.exp(1j * np.outer(self._h, target)).mean(axis=1)
+        return np.real(phase @ self._u)
+
+
+@dataclass(frozen=True)
+class GuardEvent:
+    """A change of the :class:`FadeGuard`'s target: at ``time_s`` [s], to ``target`` (0 or 1)."""
+
+    time_s: float
+    target: float
+    reason: str
+
+
+class FadeGuard:
+    """Fade a controller's correction out when it stops doing good; log why.
+
+    Every ``check_s`` the guard looks at the last ``window_s``:
+
+    * periodicity: the :class:`PeriodTracker`'s autocorrelation of the force at its period;
+      below ``min_periodicity`` the force is not periodic and the correction is faded out
+      (in again when it recovers above ``min_periodicity + 0.1``);
+    * benefit: the tracker signal ``y`` against the open-loop estimate ``y - P u`` (``P`` the
+      pose model's correction-to-tip response of each direction, ``u`` the corrections sent,
+      ``delay_s`` late). If the RMS of ``y`` exceeds ``max_ratio`` x that of the estimate the
+      correction is not reducing the vibration: faded out for good (latched).
+
+    The output is ``scale * inner``, ``scale`` moving toward its target at ``check_s /
+    fade_time_s`` per check (the first check after ``warmup_s``). :attr:`events` lists the
+    changes with their reasons.
+
+    Parameters
+    ----------
+    inner
+        The guarded controller.
+    tracker
+        The loop's :class:`PeriodTracker` (fed here too).
+    modes
+        Direction -> :class:`~robovib.modal.ModalParameters` (or a :class:`ScheduledTable`
+        of (fn [Hz], zeta) rows, read at the middle of the run) of the pose model.
+    delay_s
+        Nominal transport delay [s].
+    """
+
+    def __init__(
+        self,
+        inner,
+        tracker: PeriodTracker,
+        modes: dict,
+        delay_s: float = 0.032,
+        *,
+        min_periodicity: float = 0.5,
+        max_ratio: float = 1.0,
+        window_s: float = 0.5,
+        check_s: float = 0.1,
+        fade_time_s: float = 0.2,
+        warmup_s: float = 0.5,
+    ):
+        if not (0 <= min_periodicity < 1 and max_ratio > 0 and window_s > 0 and check_s > 0):
+            raise ValueError("0 <= min_periodicity < 1, max_ratio, window_s, check_s > 0")
+        self.inner = inner
+        self.tracker = tracker
+        self.modes = modes
+        self.delay_s = float(delay_s)
+        self.min_periodicity = float(min_periodicity)
+        self.max_ratio = float(max_ratio)
+        self.window_s = float(window_s)
+        self.check_s = float(check_s)
+        self.fade_time_s = float(fade_time_s)
+        self.warmup_s = float(warmup_s)
+
+    def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
+        self.inner.reset(coords, period_s, sample_rate_hz)
+        fs = float(sample_rate_hz)
+        self._fs = fs
+        every = round(period_s * fs)
+        n_cmd = len(np.asarray(coords))
+        n = (n_cmd + 2) * every
+        self.tracker.reset(n, fs)
+        mid = np.asarray(coords)[n_cmd // 2 : n_cmd // 2 + 1]
+        self._filters = {}
+        for a, m in self.modes.items():
+            if isinstance(m, ScheduledTable):
+                fn, z = m.at(mid)[0][:2]
+            elif isinstance(m, ModalParameters):
+                fn, z = m.natural_frequency_hz, m.damping_ratio
+            else:
+                fn, z = m
+            wn = 2 * math.pi * fn
+            b, aa, _ = signal.cont2discrete(([wn**2], [1, 2 * z * wn, wn**2]), 1 / fs, "zoh")
+            b = np.atleast_1d(np.squeeze(b))
+            self._filters[int(a)] = (b, aa, np.zeros(max(len(aa), len(b)) - 1))
+        self._delay = round(self.delay_s * fs)
+        self._sent = np.zeros((n + self._delay + every, 3))
+        self._y = np.zeros((n, 3))
+        self._yol = np.zeros((n, 3))
+        self._len = 0
+        self._scale = 1.0
+        self._target = 1.0
+        self._latched = False
+        self._next_check = round(self.warmup_s * fs)
+        self._every = every
+        self.events: list[GuardEvent] = []
+
+    def all_events(self) -> list[GuardEvent]:
+        """This guard's events and those of the guarded controllers (time order)."""
+        parts = getattr(self.inner, "parts", (self.inner,))
+        inner = [e for p in parts for e in getattr(p, "events", [])]
+        return sorted([*self.events, *inner], key=lambda e: e.time_s)
+
+    @property
+    def scale(self) -> float:
+        """The current fade factor (0: correction off, 1: full)."""
+        return self._scale
+
+    def _set_target(self, target: float, reason: str) -> None:
+        if target != self._target:
+            self._target = target
+            self.events.append(GuardEvent(self._len / self._fs, target, reason))
+
+    def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        self.tracker.update(k, force_n)
+        m = tracker_m.shape[0]
+        lo, hi = self._len, self._len + m
+        self._y[lo:hi] = tracker_m
+        idx = np.arange(lo, hi) - self._delay
+        applied = np.where(idx[:, None] >= 0, self._sent[np.maximum(idx, 0)], 0.0)
+        yol = tracker_m.copy()
+        for a, (b, aa, zi) in self._filters.items():
+            yu, zi_new = signal.lfilter(b, aa, applied[:, a], zi=zi)
+            self._filters[a] = (b, aa, zi_new)
+            yol[:, a] -= yu
+        self._yol[lo:hi] = yol
+        self._len = hi
+        if self._len >= self._next_check:
+            self._next_check = self._len + round(self.check_s * self._fs)
+            self._check()
+        step = self.check_s / self.fade_time_s * self._every / (self.check_s * self._fs)
+        self._scale += float(np.clip(self._target - self._scale, -step, step))
+        u = self._scale * np.asarray(self.inner.command(k, tracker_m, force_n), float)
+        self._sent[self._len - 1 : self._len - 1 + self._every] = u
+        return u
+
+    def _check(self) -> None:
+        r = self.tracker.correlation
+        if self._latched:
+            return
+        if math.isfinite(r) and r < self.min_periodicity:
+            self._set_target(0.0, f"force not periodic: autocorrelation {r:.2f} at the period "
+                                  f"< {self.min_periodicity:.2f}")  # fmt: skip
+            return
+        w = round(self.window_s * self._fs)
+        if self._len >= w and self._scale > 0.5:
+            seg = self._y[self._len - w : self._len]
+            ol = self._yol[self._len - w : self._len]
+            rms = np.sqrt(np.sum(np.var(seg, axis=0)))
+            rms_ol = np.sqrt(np.sum(np.var(ol, axis=0)))
+            if rms > self.max_ratio * rms_ol:
+                self._latched = True
+                self._set_target(0.0, f"tracker signal not reduced: RMS {rms * 1e3:.4f} mm > "
+                                      f"{self.max_ratio:.2f} x open-loop estimate {rms_ol * 1e3:.4f} mm")  # fmt: skip
+                return
+        if math.isfinite(r) and r >= self.min_periodicity + 0.1:
+            self._set_target(1.0, f"force periodic again: autocorrelation {r:.2f}")

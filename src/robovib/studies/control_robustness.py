@@ -1,0 +1,97 @@
+"""Robustness of the milling controllers to a real cut (issue 25): the robustness table.
+
+Every controller x every disturbance of :class:`~robovib.sim.disturbances.CutDisturbances`
+at its realistic level (:data:`~robovib.sim.disturbances.REALISTIC_LEVELS`) and at 2x, plus all
+of them combined at the realistic levels, on the Table 10 cuts at both positions
+(:func:`~robovib.studies.control_closed_loop.milling_study`). :func:`summarize_robustness`
+reduces the per-cut rows to mean and worst RMS reduction, unstable runs and amplified cuts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ..sim import REALISTIC_LEVELS, CutDisturbances, VirtualRobot
+from ..sim.disturbances import DISTURBANCE_UNITS
+from .control_closed_loop import TABLE_10_CONDITIONS, milling_study, path_modal_model
+
+__all__ = [
+    "ROBUSTNESS_CONTROLLERS",
+    "robustness_scenarios",
+    "robustness_study",
+    "summarize_robustness",
+]
+
+#: Controllers of the robustness table: the ideal-cut best two and the adaptive ones.
+ROBUSTNESS_CONTROLLERS = ("feedforward+robust", "repetitive", "adaptive", "adaptive-feedforward")
+
+
+def robustness_scenarios(
+    names=tuple(DISTURBANCE_UNITS), levels=(1.0, 2.0), combined: bool = True
+) -> list[tuple[str, CutDisturbances]]:
+    """(label, disturbances): none, each of ``names`` at each level x realistic, all combined."""
+    out = [("none", CutDisturbances())]
+    for name in names:
+        if name not in DISTURBANCE_UNITS:
+            raise ValueError(
+                f"unknown disturbance {name!r}; expected some of {sorted(DISTURBANCE_UNITS)}"
+            )
+        for f in levels:
+            v = getattr(REALISTIC_LEVELS, name) * f
+            out.append((f"{name}={v:g} ({f:g}x)", CutDisturbances(**{name: v})))
+    if combined:
+        out.append(("all realistic (1x)", REALISTIC_LEVELS))
+    return out
+
+
+def robustness_study(
+    controllers=ROBUSTNESS_CONTROLLERS,
+    scenarios=None,
+    conditions=TABLE_10_CONDITIONS,
+    *,
+    robot: VirtualRobot | None = None,
+    model=None,
+    progress: Callable[[str], None] | None = None,
+    rng=0,
+) -> list[dict]:
+    """Per-cut rows of :func:`milling_study` under every scenario (column ``scenario``).
+
+    ``scenarios``: (label, :class:`CutDisturbances`) pairs (default
+    :func:`robustness_scenarios`). The pose model is the virtual EMA along the path
+    (:func:`path_modal_model`), the same for every scenario; the controllers never see the
+    disturbances. ``progress`` is called with each scenario's label before it runs.
+    """
+    robot = robot or VirtualRobot()
+    model = model or path_modal_model(robot, directions=("x", "z"), rng=rng)
+    rows = []
+    for label, dist in scenarios or robustness_scenarios():
+        if progress is not None:
+            progress(label)
+        for r in milling_study(robot, model, conditions, controllers=tuple(controllers),
+                               disturbances=dist, rng=rng):  # fmt: skip
+            rows.append({"scenario": label, **r})
+    return rows
+
+
+def summarize_robustness(rows: list[dict], amplified_pct: float = 5.0) -> list[dict]:
+    """Per scenario and controller: mean / worst RMS reduction [%] in X and Z, unstable runs,
+    cuts amplified by more than ``amplified_pct`` % (in X or Z) and guard events."""
+    keys = list(dict.fromkeys((r["scenario"], r["controller"]) for r in rows))
+    out = []
+    for sc, c in keys:
+        sel = [r for r in rows if r["scenario"] == sc and r["controller"] == c]
+        row = {"scenario": sc, "controller": c, "cuts": len(sel)}
+        for d in ("x", "z"):
+            v = np.array([r[f"{d}_reduction_pct"] for r in sel], float)
+            row[f"{d}_mean_pct"] = float(np.nanmean(v)) if np.any(np.isfinite(v)) else np.nan
+            row[f"{d}_worst_pct"] = float(np.nanmin(v)) if np.any(np.isfinite(v)) else np.nan
+        row["unstable"] = sum(r["unstable"] is not None for r in sel)
+        row["amplified"] = sum(
+            (r["x_reduction_pct"] < -amplified_pct) or (r["z_reduction_pct"] < -amplified_pct)
+            for r in sel
+        )
+        row["guard_events"] = sum(bool(r.get("guard_events")) for r in sel)
+        out.append(row)
+    return out
