@@ -117,6 +117,20 @@ class PeriodTracker:
     ``rel_range`` of the nominal period. ``correlation`` is the latest periodicity measure
     (NaN until the first estimate). Feed it once per command instant with :meth:`update`
     (repeated calls for the same ``k`` are ignored).
+
+    Parameters
+    ----------
+    nominal_period_s
+        Nominal excitation period [s] (tooth period ``60 / (rpm * teeth)``); the starting
+        estimate and the centre of the search range.
+    rel_range
+        Relative search range of each estimate around the nominal period (0.1: ±10 %).
+    window_periods
+        Length of the correlated window in nominal periods.
+    update_periods
+        Nominal periods between two estimates.
+    smoothing
+        Weight of a new estimate in the smoothed period, in (0, 1] (1: no smoothing).
     """
 
     def __init__(
@@ -169,7 +183,22 @@ class PeriodTracker:
 
 
 class TrackingFeedforward(ForceFeedforward):
-    """:class:`~robovib.control.controllers.ForceFeedforward` with the period of a :class:`PeriodTracker`."""
+    """:class:`~robovib.control.controllers.ForceFeedforward` on a :class:`PeriodTracker`'s period.
+
+    Parameters
+    ----------
+    stiffness
+        Direction -> static stiffness [N/m] (constant or a 1-column :class:`ScheduledTable`
+        along the path), from the pose model.
+    tracker
+        The loop's :class:`PeriodTracker`; its nominal period is the initial excitation period
+        and its running estimate the period of the prediction.
+    delay_s
+        Nominal transport delay [s] of the command channel.
+    **kwargs
+        Further options of :class:`~robovib.control.controllers.ForceFeedforward`
+        (``n_periods``, ``include_mean``).
+    """
 
     def __init__(self, stiffness, tracker: PeriodTracker, delay_s: float = 0.032, **kwargs):
         super().__init__(stiffness, tracker.nominal_period_s, delay_s, **kwargs)
@@ -199,8 +228,25 @@ class TrackingRepetitive(RepetitiveFeedback):
     A harmonic whose learning diverges (a delay or model error turning its loop phase past
     90°) is dropped: each harmonic's residual magnitude is smoothed over ``learning_time_s``
     and, once it exceeds ``divergence_ratio`` x its value in the first window (the open-loop
-    residual: the largest over the first 2 learning times), its phasor is zeroed and the harmonic left alone for the rest of the run
-    (:attr:`events` says which and when).
+    residual: the largest over the first 2 learning times), its phasor is zeroed and the
+    harmonic left alone for the rest of the run (:attr:`events` says which and when).
+
+    Parameters
+    ----------
+    modes
+        Direction -> :class:`ScheduledTable` with columns (fn [Hz], zeta) along the path, from
+        the pose model.
+    tracker
+        The loop's :class:`PeriodTracker`; its nominal period is the initial excitation period
+        and its running estimate advances the phase of the harmonics.
+    delay_s
+        Nominal transport delay [s] of the command channel.
+    divergence_ratio
+        A harmonic whose smoothed residual magnitude exceeds this multiple of its open-loop
+        value is dropped (> 0; 1.2: 20 % above).
+    **kwargs
+        Further options of :class:`~robovib.control.controllers.RepetitiveFeedback`
+        (``n_harmonics``, ``learning_time_s``, ``max_harmonic_ratio``).
     """
 
     def __init__(
@@ -273,7 +319,19 @@ class TrackingRepetitive(RepetitiveFeedback):
 
 @dataclass(frozen=True)
 class GuardEvent:
-    """A change of the :class:`FadeGuard`'s target: at ``time_s`` [s], to ``target`` (0 or 1)."""
+    """A change of the :class:`FadeGuard`'s target: at ``time_s`` [s], to ``target`` (0 or 1).
+
+    Also the record of a harmonic dropped by :class:`TrackingRepetitive` (``target`` 0).
+
+    Attributes
+    ----------
+    time_s
+        Time of the change since the start of the run [s].
+    target
+        The new target of the fade factor (0: correction off, 1: full).
+    reason
+        Why, in words (with the measured values that triggered it).
+    """
 
     time_s: float
     target: float
@@ -308,6 +366,20 @@ class FadeGuard:
         of (fn [Hz], zeta) rows, read at the middle of the run) of the pose model.
     delay_s
         Nominal transport delay [s].
+    min_periodicity
+        Autocorrelation at the tracked period below which the force counts as not periodic
+        and the correction is faded out, in [0, 1).
+    max_ratio
+        The correction is faded out for good when the tracker signal's RMS exceeds this
+        multiple of the open-loop estimate's RMS (> 0).
+    window_s
+        Length of the window the RMS values are taken over [s].
+    check_s
+        Time between two checks [s].
+    fade_time_s
+        Time of a full fade from 1 to 0 (or back) [s].
+    warmup_s
+        Time before the first check [s].
     """
 
     def __init__(
@@ -371,7 +443,14 @@ class FadeGuard:
         self.events: list[GuardEvent] = []
 
     def all_events(self) -> list[GuardEvent]:
-        """This guard's events and those of the guarded controllers (time order)."""
+        """This guard's events and those of the guarded controllers (time order).
+
+        Returns
+        -------
+        list of GuardEvent
+            The events of this guard and of the guarded controller (or of its ``parts``),
+            sorted by ``time_s``.
+        """
         parts = getattr(self.inner, "parts", (self.inner,))
         inner = [e for p in parts for e in getattr(p, "events", [])]
         return sorted([*self.events, *inner], key=lambda e: e.time_s)

@@ -49,7 +49,35 @@ DISTURBANCE_UNITS = {
 
 @dataclass(frozen=True)
 class CutDisturbances:
-    """Disturbances of a simulated cut; all 0 (off) by default. Units: see :data:`DISTURBANCE_UNITS`."""
+    """Disturbances of a simulated cut; all 0 (off) by default (units: :data:`DISTURBANCE_UNITS`).
+
+    Attributes
+    ----------
+    speed_error_pct
+        The spindle turns this much faster than its nominal speed [%], in (-50, 50).
+    speed_drift_pct
+        Further linear change of the spindle speed over the cut [% of nominal], in (-50, 50).
+    runout_um
+        Extra radial tooth runout [µm] (>= 0), added to the tool's
+        :attr:`~robovib.milling.MillingTool.runout_m`.
+    nonperiodic_rel
+        Std of the random, low-pass filtered force component relative to the cutting force's
+        std per direction (>= 0; 0.3: 30 %).
+    engagement_pct
+        Amplitude of the change of the force along the cut [%] (>= 0), with entry and exit
+        ramps of one revolution each.
+    force_noise_n
+        Extra force-sensor white noise, std [N] (>= 0).
+    force_bias_n
+        Force-sensor bias [N] (all directions).
+    actuator_gain_pct
+        Error of the actuator gain [%] (> -100): the robot applies ``1 + actuator_gain_pct/100``
+        x the commanded correction.
+    delay_error_ms
+        True transport delay minus the nominal one [ms], unknown to the controllers.
+    nonperiodic_band_hz
+        Cut-off frequency of the low-pass filter of the non-periodic force [Hz] (> 0).
+    """
 
     speed_error_pct: float = 0.0
     speed_drift_pct: float = 0.0
@@ -84,6 +112,18 @@ class CutDisturbances:
         """From ``["NAME=VALUE", ...]`` (names of :data:`DISTURBANCE_UNITS`; ``all=F``: every
         disturbance at ``F`` x its realistic level).
 
+        Parameters
+        ----------
+        items
+            Iterable of ``"NAME=VALUE"`` strings, VALUE in the unit of
+            :data:`DISTURBANCE_UNITS` (``-`` in NAME is read as ``_``); later items override
+            earlier ones.
+
+        Returns
+        -------
+        CutDisturbances
+            The disturbances, the ones not named off (0).
+
         Raises
         ------
         ValueError
@@ -112,7 +152,13 @@ class CutDisturbances:
         return out
 
     def active(self) -> dict[str, float]:
-        """The disturbances that are on (name -> value)."""
+        """The disturbances that are on (name -> value).
+
+        Returns
+        -------
+        dict of str to float
+            Name -> value (unit of :data:`DISTURBANCE_UNITS`) of every nonzero disturbance.
+        """
         return {k: getattr(self, k) for k in DISTURBANCE_UNITS if getattr(self, k) != 0}
 
     def to_dict(self) -> dict:
@@ -122,6 +168,17 @@ class CutDisturbances:
         """Time at the nominal speed that turns the spindle as far as the true speed by ``t_s``.
 
         ``∫ (1 + e + d tau / T) dtau`` with ``e`` the speed error, ``d`` the drift over the cut.
+
+        Parameters
+        ----------
+        t_s
+            (n,) increasing sample times [s]; the cut runs from ``t_s[0]`` to ``t_s[-1]``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) times [s] at which a spindle at the nominal speed has turned as far as the true
+            spindle at ``t_s`` (equal to ``t_s`` without speed error or drift).
         """
         t = np.asarray(t_s, float)
         dur = max(float(t[-1] - t[0]), 1e-12) if t.size else 1.0
@@ -137,7 +194,29 @@ class CutDisturbances:
         coefficients: CuttingCoefficients,
         rng=None,
     ) -> np.ndarray:
-        """Cutting force (n, 3) in the tool frame [N] with the force-side disturbances."""
+        """Cutting force (n, 3) in the tool frame [N] with the force-side disturbances.
+
+        The force-side disturbances are the speed error and drift, runout, engagement and the
+        non-periodic component (the sensor noise and bias are added by the simulation).
+
+        Parameters
+        ----------
+        t_s
+            (n,) increasing sample times [s].
+        tool : MillingTool
+            The cutter (this object's ``runout_um`` is added to its runout).
+        cond : CuttingConditions
+            Spindle speed, feed per tooth and depths of cut of the nominal cut.
+        coefficients : CuttingCoefficients
+            Cutting force coefficients of the material.
+        rng
+            Seed or :class:`numpy.random.Generator` of the non-periodic force component.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 3) cutting force [N] in the tool frame.
+        """
         t = np.asarray(t_s, float)
         if self.runout_um > 0:
             tool = replace(tool, runout_m=tool.runout_m + self.runout_um * 1e-6)
@@ -158,7 +237,24 @@ class CutDisturbances:
         return force
 
     def channel(self, nominal: CommandChannel) -> CommandChannel:
-        """The true command channel: ``nominal`` with the delay and gain errors."""
+        """The true command channel: ``nominal`` with the delay and gain errors.
+
+        Parameters
+        ----------
+        nominal : CommandChannel
+            The channel the controllers are designed for.
+
+        Returns
+        -------
+        CommandChannel
+            ``nominal`` with ``delay_error_ms`` added to its delay and its gain times
+            ``1 + actuator_gain_pct/100``.
+
+        Raises
+        ------
+        ValueError
+            ``delay_error_ms`` makes the delay negative.
+        """
         delay = nominal.delay_s + self.delay_error_ms * 1e-3
         if delay < 0:
             raise ValueError(f"delay_error_ms makes the delay negative ({delay * 1e3:.1f} ms)")
@@ -167,7 +263,18 @@ class CutDisturbances:
         )
 
     def scaled(self, factor: float) -> CutDisturbances:
-        """Every disturbance times ``factor`` (the 2x levels of the robustness table)."""
+        """Every disturbance times ``factor`` (the 2x levels of the robustness table).
+
+        Parameters
+        ----------
+        factor
+            Multiplier of every disturbance level (``nonperiodic_band_hz`` is kept).
+
+        Returns
+        -------
+        CutDisturbances
+            The scaled disturbances.
+        """
         return replace(self, **{k: getattr(self, k) * factor for k in DISTURBANCE_UNITS})
 
 

@@ -95,6 +95,9 @@ class CommandChannel:
         Extra command periods of RSI hold.
     servo_hz, servo_damping
         Second-order servo natural frequency [Hz] and damping ratio.
+    gain
+        Static gain of the applied correction (finite, > 0; 1.1: the robot applies 10 % more
+        than commanded).
     """
 
     delay_s: float = 0.032

@@ -31,7 +31,31 @@ ROBUSTNESS_CONTROLLERS = ("feedforward+robust", "repetitive", "adaptive", "adapt
 def robustness_scenarios(
     names=tuple(DISTURBANCE_UNITS), levels=(1.0, 2.0), combined: bool = True
 ) -> list[tuple[str, CutDisturbances]]:
-    """(label, disturbances): none, each of ``names`` at each level x realistic, all combined."""
+    """(label, disturbances): none, each of ``names`` at each level x realistic, all combined.
+
+    Parameters
+    ----------
+    names
+        Disturbances (field names of :class:`~robovib.sim.disturbances.CutDisturbances`, keys
+        of :data:`~robovib.sim.disturbances.DISTURBANCE_UNITS`) run one at a time.
+    levels
+        Multiples of each disturbance's realistic level
+        (:data:`~robovib.sim.disturbances.REALISTIC_LEVELS`).
+    combined
+        Also add every disturbance at once at its realistic level.
+
+    Returns
+    -------
+    list of (str, CutDisturbances)
+        ``("none", CutDisturbances())`` first, then one pair per name and level (label
+        ``"NAME=VALUE (Fx)"``), then ``("all realistic (1x)", REALISTIC_LEVELS)`` if
+        ``combined``.
+
+    Raises
+    ------
+    ValueError
+        An unknown disturbance name.
+    """
     out = [("none", CutDisturbances())]
     for name in names:
         if name not in DISTURBANCE_UNITS:
@@ -62,6 +86,29 @@ def robustness_study(
     :func:`robustness_scenarios`). The pose model is the virtual EMA along the path
     (:func:`path_modal_model`), the same for every scenario; the controllers never see the
     disturbances. ``progress`` is called with each scenario's label before it runs.
+
+    Parameters
+    ----------
+    controllers
+        Names of the controllers (as in :func:`milling_study`); the open loop always runs.
+    scenarios
+        (label, :class:`CutDisturbances`) pairs; ``None``: :func:`robustness_scenarios`.
+    conditions
+        Cuts as (spindle speed [rpm], feed per tooth [m], axial depth [m]) triples.
+    robot
+        The simulated robot; ``None``: a default :class:`~robovib.sim.VirtualRobot`.
+    model
+        Pose model along the path; ``None``: :func:`path_modal_model` of ``robot`` in X and Z.
+    progress
+        Called with each scenario's label before it runs; ``None``: silent.
+    rng
+        Seed (or generator) of the pose model's virtual tests and of every scenario's cuts.
+
+    Returns
+    -------
+    list of dict
+        The rows of :func:`milling_study` (RMS vibration [mm] and reductions [%] per cut,
+        position and controller), each with a ``scenario`` label first.
     """
     robot = robot or VirtualRobot()
     model = model or path_modal_model(robot, directions=("x", "z"), rng=rng)
@@ -77,7 +124,24 @@ def robustness_study(
 
 def summarize_robustness(rows: list[dict], amplified_pct: float = 5.0) -> list[dict]:
     """Per scenario and controller: mean / worst RMS reduction [%] in X and Z, unstable runs,
-    cuts amplified by more than ``amplified_pct`` % (in X or Z) and guard events."""
+    cuts amplified by more than ``amplified_pct`` % (in X or Z) and guard events.
+
+    Parameters
+    ----------
+    rows
+        Per-cut rows of :func:`robustness_study`.
+    amplified_pct
+        A cut counts as amplified when its RMS reduction in X or Z is below
+        ``-amplified_pct`` [%].
+
+    Returns
+    -------
+    list of dict
+        One row per (scenario, controller) in order of first appearance: ``scenario``,
+        ``controller``, ``cuts``, ``x_mean_pct``, ``x_worst_pct``, ``z_mean_pct``,
+        ``z_worst_pct`` (RMS reductions [%], NaN when none is finite), ``unstable``,
+        ``amplified`` and ``guard_events`` (counts of cuts).
+    """
     keys = list(dict.fromkeys((r["scenario"], r["controller"]) for r in rows))
     out = []
     for sc, c in keys:
