@@ -13,7 +13,7 @@ Names are imported on first use (PEP 562): ``robovib model next-poses`` reads a 
 without scikit-learn (:mod:`robovib.campaign.selection`).
 """
 
-from importlib import import_module
+from .._lazy import lazy_exports
 
 _WHERE = {
     "CampaignResult": "process",
@@ -42,13 +42,4 @@ _WHERE = {
 __all__ = sorted(_WHERE)
 
 
-def __getattr__(name: str):
-    if name in _WHERE:
-        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_WHERE))
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)

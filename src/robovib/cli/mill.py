@@ -117,14 +117,7 @@ def lobes(
     cuts: opt.CutsOpt = None,
     operating_point: opt.OperatingPointOpt = None,
     samples: opt.LobeSamplesOpt = 0,
-    time_domain_margin: Annotated[
-        bool,
-        typer.Option(
-            "--time-domain-margin",
-            help="With --samples: scale P(stable) by the time-domain limit of the mean modes "
-            "(a cut entering at full depth chatters 5-15 % below linear theory; ~1 s per speed).",
-        ),
-    ] = False,
+    time_domain_margin: opt.TimeDomainMarginOpt = False,
     steps: opt.StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,

@@ -4,7 +4,7 @@ Names are imported on first use (PEP 562): ``from robovib.gp.predictor import ..
 does not pay for scikit-learn, which the estimators need.
 """
 
-from importlib import import_module
+from .._lazy import lazy_exports
 
 _WHERE = {
     "BandCalibration": "calibration",
@@ -32,13 +32,4 @@ _WHERE = {
 __all__ = sorted(_WHERE)
 
 
-def __getattr__(name: str):
-    if name in _WHERE:
-        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_WHERE))
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)
