@@ -135,13 +135,7 @@ def workspace_model(path: Path | None, seed: int = 0, require_inputs=("x_mm", "y
         return get_chapter3_model(rng=seed)
     from ..gp.predictor import load_pose_predictor
 
-    model = load_pose_predictor(path)
-    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
-        raise ValueError(
-            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
-            f"the model has {', '.join(model.input_names)}"
-        )
-    return model
+    return load_pose_predictor(path, require_inputs=require_inputs)
 
 
 try:  # Typer >= 0.2x vendors Click as typer._click: its context stack and exceptions are those

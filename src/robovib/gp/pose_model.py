@@ -45,7 +45,7 @@ from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
 from .pose_mode import PoseMode, modes_at
 from .predictive import ModalPredictive, assemble, calibrated_mode_probability, noise_std_of
-from .predictor import FORMAT, FORMAT_VERSION
+from .predictor import FORMAT, FORMAT_VERSION, require_pose_inputs
 from .regressor import BatchedGPRegressor
 
 __all__ = [
@@ -831,11 +831,7 @@ def load_pose_model(path, require_inputs=None):
     ('x_mm', 'y_mm', 'rz_deg')
     """
     model = PoseModalModel.load(path)
-    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
-        raise ValueError(
-            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
-            f"the model has {', '.join(model.input_names)}"
-        )
+    require_pose_inputs(model, path, require_inputs)
     return model
 
 

@@ -512,7 +512,31 @@ class PosePredictor:
         return calibrated_mode_probability(p, getattr(self, "calibration_", None))
 
 
-def load_pose_predictor(path):
+def require_pose_inputs(model, path, require_inputs) -> None:
+    """Refuse a loaded pose model whose inputs are not the ones the caller needs.
+
+    Parameters
+    ----------
+    model
+        A loaded pose model (``input_names``).
+    path
+        Its file, for the message.
+    require_inputs : sequence of str or None
+        The input names needed (None: any).
+
+    Raises
+    ------
+    ValueError
+        Other inputs than required.
+    """
+    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
+        raise ValueError(
+            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
+            f"the model has {', '.join(model.input_names)}"
+        )
+
+
+def load_pose_predictor(path, require_inputs=None):
     """A :class:`PosePredictor` of the file, or the full ``PoseModalModel`` where it must be.
 
     The full model (scikit-learn imported, ~1 s more) is loaded only when the stored covariance
@@ -522,6 +546,8 @@ def load_pose_predictor(path):
     ----------
     path : str or pathlib.Path
         The model file.
+    require_inputs : sequence of str, optional
+        The input names the caller needs (checked as :func:`robovib.gp.load_pose_model` does).
 
     Returns
     -------
@@ -529,13 +555,15 @@ def load_pose_predictor(path):
         A model with ``predict`` and ``predictive``.
     """
     try:
-        return PosePredictor.load(path)
+        model = PosePredictor.load(path)
     except ValueError as exc:
         if "jitter" not in str(exc):
             raise
-    from .pose_model import PoseModalModel
+        from .pose_model import PoseModalModel
 
-    return PoseModalModel.load(path)
+        model = PoseModalModel.load(path)
+    require_pose_inputs(model, path, require_inputs)
+    return model
 
 
 #: Probability band of the high mode in which the dominant mode counts as ambiguous.
