@@ -623,7 +623,19 @@ class PoseModalModel(BaseEstimator):
         return (mean, std) if return_std else mean
 
     def outside_inputs(self, X) -> np.ndarray:
-        """(n, n_inputs) bool: input value outside the training range of that input."""
+        """Which input values lie outside the training range of that input.
+
+        Parameters
+        ----------
+        X
+            (n, n_inputs) poses in the units of ``input_names``.
+
+        Returns
+        -------
+        ndarray of bool (n, n_inputs)
+            True where an input value is below the smallest or above the largest training
+            value of that input.
+        """
         return self.region_.outside_inputs(self._check_X(X))
 
     def extrapolating(self, X) -> np.ndarray:
@@ -633,6 +645,16 @@ class PoseModalModel(BaseEstimator):
         has always reported) or, for two or more inputs, outside the convex hull of the
         training poses (inside the box but off the measured workspace); one rule for every pose
         model: :class:`robovib.gp.extrapolation.TrainingRegion`.
+
+        Parameters
+        ----------
+        X
+            (n, n_inputs) poses in the units of ``input_names``.
+
+        Returns
+        -------
+        ndarray of bool (n,)
+            True where the pose is outside the calibrated region.
         """
         return self.region_.extrapolating(self._check_X(X))
 
@@ -641,6 +663,17 @@ class PoseModalModel(BaseEstimator):
 
         Columns of directions without a modelled switch are NaN. Where the model is calibrated,
         the classifier's probability recalibrated on the grouped CV (Platt scaling).
+
+        Parameters
+        ----------
+        X
+            (n, n_inputs) poses in the units of ``input_names``.
+
+        Returns
+        -------
+        ndarray (n, n_directions) or None
+            Probability in [0, 1] that the high mode dominates, per direction (columns
+            ``directions_``); None when no direction has a modelled mode switch.
         """
         X = self._check_X(X)
         if not any(isinstance(e, ModeSwitchingGPRegressor) for e in self.estimators_):

@@ -76,6 +76,20 @@ __all__ = ["FRFPoseModel", "UpdateReport", "frequency_grid"]
 def frequency_grid(f_min_hz: float, f_max_hz: float, df_hz: float) -> np.ndarray:
     """The model's frequency grid ``f_min_hz, f_min_hz + df_hz, ... <= f_max_hz`` [Hz], checked.
 
+    Parameters
+    ----------
+    f_min_hz
+        First bin [Hz], >= 0.
+    f_max_hz
+        Upper end [Hz]; the last bin is the largest ``f_min_hz + i df_hz`` not above it.
+    df_hz
+        Bin spacing [Hz], > 0.
+
+    Returns
+    -------
+    ndarray (n_f,)
+        The bin frequencies [Hz], 2 <= n_f <= 100000.
+
     Raises
     ------
     ValueError
@@ -167,7 +181,14 @@ class UpdateReport:
         return self.n_rejected / self.n_observations if self.n_observations else 0.0
 
     def describe(self) -> str:
-        """One line on what the bias check rejected (robust mode) for a person to read."""
+        """One line on what the bias check rejected (robust mode) for a person to read.
+
+        Returns
+        -------
+        str
+            Rejected OMA bins (count and percent), whole bins rejected [Hz], the source scale
+            and whether it was applied, then the ``reasons``, joined by ``"; "``.
+        """
         bins = ", ".join(f"{f:.2f}" for f in self.rejected_bins_hz)
         whole = f"whole bins rejected at {bins} Hz" if bins else "no whole bin rejected"
         applied = "applied" if self.scale_applied else "not applied"
@@ -179,7 +200,14 @@ class UpdateReport:
         return "; ".join((line, *self.reasons))
 
     def to_dict(self) -> dict:
-        """JSON-friendly (complex scale as real/imag)."""
+        """The report as a JSON-friendly dict.
+
+        Returns
+        -------
+        dict
+            Every field, with the complex ``scale`` split into ``scale_real`` and
+            ``scale_imag``, tuples as lists, and ``rejected_fraction`` added.
+        """
         d = asdict(self)
         d["scale_real"], d["scale_imag"] = float(self.scale.real), float(self.scale.imag)
         del d["scale"]
@@ -317,6 +345,17 @@ class FRFPoseModel(BaseEstimator):
         one direction, stored as ``direction_`` and checked by :meth:`update_frfs`; bins
         outside an FRF's range are an error.
 
+        Parameters
+        ----------
+        frfs
+            Iterable of :class:`robovib.frf.FRF` compliances [m/N] of one direction, each with
+            its pose (:func:`robovib.hybrid.frf_pose`).
+
+        Returns
+        -------
+        FRFPoseModel
+            ``self``, fitted.
+
         Raises
         ------
         ValueError
@@ -346,6 +385,23 @@ class FRFPoseModel(BaseEstimator):
         and, with ``expect_source`` (default ``"OMA"``), its source must be that one (EMA FRFs
         given as OMA are refused rather than fitted with the OMA noise level). Grid bins
         outside an FRF's range are missing; the FRFs' random errors floor the OMA noise.
+
+        Parameters
+        ----------
+        frfs
+            Iterable of :class:`robovib.frf.FRF` compliances [m/N] with their pose, in the
+            model's direction.
+        mode
+            ``"robust"``, ``"posterior"`` or ``"warm"`` (see :meth:`update`).
+        reoptimize
+            Robust mode: re-optimise all hyperparameters after the checks (see :meth:`update`).
+        expect_source
+            Source every FRF must have (``"OMA"``, ``"EMA"``), or None for no check.
+
+        Returns
+        -------
+        UpdateReport
+            What the update did (also stored as ``last_report_``).
 
         Raises
         ------
@@ -400,10 +456,13 @@ class FRFPoseModel(BaseEstimator):
             (n, n_f) bool, True where a bin is observed.
         groups
             (n,) ints: 0 = EMA, 1 = OMA (default all EMA).
+        sources
+            Deprecated name of ``groups``.
 
         Returns
         -------
-        self
+        FRFPoseModel
+            ``self``, fitted.
 
         Raises
         ------
@@ -453,6 +512,8 @@ class FRFPoseModel(BaseEstimator):
             As in :meth:`fit`: (n,) / (n, n_inputs), (n, n_f) complex [m/N], (n, n_f) bool.
         groups
             (n,) noise groups of the new data (default 1 = OMA).
+        sources
+            Deprecated name of ``groups``.
         mode
             ``"robust"`` (bias check, rejection, OMA noise by marginal likelihood, see the
             module docs), ``"posterior"`` or ``"warm"``.
@@ -865,7 +926,18 @@ class FRFPoseModel(BaseEstimator):
             raise NotFittedError("this FRFPoseModel is not fitted yet; call fit() first")
 
     def extrapolating(self, poses) -> np.ndarray:
-        """(n,) bool: poses outside the calibrated range (per coordinate)."""
+        """Which poses lie outside the calibrated range (per coordinate).
+
+        Parameters
+        ----------
+        poses
+            (n,) or (n, n_inputs) in the units of ``input_names``.
+
+        Returns
+        -------
+        ndarray of bool (n,)
+            True where any coordinate is outside the range of the training poses.
+        """
         self._require_fitted()
         x = self._poses(poses)
         lo, hi = self.pose_range_
@@ -896,7 +968,20 @@ class FRFPoseModel(BaseEstimator):
         return h, np.sqrt(std[:, :n_f] ** 2 + std[:, n_f:] ** 2) / _SCALE
 
     def integrated_variance(self, poses) -> np.ndarray:
-        """Predictive variance summed over frequency and Re/Im, per pose (n,) [(um/N)^2]."""
+        """Predictive variance summed over frequency and Re/Im, per pose.
+
+        The sum over the 2 n_f GPs of the latent variance (thesis Eq. 10) at each pose.
+
+        Parameters
+        ----------
+        poses
+            (n,) or (n, n_inputs) in the units of ``input_names``.
+
+        Returns
+        -------
+        ndarray (n,)
+            Integrated predictive variance [(um/N)^2].
+        """
         self._require_fitted()
         _, std = self.gp_.predict(self._poses(poses), return_std=True)
         return np.sum(std**2, axis=1)
@@ -906,6 +991,18 @@ class FRFPoseModel(BaseEstimator):
 
         After each pick the model is conditioned on a pseudo-observation there (the variance
         of a GP does not depend on the observed value), so the next pick goes elsewhere.
+
+        Parameters
+        ----------
+        candidates
+            (m,) or (m, n_inputs) candidate poses in the units of ``input_names``.
+        k
+            Poses to choose (1 <= k <= m).
+
+        Returns
+        -------
+        ndarray (k, n_inputs)
+            The chosen candidates, in pick order.
         """
         self._require_fitted()
         cand = self._poses(candidates)
@@ -935,6 +1032,17 @@ class FRFPoseModel(BaseEstimator):
         ``groups = "0=EMA,1=OMA"``, and ``provenance/<key>`` for the given dict
         (strings/numbers). Written through :func:`robovib.io.atomic_output`: ``path`` must not
         be one of ``inputs`` unless ``force``.
+
+        Parameters
+        ----------
+        path
+            Output ``.h5`` file.
+        provenance
+            Extra ``provenance/<key>`` attributes (strings or numbers).
+        inputs
+            Files the model was made from (recorded with their hashes; ``path`` may not be one).
+        force
+            Allow ``path`` to be one of ``inputs``.
         """
         import h5py
 
@@ -971,6 +1079,16 @@ class FRFPoseModel(BaseEstimator):
     @classmethod
     def load(cls, path) -> FRFPoseModel:
         """Read a model written by :meth:`save` (versions 1 and 2).
+
+        Parameters
+        ----------
+        path
+            A ``.h5`` file written by :meth:`save`.
+
+        Returns
+        -------
+        FRFPoseModel
+            The fitted model (training data, hyperparameters and scalers as saved).
 
         Raises
         ------

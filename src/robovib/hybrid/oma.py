@@ -44,7 +44,21 @@ class OMAQualityWarning(UserWarning):
 
 @dataclass(frozen=True)
 class OMASegment:
-    """One OMA FRF: a path segment's compliance with its flags and random error."""
+    """One OMA FRF: a path segment's compliance with its flags and random error.
+
+    Attributes
+    ----------
+    frf
+        Compliance FRF of the segment [m/N] (Welch H1 estimate with its coherence).
+    flagged
+        (n_f,) bool: bins at spindle harmonics or with low coherence.
+    s_mid_m
+        Path coordinate of the segment's midpoint (2-D poses: distance travelled) [m].
+    n_samples
+        Time samples in the segment.
+    pose_mid
+        Mean pose of the segment (2-D poses), in their units; empty for path segments.
+    """
 
     frf: FRF  #: compliance [m/N] of the segment
     flagged: np.ndarray  #: (n_f,) bool: harmonic or low-coherence bins

@@ -80,6 +80,18 @@ def frf_pose(frf: FRF, input_names=("s_m",)) -> tuple[float, ...]:
     ``("s_m",)``: ``meta["path_s_m"]``; ``("x_m", "y_m", "rz_deg")``: ``frf.pose`` =
     (x [m], y [m], z [m], rx, ry, rz [deg]) as written by ``frf compute`` / ``hybrid oma``.
 
+    Parameters
+    ----------
+    frf
+        An FRF carrying its pose (``meta["path_s_m"]`` or ``pose``).
+    input_names
+        The model's pose inputs: ``("s_m",)`` or ``("x_m", "y_m", "rz_deg")``.
+
+    Returns
+    -------
+    tuple of float
+        The pose, one value per input name, in the units of the names ([m], [deg]).
+
     Raises
     ------
     ValueError
@@ -167,8 +179,25 @@ def frfs_on_path_grid(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Complex compliances on ``grid_hz``, their path coordinates and bin masks.
 
-    The path-coordinate case of :func:`frfs_on_grid`: returns values (n, n_f) complex [m/N],
-    s_m (n,) [m], mask (n, n_f) bool.
+    The path-coordinate case of :func:`frfs_on_grid` (without the random errors).
+
+    Parameters
+    ----------
+    frfs
+        Compliance FRFs carrying ``meta["path_s_m"]`` and optionally ``meta["flagged"]``.
+    grid_hz
+        (n_f,) model grid [Hz].
+    partial
+        True: grid bins outside an FRF's range are masked (missing), not an error.
+
+    Returns
+    -------
+    values
+        (n, n_f) complex compliance [m/N].
+    s_m
+        (n,) path coordinates [m].
+    mask
+        (n, n_f) bool, True where a bin is observed and not flagged.
 
     Raises
     ------
@@ -209,7 +238,17 @@ def oma_frfs_with_path(record: dict, **kwargs) -> list[FRF]:
 
 
 def flagged_fraction(frfs: list[FRF]) -> float:
-    """Mean fraction of flagged bins (``meta["flagged"]``, 0 where absent) over FRFs, in [0, 1].
+    """Mean fraction of flagged bins (``meta["flagged"]``, 0 where absent) over FRFs.
+
+    Parameters
+    ----------
+    frfs
+        FRFs, e.g. from :func:`oma_frfs_with_path`.
+
+    Returns
+    -------
+    float
+        Mean over the FRFs of the fraction of their bins flagged, in [0, 1].
 
     Raises
     ------
@@ -233,8 +272,24 @@ def flagged_fraction(frfs: list[FRF]) -> float:
 class FRFPrediction:
     """Predicted compliance FRF at a pose (optionally with a measurement).
 
-    ``s_m`` is the path coordinate (NaN for workspace models); ``pose`` the pose in the
-    model's ``input_names``.
+    Attributes
+    ----------
+    s_m
+        The path coordinate [m] (NaN for workspace models).
+    frequency_hz
+        (n_f,) model grid [Hz].
+    compliance_m_per_n
+        (n_f,) complex predicted compliance, the posterior mean (thesis Eq. 9) [m/N].
+    std_m_per_n
+        (n_f,) latent predictive std ``sqrt(var Re + var Im)`` (Eq. 10) [m/N].
+    extrapolating
+        Whether the pose is outside the calibrated range.
+    measured_m_per_n
+        (n_f,) complex measured compliance on the model grid [m/N], or None.
+    pose
+        The pose in the model's ``input_names`` units.
+    input_names
+        The model's pose inputs.
     """
 
     s_m: float
@@ -272,7 +327,15 @@ class FRFPrediction:
                 float(self.std_m_per_n[i]))  # fmt: skip
 
     def to_dict(self) -> dict:
-        """JSON-friendly summary (magnitudes in um/N)."""
+        """JSON-friendly summary (magnitudes in um/N).
+
+        Returns
+        -------
+        dict
+            ``s_m``, the pose by input name, ``extrapolating``, ``frequency_hz`` [Hz],
+            ``compliance_abs_um_per_n`` and ``std_um_per_n`` [um/N], and ``rmse_um_per_n``
+            with a measurement.
+        """
         doc = {
             "s_m": self.s_m,
             **dict(zip(self.input_names, self.pose, strict=False)),
@@ -297,6 +360,11 @@ def predict_frf_at(model: FRFPoseModel, pose, measured: FRF | None = None) -> FR
         The path coordinate ``s_m`` [m] (a float) or a pose in the model's ``input_names``.
     measured
         Optional compliance FRF to compare with.
+
+    Returns
+    -------
+    FRFPrediction
+        Mean and std on the model grid, the extrapolation flag and the measurement.
 
     Raises
     ------

@@ -411,6 +411,31 @@ def floquet_multipliers(
 
     The radial immersion and milling direction come from ``conditions`` (its own speed and
     depth are not used); see :func:`semi_discretization_multipliers`.
+
+    Parameters
+    ----------
+    modes_x, modes_y : sequence of ModalParameters
+        Tool-tip modes in the feed (x) and normal (y) directions (either may be empty).
+    tool : MillingTool
+        Number of flutes (delay = tooth period) and geometry.
+    conditions : CuttingConditions
+        Radial immersion and milling direction (up / down).
+    coefficients : CuttingCoefficients
+        Tangential and radial cutting-force coefficients [N/m²].
+    spindle_rpm, depth_m : array_like (b,)
+        Spindle speeds [rpm] (positive) and axial depths of cut [m], broadcast together.
+    steps_per_period : int
+        Semi-discretization steps per tooth period.
+
+    Returns
+    -------
+    ndarray (b,) complex
+        Floquet multiplier of largest modulus; the cut is stable where ``|mu| < 1``.
+
+    Raises
+    ------
+    ValueError
+        Non-positive or non-finite speeds.
     """
     rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
     if not (np.all(np.isfinite(rpm)) and np.all(rpm > 0)):

@@ -139,9 +139,30 @@ def path_modal_model(
 ) -> PoseModalModel:
     """EMA at ``n_points`` along the chapter-4 path (virtual hammer tests) and a GP over s.
 
-    Returns a :class:`~robovib.gp.PoseModalModel` with ``input_names=("s_m",)`` (path distance
-    [m]) of the dominant mode per direction (fn [Hz], k [N/m], c [N s/m]); read it with
-    :func:`path_mode` and :func:`path_band`.
+    Each point's FRF (:func:`robovib.frf.impact_frf`, up to 100 Hz) gives the dominant mode
+    (:func:`robovib.modal.fit_dominant_mode`); a GP per output (thesis Eq. 9-10) interpolates
+    them over the path distance. Read the model with :func:`path_mode` and :func:`path_band`.
+
+    Parameters
+    ----------
+    robot
+        The virtual robot hammered (:class:`robovib.sim.VirtualRobot`).
+    directions
+        Directions of the hammer tests and of the model (``"x"``, ``"y"``, ``"z"``).
+    n_points
+        Test points, evenly spaced over the path ``[0, PATH_LENGTH_M]`` [m].
+    sample_rate_hz
+        Sample rate of the virtual hammer tests [Hz].
+    n_hits
+        Hits averaged per test point.
+    rng
+        Seed or generator of the test noise and of the GP optimiser restarts.
+
+    Returns
+    -------
+    PoseModalModel
+        Fitted, ``input_names=("s_m",)`` (path distance [m]), the dominant mode per direction
+        (fn [Hz], k [N/m], c [N s/m]).
     """
     s = np.linspace(0.0, PATH_LENGTH_M, n_points)
     gen = np.random.default_rng(rng)
@@ -163,14 +184,49 @@ def path_modal_model(
 
 
 def path_mode(model: PoseModalModel, s_m: float, direction: str) -> ModalParameters:
-    """Mean dominant mode of ``direction`` at path distance ``s_m`` [m]."""
+    """Mean dominant mode of ``direction`` at path distance ``s_m`` [m].
+
+    Parameters
+    ----------
+    model
+        A path model from :func:`path_modal_model`.
+    s_m
+        Path distance [m].
+    direction
+        One of the model's directions.
+
+    Returns
+    -------
+    ModalParameters
+        The posterior-mean mode (thesis Eq. 9) at ``s_m``.
+    """
     return model.modes(np.array([[float(s_m)]]))[0][direction].parameters
 
 
 def path_band(
     model: PoseModalModel, s_m: float, direction: str, z_score: float = 1.96
 ) -> list[ModalParameters]:
-    """The 8 corners of the GP band at ``s_m`` [m]: mean ± ``z_score`` std in fn, k and c."""
+    """The 8 corners of the GP band at ``s_m`` [m]: mean ± ``z_score`` std in fn, k and c.
+
+    Corners are clipped to fn >= 0.1 Hz, k >= 1 kN/m, c >= 0 and a damping ratio in
+    [0.001, 0.95].
+
+    Parameters
+    ----------
+    model
+        A path model from :func:`path_modal_model`.
+    s_m
+        Path distance [m].
+    direction
+        One of the model's directions.
+    z_score
+        Half-width of the band in predictive standard deviations (Eq. 10); 1.96: 95 %.
+
+    Returns
+    -------
+    list of ModalParameters
+        The 8 corner modes (every sign combination of fn, k and c).
+    """
     pm = model.modes(np.array([[float(s_m)]]))[0][direction]
     p = pm.parameters
     out = []
@@ -190,6 +246,17 @@ def virtual_path_modes(
     robot: VirtualRobot | None = None, direction: str = "x", n_points: int = 20, rng=0
 ) -> tuple[np.ndarray, list[ModalParameters]]:
     """Dominant modes along the chapter-4 path from a virtual EMA (:func:`path_modal_model`).
+
+    Parameters
+    ----------
+    robot
+        The virtual robot (default: a new :class:`robovib.sim.VirtualRobot`).
+    direction
+        Direction of the hammer tests.
+    n_points
+        Coordinates returned, evenly spaced over 0.335-1.235 m.
+    rng
+        Seed of the virtual EMA.
 
     Returns
     -------
@@ -277,9 +344,45 @@ def build_controllers(
 ) -> dict[str, object]:
     """Controllers designed from the pose model only, scheduled over ``s_grid`` [m].
 
-    Returns a name -> controller dict (fresh objects: they hold state). ``constant-start`` /
-    ``constant-end`` use the pose-dependent design at ``s_start`` / ``s_end``. The
-    feedforward controllers need ``excitation_period_s`` (the force's period).
+    ``constant-start`` / ``constant-end`` use the pose-dependent design at ``s_start`` /
+    ``s_end``. The feedforward, tuned, repetitive and adaptive controllers need
+    ``excitation_period_s`` (the force's period). Designs are cached per process (keyed by
+    their inputs); the returned controllers are fresh objects.
+
+    Parameters
+    ----------
+    model
+        A path model from :func:`path_modal_model`.
+    axes
+        Controlled axes: tool-tip axis index (0 = X, 1 = Y, 2 = Z) -> model direction.
+    s_grid
+        Path distances [m] at which the gains are designed and tabulated.
+    names
+        Controllers to build, from :data:`CONTROLLERS`.
+    excitation_period_s
+        Period of the disturbing force (spindle or tooth-passing period) [s].
+    s_start, s_end
+        Path distances [m] of the ``constant-start`` / ``constant-end`` designs (default the
+        first grid point).
+    period_s
+        Command period of the controller [s] (250 Hz: 0.004 s).
+    delay_s
+        Command delay the designs account for [s].
+    lqg_r
+        Control weight R of the LQG design; None: chosen like the robust design, on the loop
+        with the Kalman filter.
+    robust_r_grid
+        Candidate R values of the robust design (default ``logspace(-2, 3, 11)``).
+
+    Returns
+    -------
+    dict
+        Controller name -> controller object.
+
+    Raises
+    ------
+    ValueError
+        Unknown names, or a controller that needs ``excitation_period_s`` without it.
     """
     grid = np.asarray(s_grid, float)
     r_grid = np.logspace(-2, 3, 11) if robust_r_grid is None else np.asarray(robust_r_grid)
@@ -432,6 +535,28 @@ def stability_over_band(
     :data:`SECOND_MODE_HYPOTHESES` second mode). < 1: stable everywhere. NaN: no feedback.
     The repetitive controller is checked through its phasor learning loop
     (:meth:`~robovib.control.controllers.RepetitiveFeedback.loop_radius`).
+
+    Parameters
+    ----------
+    model
+        The path model the controllers were designed from (:func:`path_modal_model`).
+    controllers
+        Name -> controller, e.g. from :func:`build_controllers`.
+    axes
+        Tool-tip axis index -> model direction, as given to :func:`build_controllers`.
+    s_points
+        Path distances [m] checked.
+    period_s
+        Command period [s].
+    delay_s
+        Command delay [s].
+    second_modes
+        Also check each plant with the :data:`SECOND_MODE_HYPOTHESES` second modes.
+
+    Returns
+    -------
+    dict
+        Controller name -> worst spectral radius (< 1: stable; NaN: no feedback loop).
     """
     d = round(delay_s / period_s)
     s = np.asarray(s_points, float)
@@ -487,7 +612,31 @@ def fixed_pose_offset_mass(
 
     Amplitudes are peak-to-peak [mm] of the true Y vibration after ``settle_s``
     (§4.3.2's 0.93 mm open loop at 480 rpm matches the peak-to-peak of the measured mode's
-    response, 2 x 0.46 mm; Table 7's numbers match half of it). Returns one row per speed.
+    response, 2 x 0.46 mm; Table 7's numbers match half of it).
+
+    Parameters
+    ----------
+    channel
+        Command channel between controller and robot (default: 32 ms pure delay).
+    speeds_rpm
+        Spindle speeds [rev/min] of the offset mass.
+    mode
+        The Y mode of the fixed pose (default §4.3.2's measured mode).
+    gains
+        State-feedback gains (w1, w2) of the closed loop (default the thesis' 0.079 / 0.0059).
+    duration_s
+        Simulated time per run [s].
+    settle_s
+        Time skipped before the amplitude is read [s].
+    rng
+        Seed of the sensor noise.
+
+    Returns
+    -------
+    list of dict
+        One row per speed: ``speed_rpm``, ``open_ptp_mm`` and ``closed_ptp_mm`` [mm] (NaN when
+        unstable), ``open_unstable`` / ``closed_unstable`` (the error message or None) and
+        ``ratio`` (closed / open).
     """
     robot = ConstantModesRobot(
         {
@@ -541,6 +690,24 @@ def sensitivity_bound(
     FRF and ``C`` the controller (w1 + w2 x backward difference, ZOH). With ``channel``: the
     ratio through its linear part (:meth:`~robovib.sim.CommandChannel.frequency_response`),
     a frequency-domain approximation of the sampled loop.
+
+    Parameters
+    ----------
+    speeds_hz
+        Excitation frequencies [Hz] (spindle speed / 60 for the offset mass).
+    mode
+        The plant mode (default §4.3.2's measured mode).
+    gains
+        State-feedback gains (w1, w2).
+    period_s
+        Command period [s].
+    channel
+        A command channel; None: the bound over every non-amplifying channel.
+
+    Returns
+    -------
+    ndarray
+        Closed/open amplitude ratio at each of ``speeds_hz``.
     """
     p, c = _thesis_loop(speeds_hz, mode, gains, period_s)
     if channel is None:
@@ -555,9 +722,35 @@ def required_channel_gain(
     gains=THESIS_OFFSET_MASS_GAINS,
     period_s: float = 0.004,
 ) -> np.ndarray:
-    """Smallest channel gain ``|G_a|`` for which ``gains`` can reach ``target_ratios`` (closed /
-    open) at ``speeds_hz``: ``|1 + P G_a C| >= 1 / ratio`` needs
-    ``|G_a| >= (1 / ratio - 1) / (|P| |C|)``. Above 1 the channel must amplify there."""
+    """Smallest channel gain ``|G_a|`` for which ``gains`` can reach ``target_ratios``.
+
+    ``|1 + P G_a C| >= 1 / ratio`` needs ``|G_a| >= (1 / ratio - 1) / (|P| |C|)``, with ``P``
+    the mode's correction-to-tip FRF and ``C`` the controller (see :func:`sensitivity_bound`).
+    Above 1 the channel must amplify there.
+
+    Parameters
+    ----------
+    speeds_hz
+        Excitation frequencies [Hz].
+    target_ratios
+        Closed/open amplitude ratios to reach, in (0, 1], broadcast with ``speeds_hz``.
+    mode
+        The plant mode (default §4.3.2's measured mode).
+    gains
+        State-feedback gains (w1, w2).
+    period_s
+        Command period [s].
+
+    Returns
+    -------
+    ndarray
+        The smallest channel gain magnitude at each speed.
+
+    Raises
+    ------
+    ValueError
+        A target ratio outside (0, 1].
+    """
     p, c = _thesis_loop(speeds_hz, mode, gains, period_s)
     ratio = np.asarray(target_ratios, float)
     if np.any(~np.isfinite(ratio) | (ratio <= 0) | (ratio > 1)):
@@ -581,6 +774,22 @@ def operating_mode(
     ``(k zeta)^2``: solved by least squares on the relative error (each row scaled by
     ``|H|^2``; exact for two speeds). §4.3.2's 0.93 / 0.36 mm give 1.105 MN/m and zeta 0.118
     at 8.5 Hz, against the hammer test's 0.775 MN/m and 0.179 (which give 0.93 / 0.50 mm).
+
+    Parameters
+    ----------
+    open_ptp_mm
+        Spindle speed [rpm] -> peak-to-peak open-loop amplitude [mm], two or more speeds.
+    natural_frequency_hz
+        Natural frequency held fixed [Hz].
+    mass_kg
+        Offset mass [kg].
+    radius_m
+        Its radius of rotation [m].
+
+    Returns
+    -------
+    ModalParameters
+        ``natural_frequency_hz``, the fitted stiffness [N/m] and damping ratio.
 
     Raises
     ------
@@ -749,6 +958,38 @@ def offset_mass_study(
     0.11 / 0.0065 and 0.06 / 0.005) as ``thesis-printed``, ``thesis-printed-start`` and
     ``thesis-printed-end``. ``keep_traces=True`` adds the X displacement record
     (``trace_x_m``, 1 kHz) to each row.
+
+    Parameters
+    ----------
+    robot
+        The virtual robot (the truth; the controllers see only ``model``).
+    model
+        The path model the controllers are designed from (:func:`path_modal_model`).
+    speeds_rpm
+        Spindle speeds of the offset mass [rev/min].
+    controllers
+        Controller names from :data:`CONTROLLERS` (``"no-feedback"`` is always run).
+    channel
+        Command channel between controller and robot.
+    thesis_gains
+        Also run the thesis' printed gains.
+    s_start, s_end
+        Path distances [m] where the move starts and ends.
+    speed_m_per_s
+        Path speed [m/s].
+    window_s
+        Length of the start and end windows in which the amplitude is read [s].
+    keep_traces
+        Keep the X displacement records.
+    rng
+        Seed of the sensor noise.
+
+    Returns
+    -------
+    list of dict
+        One row per speed and controller: ``speed_rpm``, ``controller``, ``start_mm`` and
+        ``end_mm`` (half peak-to-peak [mm], NaN when unstable), ``unstable`` (the error
+        message or None) and, with ``keep_traces``, ``trace_x_m``.
     """
     move = LinearMove("path", (s_start,), (s_end,))
     n = round(move.length_m / speed_m_per_s * 1000.0)
@@ -814,6 +1055,42 @@ def milling_study(
     One row per cut, position and controller with ``x_rms_mm``, ``z_rms_mm``, the open-loop
     values and the reductions [%] (NaN and ``unstable`` set when the loop went unstable).
     The RMS is taken after the first fifth of the cut (start-up transient).
+
+    Parameters
+    ----------
+    robot
+        The virtual robot (the truth; the controllers see only ``model``).
+    model
+        The path model with directions x and z (:func:`path_modal_model`).
+    conditions
+        (spindle rpm, feed per tooth [m], axial depth [m]) per cut.
+    positions
+        (name, path distance [m] of the cut's middle) pairs.
+    controllers
+        Controller names from :data:`CONTROLLERS` (open loop is always run).
+    channel
+        Nominal command channel (the disturbances may change the true one).
+    tool
+        The milling tool (default :class:`robovib.milling.MillingTool`).
+    coefficients
+        Cutting-force coefficients (default acetal).
+    radial_depth_m
+        Radial depth of cut [m].
+    cut_length_m
+        Length of each cut along the path [m].
+    background_noise_rel
+        Std of white noise added to each force component, relative to its std.
+    disturbances
+        Disturbances of a real cut (default none).
+    keep_traces
+        Keep the X and Z displacement records (``trace_m``, (n, 2) [m]).
+    rng
+        Seed of the force noise and the sensor noise.
+
+    Returns
+    -------
+    list of dict
+        One row per cut, position and controller (see above).
     """
     tool = tool or MillingTool()
     dist = disturbances or CutDisturbances()
@@ -865,8 +1142,23 @@ def milling_study(
 def plot_offset_mass(rows: list[dict], speed_rpm: float | None = None, ax=None):
     """Vibration envelope (moving max of |x| over 0.25 s) [mm] vs time per controller.
 
-    ``rows`` from :func:`offset_mass_study` with ``keep_traces=True``; one speed (default:
-    the first). Returns the matplotlib Figure.
+    Parameters
+    ----------
+    rows
+        From :func:`offset_mass_study` with ``keep_traces=True``.
+    speed_rpm
+        The speed drawn [rev/min] (default the first traced row's).
+    ax
+        Axes to draw into; a new figure when None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        No traces in the rows.
     """
     import matplotlib.pyplot as plt
     from scipy.ndimage import maximum_filter1d
@@ -896,8 +1188,25 @@ def plot_offset_mass(rows: list[dict], speed_rpm: float | None = None, ax=None):
 def plot_milling(rows: list[dict], direction: str = "x", ax=None):
     """RMS vibration [mm] per cut for each controller, both positions (Table 10 analogue).
 
-    ``rows`` from :func:`milling_study`. Open loop drawn as black ticks; unstable runs as
-    missing bars. Returns the matplotlib Figure.
+    Open loop drawn as black ticks; unstable runs as missing bars.
+
+    Parameters
+    ----------
+    rows
+        From :func:`milling_study`.
+    direction
+        ``"x"`` or ``"z"``.
+    ax
+        Axes to draw into; a new figure when None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        Unknown direction or no rows.
     """
     import matplotlib.pyplot as plt
 
@@ -942,14 +1251,32 @@ ACTUATORS = {"pure-delay": PURE_DELAY}
 
 @dataclass(frozen=True)
 class ControlSimulation:
-    """Result of :func:`simulate_control`: rows (one per run) and the settings used."""
+    """Result of :func:`simulate_control`: rows (one per run) and the settings used.
 
-    experiment: str  #: "offset-mass" (Table 7 analogue) or "milling" (Table 10 analogue)
-    rows: tuple  #: dicts; traces (``trace_x_m`` / ``trace_m``) only with ``keep_traces``
+    Attributes
+    ----------
+    experiment
+        ``"offset-mass"`` (Table 7 analogue) or ``"milling"`` (Table 10 analogue).
+    rows
+        Tuple of dicts, one per run (see :func:`offset_mass_study`, :func:`milling_study`);
+        traces (``trace_x_m`` / ``trace_m``) only with ``keep_traces``.
+    settings
+        Controllers, actuator and channel, command period [s], sample rate [Hz], seed,
+        speeds [rpm] and active disturbances.
+    """
+
+    experiment: str
+    rows: tuple
     settings: dict
 
     def to_frame(self):
-        """pandas DataFrame of the rows without the traces."""
+        """The rows as a table, without the traces.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per run, the columns of the result rows.
+        """
         import pandas as pd
 
         return pd.DataFrame(
@@ -957,7 +1284,13 @@ class ControlSimulation:
         )
 
     def to_dict(self) -> dict:
-        """JSON-ready dict: settings, rows (no traces) and the units of every column."""
+        """JSON-ready dict: settings, rows (no traces) and the units of every column.
+
+        Returns
+        -------
+        dict
+            ``experiment``, ``settings``, ``rows`` (NaN as None) and ``units``.
+        """
         rows = self.to_frame().replace({np.nan: None}).to_dict(orient="records")
         units = {"speed_rpm": "rev/min", "start_mm": "mm (half peak-to-peak)",
                  "end_mm": "mm (half peak-to-peak)", "feed_mm": "mm per tooth",
@@ -973,7 +1306,19 @@ class ControlSimulation:
         }
 
     def plot(self, direction: str = "x", ax=None):
-        """:func:`plot_offset_mass` (needs traces) or :func:`plot_milling` of the rows."""
+        """:func:`plot_offset_mass` (needs traces) or :func:`plot_milling` of the rows.
+
+        Parameters
+        ----------
+        direction
+            Milling only: ``"x"`` or ``"z"``.
+        ax
+            Axes to draw into; a new figure when None.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
         if self.experiment == "offset-mass":
             return plot_offset_mass(list(self.rows), ax=ax)
         return plot_milling(list(self.rows), direction, ax=ax)
@@ -1010,6 +1355,11 @@ def simulate_control(
         Keep the displacement records (for :meth:`ControlSimulation.plot`).
     rng
         Seed of the virtual EMA and the sensor noise.
+
+    Returns
+    -------
+    ControlSimulation
+        The result rows and the settings used.
 
     Raises
     ------
