@@ -186,7 +186,7 @@ def test_plot_next_poses(campaign, tmp_path):
     cand = pd.DataFrame({"x_mm": [2200.0, 2300, 2400, 2500], "y_mm": [0.0, 100, -200, 500],
                          "rz_deg": [10.0, 90, 170, 45]})  # fmt: skip
     nx = next_poses(fit.model, cand, k=2)
-    fig = plot_next_poses(nx, fit.model, cand)
+    fig = plot_next_poses(nx)
     fig.savefig(tmp_path / "next.png")
     assert (tmp_path / "next.png").stat().st_size > 5000
 

@@ -168,11 +168,18 @@ def test_control_figures():
 
 
 def test_next_poses_figure():
-    from robovib.studies.hybrid import NextPoses, plot_next_poses
+    from robovib.campaign import NextPoses, plot_next_poses
 
-    cand = np.linspace(0, 1.235, 50)
-    res = NextPoses(np.array([0.0, 1.235]), np.array([0.6]), cand, (cand * (1.235 - cand)) ** 2)
-    assert_labelled(plot_next_poses(res))
+    cand = np.linspace(0, 1.235, 50)[:, None]
+    var = ((cand * (1.235 - cand)) ** 2)[:, 0]
+    tested = np.array([[0.0], [1.235]])
+    res = NextPoses(cand[[24]], np.array([24]), np.array([1.0]), var.sum(), cand, var, tested,
+                    ("s_m",))  # fmt: skip
+    assert_labelled(plot_next_poses(res))  # one input: variance along the path
+    pose = np.column_stack([cand[:, 0], cand[::-1, 0]])
+    res = NextPoses(pose[[24]], np.array([24]), np.array([1.0]), var.sum(), pose, var,
+                    pose[[0, -1]], ("x_m", "y_m"))  # fmt: skip
+    assert_labelled(plot_next_poses(res))  # two inputs: candidates coloured by the variance
 
 
 def test_stabilization_diagram_figure(sdof):

@@ -69,7 +69,7 @@ def test_updating_modes_and_next_poses():
     model = FRFPoseModel(f, rng=0).fit(
         np.array([0.0, 0.1, 1.2]), _family(np.array([0.0, 0.1, 1.2]), f)
     )
-    picks = model.next_poses(np.linspace(0, 1.2, 25), k=2)
+    picks = model.next_poses(np.linspace(0, 1.2, 25), k=2).poses
     assert 0.3 < picks[0, 0] < 1.0  # the big gap between 0.1 and 1.2 first
     assert abs(picks[1, 0] - picks[0, 0]) > 0.1  # then somewhere else
 

@@ -1,7 +1,17 @@
 """Where to hammer next: greedy integrated-variance reduction over candidate poses.
 
-:func:`next_poses` (see :mod:`robovib.campaign.model`) needs only the GP posteriors, so it runs
-on a saved model read without scikit-learn (:class:`robovib.gp.predictor.PosePredictor`).
+:func:`next_poses` needs only the GP posteriors, so it runs on a saved model read without
+scikit-learn (:class:`robovib.gp.predictor.PosePredictor`). It is the one next-poses algorithm
+of the package: :class:`robovib.gp.PoseModalModel` (modal outputs), its predictor and
+:class:`robovib.hybrid.FRFPoseModel` (FRF bins) all go through it, and
+:func:`robovib.campaign.plot_next_poses` draws its :class:`NextPoses`.
+
+What it needs from a model (a small protocol): ``input_names`` and either ``gp_posteriors()``
+(a list of ``(GPPosterior, noise_std, signal_std, columns, mode)``, as
+:meth:`robovib.gp.predictor.PosePredictor.gp_posteriors` and
+:meth:`robovib.hybrid.FRFPoseModel.gp_posteriors`) or the fitted regressors of a
+:class:`~robovib.gp.PoseModalModel` (``estimators_``, ``estimator_columns_``); optionally a
+``calibration_`` with per-output band scales.
 """
 
 from __future__ import annotations
@@ -32,12 +42,25 @@ class NextPoses:
         (k,) integrated normalised variance removed by each pick.
     total_variance_before
         Integrated normalised variance over the candidates before any pick.
+    candidates
+        (m, n_inputs) the candidate set, in the model's input units.
+    candidate_variance
+        (m,) normalised latent variance at each candidate before any pick, summed over the
+        model's outputs (what ``total_variance_before`` sums).
+    training_poses
+        (n, n_inputs) the poses the model was trained on.
+    input_names
+        The model's input names (units in the names).
     """
 
     poses: np.ndarray
     indices: np.ndarray
     variance_reduction: np.ndarray
     total_variance_before: float
+    candidates: np.ndarray
+    candidate_variance: np.ndarray
+    training_poses: np.ndarray
+    input_names: tuple[str, ...]
 
 
 def _gps_of(model) -> list[tuple[BatchedGPRegressor, np.ndarray]]:
@@ -96,6 +119,15 @@ def _covariances(model, Xc: np.ndarray) -> list:
     return [(_posterior_cov(gp, Xc), c**2) for gp, c in _gps_of(model)]
 
 
+def _training_poses(model) -> np.ndarray:
+    """(n, n_inputs) training poses: ``X_train_``, or the first GP posterior's inputs."""
+    X = getattr(model, "X_train_", None)
+    if X is None:
+        post = model.gp_posteriors()[0][0]
+        X = post.x_s * post.x_scale + post.x_loc
+    return np.asarray(X, float)
+
+
 def next_poses(model, candidates, k: int = 5) -> NextPoses:
     """The ``k`` candidate poses whose measurement most reduces the integrated variance.
 
@@ -104,15 +136,21 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
     model
         A fitted :class:`robovib.gp.PoseModalModel` or its read-only
         :class:`~robovib.gp.predictor.PosePredictor` (all its GPs count, the per-mode GPs of a
-        switching direction included).
+        switching direction included), or a fitted :class:`robovib.hybrid.FRFPoseModel` (one
+        GP per bin and Re/Im; the EMA noise group counts, as the next poses are hammer tests);
+        see the module docs for what a model must provide.
     candidates
-        (m, n_inputs) array, or a DataFrame / CSV path with the model's input columns.
+        (m, n_inputs) array ((m,) for a model with one input), or a DataFrame / CSV path with
+        the model's input columns.
     k
         Poses to choose (1 <= k <= m).
 
     Returns
     -------
     NextPoses
+        The picks (greedy: each maximises the summed reduction of the latent variance over
+        all candidates, thesis Eq. 10 conditioned on the earlier picks), normalised per output
+        by its prior variance and scaled by the calibration factor squared.
 
     Raises
     ------
@@ -138,7 +176,8 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
         if missing:
             raise ValueError(f"candidates lack the model's input column(s) {', '.join(missing)}")
         candidates = candidates[list(names)].to_numpy(float)
-    C = np.atleast_2d(np.asarray(candidates, float))
+    C = np.asarray(candidates, float)
+    C = C[:, None] if C.ndim == 1 and len(names) == 1 else np.atleast_2d(C)
     if C.ndim != 2 or C.shape[1] != len(names):
         raise ValueError(f"candidates must be (m, {len(names)}) = {names}, got {C.shape}")
     if not np.all(np.isfinite(C)):
@@ -150,7 +189,8 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
     parts = _covariances(model, C)
     cov = np.concatenate([c2[:, None, None] * c / p[:, None, None] for (c, _, p), c2 in parts])
     noise = np.concatenate([c2 * n / p for (_, n, p), c2 in parts])
-    before = float(np.sum(np.trace(cov, axis1=1, axis2=2)))
+    variance = np.sum(np.diagonal(cov, axis1=1, axis2=2), axis=0)  # (m,)
+    before = float(np.sum(variance))
     chosen, gains = [], []
     for _ in range(int(k)):
         diag = np.diagonal(cov, axis1=1, axis2=2)  # (B, m)
@@ -162,4 +202,6 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
         col = cov[:, :, c]  # (B, m)
         cov = cov - col[:, :, None] * col[:, None, :] / (diag[:, c] + noise)[:, None, None]
     idx = np.array(chosen)
-    return NextPoses(C[idx], idx, np.array(gains), before)
+    return NextPoses(
+        C[idx], idx, np.array(gains), before, C, variance, _training_poses(model), names
+    )

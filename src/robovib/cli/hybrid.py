@@ -283,17 +283,18 @@ def next_poses(
     json_out: JsonFlag = False,
 ) -> None:
     """Where to hammer next along the chapter-4 path: largest integrated predictive variance."""
-    from ..studies.hybrid import plot_next_poses, propose_next_poses
+    from ..campaign.plot import plot_next_poses
+    from ..studies.hybrid import propose_next_poses
 
     check_output(plot)
     tested = path_s if path_s else [0.0, 0.585, 1.235]
     res = propose_next_poses(tested, k=k, direction=direction, rng=seed)
+    next_s_m = res.poses[:, 0]
     if json_out:
-        emit_json({"tested_s_m": res.tested_s_m, "next_s_m": res.next_s_m})
+        emit_json({"tested_s_m": [float(s) for s in tested], "next_s_m": next_s_m})
     else:
         typer.echo(
-            "next hammer-test poses (path distance, m): "
-            + ", ".join(f"{p:.3f}" for p in res.next_s_m)
+            "next hammer-test poses (path distance, m): " + ", ".join(f"{p:.3f}" for p in next_s_m)
         )
     if plot is not None:
         use_agg()

@@ -129,7 +129,7 @@ def next_poses_cmd(
         from ..campaign import plot_next_poses
 
         use_agg()
-        save_figure(plot_next_poses(res, m, cand), plot)
+        save_figure(plot_next_poses(res), plot)
     if json_out:
         emit_json({"model": str(model), "candidates": str(candidates), "k": k, "next_poses": rows,
                    "total_normalised_variance_before": res.total_variance_before})  # fmt: skip

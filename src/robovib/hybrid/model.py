@@ -68,6 +68,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
+from ..campaign.selection import NextPoses, next_poses
 from ..gp.regressor import BatchedGPRegressor, GPHyperparameters
 
 __all__ = ["FRFPoseModel", "UpdateReport", "frequency_grid"]
@@ -986,11 +987,38 @@ class FRFPoseModel(BaseEstimator):
         _, std = self.gp_.predict(self._poses(poses), return_std=True)
         return np.sum(std**2, axis=1)
 
-    def next_poses(self, candidates, k: int = 3) -> np.ndarray:
-        """Greedy choice of the next ``k`` hammer-test poses by integrated predictive variance.
+    @property
+    def X_train_(self) -> np.ndarray:
+        """(n, n_inputs) training poses (EMA and OMA rows) in the units of ``input_names``."""
+        return self.gp_.X_train_
 
-        After each pick the model is conditioned on a pseudo-observation there (the variance
-        of a GP does not depend on the observed value), so the next pick goes elsewhere.
+    def gp_posteriors(self) -> list[tuple]:
+        """The model's GP for :func:`robovib.campaign.next_poses` (its model protocol).
+
+        Returns
+        -------
+        list of tuple
+            One ``(posterior, noise_std, signal_std, columns, mode)``: the
+            :class:`~robovib.gp.posterior.GPPosterior` of the 2 n_f GPs (Re, then Im, of each
+            bin), the EMA (group 0) noise std and the signal std (2 n_f,) [um/N], the output
+            columns ``0 .. 2 n_f - 1`` and mode 0.
+        """
+        from ..gp.predictive import noise_std_of
+
+        self._require_fitted()
+        hp = self.gp_.hyperparameters_
+        n_out = 2 * self.frequency_hz_.size
+        signal = np.broadcast_to(np.asarray(hp.signal_std, float), (n_out,))
+        return [(self.gp_.posterior_, noise_std_of(hp), signal, np.arange(n_out), 0)]
+
+    def next_poses(self, candidates, k: int = 3) -> NextPoses:
+        """The next ``k`` hammer-test poses: :func:`robovib.campaign.next_poses` on this model.
+
+        Greedy integrated-variance reduction (the package's one next-poses algorithm): each
+        pick maximises the reduction of the latent variance (thesis Eq. 10) summed over all
+        candidates, bins and Re/Im (each GP normalised by its prior variance), the earlier
+        picks conditioned on as EMA measurements (a GP's variance does not depend on the
+        observed value).
 
         Parameters
         ----------
@@ -1001,26 +1029,17 @@ class FRFPoseModel(BaseEstimator):
 
         Returns
         -------
-        ndarray (k, n_inputs)
-            The chosen candidates, in pick order.
+        NextPoses
+            The chosen poses (``poses``, (k, n_inputs), in pick order) with the candidates'
+            variance for :func:`robovib.campaign.plot_next_poses`.
+
+        Raises
+        ------
+        NotFittedError, ValueError
+            Unfitted model, bad candidates or ``k``.
         """
         self._require_fitted()
-        cand = self._poses(candidates)
-        if k < 1 or k > len(cand):
-            raise ValueError(f"k must be in [1, {len(cand)}]")
-        import copy
-
-        gp = copy.deepcopy(self.gp_)
-        chosen = []
-        for _ in range(k):
-            _, std = gp.predict(cand, return_std=True)
-            score = np.sum(std**2, axis=1)
-            score[chosen] = -np.inf
-            i = int(np.argmax(score))
-            chosen.append(i)
-            mean = gp.predict(cand[i : i + 1])
-            _gp_add(gp, cand[i : i + 1], mean, None, np.zeros(1, int), reoptimize=False)
-        return cand[chosen]
+        return next_poses(self, self._poses(candidates), k)
 
     # ------------------------------------------------------------------ persistence (no pickle)
     def save(self, path, *, provenance: dict | None = None, inputs=(), force: bool = False) -> None:

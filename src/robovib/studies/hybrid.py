@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..campaign.plot import plot_next_poses
+from ..campaign.selection import NextPoses
 from ..frf.impact import impact_frf
 from ..hybrid.model import FRFPoseModel
 from ..hybrid.oma import oma_frfs
@@ -558,37 +560,13 @@ def oma_settings_study(
     return OMASettingsResult(tuple(rows))
 
 
-@dataclass(frozen=True)
-class NextPoses:
-    """Proposed hammer-test path coordinates from a virtual EMA at the tested ones.
-
-    Attributes
-    ----------
-    tested_s_m
-        (n,) tested path coordinates [m].
-    next_s_m
-        (k,) proposed ones [m].
-    candidates_s_m
-        (m,) fine grid along the path [m].
-    integrated_variance
-        (m,) integrated predictive variance of the model before the picks [(µm/N)^2].
-    """
-
-    tested_s_m: np.ndarray  #: (n,) [m]
-    next_s_m: np.ndarray  #: (k,) [m]
-    candidates_s_m: np.ndarray  #: (m,) [m] fine grid along the path
-    integrated_variance: np.ndarray  #: (m,) [(um/N)^2] of the model before the picks
-
-    def to_dict(self) -> dict:
-        return {"tested_s_m": self.tested_s_m.tolist(), "next_s_m": self.next_s_m.tolist()}
-
-
 def propose_next_poses(tested_s_m, k: int = 3, direction: str = "x", rng=0) -> NextPoses:
-    """Where to hammer next along the chapter-4 path: largest integrated predictive variance.
+    """Where to hammer next along the chapter-4 path: largest integrated variance reduction.
 
     Virtual EMA FRFs (2-40 Hz, 1 Hz grid) at ``tested_s_m`` [m] train an
     :class:`~robovib.hybrid.FRFPoseModel`; :meth:`~robovib.hybrid.FRFPoseModel.next_poses`
-    picks ``k`` of 50 candidates.
+    (:func:`robovib.campaign.next_poses`) picks ``k`` of 50 candidates along the path. Draw
+    the result with :func:`robovib.campaign.plot_next_poses`.
 
     Parameters
     ----------
@@ -604,7 +582,8 @@ def propose_next_poses(tested_s_m, k: int = 3, direction: str = "x", rng=0) -> N
     Returns
     -------
     NextPoses
-        Tested, proposed and candidate coordinates with the variance.
+        The proposed coordinates (``poses[:, 0]`` [m]), the candidates with their variance
+        and the tested coordinates (``training_poses[:, 0]``).
 
     Raises
     ------
@@ -617,42 +596,7 @@ def propose_next_poses(tested_s_m, k: int = 3, direction: str = "x", rng=0) -> N
     gen = np.random.default_rng(rng)
     frfs = np.array([ema_frf_on_grid(robot, s, direction, grid, gen) for s in tested])
     model = FRFPoseModel(grid, rng=rng).fit(tested, frfs)
-    picks = model.next_poses(np.linspace(0, PATH_LENGTH_M, 50), k=k)[:, 0]
-    cand = np.linspace(0, PATH_LENGTH_M, 200)
-    return NextPoses(tested, picks, cand, model.integrated_variance(cand))
-
-
-def plot_next_poses(result: NextPoses, ax=None):
-    """Integrated predictive variance along the path with tested and proposed poses.
-
-    Parameters
-    ----------
-    result : NextPoses
-        The proposal.
-    ax : matplotlib.axes.Axes, optional
-        Axes to draw on (default: a new figure).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
-    import matplotlib.pyplot as plt
-
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(7, 3.5))
-    else:
-        fig = ax.figure
-    ax.plot(result.candidates_s_m, result.integrated_variance, color="C0",
-            label="integrated predictive variance")  # fmt: skip
-    for i, s_t in enumerate(result.tested_s_m):
-        ax.axvline(s_t, color="k", lw=1, label="tested" if i == 0 else None)
-    for i, s_p in enumerate(result.next_s_m):
-        ax.axvline(s_p, color="C3", ls="--", lw=1, label="proposed" if i == 0 else None)
-    ax.set_xlabel("distance along the path s [m]")
-    ax.set_ylabel("sum over bins of var [(um/N)^2]")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
+    return model.next_poses(np.linspace(0, PATH_LENGTH_M, 50), k=k)
 
 
 @dataclass(frozen=True)
