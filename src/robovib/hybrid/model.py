@@ -70,6 +70,7 @@ from sklearn.exceptions import NotFittedError
 
 from ..campaign.selection import NextPoses, next_poses
 from ..gp.regressor import BatchedGPRegressor, GPHyperparameters
+from .frfs import frfs_on_grid
 
 __all__ = ["FRFPoseModel", "UpdateReport", "frequency_grid"]
 
@@ -362,8 +363,6 @@ class FRFPoseModel(BaseEstimator):
         ValueError
             Mixed directions, model-source FRFs, or see :func:`robovib.hybrid.frfs_on_grid`.
         """
-        from .workflow import frfs_on_grid
-
         frfs = list(frfs)
         direction = _common_direction(frfs, None, "fit")
         groups = _groups_of(frfs)
@@ -409,8 +408,6 @@ class FRFPoseModel(BaseEstimator):
         ValueError
             Direction or source mismatch, or see :func:`robovib.hybrid.frfs_on_grid`.
         """
-        from .workflow import frfs_on_grid
-
         self._require_fitted()
         frfs = list(frfs)
         if expect_source is not None:

@@ -9,8 +9,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..frf.core import FRF
-from .model import FRFPoseModel
-from .oma import h1_random_error, oma_frfs
+from .frfs import INPUT_SETS, frf_pose, frfs_on_grid, frfs_on_path_grid
+from .model import FRFPoseModel, frequency_grid
+from .oma import oma_frfs
 
 __all__ = [
     "INPUT_SETS",
@@ -24,10 +25,6 @@ __all__ = [
     "plot_frf_prediction",
     "predict_frf_at",
 ]
-
-
-#: Pose inputs the file workflow understands: the path coordinate or the workspace pose.
-INPUT_SETS = {"path": ("s_m",), "workspace": ("x_m", "y_m", "rz_deg")}
 
 
 def fit_frf_model(
@@ -61,8 +58,6 @@ def fit_frf_model(
     ValueError
         Unknown ``inputs``, no FRFs, or FRFs the model refuses (mixed directions, missing poses).
     """
-    from .model import frequency_grid
-
     if inputs not in INPUT_SETS:
         raise ValueError(f"inputs must be one of {list(INPUT_SETS)}, got {inputs!r}")
     if not frfs:
@@ -72,140 +67,6 @@ def fit_frf_model(
     grid = frequency_grid(f_min_hz, f_max_hz, df_hz)
     kernel = "isotropic" if inputs == "path" else "ard"
     return FRFPoseModel(grid, kernel=kernel, input_names=INPUT_SETS[inputs]).fit_frfs(frfs)
-
-
-def frf_pose(frf: FRF, input_names=("s_m",)) -> tuple[float, ...]:
-    """The pose of an FRF in the units of ``input_names``.
-
-    ``("s_m",)``: ``meta["path_s_m"]``; ``("x_m", "y_m", "rz_deg")``: ``frf.pose`` =
-    (x [m], y [m], z [m], rx, ry, rz [deg]) as written by ``frf compute`` / ``hybrid oma``.
-
-    Parameters
-    ----------
-    frf
-        An FRF carrying its pose (``meta["path_s_m"]`` or ``pose``).
-    input_names
-        The model's pose inputs: ``("s_m",)`` or ``("x_m", "y_m", "rz_deg")``.
-
-    Returns
-    -------
-    tuple of float
-        The pose, one value per input name, in the units of the names ([m], [deg]).
-
-    Raises
-    ------
-    ValueError
-        The FRF carries no such pose, or unknown input names.
-    """
-    names = tuple(input_names)
-    if names == INPUT_SETS["path"]:
-        if "path_s_m" not in frf.meta:
-            raise ValueError(
-                "FRF has no path coordinate (write it with --path-s / from `hybrid oma`)"
-            )
-        return (float(frf.meta["path_s_m"]),)
-    if names == INPUT_SETS["workspace"]:
-        if (
-            frf.pose is None
-            or len(frf.pose) != 6
-            or not np.all(np.isfinite(np.take(frf.pose, [0, 1, 5])))
-        ):
-            raise ValueError("FRF has no workspace pose (x, y, rz): record it at a workspace pose")
-        return (float(frf.pose[0]), float(frf.pose[1]), float(frf.pose[5]))
-    raise ValueError(f"unknown pose inputs {names}; expected one of {list(INPUT_SETS.values())}")
-
-
-def frfs_on_grid(
-    frfs: Sequence[FRF], grid_hz, input_names=("s_m",), partial: bool = False
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Complex compliances on ``grid_hz`` with their poses, bin masks and random errors.
-
-    Parameters
-    ----------
-    frfs
-        Compliance FRFs carrying their pose (see :func:`frf_pose`) and optionally
-        ``meta["flagged"]`` (bool per bin, as written by ``hybrid oma``).
-    grid_hz
-        (n_f,) model grid [Hz].
-    input_names
-        The model's pose inputs.
-    partial
-        True: grid bins outside an FRF's range are masked (missing), not an error.
-
-    Returns
-    -------
-    values
-        (n, n_f) complex compliance [m/N].
-    poses
-        (n, n_inputs) in the units of ``input_names``.
-    mask
-        (n, n_f) bool, True where a bin is observed and not flagged.
-    random_error
-        (n, n_f) H1 random error std [m/N] from the coherence (0 where none is stored).
-
-    Raises
-    ------
-    ValueError
-        An FRF without that pose, not a compliance, or (``partial=False``) not covering the grid.
-    """
-    grid = np.asarray(grid_hz, float)
-    vals, poses, masks, errs = [], [], [], []
-    for i, f in enumerate(frfs):
-        try:
-            poses.append(frf_pose(f, input_names))
-        except ValueError as exc:
-            raise ValueError(f"FRF {i}: {exc}") from None
-        if f.quantity != "compliance":
-            raise ValueError(f"FRF {i} is {f.quantity}, expected compliance")
-        try:
-            on_grid = f.interpolate(grid, outside="hold" if partial else "raise")
-        except ValueError as exc:
-            raise ValueError(f"FRF {i}: {exc} (the model grid)") from None
-        outside = (grid < f.frequency_hz[0] - 1e-3) | (grid > f.frequency_hz[-1] + 1e-3)
-        flagged = np.asarray(f.meta.get("flagged", np.zeros(f.frequency_hz.size, bool)), bool)
-        nearest = np.clip(np.searchsorted(f.frequency_hz, grid), 0, f.frequency_hz.size - 1)
-        vals.append(on_grid.values)
-        masks.append(~flagged[nearest] & ~outside)
-        if f.coherence is not None:
-            err = h1_random_error(f.values, f.coherence, f.n_averages)
-            errs.append(np.interp(grid, f.frequency_hz, err))
-        else:
-            errs.append(np.zeros(grid.size))
-    return np.array(vals), np.array(poses, float), np.array(masks), np.array(errs)
-
-
-def frfs_on_path_grid(
-    frfs: Sequence[FRF], grid_hz, partial: bool = False
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Complex compliances on ``grid_hz``, their path coordinates and bin masks.
-
-    The path-coordinate case of :func:`frfs_on_grid` (without the random errors).
-
-    Parameters
-    ----------
-    frfs
-        Compliance FRFs carrying ``meta["path_s_m"]`` and optionally ``meta["flagged"]``.
-    grid_hz
-        (n_f,) model grid [Hz].
-    partial
-        True: grid bins outside an FRF's range are masked (missing), not an error.
-
-    Returns
-    -------
-    values
-        (n, n_f) complex compliance [m/N].
-    s_m
-        (n,) path coordinates [m].
-    mask
-        (n, n_f) bool, True where a bin is observed and not flagged.
-
-    Raises
-    ------
-    ValueError
-        As :func:`frfs_on_grid`.
-    """
-    h, p, m, _ = frfs_on_grid(frfs, grid_hz, ("s_m",), partial)
-    return h, p[:, 0], m
 
 
 def oma_frfs_with_path(record: dict, **kwargs) -> list[FRF]:
