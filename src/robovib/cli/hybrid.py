@@ -224,21 +224,14 @@ def predict(
     json_out: JsonFlag = False,
 ) -> None:
     """Predicted compliance FRF at a path coordinate or a workspace pose, with a band."""
+    from ..gp.pose_units import pose_in_units
     from ..hybrid import FRFPoseModel, plot_frf_prediction, predict_frf_at
     from ..io import read_frfs
 
     check_output(plot, [model_file, measured])
     model = FRFPoseModel.load(model_file)
-    if tuple(model.input_names) == ("s_m",):
-        if path_s is None:
-            raise ValueError("this model is over the path coordinate: give --path-s [m]")
-        pose = path_s
-    else:
-        if None in (x_mm, y_mm, rz_deg):
-            raise ValueError(
-                f"this model's inputs are {tuple(model.input_names)}: give --x [mm] --y [mm] --rz [deg]"
-            )
-        pose = (x_mm / 1e3, y_mm / 1e3, rz_deg)
+    given = {"s_m": path_s, "x_mm": x_mm, "y_mm": y_mm, "rz_deg": rz_deg}
+    pose = pose_in_units(model.input_names, given)  # the model's units, from the options'
     meas = read_frfs(measured)[0] if measured is not None else None
     pred = predict_frf_at(model, pose, meas)
     doc = pred.to_dict()
