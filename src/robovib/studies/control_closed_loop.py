@@ -24,6 +24,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control.adaptive import FadeGuard, PeriodTracker, TrackingFeedforward, TrackingRepetitive
+from ..control.channel import (
+    THESIS_OFFSET_MASS_GAINS,
+    THESIS_OFFSET_MASS_MODE,
+    operating_mode,
+    required_channel_gain,
+    sensitivity_bound,
+)
 from ..control.controllers import (
     Combined,
     DelayAwareFeedback,
@@ -38,6 +45,8 @@ from ..control.controllers import (
     spectral_radius,
 )
 from ..control.lqr import design_delay_aware_lqr
+from ..control.pose_plants import SECOND_MODE_HYPOTHESES, path_band, path_mode
+from ..control.pose_plants import plant_set as _model_set
 from ..control.schedule import GainSchedule, schedule_gains
 from ..frf.impact import impact_frf
 from ..gp import PoseModalModel
@@ -110,10 +119,6 @@ CONTROLLERS = (
 #: The controller recommended for real cuts (period tracking, adaptive harmonics, guard).
 DEFAULT_CONTROLLER = "adaptive"
 
-#: §4.3.2: the Y-direction mode measured at the offset-mass pose (8.5 Hz, 0.775 MN/m, 0.179).
-THESIS_OFFSET_MASS_MODE = ModalParameters(8.5, 0.775e6, 0.179)
-#: §4.3.2 gains (w1, w2) the thesis computed for that mode.
-THESIS_OFFSET_MASS_GAINS = (0.079, 0.0059)
 
 # The §4.3.2 calibration target is withdrawn (issue 25). The thesis reports the offset mass
 # at 8.5 Hz going from 0.93 to 0.39 mm with the gains 0.079 / 0.0059 (closed/open 0.42 at 480
@@ -183,65 +188,6 @@ def path_modal_model(
     return model.fit(s[:, None], np.hstack(cols))
 
 
-def path_mode(model: PoseModalModel, s_m: float, direction: str) -> ModalParameters:
-    """Mean dominant mode of ``direction`` at path distance ``s_m`` [m].
-
-    Parameters
-    ----------
-    model
-        A path model from :func:`path_modal_model`.
-    s_m
-        Path distance [m].
-    direction
-        One of the model's directions.
-
-    Returns
-    -------
-    ModalParameters
-        The posterior-mean mode (thesis Eq. 9) at ``s_m``.
-    """
-    return model.modes(np.array([[float(s_m)]]))[0][direction].parameters
-
-
-def path_band(
-    model: PoseModalModel, s_m: float, direction: str, z_score: float = 1.96
-) -> list[ModalParameters]:
-    """The 8 corners of the GP band at ``s_m`` [m]: mean ± ``z_score`` std in fn, k and c.
-
-    Corners are clipped to fn >= 0.1 Hz, k >= 1 kN/m, c >= 0 and a damping ratio in
-    [0.001, 0.95].
-
-    Parameters
-    ----------
-    model
-        A path model from :func:`path_modal_model`.
-    s_m
-        Path distance [m].
-    direction
-        One of the model's directions.
-    z_score
-        Half-width of the band in predictive standard deviations (Eq. 10); 1.96: 95 %.
-
-    Returns
-    -------
-    list of ModalParameters
-        The 8 corner modes (every sign combination of fn, k and c).
-    """
-    pm = model.modes(np.array([[float(s_m)]]))[0][direction]
-    p = pm.parameters
-    out = []
-    for sf in (-1, 1):
-        for sk in (-1, 1):
-            for sc in (-1, 1):
-                fn = max(p.natural_frequency_hz + sf * z_score * pm.fn_std_hz, 0.1)
-                k = max(p.stiffness_n_per_m + sk * z_score * pm.stiffness_std_n_per_m, 1e3)
-                c = max(p.damping_ns_per_m + sc * z_score * pm.damping_std_ns_per_m, 0.0)
-                m = ModalParameters.from_fn_k_c(fn, k, c)
-                zeta = min(max(m.damping_ratio, 1e-3), 0.95)
-                out.append(ModalParameters(fn, k, zeta))
-    return out
-
-
 def virtual_path_modes(
     robot: VirtualRobot | None = None, direction: str = "x", n_points: int = 20, rng=0
 ) -> tuple[np.ndarray, list[ModalParameters]]:
@@ -281,26 +227,6 @@ def _schedule(model: PoseModalModel, direction: str, s_grid) -> GainSchedule:
     if key not in _DESIGN_CACHE:
         _DESIGN_CACHE[key] = schedule_gains(s_grid, list(modes))
     return _DESIGN_CACHE[key]
-
-
-#: Unmodelled-dynamics hypotheses of the robust design: a second mode at (fn ratio, k ratio,
-#: zeta) relative to the dominant one. The hammer-test FRFs along the path show a second,
-#: lighter-damped mode at 2-3 x the dominant frequency that the dominant-mode GP drops; a
-#: design checked only on the dominant mode goes unstable on it with 32 ms of delay.
-SECOND_MODE_HYPOTHESES = ((2.0, 5.0, 0.03), (2.0, 20.0, 0.03), (3.0, 5.0, 0.03), (3.0, 20.0, 0.03))
-
-
-def _model_set(model: PoseModalModel, s_m: float, direction: str, second_modes=True):
-    """Plants the robust design must hold on: nominal (first) + band corners (x second modes)."""
-    singles = [path_mode(model, s_m, direction), *path_band(model, s_m, direction)]
-    out = [[m] for m in singles]
-    if second_modes:
-        for m in singles:
-            for fr, kr, z in SECOND_MODE_HYPOTHESES:
-                out.append(
-                    [m, ModalParameters(fr * m.natural_frequency_hz, kr * m.stiffness_n_per_m, z)]
-                )
-    return out
 
 
 def _robust_r(plants, nominal: ModalParameters, period_s, delay_s, r_grid, velocity="difference"):
@@ -662,168 +588,6 @@ def fixed_pose_offset_mass(
         row["ratio"] = row["closed_ptp_mm"] / row["open_ptp_mm"]
         rows.append(row)
     return rows
-
-
-def _thesis_loop(speeds_hz, mode: ModalParameters, gains, period_s: float):
-    """``(P, C)`` at ``speeds_hz``: the mode's correction-to-tip FRF and the thesis controller
-    (w1 + w2 x backward difference over one command period, half a period of ZOH lag)."""
-    f = np.asarray(speeds_hz, float)
-    s = 2j * np.pi * f
-    wn, z = mode.omega_n, mode.damping_ratio
-    p = wn**2 / (s**2 + 2 * z * wn * s + wn**2)
-    c = (gains[0] + gains[1] * (1 - np.exp(-s * period_s)) / period_s) * np.exp(-s * period_s / 2)
-    return p, c
-
-
-def sensitivity_bound(
-    speeds_hz,
-    mode: ModalParameters = THESIS_OFFSET_MASS_MODE,
-    gains=THESIS_OFFSET_MASS_GAINS,
-    period_s: float = 0.004,
-    channel: CommandChannel | None = None,
-) -> np.ndarray:
-    """Closed/open amplitude ratio ``|S|`` of ``gains`` at ``speeds_hz``: a floor, or one channel's.
-
-    Without ``channel``: the smallest ratio any channel that does not amplify
-    (``|G_a| <= 1``: any delay, lag, rate limit or breakaway) allows,
-    ``|S| = 1 / |1 + P G_a C| >= 1 / (1 + |P| |C|)``, with ``P`` the mode's correction-to-tip
-    FRF and ``C`` the controller (w1 + w2 x backward difference, ZOH). With ``channel``: the
-    ratio through its linear part (:meth:`~robovib.sim.CommandChannel.frequency_response`),
-    a frequency-domain approximation of the sampled loop.
-
-    Parameters
-    ----------
-    speeds_hz
-        Excitation frequencies [Hz] (spindle speed / 60 for the offset mass).
-    mode
-        The plant mode (default §4.3.2's measured mode).
-    gains
-        State-feedback gains (w1, w2).
-    period_s
-        Command period [s].
-    channel
-        A command channel; None: the bound over every non-amplifying channel.
-
-    Returns
-    -------
-    ndarray
-        Closed/open amplitude ratio at each of ``speeds_hz``.
-    """
-    p, c = _thesis_loop(speeds_hz, mode, gains, period_s)
-    if channel is None:
-        return 1.0 / (1.0 + np.abs(p) * np.abs(c))
-    return 1.0 / np.abs(1.0 + p * c * channel.frequency_response(speeds_hz, period_s))
-
-
-def required_channel_gain(
-    speeds_hz,
-    target_ratios,
-    mode: ModalParameters = THESIS_OFFSET_MASS_MODE,
-    gains=THESIS_OFFSET_MASS_GAINS,
-    period_s: float = 0.004,
-) -> np.ndarray:
-    """Smallest channel gain ``|G_a|`` for which ``gains`` can reach ``target_ratios``.
-
-    ``|1 + P G_a C| >= 1 / ratio`` needs ``|G_a| >= (1 / ratio - 1) / (|P| |C|)``, with ``P``
-    the mode's correction-to-tip FRF and ``C`` the controller (see :func:`sensitivity_bound`).
-    Above 1 the channel must amplify there.
-
-    Parameters
-    ----------
-    speeds_hz
-        Excitation frequencies [Hz].
-    target_ratios
-        Closed/open amplitude ratios to reach, in (0, 1], broadcast with ``speeds_hz``.
-    mode
-        The plant mode (default §4.3.2's measured mode).
-    gains
-        State-feedback gains (w1, w2).
-    period_s
-        Command period [s].
-
-    Returns
-    -------
-    ndarray
-        The smallest channel gain magnitude at each speed.
-
-    Raises
-    ------
-    ValueError
-        A target ratio outside (0, 1].
-    """
-    p, c = _thesis_loop(speeds_hz, mode, gains, period_s)
-    ratio = np.asarray(target_ratios, float)
-    if np.any(~np.isfinite(ratio) | (ratio <= 0) | (ratio > 1)):
-        raise ValueError(f"target ratios must lie in (0, 1], got {ratio.tolist()}")
-    return (1.0 / ratio - 1.0) / (np.abs(p) * np.abs(c))
-
-
-def operating_mode(
-    open_ptp_mm: dict[float, float],
-    natural_frequency_hz: float = THESIS_OFFSET_MASS_MODE.natural_frequency_hz,
-    *,
-    mass_kg: float = 1.0,
-    radius_m: float = 0.0508,
-) -> ModalParameters:
-    """Single mode (stiffness, damping) that gives measured open-loop offset-mass amplitudes.
-
-    ``open_ptp_mm`` maps spindle speed [rpm] to the peak-to-peak open-loop vibration [mm]
-    (two or more speeds); ``natural_frequency_hz`` is held (the hammer test's). With the
-    force amplitude ``F = m_o L w^2`` (Eq. 27), ``ptp = 2 F |H|`` and
-    ``1 / |H|^2 = k^2 (1 - r^2)^2 + 4 r^2 (k zeta)^2`` is linear in ``k^2`` and
-    ``(k zeta)^2``: solved by least squares on the relative error (each row scaled by
-    ``|H|^2``; exact for two speeds). §4.3.2's 0.93 / 0.36 mm give 1.105 MN/m and zeta 0.118
-    at 8.5 Hz, against the hammer test's 0.775 MN/m and 0.179 (which give 0.93 / 0.50 mm).
-
-    Parameters
-    ----------
-    open_ptp_mm
-        Spindle speed [rpm] -> peak-to-peak open-loop amplitude [mm], two or more speeds.
-    natural_frequency_hz
-        Natural frequency held fixed [Hz].
-    mass_kg
-        Offset mass [kg].
-    radius_m
-        Its radius of rotation [m].
-
-    Returns
-    -------
-    ModalParameters
-        ``natural_frequency_hz``, the fitted stiffness [N/m] and damping ratio.
-
-    Raises
-    ------
-    ValueError
-        Fewer than two speeds, non-positive amplitudes, mass or radius, speeds that cannot
-        separate stiffness from damping, or amplitudes no single underdamped mode at
-        ``natural_frequency_hz`` can produce.
-    """
-    if len(open_ptp_mm) < 2:
-        raise ValueError("operating_mode needs open-loop amplitudes at two or more speeds")
-    rpm = np.array(list(open_ptp_mm), float)
-    ptp = np.array(list(open_ptp_mm.values()), float) * 1e-3
-    if not (np.all(np.isfinite(ptp)) and np.all(ptp > 0) and np.all(rpm > 0)):
-        raise ValueError("open-loop amplitudes [mm] and speeds [rpm] must be finite and > 0")
-    for name, v in (("mass_kg", mass_kg), ("radius_m", radius_m),
-                    ("natural_frequency_hz", natural_frequency_hz)):  # fmt: skip
-        if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-    w = 2 * np.pi * rpm / 60.0
-    h = ptp / (2 * mass_kg * radius_m * w**2)
-    r = w / (2 * np.pi * natural_frequency_hz)
-    design = np.column_stack([(1 - r**2) ** 2, 4 * r**2]) * (h**2)[:, None]
-    if np.linalg.matrix_rank(design, tol=1e-9 * np.abs(design).max()) < 2:
-        raise ValueError(
-            "these speeds cannot separate stiffness from damping (their frequency ratios "
-            f"to {natural_frequency_hz:g} Hz give the same equation); add another speed"
-        )
-    (k2, kz2), *_ = np.linalg.lstsq(design, np.ones_like(h), rcond=None)
-    if not (k2 > 0 and kz2 > 0) or not np.sqrt(kz2 / k2) < 1:
-        raise ValueError(
-            "no single underdamped mode at "
-            f"{natural_frequency_hz:g} Hz gives these open-loop amplitudes"
-        )
-    return ModalParameters(natural_frequency_hz, float(np.sqrt(k2)), float(np.sqrt(kz2 / k2)))
 
 
 def _settle_time_s(channel: CommandChannel, mode: ModalParameters) -> float:
