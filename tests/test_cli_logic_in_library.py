@@ -102,3 +102,35 @@ def test_cutting_setup_units_and_overrides():
     with pytest.raises(ValueError, match="'up' or 'down'"):
         cutting_setup(ALUMINIUM_7075, diameter_m=0.02, n_flutes=3, helix_deg=0,
                       radial_depth_m=0.01, milling="climb")  # fmt: skip
+
+
+def test_command_settings_units_from_help_and_input_files(tmp_path):
+    from pathlib import Path
+
+    from robovib.io.provenance import command_settings
+
+    src, out = tmp_path / "in.csv", tmp_path / "out.h5"
+    src.write_text("a\n1\n")
+    out.write_text("old")
+    doc = command_settings([
+        ("x_mm", 1200.0, "Tool-tip X [mm]."), ("k", 3, "Poses to choose."),
+        ("fast", True, "Skip checks."), ("speeds", (480.0, 960.0), "Spindle speeds [rpm]."),
+        ("table", src, "Modes table [Hz, N/m]."), ("output", out, "File to write."),
+        ("missing", Path(tmp_path / "nope.csv"), None),
+    ])  # fmt: skip
+    assert doc["units"] == {"x_mm": "mm", "k": "1", "speeds": "rpm"}  # no unit for files, bools
+    assert doc["settings"]["speeds"] == [480.0, 960.0] and doc["settings"]["table"] == str(src)
+    assert doc["inputs"] == [str(src)]  # the output and a missing file are not inputs
+
+
+def test_workspace_predictor_reads_the_shipped_model_and_checks_inputs():
+    from robovib.gp.chapter3_model import CHAPTER3_INPUTS, chapter3_model_path, workspace_predictor
+
+    model = workspace_predictor()
+    assert tuple(model.input_names) == CHAPTER3_INPUTS and type(model).__name__ == "PosePredictor"
+    same = workspace_predictor(chapter3_model_path())
+    np.testing.assert_array_equal(
+        same.predict([[2400.0, 0.0, 45.0]]), model.predict([[2400.0, 0.0, 45.0]])
+    )
+    with pytest.raises(ValueError, match="s_m"):
+        workspace_predictor(chapter3_model_path(), require_inputs=("s_m",))

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-import re
 import sys
 from pathlib import Path
 from typing import Annotated, Any
@@ -99,43 +97,21 @@ ComplianceRangeOpt = Annotated[
 
 def plausible_ranges(level_check: bool, compliance_range: tuple[float, float] | None):
     """The :class:`robovib.frf.PlausibleRanges` of ``--level-check`` and
-    ``--compliance-range`` (None: no level check)."""
+    ``--compliance-range`` (None: no level check); the class checks the range."""
     from ..frf import PlausibleRanges
 
     if not level_check:
         return None
     if compliance_range is None:
         return PlausibleRanges()
-    lo, hi = map(float, compliance_range)
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
-        raise ValueError(
-            f"--compliance-range must be LOW HIGH with 0 <= LOW < HIGH [m/N], got {lo:g} {hi:g}"
-        )
-    return PlausibleRanges(peak_compliance_m_per_n=(lo, hi))
+    return PlausibleRanges(peak_compliance_m_per_n=tuple(map(float, compliance_range)))
 
 
 def workspace_model(path: Path | None, seed: int = 0, require_inputs=("x_mm", "y_mm", "rz_deg")):
-    """The pose model to predict with: the user's file (its inputs checked when
-    ``require_inputs``) or the shipped chapter-3 model.
+    """``--model`` / ``--seed``: :func:`robovib.gp.chapter3_model.workspace_predictor`."""
+    from ..gp.chapter3_model import workspace_predictor
 
-    A saved model is read as a :class:`~robovib.gp.predictor.PosePredictor` (NumPy and h5py
-    only, the same predictions as the full model): a command at one pose starts in well under
-    a second. Only a chapter-3 model with another optimiser ``seed`` is refitted (scikit-learn).
-    """
-    if path is None:
-        if seed == 0:
-            from ..gp.chapter3_model import load_chapter3_predictor
-
-            try:
-                return load_chapter3_predictor()
-            except FileNotFoundError:
-                pass
-        from ..gp import get_chapter3_model
-
-        return get_chapter3_model(rng=seed)
-    from ..gp.predictor import load_pose_predictor
-
-    return load_pose_predictor(path, require_inputs=require_inputs)
+    return workspace_predictor(path, seed=seed, require_inputs=require_inputs)
 
 
 try:  # Typer >= 0.2x vendors Click as typer._click: its context stack and exceptions are those
@@ -226,41 +202,20 @@ def console() -> Console:
     return Console(file=sys.stdout)
 
 
-def _unit_of_help(text: str | None) -> str | None:
-    m = re.search(r"\[([^\]]+)\]", text or "")
-    return m.group(1) if m else None
-
-
 def run_info() -> dict:
     """Command (argv as run), settings and their units, and input files of the running command.
 
     Settings are every parameter of the command (options and arguments) after parsing, defaults
-    included; their units come from the bracketed unit in each option's help (``[mm]``), numbers
-    without one are dimensionless (``"1"``).
+    included (:func:`robovib.io.provenance.command_settings`).
     """
-    from ..io.provenance import plain_json
+    from ..io.provenance import command_settings
 
     ctx = _current_context(silent=True)
-    settings: dict[str, Any] = {}
-    units: dict[str, str] = {}
-    inputs: list[str] = []
-    if ctx is not None:
-        for p in ctx.command.params:
-            if p.name in ("json_out",) or p.name not in ctx.params:
-                continue
-            value = ctx.params[p.name]
-            settings[p.name] = plain_json(list(value) if isinstance(value, tuple) else value)
-            unit = _unit_of_help(getattr(p, "help", None))
-            vals = value if isinstance(value, list | tuple) else [value]
-            # A unit belongs to a value, never to a file path (whose help may name its content's).
-            if unit and not any(isinstance(v, Path) for v in vals):
-                units[p.name] = unit
-            elif any(isinstance(v, int | float) and not isinstance(v, bool) for v in vals):
-                units[p.name] = "1"
-            if p.name not in ("output", "plot") and p.name != "output_dir":
-                inputs += [str(v) for v in vals if isinstance(v, Path) and v.is_file()]
-    return {"command": ["robovib", *_STATE["argv"]], "settings": settings, "units": units,
-            "inputs": inputs}  # fmt: skip
+    params = [] if ctx is None else [
+        (p.name, ctx.params[p.name], getattr(p, "help", None)) for p in ctx.command.params
+        if p.name != "json_out" and p.name in ctx.params
+    ]  # fmt: skip
+    return {"command": ["robovib", *_STATE["argv"]], **command_settings(params)}
 
 
 def emit_json(doc: dict, *, units: dict[str, str] | None = None) -> None:

@@ -31,6 +31,7 @@ __all__ = [
     "get_chapter3_model",
     "load_chapter3_model",
     "load_chapter3_predictor",
+    "workspace_predictor",
 ]
 
 #: Inputs of the chapter-3 model (Z = 325 mm, Rx = Ry = 0 throughout Table A1).
@@ -206,3 +207,45 @@ def get_chapter3_model(
         except FileNotFoundError:
             pass
     return fit_chapter3_model(kernel=kernel, mode_switch=mode_switch, rng=rng)
+
+
+def workspace_predictor(
+    path: str | Path | None = None, *, seed: int = 0, require_inputs=CHAPTER3_INPUTS
+) -> PosePredictor | PoseModalModel:
+    """The pose model to predict with: a saved model, or the thesis' chapter-3 model.
+
+    A saved model is read as a :class:`~robovib.gp.predictor.PosePredictor` (NumPy and h5py
+    only, the same predictions as the full model): a prediction at one pose starts in well
+    under a second. Only a chapter-3 model with another optimiser ``seed`` is refitted
+    (scikit-learn, seconds).
+
+    Parameters
+    ----------
+    path
+        A model file from ``robovib model fit`` / :meth:`PoseModalModel.save`; None: the
+        shipped chapter-3 model.
+    seed
+        Optimiser seed of the chapter-3 model (0: the shipped copy).
+    require_inputs
+        Input names a saved model must have (units in the names); None: any.
+
+    Returns
+    -------
+    PosePredictor or PoseModalModel
+        A predictor (saved or shipped model), or a refitted chapter-3 model.
+
+    Raises
+    ------
+    ValueError, OSError
+        A file that is not a pose model, or one without ``require_inputs``.
+    """
+    if path is None:
+        if seed == 0:
+            try:
+                return load_chapter3_predictor()
+            except FileNotFoundError:
+                pass
+        return get_chapter3_model(rng=seed)
+    from .predictor import load_pose_predictor
+
+    return load_pose_predictor(path, require_inputs=require_inputs)

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "command_settings",
     "file_sha256",
     "read_provenance",
     "run_provenance",
@@ -90,6 +91,50 @@ def unit_of_key(key: str) -> str | None:
 
 
 _PROVIDER: ContextVar[Callable[[], dict] | None] = ContextVar("robovib_run_info", default=None)
+
+
+def command_settings(params, output_names=("output", "plot", "output_dir")) -> dict:
+    """Settings, their units and the input files of a command from its parsed parameters.
+
+    A setting's unit is the bracketed unit in its help text (``"Tool-tip X [mm]"`` -> ``mm``);
+    numbers without one are dimensionless (``"1"``); a file path never gets a unit (its help may
+    name its content's). Existing files among the values are inputs, except for the outputs.
+
+    Parameters
+    ----------
+    params
+        Iterable of ``(name, value, help)``: every parameter after parsing, defaults included
+        (help may be None).
+    output_names
+        Parameters whose files are outputs, not inputs.
+
+    Returns
+    -------
+    dict
+        ``settings`` (name -> JSON-ready value), ``units`` (name -> unit) and ``inputs``
+        (paths of the input files, as strings).
+
+    Examples
+    --------
+    >>> command_settings([("x", 1200.0, "Tool-tip X [mm]"), ("k", 3, "Poses.")])["units"]
+    {'x': 'mm', 'k': '1'}
+    """
+    import re
+
+    settings: dict[str, Any] = {}
+    units: dict[str, str] = {}
+    inputs: list[str] = []
+    for name, value, help_text in params:
+        settings[name] = plain_json(list(value) if isinstance(value, tuple) else value)
+        found = re.search(r"\[([^\]]+)\]", help_text or "")
+        vals = value if isinstance(value, list | tuple) else [value]
+        if found and not any(isinstance(v, Path) for v in vals):
+            units[name] = found.group(1)
+        elif any(isinstance(v, int | float) and not isinstance(v, bool) for v in vals):
+            units[name] = "1"
+        if name not in output_names:
+            inputs += [str(v) for v in vals if isinstance(v, Path) and v.is_file()]
+    return {"settings": settings, "units": units, "inputs": inputs}
 
 
 def set_run_info_provider(provider: Callable[[], dict] | None):
