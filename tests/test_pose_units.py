@@ -65,3 +65,19 @@ def test_hybrid_predict_cli_takes_millimetres_for_a_metre_model(tmp_path):
     assert doc["x_m"] == pytest.approx(1.25) and doc["y_m"] == pytest.approx(-0.04)
     res = CliRunner().invoke(app, args[:-2])  # no --rz
     assert res.exit_code != 0 and "no value for rz" in res.output
+
+
+def test_frf_compute_stores_a_workspace_pose_given_in_millimetres_in_metres(tmp_path):
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+    from robovib.datasets import example_path
+    from robovib.io import read_frfs
+
+    out = tmp_path / "f.h5"
+    args = ["frf", "compute", str(example_path("hammer.uff")), "-o", str(out)]
+    res = CliRunner().invoke(app, [*args, "--x", "1250", "--y", "-40", "--rz", "30"])
+    assert res.exit_code == 0, res.output
+    pose = read_frfs(out)[0].pose
+    np.testing.assert_allclose(np.take(pose, [0, 1, 5]), [1.25, -0.04, 30.0], rtol=1e-15)
+    assert np.all(np.isnan(np.take(pose, [2, 3, 4])))

@@ -138,8 +138,13 @@ def compute(
     if any(given) and not all(given):
         fail("give all of --x [mm], --y [mm] and --rz [deg] for a workspace pose")
     if all(given):
+        from ..gp.pose_units import pose_in_units
+
+        x, y, rz = pose_in_units(
+            ("x_m", "y_m", "rz_deg"), {"x_mm": x_mm, "y_mm": y_mm, "rz_deg": rz_deg}
+        )
         nan = float("nan")
-        frf = replace(frf, pose=(x_mm / 1e3, y_mm / 1e3, nan, nan, nan, float(rz_deg)))
+        frf = replace(frf, pose=(float(x), float(y), nan, nan, nan, float(rz)))
     write_frfs(output, [frf], inputs=[recording], force=force)
     hits = [
         {
