@@ -23,7 +23,7 @@ def test_millimetres_and_radians_reach_the_model_units():
 
 def test_unused_and_missing_values():
     assert pose_in_units(("s_m",), {"s_m": 0.585, "x_mm": None, "y_mm": 3.0}).tolist() == [0.585]
-    with pytest.raises(ValueError, match=r"give x \[m\], y \[m\], rz \[deg\].*given: s_m"):
+    with pytest.raises(ValueError, match=r"give x \[mm\], y \[m\], rz \[deg\].*given: s \[m\]"):
         pose_in_units(("x_m", "y_m", "rz_deg"), {"s_m": 0.5, "x_mm": None})
     with pytest.raises(ValueError, match="given in deg"):
         pose_in_units(("x_m",), {"x_deg": 1.0})
@@ -64,7 +64,7 @@ def test_hybrid_predict_cli_takes_millimetres_for_a_metre_model(tmp_path):
     np.testing.assert_allclose(doc["compliance_abs_um_per_n"], 1e6 * expect, rtol=1e-9)
     assert doc["x_m"] == pytest.approx(1.25) and doc["y_m"] == pytest.approx(-0.04)
     res = CliRunner().invoke(app, args[:-2])  # no --rz
-    assert res.exit_code != 0 and "no value for rz" in res.output
+    assert res.exit_code != 0 and "give --x [mm], --y [mm], --rz [deg]" in res.output
 
 
 def test_frf_compute_stores_a_workspace_pose_given_in_millimetres_in_metres(tmp_path):

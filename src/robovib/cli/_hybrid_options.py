@@ -7,6 +7,14 @@ from typing import Annotated
 
 import typer
 
+#: How ``hybrid predict`` takes each pose value (for the library's error messages).
+POSE_OPTIONS = {
+    "s_m": "--path-s [m]",
+    "x_mm": "--x [mm]",
+    "y_mm": "--y [mm]",
+    "rz_deg": "--rz [deg]",
+}
+
 RecordArg = Annotated[
     Path,
     typer.Argument(

@@ -231,7 +231,7 @@ def predict(
     check_output(plot, [model_file, measured])
     model = FRFPoseModel.load(model_file)
     given = {"s_m": path_s, "x_mm": x_mm, "y_mm": y_mm, "rz_deg": rz_deg}
-    pose = pose_in_units(model.input_names, given)  # the model's units, from the options'
+    pose = pose_in_units(model.input_names, given, hopt.POSE_OPTIONS)  # in the model's units
     meas = read_frfs(measured)[0] if measured is not None else None
     pred = predict_frf_at(model, pose, meas)
     doc = pred.to_dict()

@@ -57,7 +57,11 @@ def split_unit(name: str) -> tuple[str, str]:
     return stem, unit
 
 
-def pose_in_units(input_names: Sequence[str], values: Mapping[str, float | None]) -> np.ndarray:
+def pose_in_units(
+    input_names: Sequence[str],
+    values: Mapping[str, float | None],
+    labels: Mapping[str, str] | None = None,
+) -> np.ndarray:
     """The pose in a model's input units from values named with their own units.
 
     Parameters
@@ -67,6 +71,9 @@ def pose_in_units(input_names: Sequence[str], values: Mapping[str, float | None]
     values
         Quantity with its unit -> value, e.g. ``{"x_mm": 1200.0, "y_mm": 0.0, "rz_deg": 45.0}``;
         None means not given. Values the model does not use are ignored.
+    labels
+        How a person gives each value (e.g. ``{"x_mm": "--x [mm]"}`` for a command-line
+        option), used in the error messages; default ``"x [mm]"`` from the name.
 
     Returns
     -------
@@ -83,17 +90,23 @@ def pose_in_units(input_names: Sequence[str], values: Mapping[str, float | None]
     >>> pose_in_units(("x_m", "y_m", "rz_deg"), {"x_mm": 1200.0, "y_mm": -50.0, "rz_deg": 45.0})
     array([ 1.2 , -0.05, 45.  ])
     """
-    given_names = [(k, v) for k, v in values.items() if v is not None]
-    given = {split_unit(k): float(v) for k, v in given_names}
+
+    def label(key: str) -> str:
+        stem, unit = split_unit(key)
+        return (labels or {}).get(key, f"{stem} [{unit}]")
+
+    given_names = [k for k, v in values.items() if v is not None]
+    given = {split_unit(k): float(values[k]) for k in given_names}
+    by_stem = {split_unit(k)[0]: k for k in values}  # how each quantity can be given
     out = []
     for name in input_names:
         stem, unit = split_unit(name)
         match = [(u, v) for (s, u), v in given.items() if s == stem]
         if not match:
-            wanted = ", ".join(f"{split_unit(n)[0]} [{split_unit(n)[1]}]" for n in input_names)
+            wanted = ", ".join(label(by_stem.get(split_unit(n)[0], n)) for n in input_names)
             raise ValueError(
                 f"the model's inputs are {tuple(input_names)}: give {wanted} "
-                f"(no value for {stem}; given: {', '.join(k for k, _ in given_names) or 'none'})"
+                f"(no value for {stem}; given: {', '.join(map(label, given_names)) or 'none'})"
             )
         (have, v), dim = match[0], _UNITS[unit][0]
         if _UNITS[have][0] != dim:
