@@ -253,8 +253,9 @@ def simulate(
             "--controller",
             help="Controller(s), repeatable: thesis, constant-start, constant-end, tuned, lqg, "
             "robust, feedforward, feedforward+robust, repetitive, adaptive (period tracking, "
-            "adaptive harmonics, fade-out guard; recommended for real cuts), adaptive+robust, "
-            "adaptive-feedforward. Default: all.",
+            "adaptive harmonics, fade-out guard), adaptive+robust, adaptive-feedforward, "
+            "adaptive+force (adaptive + runout lines + feedforward of the measured force through "
+            "the pose model; recommended for real cuts). Default: all.",
         ),
     ] = None,
     actuator: Annotated[
