@@ -18,7 +18,14 @@ from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
 from robovib.sim import POSITION_1_S_M, REALISTIC_LEVELS, VirtualRobot
 from robovib.studies.control_closed_loop import build_controllers, path_modal_model
 
-NAMES = ("feedforward+robust", "repetitive", "adaptive", "adaptive+robust", "adaptive-feedforward")
+NAMES = (
+    "feedforward+robust",
+    "repetitive",
+    "adaptive",
+    "adaptive+robust",
+    "adaptive-feedforward",
+    "adaptive+force",
+)
 
 
 def main(n_cmd: int = 2500, repeats: int = 3) -> None:
@@ -27,7 +34,7 @@ def main(n_cmd: int = 2500, repeats: int = 3) -> None:
     tool, cond = MillingTool(), CuttingConditions(125.0, 0.5e-3, 6e-3, 6e-3)
     grid = np.linspace(POSITION_1_S_M - 0.025, POSITION_1_S_M + 0.025, 6)
     ctrls = build_controllers(model, {0: "x", 2: "z"}, grid, names=NAMES,
-                              excitation_period_s=1 / cond.tooth_passing_hz(tool))  # fmt: skip
+                              excitation_period_s=1 / cond.tooth_passing_hz(tool), teeth=tool.n_flutes)  # fmt: skip
     t = np.arange(4 * n_cmd) / 1000.0
     local = REALISTIC_LEVELS.cutting_force(t, tool, cond, ACETAL, rng=0)
     force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])

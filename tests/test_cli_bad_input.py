@@ -237,7 +237,7 @@ bad_options("sim-hammer", f"sim hammer -o {{out:.uff}} {SIM_SMALL}", {
 bad_outputs("sim-mill", "sim mill -o {OUT} --x1 2110", ".csv", None)
 bad_options("sim-mill", "sim mill -o {out:.csv} --x1 2110", {
     "--rpm": ["0", "nan"], "--fz": ["-1"], "--ap": ["nan"], "--material": ["unobtainium"],
-    "--background": ["-1", "inf"],
+    "--background": ["-1", "inf"], "--disturbance": ["warp=1", "runout_um=-1", "all=nan", "x"],
 })  # fmt: skip
 OFFSET = "--path-s-from 0.5 --path-s-to 0.45"
 bad_outputs("sim-offset-mass", f"sim offset-mass -o {{OUT}} {OFFSET}", ".csv", None)

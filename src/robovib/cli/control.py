@@ -9,6 +9,7 @@ import numpy as np
 import typer
 
 from ._common import (
+    DisturbanceOpt,
     JsonFlag,
     ModelOpt,
     SeedOpt,
@@ -19,6 +20,7 @@ from ._common import (
     escape,
     fail,
     new_app,
+    parse_disturbances,
     save_figure,
     use_agg,
     workspace_model,
@@ -251,8 +253,9 @@ def simulate(
             "--controller",
             help="Controller(s), repeatable: thesis, constant-start, constant-end, tuned, lqg, "
             "robust, feedforward, feedforward+robust, repetitive, adaptive (period tracking, "
-            "adaptive harmonics, fade-out guard; recommended for real cuts), adaptive+robust, "
-            "adaptive-feedforward. Default: all.",
+            "adaptive harmonics, fade-out guard), adaptive+robust, adaptive-feedforward, "
+            "adaptive+force (adaptive + runout lines + feedforward of the measured force through "
+            "the pose model; recommended for real cuts). Default: all.",
         ),
     ] = None,
     actuator: Annotated[
@@ -262,16 +265,7 @@ def simulate(
             "withdrawn: no channel of gain <= 1 reproduces it)."
         ),
     ] = "pure-delay",
-    disturbance: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--disturbance",
-            help="Milling: a real-cut disturbance NAME=VALUE, repeatable. speed_error_pct, "
-            "speed_drift_pct (%), runout_um (µm), nonperiodic_rel (x force std), engagement_pct "
-            "(%), force_noise_n, force_bias_n (N), actuator_gain_pct (%), delay_error_ms (ms); "
-            "all=F: every one at F x its realistic level. All off by default.",
-        ),
-    ] = None,
+    disturbance: DisturbanceOpt = None,
     plot: Annotated[
         Path | None,
         typer.Option(
@@ -286,13 +280,9 @@ def simulate(
     check_output(plot)
     from rich.progress import Progress
 
-    from ..sim import CutDisturbances
     from ..studies.control_closed_loop import simulate_control
 
-    try:
-        dist = CutDisturbances.parse(disturbance or [])
-    except ValueError as exc:
-        fail(str(exc))
+    dist = parse_disturbances(disturbance)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task("virtual EMA along the path, designs, closed-loop runs", total=None)
         try:

@@ -7,7 +7,17 @@ from typing import Annotated
 
 import typer
 
-from ._common import JsonFlag, OutOpt, SeedOpt, emit_json, fail, material, new_app
+from ._common import (
+    DisturbanceOpt,
+    JsonFlag,
+    OutOpt,
+    SeedOpt,
+    emit_json,
+    fail,
+    material,
+    new_app,
+    parse_disturbances,
+)
 
 app = new_app("The virtual robot: synthetic hammer tests, milling passes and offset-mass runs.")
 
@@ -92,14 +102,20 @@ def mill(
     background: Annotated[
         float, typer.Option(help="Broadband force content (x spread of the periodic force).")
     ] = 0.15,
+    disturbance: DisturbanceOpt = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
-    """Milling pass on the virtual robot (thesis §3.5: 25.4 mm 2-flute 30° helix tool); CSV out."""
+    """Milling pass on the virtual robot (thesis §3.5: 25.4 mm 2-flute 30° helix tool); CSV out.
+
+    ``--disturbance`` makes the cut real (open loop: the actuator gain and delay errors only
+    matter under control, ``robovib control simulate milling``).
+    """
     from ..milling import CuttingConditions, MillingTool
     from ..sim import LinearMove, VirtualRobot, simulate_milling
 
     coefficients = material(material_name)
+    dist = parse_disturbances(disturbance)
     if (path_s_from is None) != (path_s_to is None):
         raise typer.BadParameter("give both --path-s-from and --path-s-to [m], or neither")
     cond = CuttingConditions(rpm, fz_mm / 1e3, ap_mm / 1e3, ae_mm / 1e3)
@@ -109,7 +125,7 @@ def mill(
         move = LinearMove("path", (path_s_from,), (path_s_to,))
     run = simulate_milling(
         VirtualRobot(), move, MillingTool(), cond, coefficients,
-        background_noise_rel=background, rng=seed,
+        background_noise_rel=background, disturbances=dist if dist.active() else None, rng=seed,
     )  # fmt: skip
     run.to_csv(output)
     doc = {

@@ -256,13 +256,18 @@ class TrackingRepetitive(RepetitiveFeedback):
         delay_s: float = 0.032,
         *,
         divergence_ratio: float = 1.2,
+        period_multiple: int = 1,
         **kwargs,
     ):
-        super().__init__(modes, tracker.nominal_period_s, delay_s, **kwargs)
+        m = int(period_multiple)
+        if m < 1 or m != period_multiple:
+            raise ValueError("period_multiple must be an integer >= 1")
+        super().__init__(modes, m * tracker.nominal_period_s, delay_s, **kwargs)
         if not divergence_ratio > 0:
             raise ValueError("divergence_ratio must be > 0")
         self.tracker = tracker
         self.divergence_ratio = float(divergence_ratio)
+        self.period_multiple = m
 
     def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
         super().reset(coords, period_s, sample_rate_hz)
@@ -272,6 +277,10 @@ class TrackingRepetitive(RepetitiveFeedback):
         self._phase = 0.0
         self._h = np.arange(1, self.n_harmonics + 1)
         self._fs = float(sample_rate_hz)
+        if self.period_multiple > 1:  # the tracked period's own harmonics are left to others
+            own = self._h % self.period_multiple == 0
+            for a in self._pinv:
+                self._pinv[a] = np.where(own, 0.0, self._pinv[a])
         self._on = {a: np.ones(self.n_harmonics, bool) for a in self._pinv}
         self._mag = None
         self._mag0 = None
@@ -279,13 +288,14 @@ class TrackingRepetitive(RepetitiveFeedback):
 
     def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
         self.tracker.update(k, force_n)
-        w_dt = 2 * math.pi * self._dt / self.tracker.period_s
+        period = self.period_multiple * self.tracker.period_s
+        w_dt = 2 * math.pi * self._dt / period
         m = tracker_m.shape[0]
         self._theta[self._len : self._len + m] = self._phase + w_dt * np.arange(1, m + 1)
         self._phase += w_dt * m
         self._y[self._len : self._len + m] = tracker_m
         self._len += m
-        window = max(2, round(self.tracker.period_s * self._fs))
+        window = max(2, round(period * self._fs))
         if self._len >= window:
             lo = self._len - window
             seg = self._y[lo : self._len]

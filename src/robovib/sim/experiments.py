@@ -377,6 +377,7 @@ def simulate_milling(
     tracker_noise_m: float = 2e-6,
     tracker_resolution_m: float = 1e-5,
     allow_extrapolation: bool = False,
+    disturbances=None,
     rng=None,
 ) -> MotionRecord:
     """A milling pass along ``move`` at the feed speed set by the cutting conditions.
@@ -411,13 +412,20 @@ def simulate_milling(
         Laser tracker white noise (std) and quantisation [m].
     allow_extrapolation : bool
         Allow poses outside the robot's calibrated range.
+    disturbances : CutDisturbances, optional
+        The disturbances of a real cut (:class:`~robovib.sim.disturbances.CutDisturbances`):
+        spindle-speed error and drift, runout, non-periodic force and engagement change act on
+        the cutting force; the force-sensor noise (added to ``force_noise_n`` in quadrature)
+        and bias on the measured force. The actuator gain and delay errors need a controller
+        (open loop here: recorded in ``meta`` only).
     rng : int or numpy.random.Generator, optional
         Seed of the noise.
 
     Returns
     -------
     MotionRecord
-        Forces, tracker and true displacements along the pass.
+        Forces, tracker and true displacements along the pass; ``meta["disturbances"]`` the
+        active disturbances (name -> value).
     """
     _check_positive(simulation_rate_hz=simulation_rate_hz, sensor_rate_hz=sensor_rate_hz)
     if background_noise_rel < 0:
@@ -429,7 +437,11 @@ def simulate_milling(
     if n < 10:
         raise ValueError(f"the pass is too short: {move.length_m} m at {speed * 1e3:.3g} mm/s")
     t = np.arange(n) / simulation_rate_hz
-    local = milling_forces(t, tool, conditions, coefficients)
+    if disturbances is None:
+        local = milling_forces(t, tool, conditions, coefficients)
+    else:
+        local = disturbances.cutting_force(t, tool, conditions, coefficients, rng=gen)
+        force_noise_n = math.hypot(force_noise_n, disturbances.force_noise_n)
     feed = move.feed_direction()
     normal = np.array([-feed[1], feed[0], 0.0])
     force = local[:, :1] * feed[None, :] + local[:, 1:2] * normal[None, :]
@@ -447,6 +459,8 @@ def simulate_milling(
         tracker_noise_m,
         tracker_resolution_m,
     )
+    if disturbances is not None and disturbances.force_bias_n != 0:
+        force_meas = force_meas + disturbances.force_bias_n
     m = tracked.shape[0]
     return MotionRecord(
         time_s=t[::step][:m],
@@ -463,6 +477,7 @@ def simulate_milling(
             "radial_depth_m": conditions.radial_depth_m,
             "feed_speed_m_per_s": speed,
             "tooth_passing_hz": conditions.tooth_passing_hz(tool),
+            "disturbances": {} if disturbances is None else disturbances.active(),
         },
     )
 

@@ -45,6 +45,7 @@ from ..control.controllers import (
     lqg_loop_matrix,
     spectral_radius,
 )
+from ..control.force_model import ForceModelFeedforward, force_model_r
 from ..control.lqr import design_delay_aware_lqr
 from ..control.pose_plants import SECOND_MODE_HYPOTHESES, path_band, path_mode
 from ..control.pose_plants import plant_set as _model_set
@@ -115,10 +116,11 @@ CONTROLLERS = (
     "adaptive",
     "adaptive+robust",
     "adaptive-feedforward",
+    "adaptive+force",
 )
 
 #: The controller recommended for real cuts (period tracking, adaptive harmonics, guard).
-DEFAULT_CONTROLLER = "adaptive"
+DEFAULT_CONTROLLER = "adaptive+force"
 
 
 # The §4.3.2 calibration target is withdrawn (issue 25). The thesis reports the offset mass
@@ -255,6 +257,21 @@ def _robust_r(plants, nominal: ModalParameters, period_s, delay_s, r_grid, veloc
     return best
 
 
+#: Learning time of the runout lines [revolutions]: slow against the one-revolution window.
+RUNOUT_LEARNING_REVS = 4.0
+
+
+def _force_model_r(model: PoseModalModel, s_m: float, direction: str, period_s, delay_s) -> float:
+    """LQR weight of the force-model feedforward: best worst case over the band, the second-mode
+    hypotheses and the unknown delay (nominal ± 8 ms), at ``s_m`` (:func:`force_model_r`)."""
+    plants = _model_set(model, s_m, direction)
+    nominal = path_mode(model, s_m, direction)
+    key = ("force-model", nominal, tuple(tuple(p) for p in plants), period_s, delay_s)
+    if key not in _DESIGN_CACHE:
+        _DESIGN_CACHE[key] = force_model_r(plants, nominal, period_s=period_s, delay_s=delay_s)[0]
+    return _DESIGN_CACHE[key]
+
+
 def build_controllers(
     model: PoseModalModel,
     axes: dict[int, str],
@@ -268,6 +285,7 @@ def build_controllers(
     delay_s: float = 0.032,
     lqg_r: float | None = None,
     robust_r_grid=None,
+    teeth: int = 1,
 ) -> dict[str, object]:
     """Controllers designed from the pose model only, scheduled over ``s_grid`` [m].
 
@@ -300,6 +318,9 @@ def build_controllers(
         with the Kalman filter.
     robust_r_grid
         Candidate R values of the robust design (default ``logspace(-2, 3, 11)``).
+    teeth
+        The cutter's teeth; above 1 ``adaptive+force`` also learns the once-per-revolution
+        (runout) lines.
 
     Returns
     -------
@@ -396,7 +417,9 @@ def build_controllers(
             for a, d in axes.items()
         }  # fmt: skip
         out["repetitive"] = RepetitiveFeedback(modes, excitation_period_s, delay_s)
-    adaptive = {"adaptive", "adaptive+robust", "adaptive-feedforward"} & set(names)
+    adaptive = {"adaptive", "adaptive+robust", "adaptive-feedforward", "adaptive+force"} & set(
+        names
+    )
     if adaptive:
         if excitation_period_s is None:
             raise ValueError("the adaptive controllers need the nominal excitation_period_s [s]")
@@ -422,7 +445,19 @@ def build_controllers(
                 parts = [TrackingFeedforward(stiff, tracker, delay_s)]
             else:
                 parts = [TrackingRepetitive(fz, tracker, delay_s)]
-            if name != "adaptive":
+            if name == "adaptive+force" and teeth > 1:
+                # The once-per-revolution lines of runout (spindle harmonics that are not tooth
+                # harmonics), learnt over a revolution, slowly against that window.
+                parts.append(TrackingRepetitive(fz, tracker, delay_s, period_multiple=teeth,
+                                                n_harmonics=2 * teeth,
+                                                learning_time_s=RUNOUT_LEARNING_REVS * teeth * excitation_period_s))  # fmt: skip
+            if name == "adaptive+force":
+                fzk = {a: ScheduledTable(grid, np.column_stack([fz[a].values, stiff[a].values]))
+                       for a in axes}  # fmt: skip
+                parts.append(ForceModelFeedforward(fzk, delay_s, r={
+                    a: _force_model_r(model, float(np.median(grid)), d, period_s, delay_s)
+                    for a, d in axes.items()}))  # fmt: skip
+            elif name != "adaptive":
                 parts.append(DelayAwareFeedback(robust))
             out[name] = FadeGuard(Combined(*parts), tracker, fz, delay_s)
     unknown = set(names) - set(CONTROLLERS)
@@ -793,7 +828,8 @@ def milling_study(
             force += gen.normal(size=force.shape) * background_noise_rel * force.std(axis=0)
             ctrls = {"open": None}
             ctrls.update(build_controllers(model, {0: "x", 2: "z"}, grid, names=controllers,
-                                           excitation_period_s=1.0 / cond.tooth_passing_hz(tool)))  # fmt: skip
+                                           excitation_period_s=1.0 / cond.tooth_passing_hz(tool),
+                                           teeth=tool.n_flutes))  # fmt: skip
             base = {"test": i + 1, "position": pos_name, "speed_rpm": rpm, "feed_mm": fz * 1e3,
                     "axial_depth_mm": ap * 1e3}  # fmt: skip
             open_rms = None

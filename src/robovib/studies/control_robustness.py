@@ -25,7 +25,13 @@ __all__ = [
 ]
 
 #: Controllers of the robustness table: the ideal-cut best two and the adaptive ones.
-ROBUSTNESS_CONTROLLERS = ("feedforward+robust", "repetitive", "adaptive", "adaptive-feedforward")
+ROBUSTNESS_CONTROLLERS = (
+    "feedforward+robust",
+    "repetitive",
+    "adaptive",
+    "adaptive-feedforward",
+    "adaptive+force",
+)
 
 
 def robustness_scenarios(
