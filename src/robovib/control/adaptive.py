@@ -244,6 +244,9 @@ class TrackingRepetitive(RepetitiveFeedback):
     divergence_ratio
         A harmonic whose smoothed residual magnitude exceeds this multiple of its open-loop
         value is dropped (> 0; 1.2: 20 % above).
+    period_multiple
+        The learnt period in tracked periods (integer >= 1): 1 learns the tooth-passing lines;
+        the number of teeth learns over one spindle revolution (the runout lines).
     **kwargs
         Further options of :class:`~robovib.control.controllers.RepetitiveFeedback`
         (``n_harmonics``, ``learning_time_s``, ``max_harmonic_ratio``).

@@ -203,6 +203,23 @@ def force_model_r(
     and ``true_delays_s`` (default: the nominal delay ± 8 ms, the 24-40 ms range around the
     32 ms measured) is minimised over ``r_grid`` (default 1e-3 ... 1e2).
 
+    Parameters
+    ----------
+    plants
+        Iterable of plant hypotheses (:class:`robovib.modal.ModalParameters` or lists of
+        them, e.g. the pose model's band and second-mode cases) the worst case is taken over.
+    model
+        The pose model's mode the feedforward is designed on (fn [Hz], k [N/m], zeta).
+    period_s
+        Command period [s].
+    delay_s
+        Command delay the design assumes [s].
+    true_delays_s
+        Delays [s] the worst case is taken over (default ``delay_s`` - 8 ms, ``delay_s``,
+        ``delay_s`` + 8 ms).
+    r_grid
+        Candidate control weights (default ``logspace(-3, 2, 11)``).
+
     Returns
     -------
     r, worst_ratio
