@@ -650,7 +650,7 @@ def sdm_lobes(
     steps = np.clip(need, int(steps_per_period), max(int(steps_per_period), int(max_steps)))
     a_lim = np.full(rpm.size, np.inf)
     mu_crit = np.full(rpm.size, np.nan + 0j)
-    for m in np.unique(steps):
+    for m in np.unique(steps, return_inverse=True)[0]:  # plain unique imports numpy.ma
         idx = np.flatnonzero(steps == m)
         hmat, frac = milling_force_matrices(tool.n_flutes, phi_st, phi_ex, coefficients, int(m))
         a_lim[idx], mu_crit[idx] = critical_depths(
