@@ -14,7 +14,8 @@ import pytest
 POSE = ["--x", "2400", "--y", "0", "--rz", "45"]
 #: Never needed to answer at one pose: FRF estimation (scipy.signal), plotting, fitting
 #: (scikit-learn and the SciPy distributions it pulls in).
-UNNEEDED = {"scipy.signal", "matplotlib", "sklearn", "scipy.stats", "scipy.optimize"}
+UNNEEDED = {"scipy.signal", "matplotlib", "sklearn", "scipy.stats", "scipy.optimize",
+            "pydantic", "numpy.ma"}  # fmt: skip
 
 
 _RUN = """

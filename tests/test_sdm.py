@@ -111,7 +111,13 @@ def test_turning_limit_closed_form_and_lobes(eigensolver):
     hx = np.zeros((m, 2, 2))
     hx[:, 0, 0] = h
     ax, _ = critical_depths([mode], [], hx, frac, delays[:5], eigensolver=eigensolver)
-    np.testing.assert_allclose(ax, a_lim[:5], rtol=1e-6)
+    ay, _ = critical_depths([], [mode], hmat, frac, delays[:5], eigensolver=eigensolver)
+    np.testing.assert_allclose(ax, ay, rtol=1e-6)
+    # The warm-started search (default) and the scan at every delay agree to the tolerance.
+    cold, _ = critical_depths([], [mode], hmat, frac, delays, eigensolver=eigensolver,
+                              warm_start=False)  # fmt: skip
+    np.testing.assert_allclose(a_lim, cold, rtol=2e-3)
+    np.testing.assert_allclose(cold, exact, rtol=0.03)
 
 
 def test_dominant_eigenvalues_match_numpy_and_fall_back_when_unconverged():

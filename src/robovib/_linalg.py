@@ -20,11 +20,32 @@ _PADE13 = (
 )  # fmt: skip
 
 
+_PADE9 = (
+    17643225600.0, 8821612800.0, 2075673600.0, 302702400.0, 30270240.0, 2162160.0, 110880.0,
+    3960.0, 90.0, 1.0,
+)  # fmt: skip
+#: Largest 1-norm for which the degree-9 Padé approximant is accurate to unit roundoff (Higham).
+_THETA9 = 2.097847961257068
+
+
+def _pade9(a: np.ndarray) -> np.ndarray:
+    """Degree-9 Padé approximant of ``exp`` for matrices of 1-norm <= ``_THETA9``."""
+    b = _PADE9
+    eye = np.broadcast_to(np.eye(a.shape[-1]), a.shape)
+    a2 = a @ a
+    a4 = a2 @ a2
+    a6 = a4 @ a2
+    a8 = a6 @ a2
+    u = a @ (b[9] * a8 + b[7] * a6 + b[5] * a4 + b[3] * a2 + b[1] * eye)
+    v = b[8] * a8 + b[6] * a6 + b[4] * a4 + b[2] * a2 + b[0] * eye
+    return np.linalg.solve(v - u, v + u)
+
+
 def batched_expm(a: np.ndarray) -> np.ndarray:
     """``exp(A)`` for a stack of square matrices (..., s, s), vectorised over the stack.
 
     Scaling and squaring with the degree-13 Padé approximant (Higham, *SIAM J. Matrix Anal.
-    Appl.* 26, 2005): each matrix is scaled by ``2^-s`` so its 1-norm is <= 5.37, the Padé
+    Appl.* 26, 2005), the degree-9 one unscaled for matrices of 1-norm <= 2.098: each matrix is scaled by ``2^-s`` so its 1-norm is <= 5.37, the Padé
     approximant is one batched linear solve, then squared ``s`` times (``s`` per matrix). SciPy's
     ``expm`` gives the same numbers but loops over the stack in Python.
 
@@ -42,6 +63,14 @@ def batched_expm(a: np.ndarray) -> np.ndarray:
     if a.ndim < 2 or a.shape[-1] != a.shape[-2]:
         raise ValueError(f"expected a stack of square matrices (..., s, s), got {a.shape}")
     norm = np.max(np.sum(np.abs(a), axis=-2), axis=-1)
+    small = norm <= _THETA9
+    if a.ndim >= 3 and np.any(small) and not np.all(small):
+        out = np.empty_like(a)
+        out[small] = _pade9(a[small])
+        out[~small] = batched_expm(a[~small])
+        return out
+    if np.all(small):  # degree 9 is exact to rounding there: one product fewer, no squaring
+        return _pade9(a)
     s = np.maximum(0, np.ceil(np.log2(np.maximum(norm, 1e-300) / 5.371920351148152))).astype(int)
     a = a / (2.0**s)[..., None, None]
     b = _PADE13

@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.markup import escape
 from typer.core import TyperGroup
 
+from ._coerce import install_light_coercion
 from ._table import Table
 
 __all__ = [
@@ -167,6 +168,7 @@ class ErrorHandlingGroup(TyperGroup):
 
     def main(self, args=None, prog_name=None, *a, **kw):
         _STATE["argv"] = [str(v) for v in (sys.argv[1:] if args is None else args)]
+        install_light_coercion(self)  # plain values without Pydantic (see _coerce)
         return super().main(args, prog_name, *a, **kw)
 
     def invoke(self, ctx: click.Context) -> Any:

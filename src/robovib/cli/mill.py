@@ -53,13 +53,16 @@ def predict(
     json_out: JsonFlag = False,
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
-    from ..io import read_force_csv
     from ..milling import CuttingConditions
-    from ..milling.prediction import resample_force
     from ..milling.workflow import predict_at_pose
 
     cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
-    f = resample_force(*read_force_csv(forces), 1000.0) if forces is not None else None
+    f = None
+    if forces is not None:  # the CSV reader only when a force file is given
+        from ..io import read_force_csv
+        from ..milling.prediction import resample_force
+
+        f = resample_force(*read_force_csv(forces), 1000.0)
     res = predict_at_pose(
         workspace_model(model_path, seed), x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,

@@ -91,7 +91,7 @@ def _t_cdf(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
     out = np.empty(z.shape)
     gauss = ~np.isfinite(dof)
     out[gauss] = 0.5 * (1.0 + _erf(z[gauss] / math.sqrt(2.0)))
-    for v in np.unique(dof[~gauss]):
+    for v in np.unique(dof[~gauss], return_inverse=True)[0]:  # plain unique imports numpy.ma
         sel = dof == v
         if float(v).is_integer() and v >= 1:
             out[sel] = _t_cdf_integer(z[sel], int(v))

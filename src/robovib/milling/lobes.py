@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._numeric import median
 from .stability import StabilityLobes
 
 __all__ = [
@@ -214,7 +215,7 @@ def _monotone_pieces(rpm, chatter_hz) -> list[np.ndarray]:
     gaps: set[int] = set()
     if chatter_hz is not None:
         step = np.diff(np.asarray(chatter_hz, float))
-        typical = np.median(np.abs(step))
+        typical = median(np.abs(step))
         if typical > 0:
             gaps = set((np.flatnonzero(np.abs(step) > 1.5 * typical) + 1).tolist())
     pieces = np.split(np.arange(n), sorted(turns | gaps))

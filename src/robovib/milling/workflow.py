@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_choice, check_int, check_number
+from .._numeric import percentile
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool, milling_forces
 from .prediction import convolve_force, summarise_vibration
@@ -309,11 +310,7 @@ def predict_at_pose(
             md.append(summ.mean_deflection_m)
 
         def band(v):
-            return (
-                (float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5)))
-                if v
-                else (np.nan, np.nan)
-            )
+            return (percentile(v, 2.5), percentile(v, 97.5)) if v else (np.nan, np.nan)
 
         out.append(
             DirectionPrediction(

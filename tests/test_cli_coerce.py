@@ -1,0 +1,90 @@
+"""The CLI's light option conversion (``robovib.cli._coerce``) against Typer's own converter.
+
+Typer 0.2x converts every option value through Pydantic (imported on the first conversion, ~0.2 s);
+robovib converts plain values itself. The reference is the same Typer app without the light
+converter: every value must come out the same, every error with the same message.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import click
+import pytest
+import typer
+
+from robovib.cli._coerce import install_light_coercion
+
+
+def _command(light: bool):
+    got: dict = {}
+    app = typer.Typer(add_completion=False)
+
+    @app.command()
+    def run(
+        x: Annotated[float, typer.Option()] = 1.0,
+        n: Annotated[int, typer.Option(min=1, max=9)] = 2,
+        name: Annotated[str, typer.Option()] = "a",
+        path: Annotated[Path | None, typer.Option()] = None,
+        mode: Annotated[list[str] | None, typer.Option()] = None,
+        flag: Annotated[bool, typer.Option()] = False,
+    ) -> None:
+        got.update(x=x, n=n, name=name, path=path, mode=mode, flag=flag)
+
+    cmd = typer.main.get_command(app)
+    if light:
+        install_light_coercion(cmd)
+    return cmd, got
+
+
+def _run(args: list[str], light: bool):
+    cmd, got = _command(light)
+    try:
+        cmd.main(args, standalone_mode=False)
+    except click.exceptions.ClickException as exc:
+        return ("error", exc.format_message())
+    except Exception as exc:  # the vendored click's exceptions in recent Typer
+        if hasattr(exc, "format_message"):
+            return ("error", exc.format_message())
+        raise
+    return ("ok", {k: (v, type(v)) for k, v in got.items()})
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        [],
+        ["--x", "2400", "--n", "3", "--name", "zoa", "--flag"],
+        ["--x", "-1.5e-3", "--n", "+9"],
+        ["--x", ".5", "--n", "1"],
+        ["--x", "7."],
+        ["--path", "some/file.h5", "--mode", "1", "--mode", "b"],
+        # not plain: Typer's converter decides (accepts or words the error)
+        ["--x", "1_000"],
+        ["--x", "inf"],
+        ["--x", " 5"],
+        ["--n", "2.0"],
+        ["--x", "abc"],
+        ["--n", "abc"],
+        ["--n", "0"],
+        ["--n", "10"],
+        ["--x", ""],
+    ],
+)
+def test_light_conversion_gives_what_typer_gives(args):
+    assert _run(args, light=True) == _run(args, light=False)
+
+
+def test_light_conversion_is_installed_on_the_robovib_tree():
+    """Every plain parameter of the robovib CLI, ``--help`` included, gets the light converter."""
+    pytest.importorskip("typer._coercion", reason="older Typer: click converts, no Pydantic")
+    from robovib.cli import app
+
+    cmd = typer.main.get_command(app)
+    install_light_coercion(cmd)
+    predict = cmd.commands["mill"].commands["predict"]
+    kinds = {p.name: type(getattr(p, "_runtime_param", None)).__name__ for p in predict.params}
+    assert set(kinds.values()) == {"_LightRuntimeParam"}, kinds
+    helper = predict.get_help_option(click.Context(predict))
+    assert type(helper._runtime_param).__name__ == "_LightRuntimeParam"
