@@ -262,14 +262,14 @@ def test_slow_studies():
     assert len(run_json("control", "simulate", "milling")["rows"]) > 0
     assert len(run_json("control", "simulate", "offset-mass")["rows"]) > 0
     study = run_json("hybrid", "study")  # seed 0, background 1, every model
-    assert {"settings", "rows", "summary"} <= set(study)
-    assert study["settings"]["seeds"] == [0]
+    assert {"settings", "result_settings", "rows", "summary"} <= set(study)
+    assert study["result_settings"]["seeds"] == [0]
     pairs = {(r["direction"], r["model"]) for r in study["rows"]}
     assert pairs == {(d, m) for d in "xyz" for m in MODELS}
     assert len(study["rows"]) == len(pairs)
     assert {(r["direction"], r["model"]) for r in study["summary"]} == pairs
     bg = run_json("hybrid", "study", "--background", "0.5,2", "--seeds", "0")
-    assert bg["settings"]["backgrounds"] == [0.5, 2.0]
+    assert bg["result_settings"]["backgrounds"] == [0.5, 2.0]
     assert {(r["background"], r["direction"]) for r in bg["summary"]} == {
         (b, d) for b in (0.5, 2.0) for d in "xyz"
     }
