@@ -130,6 +130,8 @@ def test_held_force_lags_half_a_step_unless_sampled_mid_step(offset, lag_steps):
     lag = -np.angle(h_est / h_true)
     assert lag == pytest.approx(lag_steps * 2 * np.pi * f0 / fs, abs=2e-3)
     assert abs(h_est) == pytest.approx(abs(h_true), rel=0.01)
+    with pytest.raises(ValueError, match="sample_offset"):
+        modal_response(fn * ones, k * ones, zeta * ones, force, 1 / fs, sample_offset=1.0)
 
 
 @pytest.mark.parametrize("block", [None, 7, 64])

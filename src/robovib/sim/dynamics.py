@@ -169,6 +169,10 @@ def modal_response(
         raise ValueError(f"mode parameter arrays {fn.shape} must match the force length {f.shape}")
     if not np.all(np.isfinite(f)):
         raise ValueError("force contains NaN or inf")
+    if not 0.0 <= sample_offset < 1.0:
+        raise ValueError(
+            f"sample_offset must be a fraction of a step in [0, 1), got {sample_offset}"
+        )
     p00, p01, p10, p11, g0, g1 = zoh_transition(fn, k, z, dt_s)
     if command is None:
         f_eff = f[None, :]
@@ -177,8 +181,6 @@ def modal_response(
         f_eff = f[None, :] + k_static * np.asarray(command, float)[None, :]
     xs, vs = affine_scan(p00, p01, p10, p11, g0 * f_eff, g1 * f_eff)
     xs, vs = xs[:, :-1], vs[:, :-1]
-    if not 0.0 <= sample_offset < 1.0:
-        raise ValueError(f"sample_offset must be in [0, 1), got {sample_offset}")
     if sample_offset > 0:
         q00, q01, q10, q11, h0, h1 = zoh_transition(fn, k, z, sample_offset * dt_s)
         xs, vs = q00 * xs + q01 * vs + h0 * f_eff, q10 * xs + q11 * vs + h1 * f_eff
