@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from robovib.cli import app
 from robovib.datasets import example_path
+from robovib.studies.hybrid import MODELS
 
 runner = CliRunner()
 
@@ -260,7 +261,19 @@ def test_hybrid_fit_update_predict_next_poses(files, tmp_path):
 def test_slow_studies():
     assert len(run_json("control", "simulate", "milling")["rows"]) > 0
     assert len(run_json("control", "simulate", "offset-mass")["rows"]) > 0
-    assert {"x", "y", "z"} <= set(run_json("hybrid", "study"))
+    study = run_json("hybrid", "study")  # seed 0, background 1, every model
+    assert {"settings", "result_settings", "rows", "summary"} <= set(study)
+    assert study["result_settings"]["seeds"] == [0]
+    pairs = {(r["direction"], r["model"]) for r in study["rows"]}
+    assert pairs == {(d, m) for d in "xyz" for m in MODELS}
+    assert len(study["rows"]) == len(pairs)
+    assert {(r["direction"], r["model"]) for r in study["summary"]} == pairs
+    bg = run_json("hybrid", "study", "--background", "0.5,2", "--seeds", "0")
+    assert bg["result_settings"]["backgrounds"] == [0.5, 2.0]
+    assert {(r["background"], r["direction"]) for r in bg["summary"]} == {
+        (b, d) for b in (0.5, 2.0) for d in "xyz"
+    }
+    assert all(0.0 <= r["held_back_fraction"] <= 1.0 for r in bg["summary"])
     assert len(run_json("demo")["outputs"]) == 9
     assert len(run_json("control", "schedule")["w1"]) == 20
 

@@ -124,7 +124,16 @@ def affine_scan(p00, p01, p10, p11, b0, b1, x0=(0.0, 0.0), block: int | None = N
     return np.concatenate([init_x, x], axis=-1), np.concatenate([init_v, v], axis=-1)
 
 
-def modal_response(fn_hz, stiffness_n_per_m, damping_ratio, force, dt_s: float, command=None):
+def modal_response(
+    fn_hz,
+    stiffness_n_per_m,
+    damping_ratio,
+    force,
+    dt_s: float,
+    command=None,
+    *,
+    sample_offset: float = 0.0,
+):
     """Displacement, velocity and acceleration of a sum of modes under a force (and command).
 
     Parameters
@@ -137,12 +146,20 @@ def modal_response(fn_hz, stiffness_n_per_m, damping_ratio, force, dt_s: float, 
         Sample period [s].
     command
         Optional (n,) actuator command [m] (already delayed/held), entering as ``k_s u``.
+    sample_offset
+        Where in each step the states are reported, as a fraction of ``dt_s`` in [0, 1):
+        0 (default) at ``t_i``, before ``F_i`` acts; 0.5 at the middle of the step, where the
+        held ``F_i`` is the force of that instant's neighbourhood. A held force is the
+        sampled force delayed by half a step (phase ``-omega h / 2``); sampling the response
+        mid-step makes force and response simultaneous samples (no half-step skew in an
+        FRF estimated from them; thesis-scale 1 kHz: 0.5 ms, 0.06 rad at 20 Hz).
 
     Returns
     -------
     x, v, a : ndarray (n,)
-        Sum over modes at the sample instants (state after each sample's input is *not*
-        included: ``x[i]`` is the state at ``t_i``, the force ``F_i`` acts over ``[t_i, t_i+h)``).
+        Sum over modes at the sample instants ``t_i + sample_offset h`` (with offset 0 the
+        state after each sample's input is *not* included: ``x[i]`` is the state at ``t_i``,
+        the force ``F_i`` acts over ``[t_i, t_i+h)``).
     """
     fn = np.atleast_2d(fn_hz)
     k = np.atleast_2d(stiffness_n_per_m)
@@ -152,6 +169,10 @@ def modal_response(fn_hz, stiffness_n_per_m, damping_ratio, force, dt_s: float, 
         raise ValueError(f"mode parameter arrays {fn.shape} must match the force length {f.shape}")
     if not np.all(np.isfinite(f)):
         raise ValueError("force contains NaN or inf")
+    if not 0.0 <= sample_offset < 1.0:
+        raise ValueError(
+            f"sample_offset must be a fraction of a step in [0, 1), got {sample_offset}"
+        )
     p00, p01, p10, p11, g0, g1 = zoh_transition(fn, k, z, dt_s)
     if command is None:
         f_eff = f[None, :]
@@ -160,6 +181,9 @@ def modal_response(fn_hz, stiffness_n_per_m, damping_ratio, force, dt_s: float, 
         f_eff = f[None, :] + k_static * np.asarray(command, float)[None, :]
     xs, vs = affine_scan(p00, p01, p10, p11, g0 * f_eff, g1 * f_eff)
     xs, vs = xs[:, :-1], vs[:, :-1]
+    if sample_offset > 0:
+        q00, q01, q10, q11, h0, h1 = zoh_transition(fn, k, z, sample_offset * dt_s)
+        xs, vs = q00 * xs + q01 * vs + h0 * f_eff, q10 * xs + q11 * vs + h1 * f_eff
     wn = 2 * np.pi * fn
     mass = k / wn**2
     acc = (f_eff - 2 * z * wn * mass * vs - k * xs) / mass
