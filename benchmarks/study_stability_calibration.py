@@ -162,7 +162,7 @@ def main(argv=None) -> None:
     if not args.margin:
         p = plin
     print(f"\nreliability of P(stable) ({'with' if args.margin else 'without'} the margin): "
-          "bin   mean P   observed stable   cuts")  # fmt: skip
+          "bin   mean P   observed stable   cuts   95 % binomial half-width")  # fmt: skip
     edges = np.linspace(0, 1, 11)
     worst = 0.0
     for a, b in itertools.pairwise(edges):
@@ -171,8 +171,12 @@ def main(argv=None) -> None:
             gap = abs(p[sel].mean() - y[sel].mean())
             if sel.sum() >= 20:
                 worst = max(worst, gap)
+            # The scatter of a calibrated forecast's observed fraction (cuts taken as
+            # independent: cuts of one pose and speed are not, so the true scatter is larger).
+            half = 1.96 * np.sqrt(p[sel].mean() * (1 - p[sel].mean()) / sel.sum())
             print(
                 f"  [{a:.1f}, {b:.1f}]  {p[sel].mean():9.2f} {y[sel].mean():14.2f} {sel.sum():8d}"
+                f"   ±{100 * half:.0f} points"
             )
     print(f"largest |mean P - observed| in bins with >= 20 cuts: {100 * worst:.1f} points")
     print(f"total {time.perf_counter() - t0:.0f} s")
