@@ -16,7 +16,6 @@ from ._coerce import install_light_coercion
 from ._table import Table
 
 __all__ = [
-    "DisturbanceOpt",
     "ForceOpt",
     "JsonFlag",
     "KeepFlaggedFitsOpt",
@@ -34,7 +33,6 @@ __all__ = [
     "fail",
     "materials",
     "new_app",
-    "parse_disturbances",
     "save_figure",
     "use_agg",
     "workspace_model",
@@ -60,16 +58,6 @@ ModeSwitchOpt = Annotated[
     ),
 ]
 OutOpt = Annotated[Path, typer.Option("-o", "--output", help="File to write.")]
-DisturbanceOpt = Annotated[
-    list[str] | None,
-    typer.Option(
-        "--disturbance",
-        help="A real-cut disturbance NAME=VALUE, repeatable. speed_error_pct, speed_drift_pct "
-        "(%), runout_um (µm), nonperiodic_rel (x force std), engagement_pct (%), force_noise_n, "
-        "force_bias_n (N), actuator_gain_pct (%), delay_error_ms (ms); all=F: every one at F x "
-        "its realistic level. All off by default.",
-    ),
-]
 ForceOpt = Annotated[
     bool,
     typer.Option(
@@ -203,16 +191,6 @@ def fail(message: str) -> None:
     """Stop with ``error: message`` on stderr and exit code 1."""
     typer.echo(f"error: {message}", err=True)
     raise typer.Exit(code=1)
-
-
-def parse_disturbances(items: list[str] | None):
-    """The :class:`~robovib.sim.CutDisturbances` of ``--disturbance`` items (error: exit 1)."""
-    from ..sim import CutDisturbances
-
-    try:
-        return CutDisturbances.parse(items or [])
-    except ValueError as exc:
-        fail(str(exc))
 
 
 def check_kernel(kernel: str) -> str:

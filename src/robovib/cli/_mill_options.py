@@ -10,6 +10,10 @@ import typer
 XOpt = Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")]
 YOpt = Annotated[float, typer.Option("--y", help="Tool-tip Y [mm].")]
 RzOpt = Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")]
+OptionalRzOpt = Annotated[
+    float | None, typer.Option("--rz", help="Rotation about the tool axis [deg].")
+]
+RpmRangeOpt = Annotated[str, typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm].")]
 RpmOpt = Annotated[float, typer.Option(help="Spindle speed [rpm].")]
 FzOpt = Annotated[float, typer.Option("--fz", help="Feed per tooth [mm].")]
 ApOpt = Annotated[float, typer.Option("--ap", help="Axial depth of cut [mm].")]

@@ -9,7 +9,6 @@ import numpy as np
 import typer
 
 from ._common import (
-    DisturbanceOpt,
     JsonFlag,
     ModelOpt,
     SeedOpt,
@@ -20,11 +19,11 @@ from ._common import (
     escape,
     fail,
     new_app,
-    parse_disturbances,
     save_figure,
     use_agg,
     workspace_model,
 )
+from ._control_options import ActuatorOpt, ControllerOpt, DisturbanceOpt, parse_disturbances
 
 app = new_app("Pose-dependent LQR vibration control (thesis chapter 4).")
 
@@ -247,24 +246,8 @@ def table9(json_out: JsonFlag = False) -> None:
 @app.command("simulate")
 def simulate(
     experiment: Annotated[str, typer.Argument(help="offset-mass (Table 7) or milling (Table 10).")],
-    controller: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--controller",
-            help="Controller(s), repeatable: thesis, constant-start, constant-end, tuned, lqg, "
-            "robust, feedforward, feedforward+robust, repetitive, adaptive (period tracking, "
-            "adaptive harmonics, fade-out guard), adaptive+robust, adaptive-feedforward, "
-            "adaptive+force (adaptive + runout lines + feedforward of the measured force through "
-            "the pose model; recommended for real cuts). Default: all.",
-        ),
-    ] = None,
-    actuator: Annotated[
-        str,
-        typer.Option(
-            help="Command channel: pure-delay (32 ms; the §4.3.2 'calibrated' channel is "
-            "withdrawn: no channel of gain <= 1 reproduces it)."
-        ),
-    ] = "pure-delay",
+    controller: ControllerOpt = None,
+    actuator: ActuatorOpt = "pure-delay",
     disturbance: DisturbanceOpt = None,
     plot: Annotated[
         Path | None,

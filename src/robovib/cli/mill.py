@@ -98,9 +98,7 @@ def predict(
 def lobes(
     x: Annotated[float | None, typer.Option("--x", help="Tool-tip X [mm] (pose model).")] = None,
     y: Annotated[float | None, typer.Option("--y", help="Tool-tip Y [mm].")] = None,
-    rz: Annotated[
-        float | None, typer.Option("--rz", help="Rotation about the tool axis [deg].")
-    ] = None,
+    rz: opt.OptionalRzOpt = None,
     method: opt.MethodOpt = "sdm",
     mode: opt.ModeSpecOpt = None,
     frf: opt.FrfFileOpt = None,
@@ -114,9 +112,7 @@ def lobes(
     kt: opt.KtOpt = None,
     kn: opt.KnOpt = None,
     feed: opt.FeedOpt = "x",
-    rpm_range: Annotated[
-        str, typer.Option("--rpm-range", help="Speeds MIN:MAX:N [rpm].")
-    ] = "100:3000:200",
+    rpm_range: opt.RpmRangeOpt = "100:3000:200",
     cuts: opt.CutsOpt = None,
     operating_point: opt.OperatingPointOpt = None,
     samples: opt.LobeSamplesOpt = 0,

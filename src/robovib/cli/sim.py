@@ -8,7 +8,6 @@ from typing import Annotated
 import typer
 
 from ._common import (
-    DisturbanceOpt,
     JsonFlag,
     OutOpt,
     SeedOpt,
@@ -16,8 +15,8 @@ from ._common import (
     fail,
     material,
     new_app,
-    parse_disturbances,
 )
+from ._control_options import DisturbanceOpt, parse_disturbances
 
 app = new_app("The virtual robot: synthetic hammer tests, milling passes and offset-mass runs.")
 
