@@ -29,7 +29,7 @@ from .. import __version__
 from ..io.h5format import open_checked, write_header
 from .calibration import read_calibration, write_calibration
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, symmetric_rz_features
-from .predictor import FORMAT, FORMAT_VERSION
+from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2
 from .regressor import BatchedGPRegressor, GPHyperparameters
 
 _REG_PARAMS = ("kernel", "mean", "normalize", "max_iter", "gtol", "n_noise_groups", "covariance")
@@ -126,8 +126,6 @@ def read_regressor(group) -> BatchedGPRegressor:
 
 # ---------------------------------------------------------------------------- mode switch
 def _features_tag(features) -> str:
-    from .pose_model import _RzCos2
-
     if features is None:
         return "none"
     if features is symmetric_rz_features:
@@ -141,8 +139,6 @@ def _features_tag(features) -> str:
 
 
 def _features_from_tag(tag: str):
-    from .pose_model import _RzCos2
-
     if tag == "none":
         return None
     kind, index = tag.split(":")

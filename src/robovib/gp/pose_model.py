@@ -43,9 +43,9 @@ from . import _h5
 from .extrapolation import TrainingRegion
 from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
+from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2, require_pose_inputs
 from .pose_mode import PoseMode, modes_at
 from .predictive import ModalPredictive, assemble, calibrated_mode_probability, noise_std_of
-from .predictor import FORMAT, FORMAT_VERSION, require_pose_inputs
 from .regressor import BatchedGPRegressor
 
 __all__ = [
@@ -61,18 +61,6 @@ __all__ = [
 
 _QUANTITIES = (("fn", "hz"), ("stiffness", "n_per_m"), ("damping", "ns_per_m"))
 _UNIT_LABELS = {"hz": "Hz", "n_per_m": "N/m", "ns_per_m": "N*s/m"}
-
-
-class _RzCos2:
-    """Classifier features with ``rz_deg`` replaced by cos(2 Rz): Rz and Rz + 180° coincide."""
-
-    def __init__(self, index: int) -> None:
-        self.index = index
-
-    def __call__(self, X: np.ndarray) -> np.ndarray:
-        X = np.array(X, float)
-        X[:, self.index] = np.cos(np.radians(2.0 * X[:, self.index]))
-        return X
 
 
 def _unit_of(name: str) -> str:

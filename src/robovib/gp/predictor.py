@@ -37,6 +37,7 @@ import numpy as np
 from .._threads import single_blas_thread
 from .extrapolation import TrainingRegion
 from .kernels import correlation
+from .pose_file import FORMAT, FORMAT_VERSION, require_pose_inputs
 from .posterior import GPPosterior
 from .predictive import calibrated_mode_probability
 
@@ -48,9 +49,6 @@ __all__ = [
     "predict_at",
 ]
 
-#: Format tag and version of pose-model files (:meth:`PoseModalModel.save` writes them).
-FORMAT = "robovib.PoseModalModel"
-FORMAT_VERSION = 1
 _QUANTITIES = (("fn", "hz"), ("stiffness", "n_per_m"), ("damping", "ns_per_m"))
 _UNIT_LABELS = {"hz": "Hz", "n_per_m": "N/m", "ns_per_m": "N*s/m"}
 # Williams & Barber's approximation of the logistic sigmoid by five error functions (the
@@ -510,30 +508,6 @@ class PosePredictor:
             if isinstance(est, _Switching):
                 p[:, cols[0] // 3] = est.high_mode_probability(X)
         return calibrated_mode_probability(p, getattr(self, "calibration_", None))
-
-
-def require_pose_inputs(model, path, require_inputs) -> None:
-    """Refuse a loaded pose model whose inputs are not the ones the caller needs.
-
-    Parameters
-    ----------
-    model
-        A loaded pose model (``input_names``).
-    path
-        Its file, for the message.
-    require_inputs : sequence of str or None
-        The input names needed (None: any).
-
-    Raises
-    ------
-    ValueError
-        Other inputs than required.
-    """
-    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
-        raise ValueError(
-            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
-            f"the model has {', '.join(model.input_names)}"
-        )
 
 
 def load_pose_predictor(path, require_inputs=None):

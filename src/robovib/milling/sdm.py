@@ -65,8 +65,8 @@ import numpy as np
 
 from .._linalg import batched_expm
 from ..modal.parameters import ModalParameters
+from .envelope import LobeEnvelope
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool, engagement_angles
-from .lobes import LobeEnvelope
 
 __all__ = [
     "EIGENSOLVERS",

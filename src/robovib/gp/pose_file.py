@@ -1,0 +1,58 @@
+"""What a pose-model file is, whoever reads it (NumPy only).
+
+A :class:`~robovib.gp.PoseModalModel` file is written and read in full by
+:mod:`robovib.gp._h5` (scikit-learn estimators re-created) and read for prediction only by
+:class:`~robovib.gp.predictor.PosePredictor` (no scikit-learn). Both, and the model itself,
+take from here what defines the file: its format tag and version, the classifier feature map
+stored by tag, and the check of a loaded model's inputs. Nothing here imports the readers,
+so they import it without a circle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["FORMAT", "FORMAT_VERSION", "require_pose_inputs"]
+
+#: Format tag and version of pose-model files (:meth:`PoseModalModel.save` writes them).
+FORMAT = "robovib.PoseModalModel"
+FORMAT_VERSION = 1
+
+
+class _RzCos2:
+    """Classifier features with ``rz_deg`` replaced by cos(2 Rz): Rz and Rz + 180° coincide.
+
+    Stored in a file as the tag ``rz_cos2:<index>``.
+    """
+
+    def __init__(self, index: int) -> None:
+        self.index = index
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        X = np.array(X, float)
+        X[:, self.index] = np.cos(np.radians(2.0 * X[:, self.index]))
+        return X
+
+
+def require_pose_inputs(model, path, require_inputs) -> None:
+    """Refuse a loaded pose model whose inputs are not the ones the caller needs.
+
+    Parameters
+    ----------
+    model
+        A loaded pose model (``input_names``).
+    path
+        Its file, for the message.
+    require_inputs : sequence of str or None
+        The input names needed (None: any).
+
+    Raises
+    ------
+    ValueError
+        Other inputs than required.
+    """
+    if require_inputs is not None and tuple(model.input_names) != tuple(require_inputs):
+        raise ValueError(
+            f"{path}: this command needs a pose model with inputs {', '.join(require_inputs)}; "
+            f"the model has {', '.join(model.input_names)}"
+        )
