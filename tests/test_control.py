@@ -590,3 +590,21 @@ def test_schedule_along_line_on_a_path_model_uses_its_path_coordinate():
 
     with pytest.raises(ValueError, match="no position"):
         schedule_along_line(NoPosition(), (0.0, 0.0), (1.0, 1.0), "x")
+
+
+def test_the_study_composes_the_library_design_and_path_model():
+    """Issue 23: controller design lives in ``robovib.control.design`` and the virtual EMA's path
+    model in ``robovib.sim``; the closed-loop study re-exports them, it holds no copy."""
+    import robovib.control as control
+    import robovib.sim as sim
+    from robovib.control import design
+    from robovib.studies import control_closed_loop as study
+
+    for name in ("CONTROLLERS", "DEFAULT_CONTROLLER", "build_controllers"):
+        assert getattr(study, name) is getattr(design, name) is getattr(control, name)
+    for name in ("path_modal_model", "virtual_path_modes"):
+        assert getattr(study, name) is getattr(sim, name)
+    assert study.sensitivity_bound is control.sensitivity_bound
+    assert design.DEFAULT_CONTROLLER in design.CONTROLLERS
+    with pytest.raises(ValueError, match="unknown controllers"):
+        design.build_controllers(None, {}, [0.0, 1.0], names=("no-such-controller",))

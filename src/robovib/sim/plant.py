@@ -70,7 +70,7 @@ class CommandChannel:
        zero-order-hold step per sample). ``servo_hz = inf`` (default) leaves it out. A lightly
        damped servo *amplifies* near ``servo_hz``, the only kind of channel that can make the
        thesis' gains reduce more than ``1 / (1 + |P||C|)`` (see
-       :func:`robovib.studies.control_closed_loop.sensitivity_bound`).
+       :func:`robovib.control.channel.sensitivity_bound`).
 
     The lag and the servo are exact discretisations with the stage's input held over each
     1 kHz sample; the value applied over sample ``i`` is the stage state at the end of that
