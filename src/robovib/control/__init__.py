@@ -30,7 +30,9 @@ _WHERE = {
         ["Combined", "DelayAwareFeedback", "ForceFeedforward", "RepetitiveFeedback",
          "ScheduledTable", "StateFeedback", "design_kalman", "design_tuned_state_feedback",
          "implemented_loop_matrix", "lqg_loop_matrix"], "controllers"),
-    **dict.fromkeys(["CONTROLLERS", "DEFAULT_CONTROLLER", "build_controllers"], "design"),
+    **dict.fromkeys(
+        ["CONTROLLERS", "DEFAULT_CONTROLLER", "THESIS_PRINTED_END_GAINS",
+         "THESIS_PRINTED_START_GAINS", "build_controllers", "thesis_printed_gains"], "design"),
     **dict.fromkeys(
         ["ForceModelFeedforward", "force_model_r", "force_model_variance_ratio",
          "unpredictable_fraction"], "force_model"),

@@ -39,7 +39,15 @@ from .schedule import GainSchedule, schedule_gains
 if TYPE_CHECKING:
     from ..gp import PoseModalModel
 
-__all__ = ["CONTROLLERS", "DEFAULT_CONTROLLER", "RUNOUT_LEARNING_REVS", "build_controllers"]
+__all__ = [
+    "CONTROLLERS",
+    "DEFAULT_CONTROLLER",
+    "RUNOUT_LEARNING_REVS",
+    "THESIS_PRINTED_END_GAINS",
+    "THESIS_PRINTED_START_GAINS",
+    "build_controllers",
+    "thesis_printed_gains",
+]
 
 #: The controllers compared in the studies (names used in the result rows and the CLI).
 CONTROLLERS = (
@@ -307,3 +315,39 @@ def build_controllers(
     if unknown:
         raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
     return out
+
+
+#: The thesis' printed constant gains (w1, w2) at the start of the Table 7 path (extended end).
+THESIS_PRINTED_START_GAINS = (0.11, 0.0065)
+#: The thesis' printed constant gains (w1, w2) at the end of the Table 7 path (near the base).
+THESIS_PRINTED_END_GAINS = (0.06, 0.005)
+
+
+def thesis_printed_gains(s_m, s_start_m: float) -> np.ndarray:
+    """The thesis' printed gain schedule (Eq. 28-29) at path distances ``s_m``.
+
+    The thesis gives ``w1`` and ``w2`` as polynomials of ``d``, the distance from the start of
+    the path in millimetres: ``w1 = -4.3e-5 d + 0.12`` and
+    ``w2 = -3e-14 d^4 + 7e-11 d^3 - 6e-8 d^2 + 1e-5 d + 0.006``.
+
+    Parameters
+    ----------
+    s_m
+        Path distances [m] (scalar or array).
+    s_start_m
+        Path distance [m] where the move starts (``d = |s_m - s_start_m|``).
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 2) gains ``[w1, w2]`` per path distance.
+
+    Examples
+    --------
+    >>> thesis_printed_gains([1.235], 1.235).round(4).tolist()
+    [[0.12, 0.006]]
+    """
+    d = np.abs(np.asarray(s_m, float) - s_start_m) * 1e3
+    w1 = -4.3e-5 * d + 0.12
+    w2 = -3e-14 * d**4 + 7e-11 * d**3 - 6e-8 * d**2 + 1e-5 * d + 0.006
+    return np.column_stack([w1, w2])

@@ -19,7 +19,7 @@ from .experiments import (
     simulate_milling,
     simulate_offset_mass,
 )
-from .plant import PURE_DELAY, CommandChannel, ConstantModesRobot, run_closed_loop
+from .plant import ACTUATORS, PURE_DELAY, CommandChannel, ConstantModesRobot, run_closed_loop
 from .regenerative import RegenerativeCut, simulate_regenerative_cut, simulated_stability_limit
 from .truth import (
     PATH_LENGTH_M,
@@ -33,6 +33,7 @@ from .truth import (
 )
 
 __all__ = [
+    "ACTUATORS",
     "DISTURBANCE_UNITS",
     "LAYOUTS",
     "PATH_LENGTH_M",

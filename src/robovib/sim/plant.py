@@ -42,6 +42,7 @@ from .experiments import _TRUTH_STEP_S, LinearMove, MotionRecord, _rng
 from .truth import DIRECTIONS, ModeSet, VirtualRobot
 
 __all__ = [
+    "ACTUATORS",
     "PURE_DELAY",
     "CommandChannel",
     "ConstantModesRobot",
@@ -193,6 +194,9 @@ class CommandChannel:
 
 #: The uncalibrated channel: a pure 32 ms transport delay (§4.3.2).
 PURE_DELAY = CommandChannel()
+
+#: The command channels by name (``robovib control simulate --actuator``).
+ACTUATORS = {"pure-delay": PURE_DELAY}
 
 
 class _ChannelState:

@@ -39,7 +39,14 @@ from ..control.channel import (
     sensitivity_bound,
 )
 from ..control.controllers import ScheduledTable, StateFeedback
-from ..control.design import CONTROLLERS, DEFAULT_CONTROLLER, build_controllers
+from ..control.design import (
+    CONTROLLERS,
+    DEFAULT_CONTROLLER,
+    THESIS_PRINTED_END_GAINS,
+    THESIS_PRINTED_START_GAINS,
+    build_controllers,
+    thesis_printed_gains,
+)
 from ..control.pose_plants import SECOND_MODE_HYPOTHESES, path_band, path_mode
 from ..gp import PoseModalModel
 from ..milling.forces import (
@@ -50,6 +57,7 @@ from ..milling.forces import (
 )
 from ..modal.parameters import ModalParameters
 from ..sim import (
+    ACTUATORS,
     PATH_LENGTH_M,
     POSITION_1_S_M,
     POSITION_2_S_M,
@@ -272,18 +280,6 @@ def calibrate_channel(
     return rows
 
 
-def _thesis_eq28(s_start: float):
-    """The thesis' printed schedule (Eq. 28-29, d = distance from the path start [mm])."""
-
-    def gains(coords):
-        d = np.abs(np.asarray(coords, float) - s_start) * 1e3
-        w1 = -4.3e-5 * d + 0.12
-        w2 = -3e-14 * d**4 + 7e-11 * d**3 - 6e-8 * d**2 + 1e-5 * d + 0.006
-        return np.column_stack([w1, w2])
-
-    return gains
-
-
 def offset_mass_study(
     robot: VirtualRobot,
     model: PoseModalModel,
@@ -358,10 +354,10 @@ def offset_mass_study(
         ctrls.update(build_controllers(model, {0: "x"}, grid, names=controllers,
                                        excitation_period_s=60.0 / rpm, s_start=s_start, s_end=s_end))  # fmt: skip
         if thesis_gains:
-            tab = _thesis_eq28(s_start)(grid)
+            tab = thesis_printed_gains(grid, s_start)
             ctrls["thesis-printed"] = StateFeedback({0: ScheduledTable(grid, tab)})
-            ctrls["thesis-printed-start"] = StateFeedback({0: (0.11, 0.0065)})
-            ctrls["thesis-printed-end"] = StateFeedback({0: (0.06, 0.005)})
+            ctrls["thesis-printed-start"] = StateFeedback({0: THESIS_PRINTED_START_GAINS})
+            ctrls["thesis-printed-end"] = StateFeedback({0: THESIS_PRINTED_END_GAINS})
         for name, ctrl in ctrls.items():
             disp, err = _run(robot, move, force, ctrl, rng, channel)
             row = {"speed_rpm": rpm, "controller": name, "start_mm": np.nan, "end_mm": np.nan,
@@ -601,10 +597,6 @@ def plot_milling(rows: list[dict], direction: str = "x", ax=None):
 
 
 # --------------------------------------------------------------------------- one entry point
-#: Command-channel choices of ``robovib control simulate --actuator``.
-ACTUATORS = {"pure-delay": PURE_DELAY}
-
-
 @dataclass(frozen=True)
 class ControlSimulation:
     """Result of :func:`simulate_control`: rows (one per run) and the settings used.
