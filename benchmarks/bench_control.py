@@ -59,8 +59,8 @@ def main() -> None:
 
 
 def controllers_per_cycle() -> None:
-    from robovib.sim import POSITION_1_S_M, VirtualRobot
-    from robovib.studies.control_closed_loop import CONTROLLERS, build_controllers, path_modal_model
+    from robovib.control.design import CONTROLLERS, build_controllers
+    from robovib.sim import POSITION_1_S_M, VirtualRobot, path_modal_model
 
     model = path_modal_model(VirtualRobot(), n_points=10, n_hits=2)
     grid = np.linspace(POSITION_1_S_M - 0.025, POSITION_1_S_M + 0.025, 6)

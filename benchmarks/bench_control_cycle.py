@@ -14,9 +14,9 @@ import time
 
 import numpy as np
 
+from robovib.control.design import build_controllers
 from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
-from robovib.sim import POSITION_1_S_M, REALISTIC_LEVELS, VirtualRobot
-from robovib.studies.control_closed_loop import build_controllers, path_modal_model
+from robovib.sim import POSITION_1_S_M, REALISTIC_LEVELS, VirtualRobot, path_modal_model
 
 NAMES = (
     "feedforward+robust",

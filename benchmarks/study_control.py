@@ -217,7 +217,8 @@ def stability() -> None:
 def best() -> None:
     """Best [w1, w2] feedback at each tooth frequency (stable over the GP band + second modes)."""
     from robovib.control.controllers import design_tuned_state_feedback
-    from robovib.studies.control_closed_loop import _model_set, path_mode
+    from robovib.control.pose_plants import path_mode
+    from robovib.control.pose_plants import plant_set as _model_set
 
     robot = VirtualRobot()
     model = path_modal_model(robot)

@@ -590,3 +590,36 @@ def test_schedule_along_line_on_a_path_model_uses_its_path_coordinate():
 
     with pytest.raises(ValueError, match="no position"):
         schedule_along_line(NoPosition(), (0.0, 0.0), (1.0, 1.0), "x")
+
+
+def test_the_study_composes_the_library_design_and_path_model():
+    """Issue 23: controller design lives in ``robovib.control.design`` and the virtual EMA's path
+    model in ``robovib.sim``; the closed-loop study re-exports them, it holds no copy."""
+    import robovib.control as control
+    import robovib.sim as sim
+    from robovib.control import design
+    from robovib.studies import control_closed_loop as study
+
+    for name in ("CONTROLLERS", "DEFAULT_CONTROLLER", "build_controllers"):
+        assert getattr(study, name) is getattr(design, name) is getattr(control, name)
+    for name in ("path_modal_model", "virtual_path_modes"):
+        assert getattr(study, name) is getattr(sim, name)
+    assert study.sensitivity_bound is control.sensitivity_bound
+    assert design.DEFAULT_CONTROLLER in design.CONTROLLERS
+    with pytest.raises(ValueError, match="unknown controllers"):
+        design.build_controllers(None, {}, [0.0, 1.0], names=("no-such-controller",))
+
+
+def test_thesis_printed_schedule_is_eq_28_29_in_millimetres_from_the_start():
+    """Thesis Eq. 28-29 (d in mm from the path start) evaluated with numpy.polyval."""
+    from robovib.control.design import thesis_printed_gains
+
+    s_start = 1.235
+    s = np.array([s_start, s_start - 0.45, s_start - 0.9])
+    d_mm = np.array([0.0, 450.0, 900.0])
+    got = thesis_printed_gains(s, s_start)
+    np.testing.assert_allclose(got[:, 0], np.polyval([-4.3e-5, 0.12], d_mm), rtol=1e-12)
+    np.testing.assert_allclose(
+        got[:, 1], np.polyval([-3e-14, 7e-11, -6e-8, 1e-5, 0.006], d_mm), rtol=1e-9
+    )
+    assert got[2, 0] == pytest.approx(0.0813)  # 0.12 - 4.3e-5 * 900

@@ -152,7 +152,7 @@ def schedule(
 
         s, modes = read_path_modes_csv(path_file)
     else:
-        from ..studies.control_closed_loop import virtual_path_modes
+        from ..sim import virtual_path_modes
 
         s, modes = virtual_path_modes(direction=direction, rng=seed)
     sched = schedule_gains(s, modes, warn=warnings_seen.append)

@@ -1,58 +1,53 @@
-"""Pose-dependent optimal vibration control (thesis ch. 4): LQR, gain scheduling, delay analysis,
-run-time controllers (:mod:`robovib.control.controllers`)."""
+"""Pose-dependent optimal vibration control (thesis ch. 4).
 
-from .controllers import (
-    Combined,
-    DelayAwareFeedback,
-    ForceFeedforward,
-    RepetitiveFeedback,
-    ScheduledTable,
-    StateFeedback,
-    design_kalman,
-    design_tuned_state_feedback,
-    implemented_loop_matrix,
-    lqg_loop_matrix,
-)
-from .lqr import (
-    THESIS_Q,
-    THESIS_R,
-    DelayAnalysis,
-    DelayAwareDesign,
-    LoopMargins,
-    LQRDesign,
-    closed_loop_with_delay,
-    continuous_model,
-    delay_analysis,
-    design_delay_aware_lqr,
-    design_lqr,
-    discretize,
-    loop_margins,
-    tune_r_for_delay,
-)
+* :mod:`~robovib.control.lqr`: LQR, delay analysis and delay-aware designs;
+* :mod:`~robovib.control.schedule`: gain schedules over a path or a line through the workspace;
+* :mod:`~robovib.control.controllers` and :mod:`~robovib.control.adaptive`: run-time
+  controllers (state feedback, LQG, feedforward, repetitive, period tracking, fade-out guard);
+* :mod:`~robovib.control.force_model`: feedforward of the measured force through the pose model;
+* :mod:`~robovib.control.pose_plants`: the plants a design must hold on (GP band, second modes);
+* :mod:`~robovib.control.band_stability`: stability of designed controllers over that band;
+* :mod:`~robovib.control.channel`: what a command channel allows a state feedback (§4.3.2);
+* :mod:`~robovib.control.design`: the controllers of the closed-loop studies, designed from a
+  path model only (:func:`~robovib.control.design.build_controllers`).
 
-__all__ = [
-    "THESIS_Q",
-    "THESIS_R",
-    "Combined",
-    "DelayAnalysis",
-    "DelayAwareDesign",
-    "DelayAwareFeedback",
-    "ForceFeedforward",
-    "LQRDesign",
-    "LoopMargins",
-    "RepetitiveFeedback",
-    "ScheduledTable",
-    "StateFeedback",
-    "closed_loop_with_delay",
-    "continuous_model",
-    "delay_analysis",
-    "design_delay_aware_lqr",
-    "design_kalman",
-    "design_lqr",
-    "design_tuned_state_feedback",
-    "discretize",
-    "implemented_loop_matrix",
-    "loop_margins",
-    "lqg_loop_matrix",
-    "tune_r_for_delay",
-]
+Names are imported on first use (PEP 562): designing gains at one pose
+(:mod:`~robovib.control.lqr`, NumPy only) does not pay for SciPy's signal module, which the
+adaptive controllers need.
+"""
+
+from .._lazy import lazy_exports
+
+_WHERE = {
+    **dict.fromkeys(
+        ["FadeGuard", "GuardEvent", "PeriodTracker", "TrackingFeedforward",
+         "TrackingRepetitive", "estimate_period"], "adaptive"),
+    "stability_over_band": "band_stability",
+    **dict.fromkeys(
+        ["THESIS_OFFSET_MASS_GAINS", "THESIS_OFFSET_MASS_MODE", "operating_mode",
+         "required_channel_gain", "sensitivity_bound"], "channel"),
+    **dict.fromkeys(
+        ["Combined", "DelayAwareFeedback", "ForceFeedforward", "RepetitiveFeedback",
+         "ScheduledTable", "StateFeedback", "design_kalman", "design_tuned_state_feedback",
+         "implemented_loop_matrix", "lqg_loop_matrix"], "controllers"),
+    **dict.fromkeys(
+        ["CONTROLLERS", "DEFAULT_CONTROLLER", "THESIS_PRINTED_END_GAINS",
+         "THESIS_PRINTED_START_GAINS", "build_controllers", "thesis_printed_gains"], "design"),
+    **dict.fromkeys(
+        ["ForceModelFeedforward", "force_model_r", "force_model_variance_ratio",
+         "unpredictable_fraction"], "force_model"),
+    **dict.fromkeys(
+        ["THESIS_Q", "THESIS_R", "DelayAnalysis", "DelayAwareDesign", "LoopMargins",
+         "LQRDesign", "closed_loop_with_delay", "continuous_model", "delay_analysis",
+         "design_delay_aware_lqr", "design_lqr", "discretize", "loop_margins",
+         "tune_r_for_delay"], "lqr"),
+    **dict.fromkeys(["SECOND_MODE_HYPOTHESES", "path_band", "path_mode", "plant_set"],
+                    "pose_plants"),
+    **dict.fromkeys(["GainSchedule", "ModelSchedule", "schedule_along_line", "schedule_gains"],
+                    "schedule"),
+}  # fmt: skip
+
+__all__ = sorted(_WHERE)
+
+
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)

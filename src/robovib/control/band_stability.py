@@ -67,10 +67,10 @@ def stability_over_band(
     ----------
     model
         The path model the controllers were designed from (e.g.
-        :func:`robovib.studies.control_closed_loop.path_modal_model`).
+        :func:`robovib.sim.path_modal_model`).
     controllers
         Name -> controller, e.g. from
-        :func:`robovib.studies.control_closed_loop.build_controllers`.
+        :func:`robovib.control.design.build_controllers`.
     axes
         Tool-tip axis index -> model direction, as the controllers were designed for.
     s_points

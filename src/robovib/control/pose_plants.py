@@ -4,7 +4,7 @@ A pose model over the path coordinate (:class:`robovib.gp.PoseModalModel` with
 ``input_names=("s_m",)``) gives the dominant mode at a path distance (:func:`path_mode`, the
 posterior mean, Eq. 9) and the corners of its band (:func:`path_band`, Eq. 10);
 :func:`plant_set` adds the unmodelled second modes of :data:`SECOND_MODE_HYPOTHESES`. The
-robust and tuned designs of :mod:`robovib.studies.control_closed_loop` are checked on these.
+robust and tuned designs of :mod:`robovib.control.design` are checked on these.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def path_mode(model: PoseModalModel, s_m: float, direction: str) -> ModalParamet
     Parameters
     ----------
     model
-        A path model from :func:`path_modal_model`.
+        A path model over ``input_names=("s_m",)`` (e.g. :func:`robovib.sim.path_modal_model`).
     s_m
         Path distance [m].
     direction
@@ -52,7 +52,7 @@ def path_band(
     Parameters
     ----------
     model
-        A path model from :func:`path_modal_model`.
+        A path model over ``input_names=("s_m",)`` (e.g. :func:`robovib.sim.path_modal_model`).
     s_m
         Path distance [m].
     direction

@@ -25,7 +25,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
-from .regressor import BatchedGPRegressor
+from .regressor import BatchedGPRegressor, _as_2d_float
 
 __all__ = [
     "ModeSwitchDetection",
@@ -215,6 +215,12 @@ class ModeSwitchingGPRegressor(BaseEstimator):
     classifier_ : GaussianProcessClassifier or None (None when training has one mode only)
     n_high_ : int
         Number of high-mode training samples.
+    n_features_in_ : int
+        Number of inputs seen in :meth:`fit`.
+
+    Notes
+    -----
+    ``Y`` is always 2-D (one column per output; the scikit-learn tags say multi-output only).
     """
 
     def __init__(
@@ -236,6 +242,50 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         self.rng = rng
         self.n_noise_groups = n_noise_groups
         self.covariance = covariance
+
+    def __sklearn_tags__(self):
+        """scikit-learn tags: 2-D targets only (one column per output), required by ``fit``.
+
+        Returns
+        -------
+        sklearn.utils.Tags
+            The default tags with ``target_tags.required``, ``target_tags.multi_output`` and
+            not ``target_tags.single_output``.
+        """
+        tags = super().__sklearn_tags__()
+        tags.target_tags.required = True
+        tags.target_tags.multi_output = True
+        tags.target_tags.single_output = False
+        return tags
+
+    @property
+    def n_features_in_(self) -> int:
+        """Number of inputs seen in :meth:`fit` (AttributeError before).
+
+        Returns
+        -------
+        int
+            The inputs of the low-mode GP.
+        """
+        return self.low_model_.n_features_in_
+
+    def _check_query(self, X) -> np.ndarray:
+        """``X`` as a finite (n, n_features_in_) float array (clear errors otherwise)."""
+        self._require_fitted()
+        if np.ndim(X) == 1 and self.n_features_in_ != 1:
+            raise ValueError(
+                f"X is 1-D but the model has {self.n_features_in_} inputs: Reshape your data "
+                "to (n_query, n_features)"
+            )
+        X = _as_2d_float("X", X, "(n_query, n_features)")
+        if X.shape[1] != self.n_features_in_:
+            raise ValueError(
+                f"X has {X.shape[1]} features, but ModeSwitchingGPRegressor is expecting "
+                f"{self.n_features_in_} features as input"
+            )
+        if not np.all(np.isfinite(X)):
+            raise ValueError("X contains NaN or inf")
+        return X
 
     def _regressor(self) -> BatchedGPRegressor:
         return BatchedGPRegressor(
@@ -267,10 +317,20 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         from sklearn.gaussian_process.kernels import RBF
         from sklearn.gaussian_process.kernels import ConstantKernel as C
 
-        X = np.asarray(X, float)
-        Y = np.asarray(Y, float)
-        if Y.ndim != 2:
-            raise ValueError(f"Y must be 2-D (n_samples, n_outputs), got shape {Y.shape}")
+        X = _as_2d_float("X", X, "(n_samples, n_features)")
+        if not np.all(np.isfinite(X)):
+            raise ValueError("X contains NaN or inf")
+        if Y is None:
+            raise ValueError(
+                "ModeSwitchingGPRegressor requires y to be passed, but the target y is None"
+            )
+        if np.ndim(Y) != 2:
+            raise ValueError(f"Y must be 2-D (n_samples, n_outputs), got shape {np.shape(Y)}")
+        Y = _as_2d_float("Y", Y, "(n_samples, n_outputs)")
+        if Y.shape[0] != X.shape[0]:
+            raise ValueError(
+                f"X and Y have mismatched lengths: {X.shape[0]} samples vs {Y.shape[0]} targets"
+            )
         mask = np.isfinite(Y) if mask is None else np.asarray(mask, bool)
         groups = None if groups is None else np.asarray(groups)
         switching = np.asarray(self.switching_outputs, dtype=int)
@@ -423,8 +483,7 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         numpy.ndarray
             (n,) probabilities.
         """
-        self._require_fitted()
-        X = np.asarray(X, float)
+        X = self._check_query(X)
         if self.classifier_ is None:
             return np.full(X.shape[0], 1.0 if self._all_high else 0.0)
         return self.classifier_.predict_proba((self._features(X) - self._x_loc) / self._x_scale)[
@@ -466,8 +525,7 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         """
         from .predictive import UNMODELLED_MODE_RELATIVE_STD, noise_std_of
 
-        self._require_fitted()
-        X = np.asarray(X, float)
+        X = self._check_query(X)
         mean, std = self.low_model_.predict(X, return_std=True)
         noise = np.broadcast_to(noise_std_of(self.low_model_.hyperparameters_), mean.shape)
         h_mean, h_std, h_noise = mean.copy(), std.copy(), noise.copy()
@@ -500,8 +558,7 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         std : numpy.ndarray
             (n, n_outputs) latent std (only with ``return_std``).
         """
-        self._require_fitted()
-        X = np.asarray(X, float)
+        X = self._check_query(X)
         mean, std = self.low_model_.predict(X, return_std=True)
         use_high = self.high_mode_probability(X) > 0.5
         if np.any(use_high):

@@ -1,9 +1,12 @@
 """The virtual robot: a synthetic, pose-dependent KR500-3 lab (hammer tests, milling, offset mass).
 
 See :mod:`robovib.sim.truth` for exactly how the ground truth is built (a plausible synthetic
-robot fitted to the thesis' data, not a claim about the real one).
+robot fitted to the thesis' data, not a claim about the real one). The path model of the
+virtual EMA (:mod:`robovib.sim.path_model`, which needs the GP and the FRF estimators) is
+imported on first use.
 """
 
+from .._lazy import lazy_exports
 from .campaign import LAYOUTS, SimulatedCampaign, simulate_campaign, truth_table
 from .disturbances import DISTURBANCE_UNITS, REALISTIC_LEVELS, CutDisturbances
 from .dynamics import affine_scan, modal_response, zoh_transition
@@ -16,7 +19,7 @@ from .experiments import (
     simulate_milling,
     simulate_offset_mass,
 )
-from .plant import PURE_DELAY, CommandChannel, ConstantModesRobot, run_closed_loop
+from .plant import ACTUATORS, PURE_DELAY, CommandChannel, ConstantModesRobot, run_closed_loop
 from .regenerative import RegenerativeCut, simulate_regenerative_cut, simulated_stability_limit
 from .truth import (
     PATH_LENGTH_M,
@@ -30,6 +33,7 @@ from .truth import (
 )
 
 __all__ = [
+    "ACTUATORS",
     "DISTURBANCE_UNITS",
     "LAYOUTS",
     "PATH_LENGTH_M",
@@ -53,6 +57,7 @@ __all__ = [
     "default_path_move",
     "modal_response",
     "offset_mass_force",
+    "path_modal_model",
     "run_closed_loop",
     "simulate_campaign",
     "simulate_hammer_test",
@@ -61,5 +66,11 @@ __all__ = [
     "simulate_regenerative_cut",
     "simulated_stability_limit",
     "truth_table",
+    "virtual_path_modes",
     "zoh_transition",
 ]
+
+#: Names imported on first use (PEP 562): the GP and FRF estimation they need are heavy.
+_LAZY = {"path_modal_model": "path_model", "virtual_path_modes": "path_model"}
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

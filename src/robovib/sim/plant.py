@@ -42,6 +42,7 @@ from .experiments import _TRUTH_STEP_S, LinearMove, MotionRecord, _rng
 from .truth import DIRECTIONS, ModeSet, VirtualRobot
 
 __all__ = [
+    "ACTUATORS",
     "PURE_DELAY",
     "CommandChannel",
     "ConstantModesRobot",
@@ -70,7 +71,7 @@ class CommandChannel:
        zero-order-hold step per sample). ``servo_hz = inf`` (default) leaves it out. A lightly
        damped servo *amplifies* near ``servo_hz``, the only kind of channel that can make the
        thesis' gains reduce more than ``1 / (1 + |P||C|)`` (see
-       :func:`robovib.studies.control_closed_loop.sensitivity_bound`).
+       :func:`robovib.control.channel.sensitivity_bound`).
 
     The lag and the servo are exact discretisations with the stage's input held over each
     1 kHz sample; the value applied over sample ``i`` is the stage state at the end of that
@@ -193,6 +194,9 @@ class CommandChannel:
 
 #: The uncalibrated channel: a pure 32 ms transport delay (§4.3.2).
 PURE_DELAY = CommandChannel()
+
+#: The command channels by name (``robovib control simulate --actuator``).
+ACTUATORS = {"pure-delay": PURE_DELAY}
 
 
 class _ChannelState:

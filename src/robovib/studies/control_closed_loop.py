@@ -1,15 +1,21 @@
 """Closed-loop studies on the virtual robot (thesis §4.2-4.4, Tables 7 and 10).
 
-1. :func:`path_modal_model`: hammer tests at points along the chapter-4 path (thesis: 20 points
-   56 mm apart), dominant-mode fits, and a GP over path distance — the pose model every
-   controller is designed from (the truth stays hidden from the design).
-2. :func:`fixed_pose_offset_mass` (§4.3.2): the thesis' own gains 0.079 / 0.0059 on the mode it
+The studies compose library code: the path model from the virtual EMA
+(:func:`robovib.sim.path_modal_model`), the controllers designed from it alone
+(:func:`robovib.control.design.build_controllers`), the command-channel models
+(:mod:`robovib.control.channel`, :class:`robovib.sim.CommandChannel`) and the closed-loop
+simulator (:func:`robovib.sim.run_closed_loop`). Those names are re-exported here.
+
+1. :func:`fixed_pose_offset_mass` (§4.3.2): the thesis' own gains 0.079 / 0.0059 on the mode it
    measured (8.5 Hz, 0.775 MN/m, 0.179) at 480 / 960 / 1440 rpm, open vs closed loop, through a
    given command channel; :func:`calibrate_channel` searches the channel options against
-   §4.3.2 and Table 7; :func:`sensitivity_bound` is the best any non-amplifying channel allows.
-3. :func:`offset_mass_study` (Table 7 analogue): 1 kg at 50.8 mm while the robot moves 900 mm
-   toward the base at 84 mm/s; the controllers of :func:`build_controllers`.
-4. :func:`milling_study` (Table 10 analogue): the eight cuts at Positions 1 and 2, X and Z.
+   §4.3.2 and Table 7; :func:`~robovib.control.channel.sensitivity_bound` is the best any
+   non-amplifying channel allows.
+2. :func:`offset_mass_study` (Table 7 analogue): 1 kg at 50.8 mm while the robot moves 900 mm
+   toward the base at 84 mm/s; the controllers of
+   :func:`~robovib.control.design.build_controllers`.
+3. :func:`milling_study` (Table 10 analogue): the eight cuts at Positions 1 and 2, X and Z.
+4. :func:`simulate_control`: one entry point (the CLI's ``control simulate``).
 
 Measurement realism comes from :func:`robovib.sim.run_closed_loop`: tracker at 1 kHz with
 noise and 0.01 mm resolution, force sensor with 0.5 N noise, commands at 250 Hz through a
@@ -23,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..control.adaptive import FadeGuard, PeriodTracker, TrackingFeedforward, TrackingRepetitive
+from ..control.adaptive import FadeGuard
 from ..control.band_stability import stability_over_band
 from ..control.channel import (
     THESIS_OFFSET_MASS_GAINS,
@@ -32,25 +38,16 @@ from ..control.channel import (
     required_channel_gain,
     sensitivity_bound,
 )
-from ..control.controllers import (
-    Combined,
-    DelayAwareFeedback,
-    ForceFeedforward,
-    RepetitiveFeedback,
-    ScheduledTable,
-    StateFeedback,
-    design_kalman,
-    design_tuned_state_feedback,
-    implemented_loop_matrix,
-    lqg_loop_matrix,
-    spectral_radius,
+from ..control.controllers import ScheduledTable, StateFeedback
+from ..control.design import (
+    CONTROLLERS,
+    DEFAULT_CONTROLLER,
+    THESIS_PRINTED_END_GAINS,
+    THESIS_PRINTED_START_GAINS,
+    build_controllers,
+    thesis_printed_gains,
 )
-from ..control.force_model import ForceModelFeedforward, force_model_r
-from ..control.lqr import design_delay_aware_lqr
 from ..control.pose_plants import SECOND_MODE_HYPOTHESES, path_band, path_mode
-from ..control.pose_plants import plant_set as _model_set
-from ..control.schedule import GainSchedule, schedule_gains
-from ..frf.impact import impact_frf
 from ..gp import PoseModalModel
 from ..milling.forces import (
     ACETAL,
@@ -59,8 +56,8 @@ from ..milling.forces import (
     MillingTool,
 )
 from ..modal.parameters import ModalParameters
-from ..modal.sdof import fit_dominant_mode
 from ..sim import (
+    ACTUATORS,
     PATH_LENGTH_M,
     POSITION_1_S_M,
     POSITION_2_S_M,
@@ -72,8 +69,9 @@ from ..sim import (
     ModeSet,
     VirtualRobot,
     offset_mass_force,
+    path_modal_model,
     run_closed_loop,
-    simulate_hammer_test,
+    virtual_path_modes,
 )
 
 __all__ = [
@@ -102,27 +100,6 @@ __all__ = [
     "virtual_path_modes",
 ]
 
-#: The controllers compared in the studies (names used in the result rows and the CLI).
-CONTROLLERS = (
-    "thesis",
-    "constant-start",
-    "constant-end",
-    "tuned",
-    "lqg",
-    "robust",
-    "feedforward",
-    "feedforward+robust",
-    "repetitive",
-    "adaptive",
-    "adaptive+robust",
-    "adaptive-feedforward",
-    "adaptive+force",
-)
-
-#: The controller recommended for real cuts (period tracking, adaptive harmonics, guard).
-DEFAULT_CONTROLLER = "adaptive+force"
-
-
 # The §4.3.2 calibration target is withdrawn (issue 25). The thesis reports the offset mass
 # at 8.5 Hz going from 0.93 to 0.39 mm with the gains 0.079 / 0.0059 (closed/open 0.42 at 480
 # and 960 rpm). No command channel of gain <= 1 can do that: :func:`sensitivity_bound` limits
@@ -134,336 +111,6 @@ DEFAULT_CONTROLLER = "adaptive+force"
 # make the Eq. 28-29 schedule unstable on the Table 7 path, which the thesis measured stable.
 # The studies therefore use the pure delay (:data:`~robovib.sim.PURE_DELAY`) and no
 # "calibrated" channel exists.
-
-
-def path_modal_model(
-    robot: VirtualRobot,
-    directions=("x", "z"),
-    n_points: int = 20,
-    *,
-    sample_rate_hz: float = 2048.0,
-    n_hits: int = 3,
-    rng=0,
-) -> PoseModalModel:
-    """EMA at ``n_points`` along the chapter-4 path (virtual hammer tests) and a GP over s.
-
-    Each point's FRF (:func:`robovib.frf.impact_frf`, up to 100 Hz) gives the dominant mode
-    (:func:`robovib.modal.fit_dominant_mode`); a GP per output (thesis Eq. 9-10) interpolates
-    them over the path distance. Read the model with :func:`path_mode` and :func:`path_band`.
-
-    Parameters
-    ----------
-    robot
-        The virtual robot hammered (:class:`robovib.sim.VirtualRobot`).
-    directions
-        Directions of the hammer tests and of the model (``"x"``, ``"y"``, ``"z"``).
-    n_points
-        Test points, evenly spaced over the path ``[0, PATH_LENGTH_M]`` [m].
-    sample_rate_hz
-        Sample rate of the virtual hammer tests [Hz].
-    n_hits
-        Hits averaged per test point.
-    rng
-        Seed or generator of the test noise and of the GP optimiser restarts.
-
-    Returns
-    -------
-    PoseModalModel
-        Fitted, ``input_names=("s_m",)`` (path distance [m]), the dominant mode per direction
-        (fn [Hz], k [N/m], c [N s/m]).
-    """
-    s = np.linspace(0.0, PATH_LENGTH_M, n_points)
-    gen = np.random.default_rng(rng)
-    cols = []
-    for d in directions:
-        rows = []
-        for si in s:
-            rec = simulate_hammer_test(robot, si, d, domain="path", n_hits=n_hits, sample_rate_hz=sample_rate_hz,
-                                       duration_s=4.0, rng=gen)  # fmt: skip
-            fit = fit_dominant_mode(
-                impact_frf(rec.forces, rec.responses, rec.sample_rate_hz, f_max_hz=100).frf
-            )
-            p = fit.parameters
-            rows.append([p.natural_frequency_hz, p.stiffness_n_per_m, p.damping_ns_per_m])
-        cols.append(np.array(rows))
-    model = PoseModalModel(input_names=("s_m",), directions=tuple(directions), kernel="isotropic",
-                           mode_switch=False, rng=rng)  # fmt: skip
-    return model.fit(s[:, None], np.hstack(cols))
-
-
-def virtual_path_modes(
-    robot: VirtualRobot | None = None, direction: str = "x", n_points: int = 20, rng=0
-) -> tuple[np.ndarray, list[ModalParameters]]:
-    """Dominant modes along the chapter-4 path from a virtual EMA (:func:`path_modal_model`).
-
-    Parameters
-    ----------
-    robot
-        The virtual robot (default: a new :class:`robovib.sim.VirtualRobot`).
-    direction
-        Direction of the hammer tests.
-    n_points
-        Coordinates returned, evenly spaced over 0.335-1.235 m.
-    rng
-        Seed of the virtual EMA.
-
-    Returns
-    -------
-    s_m
-        (n_points,) path coordinates [m], 0.335-1.235 m.
-    modes
-        One :class:`ModalParameters` per coordinate in ``direction``.
-    """
-    model = path_modal_model(robot or VirtualRobot(), directions=(direction,), rng=rng)
-    s = np.linspace(0.335, 1.235, n_points)
-    return s, [path_mode(model, si, direction) for si in s]
-
-
-# --------------------------------------------------------------------------- design
-#: Designs already made in this process (the studies design the same gains for every cut).
-_DESIGN_CACHE: dict = {}
-
-
-def _schedule(model: PoseModalModel, direction: str, s_grid) -> GainSchedule:
-    modes = tuple(path_mode(model, si, direction) for si in s_grid)
-    key = ("schedule", tuple(np.asarray(s_grid, float)), modes)  # keyed by the design inputs
-    if key not in _DESIGN_CACHE:
-        _DESIGN_CACHE[key] = schedule_gains(s_grid, list(modes))
-    return _DESIGN_CACHE[key]
-
-
-def _robust_r(plants, nominal: ModalParameters, period_s, delay_s, r_grid, velocity="difference"):
-    """R whose delay-aware gains (designed on the nominal mode) minimise the worst spectral
-    radius of the implemented loop over ``plants`` (lists of modes). ``velocity="kalman"``:
-    the loop with the 1 kHz Kalman filter of :func:`design_kalman` (LQG)."""
-    d = round(delay_s / period_s)
-    key = (nominal, tuple(tuple(p) for p in plants), period_s, delay_s, tuple(r_grid), velocity)
-    if key in _DESIGN_CACHE:
-        return _DESIGN_CACHE[key]
-    kf = design_kalman(nominal) if velocity == "kalman" else None
-
-    def radius(p, g):
-        if kf is not None:
-            return spectral_radius(lqg_loop_matrix(p, g, kf, period_s, 1e-3, round(delay_s * 1e3)))
-        return spectral_radius(implemented_loop_matrix(p, g, period_s, d, velocity=velocity))
-
-    best = None
-    for r in r_grid:
-        g = design_delay_aware_lqr(nominal, period_s, delay_s, r=[[r]]).gains
-        rho = max(radius(p, g) for p in plants)
-        if best is None or rho < best[0]:
-            best = (rho, g, r)
-    _DESIGN_CACHE[key] = best
-    return best
-
-
-#: Learning time of the runout lines [revolutions]: slow against the one-revolution window.
-RUNOUT_LEARNING_REVS = 4.0
-
-
-def _force_model_r(model: PoseModalModel, s_m: float, direction: str, period_s, delay_s) -> float:
-    """LQR weight of the force-model feedforward: best worst case over the band, the second-mode
-    hypotheses and the unknown delay (nominal ± 8 ms), at ``s_m`` (:func:`force_model_r`)."""
-    plants = _model_set(model, s_m, direction)
-    nominal = path_mode(model, s_m, direction)
-    key = ("force-model", nominal, tuple(tuple(p) for p in plants), period_s, delay_s)
-    if key not in _DESIGN_CACHE:
-        _DESIGN_CACHE[key] = force_model_r(plants, nominal, period_s=period_s, delay_s=delay_s)[0]
-    return _DESIGN_CACHE[key]
-
-
-def build_controllers(
-    model: PoseModalModel,
-    axes: dict[int, str],
-    s_grid,
-    *,
-    names=CONTROLLERS,
-    excitation_period_s: float | None = None,
-    s_start: float | None = None,
-    s_end: float | None = None,
-    period_s: float = 0.004,
-    delay_s: float = 0.032,
-    lqg_r: float | None = None,
-    robust_r_grid=None,
-    teeth: int = 1,
-) -> dict[str, object]:
-    """Controllers designed from the pose model only, scheduled over ``s_grid`` [m].
-
-    ``constant-start`` / ``constant-end`` use the pose-dependent design at ``s_start`` /
-    ``s_end``. The feedforward, tuned, repetitive and adaptive controllers need
-    ``excitation_period_s`` (the force's period). Designs are cached per process (keyed by
-    their inputs); the returned controllers are fresh objects.
-
-    Parameters
-    ----------
-    model
-        A path model from :func:`path_modal_model`.
-    axes
-        Controlled axes: tool-tip axis index (0 = X, 1 = Y, 2 = Z) -> model direction.
-    s_grid
-        Path distances [m] at which the gains are designed and tabulated.
-    names
-        Controllers to build, from :data:`CONTROLLERS`.
-    excitation_period_s
-        Period of the disturbing force (spindle or tooth-passing period) [s].
-    s_start, s_end
-        Path distances [m] of the ``constant-start`` / ``constant-end`` designs (default the
-        first grid point).
-    period_s
-        Command period of the controller [s] (250 Hz: 0.004 s).
-    delay_s
-        Command delay the designs account for [s].
-    lqg_r
-        Control weight R of the LQG design; None: chosen like the robust design, on the loop
-        with the Kalman filter.
-    robust_r_grid
-        Candidate R values of the robust design (default ``logspace(-2, 3, 11)``).
-    teeth
-        The cutter's teeth; above 1 ``adaptive+force`` also learns the once-per-revolution
-        (runout) lines.
-
-    Returns
-    -------
-    dict
-        Controller name -> controller object.
-
-    Raises
-    ------
-    ValueError
-        Unknown names, or a controller that needs ``excitation_period_s`` without it.
-    """
-    grid = np.asarray(s_grid, float)
-    r_grid = np.logspace(-2, 3, 11) if robust_r_grid is None else np.asarray(robust_r_grid)
-    out: dict[str, object] = {}
-    need_sched = {"thesis", "constant-start", "constant-end"} & set(names)
-    sched = {a: _schedule(model, d, grid) for a, d in axes.items()} if need_sched else {}
-    if "thesis" in names:
-        out["thesis"] = StateFeedback(
-            {a: ScheduledTable(grid, np.column_stack([s.w1, s.w2])) for a, s in sched.items()}
-        )
-    for name, s_at in (("constant-start", s_start), ("constant-end", s_end)):
-        if name in names:
-            s_at = grid[0] if s_at is None else s_at
-            out[name] = StateFeedback({a: s.gains_at(s_at) for a, s in sched.items()})
-    if "lqg" in names:
-        gains, kal = {}, {}
-        for a, d in axes.items():
-            modes = [path_mode(model, si, d) for si in grid]
-            if lqg_r is None:  # R picked like the robust design, on the loop with the filter
-                rows = [_robust_r(_model_set(model, si, d), m, period_s, delay_s, r_grid, "kalman")[1]
-                        for si, m in zip(grid, modes, strict=True)]  # fmt: skip
-            else:
-                rows = [
-                    design_delay_aware_lqr(m, period_s, delay_s, r=[[lqg_r]]).gains for m in modes
-                ]
-            gains[a] = ScheduledTable(grid, np.array(rows))
-            kal[a] = (grid, [design_kalman(m) for m in modes])
-        out["lqg"] = DelayAwareFeedback(gains, kal, delay_samples=round(delay_s * 1000.0))
-    robust = None
-    if "robust" in names or "feedforward+robust" in names:
-        tabs = {}
-        for a, d in axes.items():
-            rows = [
-                _robust_r(
-                    _model_set(model, si, d), path_mode(model, si, d), period_s, delay_s, r_grid
-                )[1]
-                for si in grid
-            ]
-            tabs[a] = ScheduledTable(grid, np.array(rows))
-        robust = tabs
-        if "robust" in names:
-            out["robust"] = DelayAwareFeedback(robust)
-    if "feedforward" in names or "feedforward+robust" in names:
-        if excitation_period_s is None:
-            raise ValueError("feedforward controllers need excitation_period_s [s]")
-        stiff = {
-            a: ScheduledTable(grid, np.array([[path_mode(model, si, d).stiffness_n_per_m] for si in grid]))
-            for a, d in axes.items()
-        }  # fmt: skip
-        if "feedforward" in names:
-            out["feedforward"] = ForceFeedforward(stiff, excitation_period_s, delay_s)
-        if "feedforward+robust" in names:
-            out["feedforward+robust"] = Combined(
-                ForceFeedforward(stiff, excitation_period_s, delay_s), DelayAwareFeedback(robust)
-            )
-    if "tuned" in names:
-        if excitation_period_s is None:
-            raise ValueError("the tuned controller needs excitation_period_s [s]")
-        tab = {}
-        for a, d in axes.items():
-            rows = []
-            for si in grid:
-                plants = _model_set(model, si, d)
-                key = (
-                    "tuned",
-                    tuple(tuple(p) for p in plants),
-                    excitation_period_s,
-                    period_s,
-                    delay_s,
-                )
-                if key not in _DESIGN_CACHE:
-                    _DESIGN_CACHE[key] = design_tuned_state_feedback(
-                        plants, plants[0][0], 1.0 / excitation_period_s,
-                        period_s=period_s, delay_s=delay_s)[0]  # fmt: skip
-                rows.append(_DESIGN_CACHE[key])
-            tab[a] = ScheduledTable(grid, np.array(rows))
-        out["tuned"] = StateFeedback(tab)
-    if "repetitive" in names:
-        if excitation_period_s is None:
-            raise ValueError("the repetitive controller needs excitation_period_s [s]")
-        modes = {
-            a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
-                                              for m in (path_mode(model, si, d) for si in grid)]))
-            for a, d in axes.items()
-        }  # fmt: skip
-        out["repetitive"] = RepetitiveFeedback(modes, excitation_period_s, delay_s)
-    adaptive = {"adaptive", "adaptive+robust", "adaptive-feedforward", "adaptive+force"} & set(
-        names
-    )
-    if adaptive:
-        if excitation_period_s is None:
-            raise ValueError("the adaptive controllers need the nominal excitation_period_s [s]")
-        fz = {
-            a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
-                                              for m in (path_mode(model, si, d) for si in grid)]))
-            for a, d in axes.items()
-        }  # fmt: skip
-        stiff = {
-            a: ScheduledTable(grid, np.array([[path_mode(model, si, d).stiffness_n_per_m] for si in grid]))
-            for a, d in axes.items()
-        }  # fmt: skip
-        if robust is None:
-            robust = {
-                a: ScheduledTable(grid, np.array([
-                    _robust_r(_model_set(model, si, d), path_mode(model, si, d), period_s, delay_s, r_grid)[1]
-                    for si in grid]))
-                for a, d in axes.items()
-            }  # fmt: skip
-        for name in adaptive:
-            tracker = PeriodTracker(excitation_period_s)
-            if name == "adaptive-feedforward":
-                parts = [TrackingFeedforward(stiff, tracker, delay_s)]
-            else:
-                parts = [TrackingRepetitive(fz, tracker, delay_s)]
-            if name == "adaptive+force" and teeth > 1:
-                # The once-per-revolution lines of runout (spindle harmonics that are not tooth
-                # harmonics), learnt over a revolution, slowly against that window.
-                parts.append(TrackingRepetitive(fz, tracker, delay_s, period_multiple=teeth,
-                                                n_harmonics=2 * teeth,
-                                                learning_time_s=RUNOUT_LEARNING_REVS * teeth * excitation_period_s))  # fmt: skip
-            if name == "adaptive+force":
-                fzk = {a: ScheduledTable(grid, np.column_stack([fz[a].values, stiff[a].values]))
-                       for a in axes}  # fmt: skip
-                parts.append(ForceModelFeedforward(fzk, delay_s, r={
-                    a: _force_model_r(model, float(np.median(grid)), d, period_s, delay_s)
-                    for a, d in axes.items()}))  # fmt: skip
-            elif name != "adaptive":
-                parts.append(DelayAwareFeedback(robust))
-            out[name] = FadeGuard(Combined(*parts), tracker, fz, delay_s)
-    unknown = set(names) - set(CONTROLLERS)
-    if unknown:
-        raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
-    return out
 
 
 # --------------------------------------------------------------------------- runs
@@ -633,18 +280,6 @@ def calibrate_channel(
     return rows
 
 
-def _thesis_eq28(s_start: float):
-    """The thesis' printed schedule (Eq. 28-29, d = distance from the path start [mm])."""
-
-    def gains(coords):
-        d = np.abs(np.asarray(coords, float) - s_start) * 1e3
-        w1 = -4.3e-5 * d + 0.12
-        w2 = -3e-14 * d**4 + 7e-11 * d**3 - 6e-8 * d**2 + 1e-5 * d + 0.006
-        return np.column_stack([w1, w2])
-
-    return gains
-
-
 def offset_mass_study(
     robot: VirtualRobot,
     model: PoseModalModel,
@@ -719,10 +354,10 @@ def offset_mass_study(
         ctrls.update(build_controllers(model, {0: "x"}, grid, names=controllers,
                                        excitation_period_s=60.0 / rpm, s_start=s_start, s_end=s_end))  # fmt: skip
         if thesis_gains:
-            tab = _thesis_eq28(s_start)(grid)
+            tab = thesis_printed_gains(grid, s_start)
             ctrls["thesis-printed"] = StateFeedback({0: ScheduledTable(grid, tab)})
-            ctrls["thesis-printed-start"] = StateFeedback({0: (0.11, 0.0065)})
-            ctrls["thesis-printed-end"] = StateFeedback({0: (0.06, 0.005)})
+            ctrls["thesis-printed-start"] = StateFeedback({0: THESIS_PRINTED_START_GAINS})
+            ctrls["thesis-printed-end"] = StateFeedback({0: THESIS_PRINTED_END_GAINS})
         for name, ctrl in ctrls.items():
             disp, err = _run(robot, move, force, ctrl, rng, channel)
             row = {"speed_rpm": rpm, "controller": name, "start_mm": np.nan, "end_mm": np.nan,
@@ -962,10 +597,6 @@ def plot_milling(rows: list[dict], direction: str = "x", ax=None):
 
 
 # --------------------------------------------------------------------------- one entry point
-#: Command-channel choices of ``robovib control simulate --actuator``.
-ACTUATORS = {"pure-delay": PURE_DELAY}
-
-
 @dataclass(frozen=True)
 class ControlSimulation:
     """Result of :func:`simulate_control`: rows (one per run) and the settings used.

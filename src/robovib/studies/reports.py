@@ -76,7 +76,7 @@ def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) 
 
         s, modes = read_path_modes_csv(path_file)
     else:
-        from .control_closed_loop import virtual_path_modes
+        from ..sim import virtual_path_modes
 
         s, modes = virtual_path_modes(direction=direction, rng=rng)
     warnings: list[str] = []
