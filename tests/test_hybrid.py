@@ -50,6 +50,18 @@ def test_frf_pose_model_interpolates_and_round_trips(tmp_path):
     back = FRFPoseModel.load(path)
     np.testing.assert_allclose(back.predict([0.5, 0.9]), model.predict([0.5, 0.9]), rtol=1e-10)
     assert back.extrapolating([1.5])[0] and not back.extrapolating([0.6])[0]
+    import h5py
+
+    with h5py.File(path, "a") as h5:  # the header before io.h5format: "version", version 2
+        assert int(h5.attrs["format_version"]) == 2 and "created_utc" in h5.attrs
+        del h5.attrs["format_version"], h5.attrs["created_utc"]
+        h5.attrs["version"] = 2
+    old = FRFPoseModel.load(path)
+    np.testing.assert_allclose(old.predict([0.5, 0.9]), model.predict([0.5, 0.9]), rtol=1e-10)
+    with h5py.File(path, "a") as h5:
+        h5.attrs["version"] = 3
+    with pytest.raises(ValueError, match="format version 3; this robovib reads versions 1 to 2"):
+        FRFPoseModel.load(path)
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"garbage")
     with pytest.raises(ValueError, match="HDF5"):

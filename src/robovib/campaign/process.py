@@ -365,7 +365,6 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
     ):
         write_frfs_hdf5(t_h5, frfs)
         with h5py.File(t_h5, "a") as h5:
-            h5.attrs["robovib_version"] = __version__
             h5.attrs["settings"] = settings_json
             h5.attrs["manifest"] = str(manifest)
             h5.attrs["units"] = "SI (frequency Hz, compliance m/N); pose (m, m, m, deg, deg, deg)"

@@ -16,7 +16,12 @@ from collections.abc import Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 
-__all__ = ["file_format", "open_checked", "write_header"]
+__all__ = ["FRF_FORMAT", "FRF_POSE_MODEL_FORMAT", "file_format", "open_checked", "write_header"]
+
+#: Format tag of FRF collections (:func:`robovib.io.write_frfs_hdf5`), layout version 1.
+FRF_FORMAT = "robovib-frf"
+#: Format tag of hybrid FRF pose models (:meth:`robovib.hybrid.FRFPoseModel.save`), versions 1-2.
+FRF_POSE_MODEL_FORMAT = "robovib-frf-pose-model"
 
 
 def write_header(h5, format_name: str, format_version: int, **attrs) -> None:
