@@ -98,3 +98,11 @@ def test_writer_rejects_wrong_unit_and_mixed_axes(tmp_path):
     b = FRF(F[2:], MODE.compliance(F[2:]), direction="y")
     with pytest.raises(ValueError, match="one frequency axis"):
         write_frf_csv(tmp_path / "a.csv", [a, b])
+
+
+def test_one_frf_csv_reader():
+    """``read_frfs_csv`` is the former name of ``read_frf_csv`` (one function, no wrapper)."""
+    import robovib.io as rio
+    from robovib.milling import chart
+
+    assert rio.read_frfs_csv is rio.read_frf_csv is chart.read_frf_csv

@@ -32,7 +32,7 @@ _WHERE = {
     "read_force_csv": ("tables", "read_force_csv"),
     "read_frf_csv": ("frf_csv", "read_frf_csv"),
     "read_frfs": ("frf_files", "read_frfs"),
-    "read_frfs_csv": ("frf_files", "read_frfs_csv"),
+    "read_frfs_csv": ("frf_csv", "read_frf_csv"),  # former name of read_frf_csv
     "read_frfs_hdf5": ("frf_files", "read_frfs_hdf5"),
     "read_frfs_uff": ("frf_files", "read_frfs_uff"),
     "read_milling_record_csv": ("tables", "read_milling_record_csv"),

@@ -460,30 +460,6 @@ def _attach_companions(frfs: list[FRF], companions, lc_index, path) -> list[FRF]
     return frfs
 
 
-def read_frfs_csv(path: str | Path) -> list[FRF]:
-    """FRFs from CSV (``frequency_hz``, ``[x_|y_|z_]real_<unit>``, ``[x_|y_|z_]imag_<unit>``):
-    :func:`robovib.io.read_frf_csv`, converted to SI compliance.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The CSV file.
-
-    Returns
-    -------
-    list of FRF
-        One compliance FRF [m/N] per direction.
-
-    Raises
-    ------
-    ValueError
-        See :func:`robovib.io.read_frf_csv` (errors name the column and line).
-    """
-    from .frf_csv import read_frf_csv
-
-    return read_frf_csv(path)
-
-
 def write_frfs(
     path: str | Path, frfs: Sequence[FRF], *, inputs: Sequence = (), force: bool = False
 ) -> None:

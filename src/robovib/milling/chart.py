@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.frf_files import read_frfs_csv as read_frf_csv  # the reader lives in robovib.io
+from ..io.frf_csv import read_frf_csv  # the reader lives in robovib.io
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool
 from .lobes import LobeEnvelope, lobes_title, plot_lobes, zoa_envelope
