@@ -126,7 +126,7 @@ def lobes(
     """Stability lobes (envelope) from explicit modes, a measured FRF or the pose model's modes."""
     from ..milling.chart import (
         lobes_chart,
-        parse_mode_spec,
+        parse_mode_specs,
         parse_operating_point,
         parse_rpm_range,
         plot_lobes_chart,
@@ -135,11 +135,9 @@ def lobes(
     check_output(plot, [model_path, frf, cuts])
     tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
-    parsed = [parse_mode_spec(m) for m in (mode or [])]
-    modes_x = [m for d, m in parsed if d == "x"]
-    modes_y = [m for d, m in parsed if d == "y"]
+    modes_x, modes_y = parse_mode_specs(mode or [])
     model, pose, pose_label = None, None, None
-    if not parsed and frf is None:
+    if not (modes_x or modes_y) and frf is None:
         if x is None or y is None or rz is None:
             raise ValueError("give --x --y --rz (pose model), --mode ... or --frf FILE")
         model, pose = workspace_model(model_path, seed), (x, y, rz)
@@ -183,7 +181,7 @@ def lobes(
         )
     else:
         typer.echo("no interior maximum of the envelope in the speed range: widen --rpm-range")
-    n_flip = int(np.sum(env.kind == "flip"))
+    n_flip = chart.n_flip_limited
     if n_flip:
         typer.echo(f"{n_flip} of {env.kind.size} speeds limited by flip (period-doubling) lobes")
     if chart.operating_point is not None:
