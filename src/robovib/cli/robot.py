@@ -47,7 +47,10 @@ def _workspace_pose(x, y, z, rz):
     from ..robot import KR500, tool_down_orientation
 
     robot = KR500()
-    return robot, robot.ik(np.array([x, y, z]) / 1e3, tool_down_orientation(rz))
+    from ..gp.pose_units import pose_in_units
+
+    position_m = pose_in_units(("x_m", "y_m", "z_m"), {"x_mm": x, "y_mm": y, "z_mm": z})
+    return robot, robot.ik(position_m, tool_down_orientation(rz))
 
 
 @app.command("ik")

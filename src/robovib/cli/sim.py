@@ -19,6 +19,8 @@ from ._common import (
 from ._control_options import DisturbanceOpt, parse_disturbances
 
 app = new_app("The virtual robot: synthetic hammer tests, milling passes and offset-mass runs.")
+#: The virtual robot's workspace pose (:mod:`robovib.sim`): metres and degrees.
+_WORKSPACE_M = ("x_m", "y_m", "rz_deg")
 
 PathFromOpt = Annotated[
     float | None,
@@ -60,10 +62,15 @@ def hammer(
     json_out: JsonFlag = False,
 ) -> None:
     """Impact-hammer test of the virtual robot at a workspace pose (or a path point), UFF 58 or CSV."""
+    from ..gp.pose_units import pose_in_units
     from ..io import write_recording
     from ..sim import VirtualRobot, simulate_hammer_test
 
-    where, domain = ((x / 1e3, y / 1e3, rz), "workspace") if path_s is None else (path_s, "path")
+    if path_s is None:  # the virtual robot takes metres: units named, no conversion by hand
+        where = tuple(map(float, pose_in_units(_WORKSPACE_M, {"x_mm": x, "y_mm": y, "rz_deg": rz})))
+        domain = "workspace"
+    else:
+        where, domain = path_s, "path"
     rec = simulate_hammer_test(
         VirtualRobot(), where, direction, domain=domain, n_hits=hits,
         sample_rate_hz=sample_rate_hz, duration_s=duration_s, snr_db=snr_db, rng=seed,
@@ -119,7 +126,13 @@ def mill(
         raise typer.BadParameter("give both --path-s-from and --path-s-to [m], or neither")
     cond = CuttingConditions(rpm, fz_mm / 1e3, ap_mm / 1e3, ae_mm / 1e3)
     if path_s_from is None:
-        move = LinearMove("workspace", (x0 / 1e3, y0 / 1e3, rz), (x1 / 1e3, y1 / 1e3, rz))
+        from ..gp.pose_units import pose_in_units
+
+        start, end = (
+            tuple(map(float, pose_in_units(_WORKSPACE_M, {"x_mm": a, "y_mm": b, "rz_deg": rz})))
+            for a, b in ((x0, y0), (x1, y1))
+        )
+        move = LinearMove("workspace", start, end)
     else:
         move = LinearMove("path", (path_s_from,), (path_s_to,))
     run = simulate_milling(
