@@ -205,7 +205,7 @@ def process_row(row: CampaignRow, settings: ProcessingSettings) -> RowResult:
 
 
 def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
-    from ..frf import impact_frf
+    from ..frf import impact_compliance_frf
     from ..io import read_recording_channels, select_channel
     from ..modal import fit_dominant_mode
 
@@ -220,8 +220,8 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
     fitted = None
     for ch in channels:
         is_direct = ch is direct or (ch.direction in (None, row.direction) and len(channels) == 1)
-        res = impact_frf(
-            ch.forces, ch.responses, ch.sample_rate_hz,
+        res = impact_compliance_frf(  # the pipeline of `frf compute` too
+            ch.forces, ch.responses, ch.sample_rate_hz, f_min_hz=s.f_min_hz,
             response_quantity=ch.response_quantity, estimator=s.estimator,
             pretrigger_s=s.pretrigger_s, force_window_s=s.force_window_s,
             exp_window_tau_s=s.exp_window_tau_s, reject=not s.keep_flagged,
@@ -229,13 +229,7 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
             direction=row.direction if is_direct else ch.direction,
             plausible=s.plausible if is_direct else None,
         )  # fmt: skip
-        frf = res.frf.to_compliance(s.f_min_hz)
-        if is_direct and s.plausible is not None:
-            from ..frf.plausibility import check_frf_level
-
-            bad = check_frf_level(frf, s.plausible)
-            if bad:
-                raise ValueError(f"implausible FRF: {bad}")
+        frf = res.frf
         meta = {
             "row": row.row,
             "file": str(row.file),

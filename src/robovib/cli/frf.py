@@ -103,7 +103,7 @@ def compute(
     """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
     from dataclasses import replace
 
-    from ..frf import check_frf_level, impact_frf
+    from ..frf import impact_compliance_frf
     from ..io import Sensitivity, read_recording, write_frfs
 
     if direction is not None and direction not in ("x", "y", "z"):
@@ -115,8 +115,8 @@ def compute(
         Sensitivity(force_sensitivity, "N") if force_sensitivity else None,
         Sensitivity(response_sensitivity, response_unit) if response_sensitivity else None,
     )  # fmt: skip
-    result = impact_frf(
-        rec.forces, rec.responses, rec.sample_rate_hz,
+    result = impact_compliance_frf(  # the campaign's pipeline (campaign.process_row)
+        rec.forces, rec.responses, rec.sample_rate_hz, f_min_hz=f_min_hz,
         response_quantity=rec.response_quantity, estimator=estimator,
         pretrigger_s=pretrigger_ms / 1e3,
         force_window_s=None if force_window_ms == 0 else force_window_ms / 1e3,  # < 0: error
@@ -124,9 +124,7 @@ def compute(
         reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
         plausible=plausible,
     )  # fmt: skip
-    frf = result.frf.to_compliance(f_min_hz)
-    if plausible is not None and (bad := check_frf_level(frf, plausible)):
-        fail(f"implausible FRF: {bad}")
+    frf = result.frf
     if frf.frequency_hz.size < 5:
         fail(
             f"{frf.frequency_hz.size} FRF lines between --fmin and --fmax at df = {frf.df_hz:.3g} Hz "
