@@ -261,7 +261,7 @@ def test_study_is_reproducible_per_seed():
     assert list(a.model) == ["ema", "robust"]
     assert a[cols].equals(b[cols])
     doc = hybrid_study.__module__  # studies, not the core
-    assert doc == "robovib.studies.hybrid"
+    assert doc == "robovib.studies.hybrid.study"
     with pytest.raises(ValueError, match="unknown models"):
         hybrid_study(models=("magic",))
 
