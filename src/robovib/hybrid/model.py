@@ -1052,8 +1052,9 @@ class FRFPoseModel(BaseEstimator):
     def save(self, path, *, provenance: dict | None = None, inputs=(), force: bool = False) -> None:
         """HDF5 (atomic): training data, hyperparameters, scalers, units and provenance.
 
-        Attributes: ``format``, ``format_version``, ``robovib_version``, ``created_utc`` (the
-        header of :mod:`robovib.io.h5format`; files of older robovib say ``version``), ``kernel``,
+        Attributes: ``format``, ``format_version``, ``robovib_version``, ``created_utc``,
+        ``units`` (the header of :mod:`robovib.io.h5format`; files of older robovib say
+        ``version``), ``kernel``,
         ``input_names`` (units in the names), ``direction`` (x, y, z or empty),
         ``compliance_unit = "um/N"`` (training targets and noise), ``frequency_unit = "Hz"``,
         ``groups = "0=EMA,1=OMA"``, and ``provenance/<key>`` for the given dict
@@ -1080,7 +1081,11 @@ class FRFPoseModel(BaseEstimator):
         self._require_fitted()
         gp = self.gp_
         with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
-            write_header(h5, _FORMAT, _VERSION)
+            write_header(
+                h5, _FORMAT, _VERSION,
+                units="frequency_hz Hz; targets and noise um/N (Re, Im of compliance); inputs "
+                "in the units of input_names; every dataset's unit in its 'units' attribute",
+            )  # fmt: skip
             h5.attrs["kernel"] = self.kernel
             h5.attrs["input_names"] = list(self.input_names)
             h5.attrs["direction"] = getattr(self, "direction_", None) or ""

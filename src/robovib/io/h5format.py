@@ -2,7 +2,8 @@
 
 Every file carries, as root attributes: ``format`` (what it holds, e.g.
 ``robovib.PoseModalModel``), ``format_version`` (an integer that grows when the layout
-changes), ``robovib_version`` (the writer) and ``created_utc``. :func:`open_checked` opens a
+changes), ``robovib_version`` (the writer) and ``created_utc``, and the units of what it holds
+(``units``, or a ``units`` attribute on each dataset). :func:`open_checked` opens a
 file for reading and checks the tag and version in one place, so every reader refuses a foreign
 or newer file with the same clear message. Files written before the convention named the
 version ``version``; it is read as ``format_version``.
