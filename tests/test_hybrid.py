@@ -531,3 +531,17 @@ def test_robust_update_finds_a_source_gain_in_noisy_oma():
     model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
     rep = model.update(s_oma, h_oma, oma_resolution_hz=0.0)
     assert not rep.scale_applied
+
+
+def test_frf_pose_model_extrapolation_is_the_pose_models_rule():
+    """FRFPoseModel.extrapolating is gp.extrapolation's box rule (as milling.workflow sees it):
+    outside a coordinate's training range by more than 1e-9 of that range."""
+    from robovib.gp.extrapolation import extrapolating
+
+    f = np.linspace(2, 30, 10)
+    s = np.linspace(0.2, 1.2, 5)
+    model = FRFPoseModel(f, rng=0).fit(s, _family(s, f))
+    q = np.array([0.2, 1.2, 0.7, 1.2 + 1e-12, 0.2 - 5e-10, 1.2 + 1e-6, 0.1999, 1.3])
+    expect = (q < 0.2 - 1e-9) | (q > 1.2 + 1e-9)  # range 1.0: tolerance 1e-9
+    np.testing.assert_array_equal(model.extrapolating(q), expect)
+    np.testing.assert_array_equal(extrapolating(model, q[:, None]), expect)

@@ -944,12 +944,14 @@ class FRFPoseModel(BaseEstimator):
         Returns
         -------
         ndarray of bool (n,)
-            True where any coordinate is outside the range of the training poses.
+            True where any coordinate is outside the range of the training poses (by more
+            than 1e-9 of that range: the rule of every pose model,
+            :class:`robovib.gp.extrapolation.TrainingRegion`).
         """
+        from ..gp.extrapolation import extrapolating
+
         self._require_fitted()
-        x = self._poses(poses)
-        lo, hi = self.pose_range_
-        return np.any((x < lo - 1e-12) | (x > hi + 1e-12), axis=1)
+        return extrapolating(self, self._poses(poses))
 
     def predict(self, poses, return_std: bool = False):
         """Complex compliance at poses (thesis Eq. 9-10 per bin).
