@@ -104,7 +104,7 @@ def compute(
     from dataclasses import replace
 
     from ..frf import impact_compliance_frf
-    from ..io import Sensitivity, read_recording, write_frfs
+    from ..io import Sensitivity, from_si, read_recording, to_si, write_frfs
 
     if direction is not None and direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}; use x, y or z")
@@ -118,9 +118,9 @@ def compute(
     result = impact_compliance_frf(  # the campaign's pipeline (campaign.process_row)
         rec.forces, rec.responses, rec.sample_rate_hz, f_min_hz=f_min_hz,
         response_quantity=rec.response_quantity, estimator=estimator,
-        pretrigger_s=pretrigger_ms / 1e3,
-        force_window_s=None if force_window_ms == 0 else force_window_ms / 1e3,  # < 0: error
-        exp_window_tau_s=None if exp_window_tau_ms == 0 else exp_window_tau_ms / 1e3,
+        pretrigger_s=to_si(pretrigger_ms, "ms"),
+        force_window_s=None if force_window_ms == 0 else to_si(force_window_ms, "ms"),  # < 0: error
+        exp_window_tau_s=None if exp_window_tau_ms == 0 else to_si(exp_window_tau_ms, "ms"),
         reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
         plausible=plausible,
     )  # fmt: skip
@@ -149,7 +149,7 @@ def compute(
             "hit": h.index,
             "accepted": h.accepted,
             "peak_force_n": h.peak_force_n,
-            "pulse_width_ms": 1e3 * h.pulse_width_s,
+            "pulse_width_ms": from_si(h.pulse_width_s, "ms"),
             "reasons": list(h.reasons),
         }
         for h in result.hits

@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from ..io.units import from_si, to_si
 from . import _mill_options as opt
 from ._common import (
     JsonFlag,
@@ -56,7 +57,7 @@ def predict(
     from ..milling import CuttingConditions
     from ..milling.workflow import predict_at_pose
 
-    cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
+    cond = CuttingConditions(rpm, to_si(fz, "mm"), to_si(ap, "mm"), to_si(ae, "mm"))
     f = None
     if forces is not None:  # the CSV reader only when a force file is given
         from ..io import read_force_csv
@@ -68,10 +69,10 @@ def predict(
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
-        {"direction": r.direction, "mean_deflection_mm": 1e3 * r.mean_deflection_m,
-         "mean_deflection_band_mm": [1e3 * v for v in r.mean_deflection_band_m],
-         "peak_to_valley_mm": 1e3 * r.peak_to_valley_m,
-         "peak_to_valley_band_mm": [1e3 * v for v in r.peak_to_valley_band_m],
+        {"direction": r.direction, "mean_deflection_mm": from_si(r.mean_deflection_m, "mm"),
+         "mean_deflection_band_mm": [from_si(v, "mm") for v in r.mean_deflection_band_m],
+         "peak_to_valley_mm": from_si(r.peak_to_valley_m, "mm"),
+         "peak_to_valley_band_mm": [from_si(v, "mm") for v in r.peak_to_valley_band_m],
          "mode": r.mode.to_dict(), "modes": [m.to_dict() for m in r.modes or (r.mode,)]}
         for r in res
     ]  # fmt: skip
@@ -173,11 +174,11 @@ def lobes(
         )
     if doc["minimum_depth_m"] is not None:
         typer.echo(
-            f"depth stable at every speed ({method.upper()}): {1e3 * doc['minimum_depth_m']:.3f} mm"
+            f"depth stable at every speed ({method.upper()}): {from_si(doc['minimum_depth_m'], 'mm'):.3f} mm"
         )
     if doc["most_stable_rpm"] is not None:
         typer.echo(
-            f"most stable speed: {doc['most_stable_rpm']:.0f} rpm ({1e3 * doc['most_stable_depth_m']:.2f} mm)"
+            f"most stable speed: {doc['most_stable_rpm']:.0f} rpm ({from_si(doc['most_stable_depth_m'], 'mm'):.2f} mm)"
         )
     else:
         typer.echo("no interior maximum of the envelope in the speed range: widen --rpm-range")
@@ -189,7 +190,7 @@ def lobes(
             chart.operating_point_stable
         ]
         typer.echo(
-            f"operating point {chart.operating_point[0]:.0f} rpm, {1e3 * chart.operating_point[1]:.2f} mm: {state}"
+            f"operating point {chart.operating_point[0]:.0f} rpm, {from_si(chart.operating_point[1], 'mm'):.2f} mm: {state}"
         )
     if plot is not None:
         typer.echo(f"wrote {plot}")
@@ -288,8 +289,8 @@ def lobe_map(
         return
     typer.echo(
         f"deepest stable cut at {rpm:g} rpm: X={best['best_pose_mm'][0]:.0f}, "
-        f"Y={best['best_pose_mm'][1]:.0f} mm: {1e3 * best['best_depth_m']:.2f} mm; "
-        f"shallowest: {1e3 * best['shallowest_depth_m']:.2f} mm ({method.upper()})"
+        f"Y={best['best_pose_mm'][1]:.0f} mm: {from_si(best['best_depth_m'], 'mm'):.2f} mm; "
+        f"shallowest: {from_si(best['shallowest_depth_m'], 'mm'):.2f} mm ({method.upper()})"
     )
     for path in (output, plot):
         if path is not None:

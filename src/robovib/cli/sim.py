@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ..io.units import from_si, to_si
 from ._common import (
     JsonFlag,
     OutOpt,
@@ -124,7 +125,7 @@ def mill(
     dist = parse_disturbances(disturbance)
     if (path_s_from is None) != (path_s_to is None):
         raise typer.BadParameter("give both --path-s-from and --path-s-to [m], or neither")
-    cond = CuttingConditions(rpm, fz_mm / 1e3, ap_mm / 1e3, ae_mm / 1e3)
+    cond = CuttingConditions(rpm, to_si(fz_mm, "mm"), to_si(ap_mm, "mm"), to_si(ae_mm, "mm"))
     if path_s_from is None:
         from ..gp.pose_units import pose_in_units
 
@@ -142,7 +143,7 @@ def mill(
     run.to_csv(output)
     doc = {
         "output": str(output), "samples": int(run.time_s.size), "duration_s": float(run.time_s[-1]),
-        "mean_force_n": run.force_n.mean(axis=0), "mean_deflection_mm": 1e3 * run.true_displacement_m.mean(axis=0),
+        "mean_force_n": run.force_n.mean(axis=0), "mean_deflection_mm": from_si(run.true_displacement_m.mean(axis=0), "mm"),
         **run.meta,
     }  # fmt: skip
     if json_out:
@@ -183,11 +184,11 @@ def offset_mass(
         VirtualRobot(),
         LinearMove("path", (path_s_from,), (path_s_to,)),
         rpm,
-        speed_m_per_s=speed_mm_s / 1e3,
+        speed_m_per_s=to_si(speed_mm_s, "mm/s"),
         rng=seed,
     )
     run.to_csv(output)
-    amp = 1e3 * run.peak_vibration_m
+    amp = from_si(run.peak_vibration_m, "mm")
     doc = {"output": str(output), "samples": int(run.time_s.size), "peak_vibration_mm": amp}
     if json_out:
         emit_json(doc)
