@@ -67,6 +67,7 @@ def test_end_to_end_unseen_pose_errors(campaign, tmp_path):
     fit = fit_pose_model_from_table(out / "out" / "modal.csv", inputs=["x_mm", "y_mm", "rz_deg"])
     assert list(fit.cv_table["output"]) == list(fit.model.output_names_)
     assert fit.model.provenance_["mode_switch_found"] == {"x": False, "y": False, "z": False}
+    assert fit.model.provenance_["source"] == str(out / "out" / "modal.csv")  # the file read
     assert (fit.cv_table["relative_rmse_pct"] < 15).all()
     truth = pd.read_csv(sim.truth)
     X = truth[["x_mm", "y_mm", "rz_deg"]].to_numpy()

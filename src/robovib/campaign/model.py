@@ -181,9 +181,11 @@ def fit_pose_model_from_table(
 
     from ..io.csv_table import read_table
 
-    if not isinstance(modal_csv, pd.DataFrame):  # the one CSV reader: errors name the line
-        modal_csv = read_table(modal_csv, what="modal table").to_frame()
-    table = modal_csv
+    table = (  # the one CSV reader: errors name the line
+        modal_csv
+        if isinstance(modal_csv, pd.DataFrame)
+        else read_table(modal_csv, what="modal table").to_frame()
+    )
     inputs = tuple(inputs)
     missing = [c for c in (*inputs, "direction", *_OUTPUTS) if c not in table.columns]
     if missing:

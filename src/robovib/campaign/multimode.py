@@ -202,9 +202,11 @@ def fit_multimode_pose_model(
     from ..io.csv_table import read_table
     from .model import fit_pose_model_from_table
 
-    if not isinstance(modes_csv, pd.DataFrame):  # the one CSV reader: errors name the line
-        modes_csv = read_table(modes_csv, what="mode table").to_frame()
-    table = modes_csv
+    table = (  # the one CSV reader: errors name the line
+        modes_csv
+        if isinstance(modes_csv, pd.DataFrame)
+        else read_table(modes_csv, what="mode table").to_frame()
+    )
     if "mode_id" not in table.columns:
         raise ValueError("the mode table has no mode_id column (track_modes gives it)")
     table = table.assign(mode_id=table["mode_id"].fillna("").astype(str))
