@@ -249,3 +249,19 @@ def test_modal_table_read_by_the_one_csv_reader(tmp_path):
         fit_pose_model_from_table(ragged)
     with pytest.raises(ValueError, match=r"ragged\.csv line 3: 3 cells, expected 8"):
         fit_multimode_pose_model(ragged)
+
+
+def test_fit_campaign_table_picks_the_fit_by_the_table(tmp_path):
+    """modes.csv (a mode_id column) goes to the multi-mode fit, modal.csv to the dominant one
+    (``model fit`` calls this; the CLI picks no route itself)."""
+    from robovib.campaign import fit_campaign_table
+
+    head = "row,x_mm,y_mm,rz_deg,direction,fn_hz,stiffness_n_per_m,damping_ns_per_m"
+    modal = tmp_path / "modal.csv"
+    modal.write_text(head + "\n2,2100,0,45,x,12.5,3.2e6,900\n")
+    with pytest.raises(ValueError, match="needs at least 2 poses, got 1"):
+        fit_campaign_table(modal)
+    modes = tmp_path / "modes.csv"
+    modes.write_text(head + ",mode_id\n2,2100,0,45,x,12.5,3.2e6,900,\n")
+    with pytest.raises(ValueError, match="no mode id of directions"):
+        fit_campaign_table(modes)
