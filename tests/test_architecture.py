@@ -60,6 +60,21 @@ def test_core_packages_do_not_import_sim_or_studies(package):
     assert not offenders, f"core modules importing {FORBIDDEN}: {offenders}"
 
 
+def test_top_level_modules_are_core():
+    """``robovib/__init__.py`` and the shared helpers (``_linalg``, ``_lazy``...) sit below every
+    package, so they import no application layer either."""
+    offenders = {
+        path.name: bad
+        for path in sorted(SRC.glob("*.py"))
+        if (bad := _violations(path.read_text(encoding="utf-8"), ["robovib"]))
+    }
+    assert not offenders, f"top-level modules importing {FORBIDDEN}: {offenders}"
+    assert _violations("def f():\n    from .studies import hybrid\n", ["robovib"]) == [
+        "robovib.studies",
+        "robovib.studies.hybrid",
+    ]
+
+
 def test_core_list_covers_the_packages():
     assert {"frf", "modal", "gp", "io", "milling", "control", "hybrid", "campaign", "datasets",
             "robot"} <= set(CORE)  # fmt: skip

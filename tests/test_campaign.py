@@ -67,6 +67,7 @@ def test_end_to_end_unseen_pose_errors(campaign, tmp_path):
     fit = fit_pose_model_from_table(out / "out" / "modal.csv", inputs=["x_mm", "y_mm", "rz_deg"])
     assert list(fit.cv_table["output"]) == list(fit.model.output_names_)
     assert fit.model.provenance_["mode_switch_found"] == {"x": False, "y": False, "z": False}
+    assert fit.model.provenance_["source"] == str(out / "out" / "modal.csv")  # the file read
     assert (fit.cv_table["relative_rmse_pct"] < 15).all()
     truth = pd.read_csv(sim.truth)
     X = truth[["x_mm", "y_mm", "rz_deg"]].to_numpy()
@@ -230,3 +231,37 @@ def test_mode_switch_detected_end_to_end(tmp_path):
         warnings.simplefilter("ignore", UserWarning)
         fit = fit_pose_model_from_table(tmp_path / "out" / "modal.csv")
     assert mode_switches_found(fit.model) == {"x": True}
+
+
+def test_modal_table_read_by_the_one_csv_reader(tmp_path):
+    """A modal/mode table is read by io.csv_table.read_table: spreadsheet layouts work and a
+    broken line is named."""
+    from robovib.campaign import fit_multimode_pose_model
+
+    head = "x_mm;y_mm;rz_deg;direction;fn_hz;stiffness_n_per_m;damping_ns_per_m;flags\n"
+    good = tmp_path / "excel.csv"
+    good.write_text(head + "2100;0;45;x;12,5;3,2e6;900;\n", encoding="utf-8-sig")
+    with pytest.raises(ValueError, match="needs at least 2 poses, got 1"):  # read, columns found
+        fit_pose_model_from_table(good)
+    ragged = tmp_path / "ragged.csv"
+    ragged.write_text(head.replace(";", ",") + "2100,0,45,x,12.5,3.2e6,900,\n2200,0,45\n")
+    with pytest.raises(ValueError, match=r"ragged\.csv line 3: 3 cells, expected 8"):
+        fit_pose_model_from_table(ragged)
+    with pytest.raises(ValueError, match=r"ragged\.csv line 3: 3 cells, expected 8"):
+        fit_multimode_pose_model(ragged)
+
+
+def test_fit_campaign_table_picks_the_fit_by_the_table(tmp_path):
+    """modes.csv (a mode_id column) goes to the multi-mode fit, modal.csv to the dominant one
+    (``model fit`` calls this; the CLI picks no route itself)."""
+    from robovib.campaign import fit_campaign_table
+
+    head = "row,x_mm,y_mm,rz_deg,direction,fn_hz,stiffness_n_per_m,damping_ns_per_m"
+    modal = tmp_path / "modal.csv"
+    modal.write_text(head + "\n2,2100,0,45,x,12.5,3.2e6,900\n")
+    with pytest.raises(ValueError, match="needs at least 2 poses, got 1"):
+        fit_campaign_table(modal)
+    modes = tmp_path / "modes.csv"
+    modes.write_text(head + ",mode_id\n2,2100,0,45,x,12.5,3.2e6,900,\n")
+    with pytest.raises(ValueError, match="no mode id of directions"):
+        fit_campaign_table(modes)

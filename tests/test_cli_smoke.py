@@ -5,7 +5,9 @@ The chapter-3 model is fitted once for the session (commands that fit it get the
 
 from __future__ import annotations
 
+import ast
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,10 +27,6 @@ def _memoised_chapter3(chapter3_factory, chapter3_regressor_factory):
     mp.setattr("robovib.studies.chapter3.fit_chapter3_regressor", chapter3_regressor_factory)
     yield
     mp.undo()
-
-
-#: Command paths whose --json document was checked in this session (see test_json_provenance).
-CHECKED: set[str] = set()
 
 
 def assert_self_describing(doc: dict, args: list[str]) -> None:
@@ -62,7 +60,6 @@ def run_json(*args: str) -> dict:
     assert "NaN" not in text and "Infinity" not in text
     doc = json.loads(text)
     assert_self_describing(doc, argv)
-    CHECKED.add(" ".join(a for a in args[:2] if not a.startswith("-")))
     return doc
 
 
@@ -297,14 +294,41 @@ def _leaf_commands() -> set[str]:
     return walk(typer.main.get_command(app), [])
 
 
-def test_json_provenance_on_every_command():
-    """Every command's --json document was checked by assert_self_describing (run_json) above.
+def commands_run_in(source: str) -> set[str]:
+    """Command paths (``"frf compute"``) of the ``run_json(...)`` calls written in ``source``:
+    the leading string arguments that are not options (as the CLI reads them)."""
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "run_json":
+            words = []
+            for arg in node.args[:2]:
+                if not (isinstance(arg, ast.Constant) and isinstance(arg.value, str)):
+                    break
+                if not arg.value.startswith("-"):
+                    words.append(arg.value)
+            if words:
+                found.add(" ".join(words))
+    return found
 
-    Runs last in this module; run alone it checks only that no command is missing from the
-    tests (a new command must get a --json run here).
-    """
+
+def test_json_provenance_on_every_command():
+    """Every command has a --json smoke run (run_json, which checks assert_self_describing) in
+    this module: read from the source, so the test checks the same alone, under ``-k`` or in
+    any order (each run asserts in its own test)."""
     leaves = _leaf_commands()
     fast = leaves - SLOW_COMMANDS - ELSEWHERE
     assert SLOW_COMMANDS <= leaves and ELSEWHERE <= leaves
-    if CHECKED:
-        assert fast <= CHECKED, f"commands without a --json smoke run: {sorted(fast - CHECKED)}"
+    here = commands_run_in(Path(__file__).read_text(encoding="utf-8"))
+    assert fast | SLOW_COMMANDS <= here, (
+        f"commands without a --json smoke run: {sorted((fast | SLOW_COMMANDS) - here)}"
+    )
+
+
+def test_command_coverage_check_can_fail():
+    """A module without a run of ``frf compute`` is seen to lack it."""
+    planted = 'def test_a():\n    run_json("frf", "modal", "x.h5")\n    run_json("demo")\n'
+    planted += (
+        'def test_b(p):\n    run_json(str(p), "fit")\n    run_json("examples", "--to", "d")\n'
+    )
+    assert commands_run_in(planted) == {"frf modal", "demo", "examples"}
+    assert "frf compute" not in commands_run_in(planted)

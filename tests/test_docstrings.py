@@ -9,7 +9,8 @@ space around the colon of ``name : type``) and RT01 (no Returns section where a 
 returned). Names that still fail are listed in ``docstring_gaps.txt`` (issue 23): a listed name
 that passes, or no longer exists, fails the test too, so the list can only shrink.
 
-The README's entry points (``ENTRY_POINTS``) also need an Examples section whose doctests run.
+The README's entry points (``ENTRY_POINTS``) also need an Examples section whose doctests run;
+every name the README's Python blocks import must be one of them.
 No docstring in the package points outside the repository (``shared/`` notes, the thesis
 file) instead of ``docs/``.
 """
@@ -214,3 +215,31 @@ def test_examples_run(name):
         runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
         runner.run(t, out=lambda s: None)
         assert runner.failures == 0, f"{name}: {runner.failures} failing example(s)"
+
+
+README = pathlib.Path(__file__).resolve().parents[1] / "README.md"
+
+
+def readme_imports(text: str) -> set[str]:
+    """``robovib.<module>.<name>`` of every name a ```python block of ``text`` imports."""
+    import ast
+
+    names = set()
+    for block in re.findall(r"```python\n(.*?)```", text, flags=re.S):
+        for node in ast.walk(ast.parse(block)):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("robovib"):
+                names |= {f"{node.module}.{a.name}" for a in node.names}
+    return names
+
+
+def test_entry_points_cover_the_readme():
+    """Every name the README's Python blocks import is an entry point (so has an Example)."""
+    imported = readme_imports(README.read_text(encoding="utf-8"))
+    assert len(imported) >= 5, imported  # the README's blocks were found
+    missing = sorted(imported - set(ENTRY_POINTS))
+    assert not missing, f"README names without an entry in ENTRY_POINTS: {missing}"
+
+
+def test_readme_import_check_can_fail():
+    planted = "text\n```python\nfrom robovib.gp import A, B\nimport numpy\n```\n```bash\nx\n```\n"
+    assert readme_imports(planted) == {"robovib.gp.A", "robovib.gp.B"}

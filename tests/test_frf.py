@@ -140,3 +140,26 @@ def test_frf_object_validation():
     with pytest.raises(ValueError, match="coherence contains NaN"):
         FRF(f, np.ones(10), coherence=np.full(10, np.nan))
     assert FRF(f, np.ones(10), coherence=np.ones(10)).coherence.max() == 1.0
+
+
+def test_impact_compliance_frf_is_the_one_pipeline():
+    """frf compute and campaign processing share impact_compliance_frf: compliance against
+    the exact mode, and a response in g read as m/s^2 is refused as an implausible FRF."""
+    from robovib.frf import PlausibleRanges, impact_compliance_frf
+
+    forces, responses = hammer_hits([MODE], snr_db=60)
+    res = impact_compliance_frf(forces, responses, 2048.0, f_min_hz=2.0, f_max_hz=100,
+                                plausible=PlausibleRanges(), direction="x")  # fmt: skip
+    frf = res.frf
+    assert frf.quantity == "compliance" and frf.direction == "x" and frf.frequency_hz[0] >= 2.0
+    assert res.n_rejected == 0 and frf.n_averages == 5 and len(res.hits) == 5
+    band = (frf.frequency_hz > 5) & (frf.frequency_hz < 60)
+    truth = exact_compliance(frf.frequency_hz[band], [MODE])
+    assert np.median(np.abs(frf.values[band] - truth) / np.abs(truth)) < 0.01
+    in_g = responses / 9.80665  # 9.81x too small: the robot would look 9.81x stiffer
+    with pytest.raises(ValueError, match=r"implausible FRF: .*g labelled m/s"):
+        impact_compliance_frf(forces, in_g, 2048.0, f_min_hz=2.0, f_max_hz=100,
+                              plausible=PlausibleRanges(peak_force_n=(1.0, 1e5),
+                                                        peak_compliance_m_per_n=(1e-6, 1e-3)))  # fmt: skip
+    unchecked = impact_compliance_frf(forces, in_g, 2048.0, f_min_hz=2.0, f_max_hz=100)
+    np.testing.assert_allclose(unchecked.frf.values, frf.values / 9.80665, rtol=1e-9)

@@ -98,3 +98,39 @@ def test_writer_rejects_wrong_unit_and_mixed_axes(tmp_path):
     b = FRF(F[2:], MODE.compliance(F[2:]), direction="y")
     with pytest.raises(ValueError, match="one frequency axis"):
         write_frf_csv(tmp_path / "a.csv", [a, b])
+
+
+def test_one_frf_csv_reader():
+    """``read_frfs_csv`` is the former name of ``read_frf_csv`` (one function, no wrapper)."""
+    import robovib.io as rio
+    from robovib.milling import chart
+
+    assert rio.read_frfs_csv is rio.read_frf_csv is chart.read_frf_csv
+
+
+def test_frf_csv_read_by_the_one_table_reader(tmp_path):
+    """FRF CSV goes through io.read_table: comment lines anywhere, an Excel export (';',
+    decimal commas, BOM, units in brackets) reads as the plain file, and a short line is named
+    by its number."""
+    from robovib.io import read_table
+
+    f = np.array([10.0, 10.5, 11.0])
+    h = MODE.compliance(f) * 1e6  # um/N
+    plain = tmp_path / "plain.csv"
+    lines = [f"{a:.17g},{b.real:.17g},{b.imag:.17g}" for a, b in zip(f, h, strict=True)]
+    plain.write_text("# exported\nfrequency_hz,real_um_per_n,imag_um_per_n\n" + lines[0]
+                     + "\n# a note between rows\n" + "\n".join(lines[1:]) + "\n")  # fmt: skip
+    excel = tmp_path / "excel.csv"
+    rows = [ln.replace(",", ";").replace(".", ",") for ln in lines]
+    excel.write_text(
+        "Frequency [Hz];Real [um/N];Imag [um/N]\n" + "\n".join(rows) + "\n", encoding="utf-8-sig"
+    )  # units in brackets: frequency_hz, real_um_per_n
+    (a,) = read_frf_csv(plain, direction="x")
+    (b,) = read_frf_csv(excel, direction="x")
+    np.testing.assert_allclose(a.values, MODE.compliance(f), rtol=1e-12)
+    np.testing.assert_array_equal(a.values, b.values)
+    assert read_table(plain, comment="#").lines == (3, 5, 6)  # file lines, comments counted
+    short = tmp_path / "short.csv"
+    short.write_text("frequency_hz,real_m_per_n,imag_m_per_n\n1,1,1\n2,1\n")
+    with pytest.raises(ValueError, match=r"short\.csv line 3: 2 cells, expected 3"):
+        read_frf_csv(short)

@@ -125,3 +125,38 @@ def test_exponential_window_correction_survives_uff(tmp_path):
     fit = fit_dominant_mode(back)
     assert fit.exp_window_corrected
     assert fit.parameters.damping_ratio == pytest.approx(0.04, rel=0.02)
+
+
+def _as_legacy(path, version=1):
+    """Rewrite the header as robovib wrote it before io.h5format: ``version``, no
+    ``format_version`` / ``created_utc``."""
+    import h5py
+
+    with h5py.File(path, "a") as h5:
+        for key in ("format_version", "created_utc"):
+            if key in h5.attrs:
+                del h5.attrs[key]
+        h5.attrs["version"] = version
+
+
+def test_h5_header_is_the_io_convention_and_old_files_load(tmp_path):
+    import h5py
+
+    path = tmp_path / "a.h5"
+    frf = _frf(direction="x", pose=(1.0, 0.0, 0.5, 0.0, 0.0, 45.0))
+    write_frfs(path, [frf])
+    with h5py.File(path, "r") as h5:
+        assert h5.attrs["format"] == "robovib-frf" and int(h5.attrs["format_version"]) == 1
+        assert {"robovib_version", "created_utc", "units"} <= set(h5.attrs)
+    _as_legacy(path)
+    (back,) = read_frfs(path)
+    np.testing.assert_array_equal(back.values, frf.values)
+    assert back.pose == frf.pose
+    _as_legacy(path, version=2)
+    with pytest.raises(ValueError, match="format version 2; this robovib reads versions 1 to 1"):
+        read_frfs(path)
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as h5:
+        h5.attrs["format"] = "something else"
+    with pytest.raises(ValueError, match=r"not a robovib FRF \(robovib-frf\) file"):
+        read_frfs(other)

@@ -50,6 +50,19 @@ def test_frf_pose_model_interpolates_and_round_trips(tmp_path):
     back = FRFPoseModel.load(path)
     np.testing.assert_allclose(back.predict([0.5, 0.9]), model.predict([0.5, 0.9]), rtol=1e-10)
     assert back.extrapolating([1.5])[0] and not back.extrapolating([0.6])[0]
+    import h5py
+
+    with h5py.File(path, "a") as h5:  # the header before io.h5format: "version", version 2
+        assert int(h5.attrs["format_version"]) == 2 and "created_utc" in h5.attrs
+        assert "um/N" in h5.attrs["units"]
+        del h5.attrs["format_version"], h5.attrs["created_utc"]
+        h5.attrs["version"] = 2
+    old = FRFPoseModel.load(path)
+    np.testing.assert_allclose(old.predict([0.5, 0.9]), model.predict([0.5, 0.9]), rtol=1e-10)
+    with h5py.File(path, "a") as h5:
+        h5.attrs["version"] = 3
+    with pytest.raises(ValueError, match="format version 3; this robovib reads versions 1 to 2"):
+        FRFPoseModel.load(path)
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"garbage")
     with pytest.raises(ValueError, match="HDF5"):
@@ -249,7 +262,7 @@ def test_study_is_reproducible_per_seed():
     assert list(a.model) == ["ema", "robust"]
     assert a[cols].equals(b[cols])
     doc = hybrid_study.__module__  # studies, not the core
-    assert doc == "robovib.studies.hybrid"
+    assert doc == "robovib.studies.hybrid.study"
     with pytest.raises(ValueError, match="unknown models"):
         hybrid_study(models=("magic",))
 
@@ -518,3 +531,17 @@ def test_robust_update_finds_a_source_gain_in_noisy_oma():
     model = FRFPoseModel(f, rng=0).fit(s_ema, h_ema)
     rep = model.update(s_oma, h_oma, oma_resolution_hz=0.0)
     assert not rep.scale_applied
+
+
+def test_frf_pose_model_extrapolation_is_the_pose_models_rule():
+    """FRFPoseModel.extrapolating is gp.extrapolation's box rule (as milling.workflow sees it):
+    outside a coordinate's training range by more than 1e-9 of that range."""
+    from robovib.gp.extrapolation import extrapolating
+
+    f = np.linspace(2, 30, 10)
+    s = np.linspace(0.2, 1.2, 5)
+    model = FRFPoseModel(f, rng=0).fit(s, _family(s, f))
+    q = np.array([0.2, 1.2, 0.7, 1.2 + 1e-12, 0.2 - 5e-10, 1.2 + 1e-6, 0.1999, 1.3])
+    expect = (q < 0.2 - 1e-9) | (q > 1.2 + 1e-9)  # range 1.0: tolerance 1e-9
+    np.testing.assert_array_equal(model.extrapolating(q), expect)
+    np.testing.assert_array_equal(extrapolating(model, q[:, None]), expect)

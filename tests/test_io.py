@@ -314,3 +314,20 @@ def test_tool_displacement_from_frf_matches_modes_within_the_band():
     x_modes = convolve_force(force, fs, modes=[mode])
     x_frf = convolve_force(force, fs, frf=frf)
     assert np.max(np.abs(x_frf - x_modes)) < 0.02 * np.max(np.abs(x_modes))
+
+
+def test_to_si_and_from_si_are_the_division_by_the_prefix():
+    """The CLI's option conversions (mm, ms, mm/s -> SI and back for display) go through
+    io.units; they equal the hand-written x / 1e3 and 1e3 * x bit for bit."""
+    from robovib.io import from_si, to_si
+
+    x = np.random.default_rng(0).uniform(-5e3, 5e3, 10_000)
+    np.testing.assert_array_equal(to_si(x, "mm"), x / 1e3)
+    np.testing.assert_array_equal(to_si(x, "ms"), x / 1e3)
+    np.testing.assert_array_equal(to_si(x, "mm/s"), x / 1e3)
+    np.testing.assert_array_equal(to_si(x, "um"), x / 1e6)
+    np.testing.assert_array_equal(from_si(x, "mm"), 1e3 * x)
+    assert to_si(2.0, "kN") == 2000.0 and to_si(1.0, "g") == 9.80665
+    assert from_si(9.80665, "g") == 1.0 and to_si(25.4, "mm") == 0.0254
+    with pytest.raises(ValueError, match="unknown unit 'furlong'"):
+        to_si(1.0, "furlong")

@@ -129,3 +129,24 @@ def test_cli_mill_lobes_with_explicit_modes_frf_cuts_and_operating_point(tmp_pat
     assert json.loads(res.output)["method"] == "zoa"
     res = CliRunner().invoke(app, [*common, "--mode", "q:1,2,0.1"])
     assert res.exit_code == 1 and "direction" in res.output
+
+
+def test_mode_specs_split_and_flip_count():
+    """The CLI's mode texts and flip-lobe count come from the library (cli/mill.py is thin)."""
+    import doctest
+    from types import SimpleNamespace
+
+    from robovib.milling import chart as ch
+
+    mx, my = ch.parse_mode_specs(["y:8.2,1e6,0.18", "x:16.5,3.4e6,0.11", "x:63.5,4.2e7,0.055"])
+    assert [m.natural_frequency_hz for m in mx] == [16.5, 63.5]
+    assert [m.stiffness_n_per_m for m in my] == [1e6]
+    assert ch.parse_mode_specs([]) == ((), ())
+    with pytest.raises(ValueError, match="direction must be x"):
+        ch.parse_mode_specs(["z:10,1e6,0.1"])
+    assert doctest.testmod(ch, verbose=False).failed == 0
+    env = SimpleNamespace(kind=np.array(["hopf", "flip", "flip", "hopf", "flip"]))
+    chart = ch.LobesChart(env, mx, my, None, None, None, "t")
+    assert chart.n_flip_limited == 3
+    assert ch.LobesChart(SimpleNamespace(kind=np.array(["hopf"])), mx, my, None, None, None,
+                         "t").n_flip_limited == 0  # fmt: skip

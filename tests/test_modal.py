@@ -126,3 +126,34 @@ def test_fit_rejects_tiny_band():
     frf = FRF(f, ModalParameters(10.0, 1e6, 0.05).compliance(f))
     with pytest.raises(ValueError, match="bins"):
         fit_dominant_mode(frf, band_hz=(9.9, 10.6))
+
+
+def test_fit_frfs_fits_every_frf_and_names_a_failing_one():
+    """modal.fit_frfs (what ``modal fit`` runs): known modes recovered, flags combined, a
+    failing FRF named by its position."""
+    from robovib.frf import FRF
+    from robovib.modal import ModalParameters, fit_frfs
+    from robovib.modal.plot import plot_frf_fits
+
+    f = np.linspace(5.0, 60.0, 551)
+    truth = [ModalParameters(15.0, 3e6, 0.05), ModalParameters(32.0, 8e6, 0.03)]
+    frfs = [FRF(f, m.compliance(f), direction=d) for m, d in zip(truth, "xy", strict=True)]
+    fits = fit_frfs(frfs)
+    for fit, m in zip(fits, truth, strict=True):
+        p = fit.dominant.parameters
+        assert p.natural_frequency_hz == pytest.approx(m.natural_frequency_hz, rel=1e-3)
+        assert p.stiffness_n_per_m == pytest.approx(m.stiffness_n_per_m, rel=1e-2)
+        assert fit.modes is None and fit.flags == fit.dominant.flags
+    doc = fits[1].to_dict(1)
+    assert doc["index"] == 1 and doc["direction"] == "y" and "modes" not in doc
+    two = FRF(f, truth[0].compliance(f) + truth[1].compliance(f), direction="x")
+    (both,) = fit_frfs([two], (8.0, 45.0), all_modes=True)
+    fns = sorted(m.natural_frequency_hz for m in both.modes.modes)
+    np.testing.assert_allclose(fns, [15.0, 32.0], rtol=1e-3)
+    assert both.flags == (*both.dominant.flags, *both.modes.flags)
+    assert both.flagged == (both.dominant.flagged or both.modes.flagged)
+    assert len(both.to_dict(0)["modes"]) == 2
+    with pytest.raises(ValueError, match=r"^FRF 1: band 10.0-20.0 Hz"):
+        fit_frfs([frfs[0], FRF(f[f > 40], frfs[1].values[f > 40])], (10.0, 20.0))
+    fig = plot_frf_fits(both, title="t")
+    assert fig.axes and "t" in fig.axes[0].get_title()

@@ -25,6 +25,7 @@ _WHERE = {
     "PoseModelFit": "model",
     "PosePrediction": "model",
     "ProcessingSettings": "process",
+    "fit_campaign_table": "multimode",
     "fit_multimode_pose_model": "multimode",
     "track_modes": "multimode",
     "fit_pose_model_from_table": "model",

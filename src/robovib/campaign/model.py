@@ -179,7 +179,13 @@ def fit_pose_model_from_table(
     """
     import pandas as pd
 
-    table = modal_csv if isinstance(modal_csv, pd.DataFrame) else pd.read_csv(modal_csv)
+    from ..io.csv_table import read_table
+
+    table = (  # the one CSV reader: errors name the line
+        modal_csv
+        if isinstance(modal_csv, pd.DataFrame)
+        else read_table(modal_csv, what="modal table").to_frame()
+    )
     inputs = tuple(inputs)
     missing = [c for c in (*inputs, "direction", *_OUTPUTS) if c not in table.columns]
     if missing:

@@ -25,7 +25,13 @@ import json
 
 import numpy as np
 
-__all__ = ["fit_multimode_pose_model", "fit_row_modes", "mode_direction", "track_modes"]
+__all__ = [
+    "fit_campaign_table",
+    "fit_multimode_pose_model",
+    "fit_row_modes",
+    "mode_direction",
+    "track_modes",
+]
 
 
 def mode_direction(mode_id: str) -> str:
@@ -199,12 +205,17 @@ def fit_multimode_pose_model(
     """
     import pandas as pd
 
+    from ..io.csv_table import read_table
     from .model import fit_pose_model_from_table
 
-    table = modes_csv if isinstance(modes_csv, pd.DataFrame) else pd.read_csv(modes_csv)
+    table = (  # the one CSV reader: errors name the line
+        modes_csv
+        if isinstance(modes_csv, pd.DataFrame)
+        else read_table(modes_csv, what="mode table").to_frame()
+    )
     if "mode_id" not in table.columns:
         raise ValueError("the mode table has no mode_id column (track_modes gives it)")
-    table = table.assign(mode_id=table["mode_id"].fillna("").astype(str))
+    table = table.assign(mode_id=table["mode_id"].astype("string").fillna("").astype(str))
     n_rec = {d: g["row"].nunique() for d, g in table.groupby("direction")}
     tracked = table[table["mode_id"] != ""]
     presence, ids = {}, []
@@ -232,3 +243,44 @@ def fit_multimode_pose_model(
         "modes_left_out": json.dumps(sorted(set(presence) - set(ids))),
     }
     return fit
+
+
+def fit_campaign_table(
+    path,
+    inputs=("x_mm", "y_mm", "rz_deg"),
+    kernel: str = "ard",
+    *,
+    n_folds: int = 5,
+    use_flagged: bool = False,
+):
+    """The pose model of a campaign table, whichever ``campaign process`` wrote (``model fit``).
+
+    ``modes.csv`` (a ``mode_id`` column) gives every tracked mode
+    (:func:`fit_multimode_pose_model`), ``modal.csv`` the dominant mode per direction
+    (:func:`~robovib.campaign.fit_pose_model_from_table`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The table (read by :func:`robovib.io.csv_table.read_table`).
+    inputs : sequence of str
+        Pose columns, with their units (``x_mm``, ``rz_deg`` ...).
+    kernel : {"ard", "isotropic"}
+        GP kernel.
+    n_folds : int
+        Cross-validation folds (grouped by pose).
+    use_flagged : bool
+        Keep rows whose fit is flagged (``modal.csv`` only).
+
+    Returns
+    -------
+    PoseModelFit
+        The fitted model with its cross-validation table.
+    """
+    from ..io.csv_table import read_table
+    from .model import fit_pose_model_from_table
+
+    if "mode_id" in read_table(path, what="modal table").header:
+        return fit_multimode_pose_model(path, inputs=inputs, kernel=kernel, n_folds=n_folds)
+    return fit_pose_model_from_table(path, inputs=inputs, kernel=kernel, n_folds=n_folds,
+                                     use_flagged=use_flagged)  # fmt: skip

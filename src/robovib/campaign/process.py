@@ -205,7 +205,7 @@ def process_row(row: CampaignRow, settings: ProcessingSettings) -> RowResult:
 
 
 def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
-    from ..frf import impact_frf
+    from ..frf import impact_compliance_frf
     from ..io import read_recording_channels, select_channel
     from ..modal import fit_dominant_mode
 
@@ -220,8 +220,8 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
     fitted = None
     for ch in channels:
         is_direct = ch is direct or (ch.direction in (None, row.direction) and len(channels) == 1)
-        res = impact_frf(
-            ch.forces, ch.responses, ch.sample_rate_hz,
+        res = impact_compliance_frf(  # the pipeline of `frf compute` too
+            ch.forces, ch.responses, ch.sample_rate_hz, f_min_hz=s.f_min_hz,
             response_quantity=ch.response_quantity, estimator=s.estimator,
             pretrigger_s=s.pretrigger_s, force_window_s=s.force_window_s,
             exp_window_tau_s=s.exp_window_tau_s, reject=not s.keep_flagged,
@@ -229,13 +229,7 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
             direction=row.direction if is_direct else ch.direction,
             plausible=s.plausible if is_direct else None,
         )  # fmt: skip
-        frf = res.frf.to_compliance(s.f_min_hz)
-        if is_direct and s.plausible is not None:
-            from ..frf.plausibility import check_frf_level
-
-            bad = check_frf_level(frf, s.plausible)
-            if bad:
-                raise ValueError(f"implausible FRF: {bad}")
+        frf = res.frf
         meta = {
             "row": row.row,
             "file": str(row.file),
@@ -365,7 +359,6 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
     ):
         write_frfs_hdf5(t_h5, frfs)
         with h5py.File(t_h5, "a") as h5:
-            h5.attrs["robovib_version"] = __version__
             h5.attrs["settings"] = settings_json
             h5.attrs["manifest"] = str(manifest)
             h5.attrs["units"] = "SI (frequency Hz, compliance m/N); pose (m, m, m, deg, deg, deg)"

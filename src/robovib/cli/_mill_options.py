@@ -56,10 +56,11 @@ MethodOpt = Annotated[
 
 def cutting(coefficients, kt, kn, diameter, teeth, helix, ae, radial_immersion, milling):
     """Tool, conditions and coefficients from the shared options (mm -> SI at the edge)."""
+    from ..io.units import to_si
     from ..milling.chart import cutting_setup
 
-    return cutting_setup(coefficients, diameter_m=diameter / 1e3, n_flutes=teeth,
-                         helix_deg=helix, radial_depth_m=ae / 1e3, radial_immersion=radial_immersion,
+    return cutting_setup(coefficients, diameter_m=to_si(diameter, "mm"), n_flutes=teeth,
+                         helix_deg=helix, radial_depth_m=to_si(ae, "mm"), radial_immersion=radial_immersion,
                          milling=milling, ktc_n_per_m2=kt, krc_n_per_m2=kn)  # fmt: skip
 
 

@@ -103,8 +103,8 @@ def compute(
     """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
     from dataclasses import replace
 
-    from ..frf import check_frf_level, impact_frf
-    from ..io import Sensitivity, read_recording, write_frfs
+    from ..frf import impact_compliance_frf
+    from ..io import Sensitivity, from_si, read_recording, to_si, write_frfs
 
     if direction is not None and direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}; use x, y or z")
@@ -115,18 +115,16 @@ def compute(
         Sensitivity(force_sensitivity, "N") if force_sensitivity else None,
         Sensitivity(response_sensitivity, response_unit) if response_sensitivity else None,
     )  # fmt: skip
-    result = impact_frf(
-        rec.forces, rec.responses, rec.sample_rate_hz,
+    result = impact_compliance_frf(  # the campaign's pipeline (campaign.process_row)
+        rec.forces, rec.responses, rec.sample_rate_hz, f_min_hz=f_min_hz,
         response_quantity=rec.response_quantity, estimator=estimator,
-        pretrigger_s=pretrigger_ms / 1e3,
-        force_window_s=None if force_window_ms == 0 else force_window_ms / 1e3,  # < 0: error
-        exp_window_tau_s=None if exp_window_tau_ms == 0 else exp_window_tau_ms / 1e3,
+        pretrigger_s=to_si(pretrigger_ms, "ms"),
+        force_window_s=None if force_window_ms == 0 else to_si(force_window_ms, "ms"),  # < 0: error
+        exp_window_tau_s=None if exp_window_tau_ms == 0 else to_si(exp_window_tau_ms, "ms"),
         reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
         plausible=plausible,
     )  # fmt: skip
-    frf = result.frf.to_compliance(f_min_hz)
-    if plausible is not None and (bad := check_frf_level(frf, plausible)):
-        fail(f"implausible FRF: {bad}")
+    frf = result.frf
     if frf.frequency_hz.size < 5:
         fail(
             f"{frf.frequency_hz.size} FRF lines between --fmin and --fmax at df = {frf.df_hz:.3g} Hz "
@@ -151,7 +149,7 @@ def compute(
             "hit": h.index,
             "accepted": h.accepted,
             "peak_force_n": h.peak_force_n,
-            "pulse_width_ms": 1e3 * h.pulse_width_s,
+            "pulse_width_ms": from_si(h.pulse_width_s, "ms"),
             "reasons": list(h.reasons),
         }
         for h in result.hits

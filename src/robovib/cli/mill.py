@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from ..io.units import from_si, to_si
 from . import _mill_options as opt
 from ._common import (
     JsonFlag,
@@ -56,7 +57,7 @@ def predict(
     from ..milling import CuttingConditions
     from ..milling.workflow import predict_at_pose
 
-    cond = CuttingConditions(rpm, fz / 1e3, ap / 1e3, ae / 1e3)
+    cond = CuttingConditions(rpm, to_si(fz, "mm"), to_si(ap, "mm"), to_si(ae, "mm"))
     f = None
     if forces is not None:  # the CSV reader only when a force file is given
         from ..io import read_force_csv
@@ -68,10 +69,10 @@ def predict(
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
     rows = [
-        {"direction": r.direction, "mean_deflection_mm": 1e3 * r.mean_deflection_m,
-         "mean_deflection_band_mm": [1e3 * v for v in r.mean_deflection_band_m],
-         "peak_to_valley_mm": 1e3 * r.peak_to_valley_m,
-         "peak_to_valley_band_mm": [1e3 * v for v in r.peak_to_valley_band_m],
+        {"direction": r.direction, "mean_deflection_mm": from_si(r.mean_deflection_m, "mm"),
+         "mean_deflection_band_mm": [from_si(v, "mm") for v in r.mean_deflection_band_m],
+         "peak_to_valley_mm": from_si(r.peak_to_valley_m, "mm"),
+         "peak_to_valley_band_mm": [from_si(v, "mm") for v in r.peak_to_valley_band_m],
          "mode": r.mode.to_dict(), "modes": [m.to_dict() for m in r.modes or (r.mode,)]}
         for r in res
     ]  # fmt: skip
@@ -126,7 +127,7 @@ def lobes(
     """Stability lobes (envelope) from explicit modes, a measured FRF or the pose model's modes."""
     from ..milling.chart import (
         lobes_chart,
-        parse_mode_spec,
+        parse_mode_specs,
         parse_operating_point,
         parse_rpm_range,
         plot_lobes_chart,
@@ -135,11 +136,9 @@ def lobes(
     check_output(plot, [model_path, frf, cuts])
     tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
-    parsed = [parse_mode_spec(m) for m in (mode or [])]
-    modes_x = [m for d, m in parsed if d == "x"]
-    modes_y = [m for d, m in parsed if d == "y"]
+    modes_x, modes_y = parse_mode_specs(mode or [])
     model, pose, pose_label = None, None, None
-    if not parsed and frf is None:
+    if not (modes_x or modes_y) and frf is None:
         if x is None or y is None or rz is None:
             raise ValueError("give --x --y --rz (pose model), --mode ... or --frf FILE")
         model, pose = workspace_model(model_path, seed), (x, y, rz)
@@ -175,15 +174,15 @@ def lobes(
         )
     if doc["minimum_depth_m"] is not None:
         typer.echo(
-            f"depth stable at every speed ({method.upper()}): {1e3 * doc['minimum_depth_m']:.3f} mm"
+            f"depth stable at every speed ({method.upper()}): {from_si(doc['minimum_depth_m'], 'mm'):.3f} mm"
         )
     if doc["most_stable_rpm"] is not None:
         typer.echo(
-            f"most stable speed: {doc['most_stable_rpm']:.0f} rpm ({1e3 * doc['most_stable_depth_m']:.2f} mm)"
+            f"most stable speed: {doc['most_stable_rpm']:.0f} rpm ({from_si(doc['most_stable_depth_m'], 'mm'):.2f} mm)"
         )
     else:
         typer.echo("no interior maximum of the envelope in the speed range: widen --rpm-range")
-    n_flip = int(np.sum(env.kind == "flip"))
+    n_flip = chart.n_flip_limited
     if n_flip:
         typer.echo(f"{n_flip} of {env.kind.size} speeds limited by flip (period-doubling) lobes")
     if chart.operating_point is not None:
@@ -191,7 +190,7 @@ def lobes(
             chart.operating_point_stable
         ]
         typer.echo(
-            f"operating point {chart.operating_point[0]:.0f} rpm, {1e3 * chart.operating_point[1]:.2f} mm: {state}"
+            f"operating point {chart.operating_point[0]:.0f} rpm, {from_si(chart.operating_point[1], 'mm'):.2f} mm: {state}"
         )
     if plot is not None:
         typer.echo(f"wrote {plot}")
@@ -290,8 +289,8 @@ def lobe_map(
         return
     typer.echo(
         f"deepest stable cut at {rpm:g} rpm: X={best['best_pose_mm'][0]:.0f}, "
-        f"Y={best['best_pose_mm'][1]:.0f} mm: {1e3 * best['best_depth_m']:.2f} mm; "
-        f"shallowest: {1e3 * best['shallowest_depth_m']:.2f} mm ({method.upper()})"
+        f"Y={best['best_pose_mm'][1]:.0f} mm: {from_si(best['best_depth_m'], 'mm'):.2f} mm; "
+        f"shallowest: {from_si(best['shallowest_depth_m'], 'mm'):.2f} mm ({method.upper()})"
     )
     for path in (output, plot):
         if path is not None:

@@ -18,6 +18,7 @@ from ._common import (
     escape,
     fail,
     new_app,
+    save_figure,
     use_agg,
 )
 
@@ -49,35 +50,16 @@ def fit(
     with its reasons, and the command then exits with an error unless ``--keep-flagged``.
     """
     from ..io import read_frfs
-    from ..modal import fit_dominant_mode, fit_modes
+    from ..modal import fit_frfs
 
     check_output(plot, [frf_file], force)
     frfs = read_frfs(frf_file)
-    results = []
-    for i, frf in enumerate(frfs):
-        try:
-            dom = fit_dominant_mode(frf, band)
-            multi = fit_modes(frf, band, max_order=max_order) if modes else None
-        except (ValueError, RuntimeError) as exc:
-            fail(f"FRF {i}: {exc}")
-        results.append((frf, dom, multi))
-    docs = []
-    for i, (frf, dom, multi) in enumerate(results):
-        doc = {
-            "index": i,
-            "direction": frf.direction,
-            "pose_m_deg": frf.pose,
-            "dominant_mode": dom.to_dict(),
-        }
-        if multi is not None:
-            doc["modes"] = [m.to_dict() for m in multi.modes]
-            doc["modes_flags"] = list(multi.flags)
-        docs.append(doc)
-    flagged = [
-        (i, [*dom.flags, *(multi.flags if multi is not None else ())])
-        for i, (_, dom, multi) in enumerate(results)
-        if dom.flagged or (multi is not None and multi.flagged)
-    ]
+    try:
+        results = fit_frfs(frfs, band, all_modes=modes, max_order=max_order)
+    except ValueError as exc:  # a fit that fails: "FRF i: ..."
+        fail(str(exc))
+    docs = [r.to_dict(i) for i, r in enumerate(results)]
+    flagged = [(i, r.flags) for i, r in enumerate(results) if r.flagged]
     if json_out:
         emit_json({"file": str(frf_file), "frfs": docs, "n_flagged": len(flagged)})
         if plot is not None:
@@ -97,7 +79,8 @@ def fit(
         "flags",
     ):
         t.add_column(escape(col), justify="right")
-    for i, (frf, dom, _) in enumerate(results):
+    for i, r in enumerate(results):
+        frf, dom = r.frf, r.dominant
         p, sd = dom.parameters, dom.std
         t.add_row(
             str(i), frf.direction or "-",
@@ -109,7 +92,7 @@ def fit(
             "[red]" + escape("; ".join(dom.flags)) + "[/]" if dom.flags else "-",
         )  # fmt: skip
     con.print(t)
-    for i, (_, _, multi) in enumerate(results):
+    for i, multi in enumerate(r.modes for r in results):
         if multi is None:
             continue
         t = Table(
@@ -144,26 +127,9 @@ def _flagged_exit(flagged, keep_flagged: bool) -> None:
 
 
 def _plot(frf_file: Path, results, plot: Path, force: bool) -> None:
-    """The first FRF with its fit (magnitude/unwrapped phase, Re/Im, coherence; flags in red),
-    drawn after the results are printed."""
+    """The first FRF with its fit, drawn after the results are printed."""
+    from ..modal.plot import plot_frf_fits
+
     use_agg()
-    import matplotlib.pyplot as plt
-
-    from ..io import save_figure
-    from ..modal.plot import plot_frf_fit
-
-    frf, dom, multi = results[0]
-    shown = frf.band(*dom.band_hz) if multi is None else frf.band(*multi.band_hz)
-    fitted = multi.modes if multi is not None else (dom.parameters,)
-    fig = plot_frf_fit(
-        shown,
-        fitted,
-        residual=0j if multi else dom.residual_compliance,
-        title=f"{frf_file.name}, FRF 0",
-        flags=(*dom.flags, *(multi.flags if multi is not None else ())),
-        view="both",
-    )
-    try:
-        save_figure(fig, plot, inputs=[frf_file], force=force)
-    finally:
-        plt.close(fig)
+    fig = plot_frf_fits(results[0], title=f"{frf_file.name}, FRF 0")
+    save_figure(fig, plot, inputs=[frf_file], force=force)

@@ -48,22 +48,11 @@ def fit(
 
     Given ``modes.csv`` (``campaign process --modes-band``: a ``mode_id`` column) the model has
     every tracked mode of x and y (directions x1, x2, ..., y1, ...), not the dominant one."""
-    import pandas as pd
-
-    from ..campaign import (
-        fit_multimode_pose_model,
-        fit_pose_model_from_table,
-        mode_switches_found,
-        save_pose_model,
-    )
+    from ..campaign import fit_campaign_table, mode_switches_found, save_pose_model
 
     names = [n.strip() for n in inputs.split(",") if n.strip()]
-    if "mode_id" in pd.read_csv(modal_csv, nrows=0).columns:
-        res = fit_multimode_pose_model(modal_csv, inputs=names, kernel=check_kernel(kernel),
-                                       n_folds=folds)  # fmt: skip
-    else:
-        res = fit_pose_model_from_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
-                                        n_folds=folds, use_flagged=use_flagged)  # fmt: skip
+    res = fit_campaign_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
+                             n_folds=folds, use_flagged=use_flagged)  # fmt: skip
     save_pose_model(res, output)
     if plot is not None:
         from ..gp.plot import plot_calibration

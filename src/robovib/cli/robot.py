@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from ..io.units import from_si
 from ._common import JsonFlag, Table, console, emit_json, escape, new_app, save_figure, use_agg
 
 app = new_app(
@@ -32,7 +33,7 @@ def fk(
     robot = KR500()
     tip, flange = robot.fk(joints), robot.fk(joints, flange=True)
     cond = robot.condition_number(joints)
-    doc = {"joints_deg": list(joints), "tool_tip_mm": tip[:3, 3] * 1e3, "flange_mm": flange[:3, 3] * 1e3,
+    doc = {"joints_deg": list(joints), "tool_tip_mm": from_si(tip[:3, 3], "mm"), "flange_mm": from_si(flange[:3, 3], "mm"),
            "rotation": tip[:3, :3], "jacobian_condition_number": cond}  # fmt: skip
     if json_out:
         emit_json(doc)
@@ -47,7 +48,10 @@ def _workspace_pose(x, y, z, rz):
     from ..robot import KR500, tool_down_orientation
 
     robot = KR500()
-    return robot, robot.ik(np.array([x, y, z]) / 1e3, tool_down_orientation(rz))
+    from ..gp.pose_units import pose_in_units
+
+    position_m = pose_in_units(("x_m", "y_m", "z_m"), {"x_mm": x, "y_mm": y, "z_mm": z})
+    return robot, robot.ik(position_m, tool_down_orientation(rz))
 
 
 @app.command("ik")

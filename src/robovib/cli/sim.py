@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ..io.units import from_si, to_si
 from ._common import (
     JsonFlag,
     OutOpt,
@@ -19,6 +20,8 @@ from ._common import (
 from ._control_options import DisturbanceOpt, parse_disturbances
 
 app = new_app("The virtual robot: synthetic hammer tests, milling passes and offset-mass runs.")
+#: The virtual robot's workspace pose (:mod:`robovib.sim`): metres and degrees.
+_WORKSPACE_M = ("x_m", "y_m", "rz_deg")
 
 PathFromOpt = Annotated[
     float | None,
@@ -60,10 +63,15 @@ def hammer(
     json_out: JsonFlag = False,
 ) -> None:
     """Impact-hammer test of the virtual robot at a workspace pose (or a path point), UFF 58 or CSV."""
+    from ..gp.pose_units import pose_in_units
     from ..io import write_recording
     from ..sim import VirtualRobot, simulate_hammer_test
 
-    where, domain = ((x / 1e3, y / 1e3, rz), "workspace") if path_s is None else (path_s, "path")
+    if path_s is None:  # the virtual robot takes metres: units named, no conversion by hand
+        where = tuple(map(float, pose_in_units(_WORKSPACE_M, {"x_mm": x, "y_mm": y, "rz_deg": rz})))
+        domain = "workspace"
+    else:
+        where, domain = path_s, "path"
     rec = simulate_hammer_test(
         VirtualRobot(), where, direction, domain=domain, n_hits=hits,
         sample_rate_hz=sample_rate_hz, duration_s=duration_s, snr_db=snr_db, rng=seed,
@@ -117,9 +125,15 @@ def mill(
     dist = parse_disturbances(disturbance)
     if (path_s_from is None) != (path_s_to is None):
         raise typer.BadParameter("give both --path-s-from and --path-s-to [m], or neither")
-    cond = CuttingConditions(rpm, fz_mm / 1e3, ap_mm / 1e3, ae_mm / 1e3)
+    cond = CuttingConditions(rpm, to_si(fz_mm, "mm"), to_si(ap_mm, "mm"), to_si(ae_mm, "mm"))
     if path_s_from is None:
-        move = LinearMove("workspace", (x0 / 1e3, y0 / 1e3, rz), (x1 / 1e3, y1 / 1e3, rz))
+        from ..gp.pose_units import pose_in_units
+
+        start, end = (
+            tuple(map(float, pose_in_units(_WORKSPACE_M, {"x_mm": a, "y_mm": b, "rz_deg": rz})))
+            for a, b in ((x0, y0), (x1, y1))
+        )
+        move = LinearMove("workspace", start, end)
     else:
         move = LinearMove("path", (path_s_from,), (path_s_to,))
     run = simulate_milling(
@@ -129,7 +143,7 @@ def mill(
     run.to_csv(output)
     doc = {
         "output": str(output), "samples": int(run.time_s.size), "duration_s": float(run.time_s[-1]),
-        "mean_force_n": run.force_n.mean(axis=0), "mean_deflection_mm": 1e3 * run.true_displacement_m.mean(axis=0),
+        "mean_force_n": run.force_n.mean(axis=0), "mean_deflection_mm": from_si(run.true_displacement_m.mean(axis=0), "mm"),
         **run.meta,
     }  # fmt: skip
     if json_out:
@@ -170,11 +184,11 @@ def offset_mass(
         VirtualRobot(),
         LinearMove("path", (path_s_from,), (path_s_to,)),
         rpm,
-        speed_m_per_s=speed_mm_s / 1e3,
+        speed_m_per_s=to_si(speed_mm_s, "mm/s"),
         rng=seed,
     )
     run.to_csv(output)
-    amp = 1e3 * run.peak_vibration_m
+    amp = from_si(run.peak_vibration_m, "mm")
     doc = {"output": str(output), "samples": int(run.time_s.size), "peak_vibration_mm": amp}
     if json_out:
         emit_json(doc)

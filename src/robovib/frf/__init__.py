@@ -20,6 +20,7 @@ _WHERE = {
     "check_levels": "plausibility",
     "estimate_frf": "estimate",
     "impact_frf": "impact",
+    "impact_compliance_frf": "impact",
     "noise_level": "impact",
     "overload_reason": "impact",
     "plot_frf": "plot",

@@ -511,3 +511,50 @@ def impact_frf(
         exp_window_tau_s=exp_window_tau_s,
     )  # fmt: skip
     return ImpactResult(frf, tuple(reports))
+
+
+def impact_compliance_frf(
+    forces, responses, sample_rate_hz: float, *, f_min_hz: float, plausible=None, **options
+) -> ImpactResult:
+    """The compliance FRF of a hammer test, its level checked: what ``frf compute`` and
+    campaign processing (:func:`robovib.campaign.process_row`) both run.
+
+    :func:`impact_frf`, then :meth:`FRF.to_compliance` from ``f_min_hz``, then (with
+    ``plausible``) :func:`robovib.frf.check_frf_level`.
+
+    Parameters
+    ----------
+    forces, responses
+        (n_hits, n_samples) force [N] and response in SI units (:func:`impact_frf`).
+    sample_rate_hz : float
+        Common sample rate of both channels [Hz].
+    f_min_hz : float
+        Lowest frequency kept [Hz] (compliance = accelerance / -w² blows up at 0 Hz).
+    plausible : PlausibleRanges, optional
+        Check the hits' levels and the compliance peak (None: not checked).
+    **options
+        Further keywords of :func:`impact_frf` (``response_quantity``, ``estimator``,
+        windows, ``reject``, ``f_max_hz``, ``direction``, ``pose`` ...).
+
+    Returns
+    -------
+    ImpactResult
+        ``frf`` the compliance FRF [m/N] from ``f_min_hz``; ``hits`` as :func:`impact_frf`.
+
+    Raises
+    ------
+    ValueError
+        As :func:`impact_frf`; ``"implausible FRF: ..."`` when the compliance level lies
+        outside ``plausible`` (the likely unit mix-up named).
+    """
+    from dataclasses import replace
+
+    res = impact_frf(forces, responses, sample_rate_hz, plausible=plausible, **options)
+    frf = res.frf.to_compliance(f_min_hz)
+    if plausible is not None:
+        from .plausibility import check_frf_level
+
+        bad = check_frf_level(frf, plausible)
+        if bad:
+            raise ValueError(f"implausible FRF: {bad}")
+    return replace(res, frf=frf)

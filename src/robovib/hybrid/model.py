@@ -72,6 +72,7 @@ from sklearn.exceptions import NotFittedError
 
 from ..campaign.selection import NextPoses, next_poses
 from ..gp.regressor import BatchedGPRegressor, GPHyperparameters
+from ..io.h5format import FRF_POSE_MODEL_FORMAT
 from .frfs import frfs_on_grid
 
 __all__ = ["FRFPoseModel", "UpdateReport", "frequency_grid"]
@@ -122,7 +123,7 @@ _DATASET_UNITS = {
     "x_loc": "input units", "x_scale": "input units", "y_loc": "um/N", "y_scale": "um/N",
     "pose_lo": "input units", "pose_hi": "input units",
 }  # fmt: skip
-_FORMAT = "robovib-frf-pose-model"
+_FORMAT = FRF_POSE_MODEL_FORMAT
 _VERSION = 2
 _SCALE = 1e6  # m/N -> um/N: O(1) numbers inside the GPs
 _MIN_GAIN_NATS = 1.0  # held-out log-density gain OMA must bring (per bin, per direction)
@@ -943,12 +944,14 @@ class FRFPoseModel(BaseEstimator):
         Returns
         -------
         ndarray of bool (n,)
-            True where any coordinate is outside the range of the training poses.
+            True where any coordinate is outside the range of the training poses (by more
+            than 1e-9 of that range: the rule of every pose model,
+            :class:`robovib.gp.extrapolation.TrainingRegion`).
         """
+        from ..gp.extrapolation import extrapolating
+
         self._require_fitted()
-        x = self._poses(poses)
-        lo, hi = self.pose_range_
-        return np.any((x < lo - 1e-12) | (x > hi + 1e-12), axis=1)
+        return extrapolating(self, self._poses(poses))
 
     def predict(self, poses, return_std: bool = False):
         """Complex compliance at poses (thesis Eq. 9-10 per bin).
@@ -1051,7 +1054,9 @@ class FRFPoseModel(BaseEstimator):
     def save(self, path, *, provenance: dict | None = None, inputs=(), force: bool = False) -> None:
         """HDF5 (atomic): training data, hyperparameters, scalers, units and provenance.
 
-        Attributes: ``format``, ``version``, ``robovib_version``, ``kernel``,
+        Attributes: ``format``, ``format_version``, ``robovib_version``, ``created_utc``,
+        ``units`` (the header of :mod:`robovib.io.h5format`; files of older robovib say
+        ``version``), ``kernel``,
         ``input_names`` (units in the names), ``direction`` (x, y, z or empty),
         ``compliance_unit = "um/N"`` (training targets and noise), ``frequency_unit = "Hz"``,
         ``groups = "0=EMA,1=OMA"``, and ``provenance/<key>`` for the given dict
@@ -1071,16 +1076,18 @@ class FRFPoseModel(BaseEstimator):
         """
         import h5py
 
-        from .. import __version__
+        from ..io.h5format import write_header
         from ..io.provenance import set_units, write_provenance
         from ..io.safe_write import atomic_output
 
         self._require_fitted()
         gp = self.gp_
         with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
-            h5.attrs["format"] = _FORMAT
-            h5.attrs["version"] = _VERSION
-            h5.attrs["robovib_version"] = __version__
+            write_header(
+                h5, _FORMAT, _VERSION,
+                units="frequency_hz Hz; targets and noise um/N (Re, Im of compliance); inputs "
+                "in the units of input_names; every dataset's unit in its 'units' attribute",
+            )  # fmt: skip
             h5.attrs["kernel"] = self.kernel
             h5.attrs["input_names"] = list(self.input_names)
             h5.attrs["direction"] = getattr(self, "direction_", None) or ""
@@ -1122,14 +1129,11 @@ class FRFPoseModel(BaseEstimator):
         """
         import h5py
 
+        from ..io.h5format import open_checked
+
         path = Path(path)
-        try:
-            h5 = h5py.File(path, "r")
-        except OSError as exc:
-            raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+        h5, _, _ = open_checked(path, {_FORMAT: _VERSION}, what="robovib FRF pose model")
         with h5:
-            if h5.attrs.get("format") != _FORMAT or int(h5.attrs.get("version", -1)) not in (1, 2):
-                raise ValueError(f"{path}: not a robovib FRF pose model (version 1 or 2)")
             d = {k: h5[k][()] for k in h5 if isinstance(h5[k], h5py.Dataset)}
             kernel = str(h5.attrs["kernel"])
             direction = str(h5.attrs.get("direction", "")) or None

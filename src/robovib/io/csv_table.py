@@ -266,7 +266,7 @@ def _sniff_delimiter(text: str) -> str:
     return best if best_cols > 1 else widest
 
 
-def read_table(path: str | Path, *, what: str = "table") -> CsvTable:
+def read_table(path: str | Path, *, what: str = "table", comment: str | None = None) -> CsvTable:
     """Read a CSV table written by hand, a spreadsheet or a DAQ (see the module docstring).
 
     Parameters
@@ -275,6 +275,9 @@ def read_table(path: str | Path, *, what: str = "table") -> CsvTable:
         The file.
     what
         What the table is, for messages (``"manifest"``, ``"pose table"``...).
+    comment
+        Lines starting with this text (after blanks) are skipped, e.g. ``"#"``; line numbers
+        still count them. None: no comment lines.
 
     Returns
     -------
@@ -292,6 +295,11 @@ def read_table(path: str | Path, *, what: str = "table") -> CsvTable:
         raise ValueError(f"{path}: no such {what} file")
     raw = path.read_bytes()
     text, encoding = _decode(raw)
+    if comment:  # blank them out: the line numbers stay those of the file
+        text = "".join(
+            ("\n" if ln.endswith(("\n", "\r")) else "") if ln.lstrip().startswith(comment) else ln
+            for ln in text.splitlines(keepends=True)
+        )
     if not text.strip():
         raise ValueError(f"{path}: empty {what} file")
     ends_nl = text.endswith(("\n", "\r"))

@@ -1,7 +1,8 @@
 """FRFs as CSV: the common export of modal-analysis software (frequency, real, imaginary).
 
-Layout: optional ``#`` comment lines, a header naming each column with its unit, one row per
-frequency::
+Layout (read by :func:`robovib.io.read_table`, so spreadsheet exports with ``;`` and decimal
+commas work too): optional ``#`` comment lines, a header naming each column with its unit, one
+row per frequency::
 
     frequency_hz,real_m_per_n,imag_m_per_n[,coherence]
 
@@ -21,7 +22,6 @@ Values are converted to SI at the edge; mobility and accelerance are converted t
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -91,10 +91,12 @@ def read_frf_csv(
     Raises
     ------
     ValueError
-        No header / no ``frequency_hz`` column, a real column without its imaginary one (or
-        units that differ between them), unknown unit or direction, a cell that is not a
-        finite number (the column and line are named), frequencies not strictly increasing,
-        coherence outside [0, 1].
+        No such file, no header / no ``frequency_hz`` column, a line with another number of
+        cells than the header (:func:`robovib.io.read_table`, which reads the file: ``;`` and
+        decimal commas too), a real column without its imaginary one (or units that differ
+        between them), unknown unit or direction, a cell that is not a finite number (the
+        column and line are named), frequencies not strictly increasing, coherence outside
+        [0, 1].
     OSError
         The file cannot be read.
 
@@ -106,33 +108,26 @@ def read_frf_csv(
     >>> frf.direction, frf.quantity, frf.df_hz
     ('x', 'compliance', 0.25)
     """
+    from .csv_table import read_table
+
     p = Path(path)
     where = str(p)
-    with p.open(newline="") as fh:
-        lines = [
-            (i, ln) for i, ln in enumerate(fh, start=1) if ln.strip() and not ln.startswith("#")
-        ]
-    if not lines:
-        raise ValueError(
-            f"{where}: empty FRF CSV (need a header frequency_hz,real_<unit>,imag_<unit>)"
-        )
-    rows = list(csv.reader(ln for _, ln in lines))
-    header = [h.strip().lower() for h in rows[0]]
+    table = read_table(p, what="FRF CSV", comment="#")  # the one CSV reader (sniffed layout)
+    header = list(table.header)
     if "frequency_hz" not in header:
         raise ValueError(
             f"{where}: no frequency_hz column in the header {header} (frequency in Hz)"
         )
     data: dict[str, np.ndarray] = {}
     for j, name in enumerate(header):
-        col = np.empty(len(rows) - 1)
-        for k, row in enumerate(rows[1:]):
-            line = lines[k + 1][0]
+        col = np.empty(len(table.rows))
+        for k, row in enumerate(table.rows):
+            line = table.lines[k]
             try:
                 v = float(row[j])
-            except (ValueError, IndexError):
-                cell = row[j] if j < len(row) else "<missing>"
+            except ValueError:
                 raise ValueError(
-                    f"{where}, line {line}: column {name!r}: {cell!r} is not a number"
+                    f"{where}, line {line}: column {name!r}: {row[j]!r} is not a number"
                 ) from None
             if not math.isfinite(v):
                 raise ValueError(f"{where}, line {line}: column {name!r}: {v} is not finite")

@@ -1,8 +1,10 @@
 """FRF collections on disk: HDF5 (many poses x directions) and UFF dataset 58 (function type 4).
 
-HDF5 layout (h5py), format tag ``robovib-frf`` version 1::
+HDF5 layout (h5py), format tag ``robovib-frf`` version 1 (the header of
+:mod:`robovib.io.h5format`; files written before it say ``version`` instead of ``format_version``)::
 
-    /                      attrs: format="robovib-frf", version=1
+    /                      attrs: format="robovib-frf", format_version=1, robovib_version,
+                                  created_utc, units
     /frf/000000/           attrs: quantity, direction, source, estimator, n_averages,
                                   exp_window_tau_s (NaN if none), pose (6 floats; NaN if none),
                                   meta_<key> for scalar metadata (e.g. meta_path_s_m)
@@ -24,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..frf.core import FRF
+from .h5format import FRF_FORMAT, open_checked, write_header
 from .provenance import set_units, unit_of_key, write_provenance
 from .safe_write import atomic_output
 
@@ -36,7 +39,7 @@ __all__ = [
     "write_frfs_uff",
 ]
 
-_FORMAT = "robovib-frf"
+_FORMAT = FRF_FORMAT
 #: Unit of the stored FRF values per quantity (SI).
 FRF_UNITS = {"compliance": "m/N", "mobility": "m/s/N", "accelerance": "m/s^2/N"}
 _QUANTITY_SPEC = {"compliance": 8, "mobility": 11, "accelerance": 12}
@@ -70,15 +73,11 @@ def write_frfs_hdf5(
     import h5py
 
     with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
-        from .. import __version__
-
-        h5.attrs["format"] = _FORMAT
-        h5.attrs["version"] = 1
-        h5.attrs["robovib_version"] = __version__
-        h5.attrs["units"] = (
-            "frequency_hz Hz; values SI per quantity (compliance m/N, mobility m/s/N, "
-            "accelerance m/s^2/N); pose X, Y, Z m, Rx, Ry, Rz deg; exp_window_tau_s s"
-        )
+        write_header(
+            h5, _FORMAT, 1,
+            units="frequency_hz Hz; values SI per quantity (compliance m/N, mobility m/s/N, "
+            "accelerance m/s^2/N); pose X, Y, Z m, Rx, Ry, Rz deg; exp_window_tau_s s",
+        )  # fmt: skip
         grp = h5.create_group("frf")
         for i, frf in enumerate(frfs):
             g = grp.create_group(f"{i:06d}")
@@ -110,20 +109,9 @@ def write_frfs_hdf5(
 
 
 def read_frfs_hdf5(path: str | Path) -> list[FRF]:
-    import h5py
-
     path = Path(path)
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
+    h5, _, _ = open_checked(path, {_FORMAT: 1}, what=f"robovib FRF ({_FORMAT})")
     with h5:
-        if h5.attrs.get("format") != _FORMAT:
-            raise ValueError(f"{path}: not a robovib FRF file (missing format tag {_FORMAT!r})")
-        if int(h5.attrs.get("version", -1)) != 1:
-            raise ValueError(
-                f"{path}: unsupported robovib FRF file version {h5.attrs.get('version')}"
-            )
         out = []
         for name in sorted(h5["frf"]):
             g = h5["frf"][name]
@@ -470,30 +458,6 @@ def _attach_companions(frfs: list[FRF], companions, lc_index, path) -> list[FRF]
             value = np.rint(value)
         frfs[i] = replace(frf, meta={**frf.meta, key: value.astype(dt)})
     return frfs
-
-
-def read_frfs_csv(path: str | Path) -> list[FRF]:
-    """FRFs from CSV (``frequency_hz``, ``[x_|y_|z_]real_<unit>``, ``[x_|y_|z_]imag_<unit>``):
-    :func:`robovib.io.read_frf_csv`, converted to SI compliance.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The CSV file.
-
-    Returns
-    -------
-    list of FRF
-        One compliance FRF [m/N] per direction.
-
-    Raises
-    ------
-    ValueError
-        See :func:`robovib.io.read_frf_csv` (errors name the column and line).
-    """
-    from .frf_csv import read_frf_csv
-
-    return read_frf_csv(path)
 
 
 def write_frfs(

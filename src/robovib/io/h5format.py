@@ -2,7 +2,8 @@
 
 Every file carries, as root attributes: ``format`` (what it holds, e.g.
 ``robovib.PoseModalModel``), ``format_version`` (an integer that grows when the layout
-changes), ``robovib_version`` (the writer) and ``created_utc``. :func:`open_checked` opens a
+changes), ``robovib_version`` (the writer) and ``created_utc``, and the units of what it holds
+(``units``, or a ``units`` attribute on each dataset). :func:`open_checked` opens a
 file for reading and checks the tag and version in one place, so every reader refuses a foreign
 or newer file with the same clear message. Files written before the convention named the
 version ``version``; it is read as ``format_version``.
@@ -16,7 +17,12 @@ from collections.abc import Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 
-__all__ = ["file_format", "open_checked", "write_header"]
+__all__ = ["FRF_FORMAT", "FRF_POSE_MODEL_FORMAT", "file_format", "open_checked", "write_header"]
+
+#: Format tag of FRF collections (:func:`robovib.io.write_frfs_hdf5`), layout version 1.
+FRF_FORMAT = "robovib-frf"
+#: Format tag of hybrid FRF pose models (:meth:`robovib.hybrid.FRFPoseModel.save`), versions 1-2.
+FRF_POSE_MODEL_FORMAT = "robovib-frf-pose-model"
 
 
 def write_header(h5, format_name: str, format_version: int, **attrs) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["QUANTITY_OF_UNIT", "si_factor"]
+__all__ = ["QUANTITY_OF_UNIT", "from_si", "si_factor", "to_si"]
 
 _G = 9.80665
 
@@ -89,3 +89,59 @@ def apply_sensitivity(values, voltage_label: str, sensitivity: float, per_unit: 
     mv = values * (1e3 if key == "v" else 1.0)
     quantity, factor = si_factor(per_unit)
     return quantity, mv / sensitivity * factor
+
+
+def _scale(value, factor: float, to_si: bool):
+    """``value * factor`` (to SI) or ``value / factor``, exact for the decimal prefixes: a
+    factor 1e-3 divides by 1000 (``x / 1000 == x / 1e3``, not ``x * 1e-3``)."""
+    inverse = 1.0 / factor
+    if factor < 1.0 and inverse == round(inverse):
+        return value / round(inverse) if to_si else value * round(inverse)
+    return value * factor if to_si else value / factor
+
+
+def to_si(value, unit: str):
+    """A value given in ``unit`` (a label of :func:`si_factor`: ``"mm"``, ``"ms"``, ``"mm/s"``
+    ...) in SI: the one place option values in other units are converted.
+
+    Parameters
+    ----------
+    value : float or numpy.ndarray
+        The value(s) in ``unit``.
+    unit : str
+        Their unit.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The value(s) in SI (m, s, m/s ...).
+
+    Examples
+    --------
+    >>> to_si(25.4, "mm"), to_si(10.0, "ms")
+    (0.0254, 0.01)
+    """
+    return _scale(value, si_factor(unit)[1], to_si=True)
+
+
+def from_si(value, unit: str):
+    """An SI value in ``unit`` (the inverse of :func:`to_si`), e.g. a depth [m] shown in mm.
+
+    Parameters
+    ----------
+    value : float or numpy.ndarray
+        The value(s) in SI.
+    unit : str
+        The unit wanted (a label of :func:`si_factor`).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The value(s) in ``unit``.
+
+    Examples
+    --------
+    >>> from_si(0.0254, "mm"), from_si(0.0015, "ms")
+    (25.4, 1.5)
+    """
+    return _scale(value, si_factor(unit)[1], to_si=False)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.frf_files import read_frfs_csv as read_frf_csv  # the reader lives in robovib.io
+from ..io.frf_csv import read_frf_csv  # the reader lives in robovib.io
 from ..modal.parameters import ModalParameters
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool
 from .lobes import LobeEnvelope, lobes_title, plot_lobes, zoa_envelope
@@ -30,6 +30,7 @@ __all__ = [
     "cutting_setup",
     "lobes_chart",
     "parse_mode_spec",
+    "parse_mode_specs",
     "parse_operating_point",
     "parse_rpm_range",
     "plot_lobes_chart",
@@ -137,6 +138,32 @@ def parse_mode_spec(spec: str) -> tuple[str, ModalParameters]:
     return direction, ModalParameters(fn, k, zeta)
 
 
+def parse_mode_specs(specs) -> tuple[tuple[ModalParameters, ...], tuple[ModalParameters, ...]]:
+    """Several ``"x:FN_HZ,K_N_PER_M,ZETA"`` texts -> the feed (x) and normal (y) modes.
+
+    Parameters
+    ----------
+    specs : sequence of str
+        The texts given on the command line (:func:`parse_mode_spec`), in any order.
+
+    Returns
+    -------
+    modes_x, modes_y : tuple of ModalParameters
+        The modes of each direction, in the order given.
+
+    Examples
+    --------
+    >>> mx, my = parse_mode_specs(["x:650,2.1e7,0.03", "y:700,3e7,0.02", "x:900,5e7,0.04"])
+    >>> [m.natural_frequency_hz for m in mx], [m.natural_frequency_hz for m in my]
+    ([650.0, 900.0], [700.0])
+    """
+    parsed = [parse_mode_spec(s) for s in specs]
+    return (
+        tuple(m for d, m in parsed if d == "x"),
+        tuple(m for d, m in parsed if d == "y"),
+    )
+
+
 def parse_operating_point(spec: str) -> tuple[float, float]:
     """``"RPM,DEPTH_MM"`` -> (rpm, depth [m]).
 
@@ -237,6 +264,17 @@ class LobesChart:
     probability: object | None = None
     #: Which mode the deterministic envelope assumed where the pose model is unsure (mixtures).
     notes: tuple[str, ...] = ()
+
+    @property
+    def n_flip_limited(self) -> int:
+        """How many of the envelope's speeds are limited by a flip (period-doubling) lobe.
+
+        Returns
+        -------
+        int
+            Speeds whose limiting lobe is of kind ``"flip"``.
+        """
+        return int(np.sum(np.asarray(self.envelope.kind) == "flip"))
 
     def to_dict(self) -> dict:
         """JSON document: ``rpm``, ``a_lim_m`` arrays, units in every key, all inputs.

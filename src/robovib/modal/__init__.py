@@ -7,12 +7,14 @@ for the FRF estimators and SciPy's signal module, which the fits need.
 from .._lazy import lazy_exports
 
 _WHERE = {
+    "FRFFits": "fits",
     "ModalFit": "sdof",
     "ModalFitWarning": "lscf",
     "ModalParameters": "parameters",
     "MultiModeFit": "lscf",
     "StabilizationDiagram": "lscf",
     "fit_dominant_mode": "sdof",
+    "fit_frfs": "fits",
     "fit_modes": "lscf",
     "half_power_estimate": "sdof",
     "lscf_poles": "lscf",

@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from ..frf.core import FRF
 from ..frf.plot import FRFCurve, FRFView, plot_frf
 from .parameters import ModalParameters
 
-__all__ = ["plot_frf_fit"]
+if TYPE_CHECKING:
+    from .fits import FRFFits
+
+__all__ = ["plot_frf_fit", "plot_frf_fits"]
 
 
 def plot_frf_fit(
@@ -60,3 +64,37 @@ def plot_frf_fit(
                  va="bottom", ha="left", wrap=True)  # fmt: skip
         fig.subplots_adjust(bottom=min(0.35, 0.06 + 0.03 * len(flags)))
     return fig
+
+
+def plot_frf_fits(fits: FRFFits, title: str | None = None, *, ax=None):
+    """An FRF in its fit band with the fitted curve (``modal fit --plot``).
+
+    The multi-mode fit's band and modes when there is one, else the dominant mode with its
+    residual compliance; every flag of either fit shown in red.
+
+    Parameters
+    ----------
+    fits : FRFFits
+        The fits of one FRF (:func:`robovib.modal.fits.fit_frfs`).
+    title : str, optional
+        Figure title.
+    ax : sequence of matplotlib.axes.Axes, optional
+        Axes to draw into (see :func:`plot_frf_fit`); a new figure when omitted.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Magnitude/unwrapped phase, Re/Im and coherence panels (``view="both"``).
+    """
+    dom, multi = fits.dominant, fits.modes
+    if multi is None:
+        shown, fitted, residual = (
+            fits.frf.band(*dom.band_hz),
+            (dom.parameters,),
+            dom.residual_compliance,
+        )
+    else:
+        shown, fitted, residual = fits.frf.band(*multi.band_hz), multi.modes, 0j
+    return plot_frf_fit(
+        shown, fitted, residual=residual, title=title, flags=fits.flags, view="both", ax=ax
+    )

@@ -180,10 +180,10 @@ def _load_model(path):
     """A saved pose model (:class:`robovib.gp.PoseModalModel`: the chapter-3 model, a campaign's
     or a user's) or a hybrid FRF model, by the file's format tag."""
     from ..gp.predictor import FORMAT as POSE_FORMAT
-    from ..io.h5format import file_format
+    from ..io.h5format import FRF_POSE_MODEL_FORMAT, file_format
 
     fmt, _ = file_format(path)
-    if fmt == "robovib-frf-pose-model":
+    if fmt == FRF_POSE_MODEL_FORMAT:
         from ..hybrid import FRFPoseModel
 
         return FRFPoseModel.load(path)
@@ -193,7 +193,7 @@ def _load_model(path):
         return PoseModalModel.load(path)
     raise ValueError(
         f"{path}: format {fmt!r} is not a robovib pose model ({POSE_FORMAT}) or hybrid "
-        "FRF model (robovib-frf-pose-model)"
+        f"FRF model ({FRF_POSE_MODEL_FORMAT})"
     )
 
 
