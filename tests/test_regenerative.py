@@ -164,3 +164,74 @@ def test_mill_lobes_time_domain_margin_from_the_cli():
     bad = CliRunner().invoke(app, [a for a in args if a not in ("--samples", "8")]
                              + ["--time-domain-margin"])  # fmt: skip
     assert bad.exit_code != 0 and "n_samples" in bad.output
+
+
+def _bracket_by_single_cuts(mx, my, cond, coef, rpm, lim, factors, **sim):
+    """Reference: one simulate_regenerative_cut batch of depths per speed."""
+    from dataclasses import replace
+
+    low, high = np.ones(len(rpm)), np.ones(len(rpm))
+    for i, (speed, a) in enumerate(zip(rpm, lim, strict=True)):
+        chat = simulate_regenerative_cut(
+            mx, my, TOOL, replace(cond, spindle_rpm=speed), coef, a * np.asarray(factors), **sim
+        ).chatter
+        if chat.any():
+            j = int(np.argmax(chat))
+            low[i], high[i] = (0.5 * factors[0], factors[0]) if j == 0 else factors[j - 1 : j + 1]
+    return low, high
+
+
+def test_limit_ratios_of_many_structures_match_one_cut_at_a_time():
+    # Structures with different numbers of modes, speeds and limits in one batch give the
+    # brackets that the per-structure simulation gives.
+    from robovib.milling.time_domain import time_domain_limit_ratios
+
+    mx, my = _pose_modes(POSES[0])
+    sets = [
+        (mx, my),  # every mode of the pose
+        (mx[:1], my[:1]),  # dominant only
+    ]
+    shifted = ModalParameters(mx[0].natural_frequency_hz * 1.05, mx[0].stiffness_n_per_m, 0.08)
+    sets.append(([shifted], my[:1]))
+    rpm = [1750.0, 2600.0]
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3)
+    lim = np.array([sdm_lobes(a, b, TOOL, cond, ALUMINIUM_7075, rpm).a_lim_m for a, b in sets])
+    factors = (0.5, 0.8, 0.9, 1.0)
+    sim = dict(steps_per_tooth=30, n_tooth_periods=80)
+    low, high = time_domain_limit_ratios(sets, TOOL, cond, ALUMINIUM_7075, rpm, lim,
+                                         factors=factors, max_batch=5, **sim)  # fmt: skip
+    for s, (a, b) in enumerate(sets):
+        ref = _bracket_by_single_cuts(a, b, cond, ALUMINIUM_7075, rpm, lim[s], factors, **sim)
+        np.testing.assert_array_equal(low[s], ref[0])
+        np.testing.assert_array_equal(high[s], ref[1])
+    with pytest.raises(ValueError, match="shape"):
+        time_domain_limit_ratios(sets, TOOL, cond, ALUMINIUM_7075, rpm, lim[:2])
+    with pytest.raises(ValueError, match="positive depth"):
+        time_domain_limit_ratios(sets, TOOL, cond, ALUMINIUM_7075, rpm, lim * [[1], [-1], [1]])
+    with pytest.raises(ValueError, match="empty"):
+        time_domain_limit_ratios([], TOOL, cond, ALUMINIUM_7075, rpm, np.zeros((0, 2)))
+    with pytest.raises(TypeError, match="unknown simulation options"):
+        time_domain_limit_ratios(sets, TOOL, cond, ALUMINIUM_7075, rpm, lim, n_steps=3)
+
+
+def test_margin_of_a_sharp_distribution_is_that_of_its_mean():
+    # All samples equal to the mean: every sample's simulated margin is the mean's, so the
+    # sampled limits are the mean envelope times a ratio inside the mean's bracket.
+    from robovib.milling.time_domain import time_domain_limit_ratio
+    from robovib.milling.uncertainty import ModeDistribution, stability_probability
+
+    mx, my = _pose_modes(POSES[0])
+    dist = {d: ModeDistribution(m.natural_frequency_hz, m.stiffness_n_per_m, m.damping_ns_per_m)
+            for d, m in (("x", mx[0]), ("y", my[0]))}  # fmt: skip
+    cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3)
+    rpm = [1750.0]
+    prob = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=6,
+                                 method="zoa", time_domain_margin=True, margin_samples=2)  # fmt: skip
+    low, high = time_domain_limit_ratio(mx[:1], my[:1], TOOL, cond, ALUMINIUM_7075, rpm,
+                                        prob.mean.a_lim_m, return_bracket=True)  # fmt: skip
+    r = prob.a_lim_samples_m[:, 0] / prob.mean.a_lim_m[0]
+    assert np.all((r >= low[0] - 1e-12) & (r <= high[0] + 1e-12))
+    assert prob.settings["margin_samples"] == 2
+    with pytest.raises(ValueError, match="margin_samples"):
+        stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=6, method="zoa",
+                              time_domain_margin=True, margin_samples=0)  # fmt: skip

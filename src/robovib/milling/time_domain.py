@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -61,6 +61,7 @@ __all__ = [
     "simulate_regenerative_cut",
     "simulated_stability_limit",
     "time_domain_limit_ratio",
+    "time_domain_limit_ratios",
 ]
 
 
@@ -237,15 +238,14 @@ def simulate_regenerative_cut(
         force[:, i, 0], force[:, i, 1] = fx, fy
     t = (np.arange(n_steps) + 1) * dt
     growth, rate, frac, fch, amp = _indicators(disp[:, n_ramp:], m_steps, dt, 1.0 / tau)
-    chatter = (rate > 1e-3) | ((growth > 0.5) & (amp > chatter_fraction_of_feed * fz))
+    chatter = _is_chatter(growth, rate, amp, chatter_fraction_of_feed, fz)
     return RegenerativeCut(
         t, depth, disp, force, growth, rate, chatter, frac, fch, 1.0 / tau, amp, n_entry
     )
 
 
-def _indicators(disp: np.ndarray, m_steps: int, dt: float, tpf: float):
-    n_per = disp.shape[1] // m_steps
-    poincare = disp[:, m_steps - 1 :: m_steps, :][:, :n_per]
+def _poincare_indicators(poincare: np.ndarray):
+    """Growth, decay rate and late amplitude from (b, n_periods, 2) once-per-period samples."""
     diff = np.linalg.norm(np.diff(poincare, axis=1), axis=-1)  # (b, n_per - 1)
     n = diff.shape[1]
     early = np.sqrt(
@@ -253,10 +253,16 @@ def _indicators(disp: np.ndarray, m_steps: int, dt: float, tpf: float):
     )
     late = np.sqrt(np.mean(diff[:, int(0.85 * n) :] ** 2, axis=1))
     growth = late / np.maximum(early, 1e-300)
-    amplitude = late
     k = np.arange(n // 2, n)
     logd = np.log(np.maximum(diff[:, n // 2 :], 1e-300))
     rate = np.polyfit(k, logd.T, 1)[0]
+    return growth, rate, late
+
+
+def _indicators(disp: np.ndarray, m_steps: int, dt: float, tpf: float):
+    n_per = disp.shape[1] // m_steps
+    poincare = disp[:, m_steps - 1 :: m_steps, :][:, :n_per]
+    growth, rate, amplitude = _poincare_indicators(poincare)
     half = disp[:, disp.shape[1] // 2 :, :]
     half = half - half.mean(axis=1, keepdims=True)
     spec = np.sum(
@@ -269,6 +275,109 @@ def _indicators(disp: np.ndarray, m_steps: int, dt: float, tpf: float):
     frac = off.sum(axis=1) / np.maximum(spec.sum(axis=1), 1e-300)
     fch = f[np.argmax(off, axis=1)]
     return growth, rate, frac, fch, amplitude
+
+
+def _is_chatter(growth, rate, amplitude, chatter_fraction_of_feed: float, feed_per_tooth_m: float):
+    return (rate > 1e-3) | (
+        (growth > 0.5) & (amplitude > chatter_fraction_of_feed * feed_per_tooth_m)
+    )
+
+
+def _chatter_of_rows(
+    fn_hz: np.ndarray,
+    stiffness_n_per_m: np.ndarray,
+    damping_ratio: np.ndarray,
+    in_feed: np.ndarray,
+    spindle_rpm: np.ndarray,
+    depth_m: np.ndarray,
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    *,
+    n_tooth_periods: int = 300,
+    steps_per_tooth: int = 120,
+    entry_tooth_periods: int = 0,
+    chatter_fraction_of_feed: float = 0.1,
+) -> np.ndarray:
+    """Chatter (b,) of b independent cuts, each with its own modes, speed and depth.
+
+    The stepping of :func:`simulate_regenerative_cut` with every row its own structure: the
+    (b, n_modes) mode arrays (``fn_hz <= 0`` marks a missing mode: rows may hold different
+    numbers of modes), ``in_feed`` (b, n_modes) True for the feed-direction modes, and a speed
+    per row (the tooth period, hence the step, differs by row; the number of steps per tooth is
+    the same, so one delay buffer serves all). Only the once-per-period samples are kept, so a
+    batch of thousands of cuts fits in memory; chatter is decided as there.
+    """
+    fn = np.asarray(fn_hz, float)
+    present = fn > 0
+    fn = np.where(present, fn, 1.0)
+    k = np.where(present, np.asarray(stiffness_n_per_m, float), 1.0)
+    z = np.where(present, np.asarray(damping_ratio, float), 0.5)
+    rpm = np.asarray(spindle_rpm, float)
+    depth = np.asarray(depth_m, float)
+    m_steps, n_per, n_entry = int(steps_per_tooth), int(n_tooth_periods), int(entry_tooth_periods)
+    if m_steps < 8 or n_per < 20:
+        raise ValueError("need steps_per_tooth >= 8 and n_tooth_periods >= 20")
+    if n_entry < 0:
+        raise ValueError(f"entry_tooth_periods must be >= 0, got {entry_tooth_periods}")
+    if not (np.isfinite(chatter_fraction_of_feed) and chatter_fraction_of_feed > 0):
+        raise ValueError(f"chatter_fraction_of_feed must be > 0, got {chatter_fraction_of_feed!r}")
+    n_fl = int(tool.n_flutes)
+    dt = (60.0 / (n_fl * rpm) / m_steps)[:, None]
+    if np.any(fn * dt > 0.1):
+        raise ValueError(
+            f"steps_per_tooth={m_steps} gives {1 / np.max(fn * dt):.1f} steps per period of the "
+            "fastest mode; use more (>= 10 per period)"
+        )
+    p00, p01, p10, p11, g0, g1 = zoh_transition(fn, k, z, dt)
+    g0, g1 = g0 * present, g1 * present
+    selx = (np.asarray(in_feed, bool) & present).astype(float)
+    sely = (~np.asarray(in_feed, bool) & present).astype(float)
+    phi_st, phi_ex = engagement_angles(tool, conditions)
+    pitch = 2 * math.pi / n_fl
+    ang = (np.arange(m_steps)[:, None] / m_steps * pitch + pitch * np.arange(n_fl)[None, :]) % (
+        2 * math.pi
+    )
+    s_tab, c_tab = np.sin(ang), np.cos(ang)
+    g_tab = (ang >= phi_st) & (ang <= phi_ex)
+    c = coefficients
+    fz = conditions.feed_per_tooth_m
+    b, nm = fn.shape
+    xi = np.zeros((b, nm))
+    vi = np.zeros((b, nm))
+    hist_x = np.zeros((m_steps, b))
+    hist_y = np.zeros((m_steps, b))
+    n_ramp = m_steps * n_entry
+    n_steps = m_steps * (n_per + n_entry)
+    poincare = np.empty((b, n_per, 2))
+    x = np.zeros(b)
+    y = np.zeros(b)
+    a_col = depth[:, None]
+    for i in range(n_steps):
+        kk = i % m_steps
+        if i < n_ramp:
+            a_col = depth[:, None] * ((i + 1) / n_ramp)
+        s, co, g = s_tab[kk], c_tab[kk], g_tab[kk]
+        dx = x - hist_x[kk]
+        dy = y - hist_y[kk]
+        hist_x[kk] = x
+        hist_y[kk] = y
+        h = fz * s + dx[:, None] * s + dy[:, None] * co
+        on = g & (h > 0)
+        h = np.where(on, h, 0.0)
+        ft = a_col * (c.ktc * h + c.kte * on)
+        fr = a_col * (c.krc * h + c.kre * on)
+        fx = np.sum(-ft * co - fr * s, axis=1)
+        fy = np.sum(ft * s - fr * co, axis=1)
+        f = fx[:, None] * selx + fy[:, None] * sely
+        xi, vi = p00 * xi + p01 * vi + g0 * f, p10 * xi + p11 * vi + g1 * f
+        x = np.sum(xi * selx, axis=1)
+        y = np.sum(xi * sely, axis=1)
+        if i >= n_ramp and kk == m_steps - 1:
+            j = (i - n_ramp) // m_steps
+            poincare[:, j, 0], poincare[:, j, 1] = x, y
+    growth, rate, amp = _poincare_indicators(poincare)
+    return _is_chatter(growth, rate, amp, chatter_fraction_of_feed, fz)
 
 
 def simulated_stability_limit(
@@ -402,20 +511,131 @@ def time_domain_limit_ratio(
     """
     rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
     lim = np.atleast_1d(np.asarray(linear_limit_m, float))
-    f = np.asarray(factors, float)
     if rpm.shape != lim.shape:
         raise ValueError(f"spindle_rpm {rpm.shape} and linear_limit_m {lim.shape} differ in shape")
+    low, high = time_domain_limit_ratios(
+        [(modes_x, modes_y)], tool, conditions, coefficients, rpm, lim[None, :],
+        factors=factors, **simulation,
+    )  # fmt: skip
+    low, high = low[0], high[0]
+    return (low, high) if return_bracket else 0.5 * (low + high)
+
+
+def time_domain_limit_ratios(
+    mode_sets: Sequence[tuple[Sequence[ModalParameters], Sequence[ModalParameters]]],
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    spindle_rpm,
+    linear_limits_m,
+    *,
+    factors: Sequence[float] = (0.6, 0.7, 0.8, 0.825, 0.85, 0.875, 0.9, 0.925, 0.95, 0.975, 1.0),
+    max_batch: int = 2048,
+    **simulation,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Brackets of the time-domain / linear limit ratio for many mode sets at once.
+
+    :func:`time_domain_limit_ratio` for each of ``S`` structures (e.g. the samples of a pose
+    model's predictive distribution), every structure at every speed at every factor of its
+    own linear limit simulated side by side in one batch (each cut its own modes, speed and
+    depth; only the once-per-period samples are kept). The sampled structures sit at
+    different places of their lobes, where the margin differs: this gives each its own.
+
+    Parameters
+    ----------
+    mode_sets : sequence of (modes_x, modes_y)
+        ``S`` structures: tool-tip modes in the feed and normal directions.
+    tool, conditions, coefficients
+        As for :func:`simulate_regenerative_cut` (the speed is replaced by each of
+        ``spindle_rpm``).
+    spindle_rpm : array_like (n,)
+        Speeds [rpm].
+    linear_limits_m : array_like (S, n)
+        Each structure's linear limit [m] at each speed.
+    factors : sequence of float
+        Fractions of the linear limit simulated, increasing, in (0, 1].
+    max_batch : int
+        Cuts simulated at once (memory and cache).
+    **simulation
+        ``n_tooth_periods``, ``steps_per_tooth``, ``entry_tooth_periods``,
+        ``chatter_fraction_of_feed`` of :func:`simulate_regenerative_cut`.
+
+    Returns
+    -------
+    low, high : numpy.ndarray (S, n)
+        The deepest stable factor below the first chattering one, and that one (both 1 where
+        nothing chatters; ``0.5, 1 × factors[0]`` where even the first chatters). The ratio of
+        :func:`time_domain_limit_ratio` is their midpoint.
+
+    Examples
+    --------
+    >>> from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    >>> from robovib.milling.sdm import sdm_lobes
+    >>> from robovib.modal import ModalParameters
+    >>> sets = [([ModalParameters(f, 4.2e6, 0.1)], [ModalParameters(8.4, 9e5, 0.15)])
+    ...         for f in (16.0, 17.0)]
+    >>> cond = CuttingConditions(1750.0, 0.058e-3, 3e-3, 6e-3)
+    >>> lim = [sdm_lobes(mx, my, MillingTool(), cond, ALUMINIUM_7075, [1750.0]).a_lim_m
+    ...        for mx, my in sets]
+    >>> low, high = time_domain_limit_ratios(sets, MillingTool(), cond, ALUMINIUM_7075,
+    ...                                      [1750.0], lim, n_tooth_periods=100)
+    >>> low.shape, bool(np.all((0 < low) & (low <= high) & (high <= 1)))
+    ((2, 1), True)
+    """
+    rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
+    lim = np.asarray(linear_limits_m, float)
+    f = np.asarray(factors, float)
+    n_sets = len(mode_sets)
+    if n_sets == 0:
+        raise ValueError("mode_sets is empty: give at least one (modes_x, modes_y)")
+    if rpm.ndim != 1 or lim.shape != (n_sets, rpm.size):
+        raise ValueError(
+            f"linear_limits_m must have shape (n_sets, n_speeds) = ({n_sets}, {rpm.size}), "
+            f"got {lim.shape}"
+        )
     if f.ndim != 1 or f.size < 2 or np.any(np.diff(f) <= 0) or f[0] <= 0 or f[-1] > 1:
         raise ValueError("factors must increase within (0, 1] (at least two)")
-    low, high = np.ones(rpm.size), np.ones(rpm.size)
-    for i, (speed, a_lin) in enumerate(zip(rpm, lim, strict=True)):
-        if not (np.isfinite(a_lin) and a_lin > 0):
-            raise ValueError(f"linear_limit_m at {speed:g} rpm must be a positive depth [m]")
-        cond = replace(conditions, spindle_rpm=float(speed))
-        chat = simulate_regenerative_cut(
-            modes_x, modes_y, tool, cond, coefficients, a_lin * f, **simulation
-        ).chatter
-        if chat.any():
-            j = int(np.argmax(chat))
-            low[i], high[i] = (0.5 * f[0], f[0]) if j == 0 else (f[j - 1], f[j])
-    return (low, high) if return_bracket else 0.5 * (low + high)
+    bad = ~(np.isfinite(lim) & (lim > 0))
+    if bad.any():
+        s_bad, r_bad = np.argwhere(bad)[0]
+        raise ValueError(
+            f"linear_limits_m of set {s_bad} at {rpm[r_bad]:g} rpm must be a positive depth [m]"
+        )
+    unknown = set(simulation) - {
+        "n_tooth_periods", "steps_per_tooth", "entry_tooth_periods", "chatter_fraction_of_feed"
+    }  # fmt: skip
+    if unknown:
+        raise TypeError(f"unknown simulation options: {sorted(unknown)}")
+    n_modes = max(len(mx) + len(my) for mx, my in mode_sets)
+    if n_modes == 0:
+        raise ValueError("at least one mode (x or y) is needed")
+    fn = np.zeros((n_sets, n_modes))
+    k = np.ones((n_sets, n_modes))
+    z = np.full((n_sets, n_modes), 0.5)
+    feed = np.zeros((n_sets, n_modes), bool)
+    for i, (mx, my) in enumerate(mode_sets):
+        modes = list(mx) + list(my)
+        fn[i, : len(modes)], k[i, : len(modes)], z[i, : len(modes)] = _mode_arrays(modes)
+        feed[i, : len(mx)] = True
+    # Rows: set x speed x factor.
+    shape = (n_sets, rpm.size, f.size)
+    idx_set = np.broadcast_to(np.arange(n_sets)[:, None, None], shape).ravel()
+    row_rpm = np.broadcast_to(rpm[None, :, None], shape).ravel()
+    row_depth = (lim[:, :, None] * f[None, None, :]).ravel()
+    chat = np.empty(row_depth.size, bool)
+    step = max(int(max_batch), 1)
+    for a in range(0, chat.size, step):
+        sl = slice(a, a + step)
+        chat[sl] = _chatter_of_rows(
+            fn[idx_set[sl]], k[idx_set[sl]], z[idx_set[sl]], feed[idx_set[sl]], row_rpm[sl],
+            row_depth[sl], tool, conditions, coefficients, **simulation,
+        )  # fmt: skip
+    chat = chat.reshape(shape)
+    low, high = np.ones(shape[:2]), np.ones(shape[:2])
+    any_chat = chat.any(axis=2)
+    first = np.argmax(chat, axis=2)
+    at_first = any_chat & (first == 0)
+    later = any_chat & (first > 0)
+    low[at_first], high[at_first] = 0.5 * f[0], f[0]
+    low[later], high[later] = f[first[later] - 1], f[first[later]]
+    return low, high

@@ -336,6 +336,7 @@ def stability_probability(
     rng=0,
     time_domain_margin: bool = False,
     entry_tooth_periods: int = 0,
+    margin_samples: int = 20,
     **lobe_options,
 ) -> StabilityProbability:
     """Probability of a stable cut over speeds × depths from sampled modes (module docs).
@@ -361,13 +362,18 @@ def stability_probability(
         Passed to :func:`robovib.milling.sdm.sdm_lobes` (``method="sdm"``); ``n_lobes`` for
         ``"zoa"``.
     time_domain_margin : bool
-        Scale every sampled envelope, per speed, by the ratio of the time-domain limit to the
-        linear one at the mean modes (:func:`robovib.milling.time_domain.time_domain_limit_ratio`,
-        each sample's ratio drawn uniformly inside the simulated bracket):
-        linear theory assumes the flutes never leave the cut, but a cut that enters at full
-        depth can be thrown into the chatter that coexists with the stable cut 5-15 % below
-        the linear limit (with edge forces). One batched time-domain simulation per speed
-        (~1 s each); the ratios are in ``settings["time_domain_ratio"]``.
+        Scale every sampled envelope, per speed, by its own ratio of the time-domain limit to
+        the linear one (:func:`robovib.milling.time_domain.time_domain_limit_ratios`): linear
+        theory assumes the flutes never leave the cut, but a cut that enters at full depth can
+        be thrown into the chatter that coexists with the stable cut 5-30 % below the linear
+        limit (with edge forces). That margin differs from one structure to the next (where
+        the speed sits on its lobe, and whether the entry transient reaches the coexisting
+        chatter), so it is simulated for ``margin_samples`` of the samples at their own linear
+        limits, all in one batch; each other sample takes the bracket of the simulated sample
+        with the nearest linear envelope, and every ratio is drawn uniformly inside its
+        bracket. The ratio of the mean modes is in ``settings["time_domain_ratio"]``.
+    margin_samples : int
+        Samples whose margin is simulated (about 0.3 s each for three speeds).
     entry_tooth_periods : int
         Entry ramp of that simulation (0: the cut starts at full depth, the conservative case).
 
@@ -409,17 +415,32 @@ def stability_probability(
         a_s[i] = env.a_lim_m
     ratio = np.ones(rpm.size)
     if time_domain_margin:
-        from .time_domain import time_domain_limit_ratio
+        from .time_domain import time_domain_limit_ratios
 
-        low, high = time_domain_limit_ratio(
-            mean_f, mean_n, tool, conditions, coefficients, rpm, mean_env.a_lim_m,
-            return_bracket=True,
+        if int(margin_samples) < 1:
+            raise ValueError(f"margin_samples must be >= 1, got {margin_samples}")
+        # The mean modes first (their ratio is reported), then the first margin_samples samples
+        # with a finite envelope (the samples are in random order), each at its own linear limit.
+        finite = np.all(np.isfinite(a_s) & (a_s > 0), axis=1)
+        sim = np.flatnonzero(finite)[: int(margin_samples)]
+        if sim.size == 0:
+            raise ValueError("no sample has a finite linear limit at every speed")
+        sets = [(mean_f, mean_n)] + [(feed_s[i], norm_s[i]) for i in sim]
+        low, high = time_domain_limit_ratios(
+            sets, tool, conditions, coefficients, rpm,
+            np.vstack([mean_env.a_lim_m[None, :], a_s[sim]]),
             entry_tooth_periods=int(entry_tooth_periods),
         )  # fmt: skip
-        ratio = 0.5 * (low + high)
+        ratio = 0.5 * (low[0] + high[0])
+        low_s, high_s = low[1:], high[1:]
+        # A sample not simulated takes the bracket of the simulated sample whose linear
+        # envelope is nearest (log depth over the speeds: the same place on the lobes).
+        log_a = np.log(np.where(finite[:, None], a_s, 1.0))
+        near = np.argmin(np.sum((log_a[:, None, :] - log_a[None, sim, :]) ** 2, axis=2), axis=1)
+        near[sim] = np.arange(sim.size)
         # The simulated limit is known to its bracket: each sample's ratio is drawn inside it.
-        a_s = a_s * gen.uniform(low[None, :], high[None, :], size=a_s.shape)
-        mins = mins * float(low.min())
+        a_s = a_s * gen.uniform(low_s[near], high_s[near])
+        mins = mins * low_s[near].min(axis=1)
     if depth_m is None:
         depth = np.linspace(0, 3 * mean_env.minimum_depth_m, 121)[1:]
     else:
@@ -432,6 +453,7 @@ def stability_probability(
         {"n_samples": int(n_samples), "method": method, "feed_direction": feed_direction,
          "time_domain_ratio": ratio.tolist() if time_domain_margin else None,
          "entry_tooth_periods": int(entry_tooth_periods) if time_domain_margin else None,
+         "margin_samples": int(sim.size) if time_domain_margin else None,
          "sampling": (
              "joint draws of the pose model's calibrated latent predictive distribution "
              "(Student-t bands, mode mixture)"

@@ -24,6 +24,7 @@ def plot_frf_fit(
     flags: Sequence[str] = (),
     view: FRFView = "bode",
     ax=None,
+    residual_curvature: float = 0.0,
 ):
     """A compliance FRF with the fitted modes' curve: magnitude, unwrapped phase, Re, Im, coherence.
 
@@ -44,6 +45,9 @@ def plot_frf_fit(
         Panels (see :func:`robovib.frf.plot_frf`); ``modal fit --plot`` draws ``"both"``.
     ax : sequence of matplotlib.axes.Axes, optional
         Axes to draw into (see :func:`robovib.frf.plot_frf`); a new figure when omitted.
+    residual_curvature : float
+        Coefficient [m/N] of the fit's ``(f / fn)^2`` residual term
+        (:attr:`robovib.modal.ModalFit.residual_curvature`, fn of the first fitted mode).
 
     Returns
     -------
@@ -53,7 +57,8 @@ def plot_frf_fit(
     f = frf.frequency_hz
     overlays = []
     if fitted:
-        model = sum(m.compliance(f) for m in fitted) + residual
+        r2 = (f / fitted[0].natural_frequency_hz) ** 2
+        model = sum(m.compliance(f) for m in fitted) + residual + residual_curvature * r2
         overlays.append(FRFCurve("fit" if not flags else "fit (flagged)", f, model))
     if flags:
         title = f"FLAGGED FIT - {title}" if title else "FLAGGED FIT"
