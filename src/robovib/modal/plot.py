@@ -93,13 +93,17 @@ def plot_frf_fits(fits: FRFFits, title: str | None = None, *, ax=None):
     """
     dom, multi = fits.dominant, fits.modes
     if multi is None:
-        shown, fitted, residual = (
-            fits.frf.band(*dom.band_hz),
-            (dom.parameters,),
-            dom.residual_compliance,
-        )
+        shown, fitted = fits.frf.band(*dom.band_hz), (dom.parameters,)
+        residual, curvature = dom.residual_compliance, dom.residual_curvature
     else:
-        shown, fitted, residual = fits.frf.band(*multi.band_hz), multi.modes, 0j
+        shown, fitted, residual, curvature = fits.frf.band(*multi.band_hz), multi.modes, 0j, 0.0
     return plot_frf_fit(
-        shown, fitted, residual=residual, title=title, flags=fits.flags, view="both", ax=ax
+        shown,
+        fitted,
+        residual=residual,
+        title=title,
+        flags=fits.flags,
+        view="both",
+        ax=ax,
+        residual_curvature=curvature,
     )
