@@ -12,11 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.h5format import POSE_MODEL_FORMAT, POSE_MODEL_FORMAT_VERSION
+
 __all__ = ["FORMAT", "FORMAT_VERSION", "require_pose_inputs"]
 
-#: Format tag and version of pose-model files (:meth:`PoseModalModel.save` writes them).
-FORMAT = "robovib.PoseModalModel"
-FORMAT_VERSION = 1
+#: Format tag and version of pose-model files (:meth:`PoseModalModel.save` writes them); owned by
+#: :mod:`robovib.io.h5format` beside the other tags, kept here under their former names.
+FORMAT = POSE_MODEL_FORMAT
+FORMAT_VERSION = POSE_MODEL_FORMAT_VERSION
 
 
 class _RzCos2:

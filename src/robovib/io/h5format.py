@@ -17,12 +17,23 @@ from collections.abc import Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 
-__all__ = ["FRF_FORMAT", "FRF_POSE_MODEL_FORMAT", "file_format", "open_checked", "write_header"]
+__all__ = [
+    "FRF_FORMAT",
+    "FRF_POSE_MODEL_FORMAT",
+    "POSE_MODEL_FORMAT",
+    "POSE_MODEL_FORMAT_VERSION",
+    "file_format",
+    "open_checked",
+    "write_header",
+]
 
 #: Format tag of FRF collections (:func:`robovib.io.write_frfs_hdf5`), layout version 1.
 FRF_FORMAT = "robovib-frf"
 #: Format tag of hybrid FRF pose models (:meth:`robovib.hybrid.FRFPoseModel.save`), versions 1-2.
 FRF_POSE_MODEL_FORMAT = "robovib-frf-pose-model"
+#: Format tag and layout version of pose models (:meth:`robovib.gp.PoseModalModel.save`).
+POSE_MODEL_FORMAT = "robovib.PoseModalModel"
+POSE_MODEL_FORMAT_VERSION = 1
 
 
 def write_header(h5, format_name: str, format_version: int, **attrs) -> None:
