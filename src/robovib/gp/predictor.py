@@ -37,7 +37,9 @@ import numpy as np
 from .._threads import single_blas_thread
 from ._likelihood import collapse_replicates
 from .extrapolation import TrainingRegion
-from .pose_file import FORMAT, FORMAT_VERSION, require_pose_inputs
+from .pose_file import FORMAT as FORMAT  # re-exported (their former home)
+from .pose_file import FORMAT_VERSION as FORMAT_VERSION
+from .pose_file import read_pose_file, require_pose_inputs
 from .posterior import GPPosterior, fitted_posterior, standardisation, theta_from_hyperparameters
 from .predictive import calibrated_mode_probability
 
@@ -257,52 +259,47 @@ class PosePredictor:
             Not a readable HDF5 file, not a pose model, a newer format version, or a stored
             covariance that needed jitter (use :meth:`PoseModalModel.load`).
         """
-        from ..io.h5format import open_checked
-
         path = Path(path)
-        h5, _, _ = open_checked(path, {FORMAT: FORMAT_VERSION})
+        tree, _ = read_pose_file(path)
         self = cls()
-        with h5:
-            a = h5.attrs
-            params = json.loads(_str(a["params_json"]))
-            self.input_names = self.input_names_ = tuple(params["input_names"])
-            self.directions = self.directions_ = tuple(params["directions"])
-            self.params_ = params
-            self.output_names_ = tuple(
-                f"{d}_{q}_{u}" for d in self.directions_ for q, u in _QUANTITIES
-            )
-            self.output_units_ = tuple(
-                _UNIT_LABELS[u] for _ in self.directions_ for _, u in _QUANTITIES
-            )
-            t = h5["training"]
-            self.X_train_ = np.asarray(t["X"][()], float)
-            self.n_outputs_ = len(self.output_names_)
-            self._estimators = []
-            try:
-                with single_blas_thread():  # many small matrices: threads only contend
-                    estimators = [h5["estimators"][str(i)] for i in range(len(h5["estimators"]))]
-                    for g in estimators:
-                        kind = _str(g.attrs["kind"])
-                        cols = np.asarray(g.attrs["columns"], int)
-                        if kind == "BatchedGPRegressor":
-                            self._estimators.append((_GP(g), cols))
-                        elif kind == "ModeSwitchingGPRegressor":
-                            self._estimators.append((_Switching(g), cols))
-                        else:
-                            raise ValueError(f"{path}: unknown estimator kind {kind!r}")
-            except _NeedsJitter as exc:
-                raise ValueError(f"{path}: {exc}; load it with PoseModalModel.load") from None
-            self.mode_switches_ = {
-                d: {k: (_str(v) if isinstance(v, bytes | str) else v) for k, v in g.attrs.items()}
-                for d, g in h5["mode_switches"].items()
-            }
-            self.provenance_ = {k: _str(v) if isinstance(v, bytes) else v
-                                for k, v in h5["provenance"].attrs.items()}  # fmt: skip
-            self.calibration_ = None
-            if "calibration" in h5:
-                from .calibration import read_calibration
+        a = tree.attrs
+        params = json.loads(_str(a["params_json"]))
+        self.input_names = self.input_names_ = tuple(params["input_names"])
+        self.directions = self.directions_ = tuple(params["directions"])
+        self.params_ = params
+        self.output_names_ = tuple(f"{d}_{q}_{u}" for d in self.directions_ for q, u in _QUANTITIES)
+        self.output_units_ = tuple(
+            _UNIT_LABELS[u] for _ in self.directions_ for _, u in _QUANTITIES
+        )
+        t = tree["training"]
+        self.X_train_ = np.asarray(t["X"][()], float)
+        self.n_outputs_ = len(self.output_names_)
+        self._estimators = []
+        try:
+            with single_blas_thread():  # many small matrices: threads only contend
+                estimators = [tree["estimators"][str(i)] for i in range(len(tree["estimators"]))]
+                for g in estimators:
+                    kind = _str(g.attrs["kind"])
+                    cols = np.asarray(g.attrs["columns"], int)
+                    if kind == "BatchedGPRegressor":
+                        self._estimators.append((_GP(g), cols))
+                    elif kind == "ModeSwitchingGPRegressor":
+                        self._estimators.append((_Switching(g), cols))
+                    else:
+                        raise ValueError(f"{path}: unknown estimator kind {kind!r}")
+        except _NeedsJitter as exc:
+            raise ValueError(f"{path}: {exc}; load it with PoseModalModel.load") from None
+        self.mode_switches_ = {
+            d: {k: (_str(v) if isinstance(v, bytes | str) else v) for k, v in g.attrs.items()}
+            for d, g in tree["mode_switches"].items()
+        }
+        self.provenance_ = {k: _str(v) if isinstance(v, bytes) else v
+                            for k, v in tree["provenance"].attrs.items()}  # fmt: skip
+        self.calibration_ = None
+        if "calibration" in tree:
+            from .calibration import read_calibration
 
-                self.calibration_ = read_calibration(h5["calibration"])
+            self.calibration_ = read_calibration(tree["calibration"])
         self.region_ = TrainingRegion.of(self.X_train_)
         self.input_min_, self.input_max_ = self.region_.lo, self.region_.hi
         return self
