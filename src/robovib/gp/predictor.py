@@ -6,9 +6,10 @@ the time is not the prediction (microseconds) but importing scikit-learn and Sci
 :class:`PosePredictor` reads the same HDF5 file (:meth:`PoseModalModel.save`) and evaluates the
 same posterior without them:
 
-* each GP output (thesis Eq. 9-10): standardised inputs and targets as the fit, squared-exponential
-  kernel with the stored hyperparameters (data units), ``alpha = K_y^-1 (y - m)`` and the latent
-  variance ``sf^2 - |L^-1 k*|^2``;
+* each GP output (thesis Eq. 9-10): the estimator's own construction at the stored
+  hyperparameters (:func:`robovib.gp.posterior.fitted_posterior`: standardisation, replicates
+  collapsed, Cholesky, profiled mean, ``alpha = K_y^-1 (y - m)``), run on NumPy's LAPACK instead
+  of SciPy's, and evaluated by the same :class:`~robovib.gp.posterior.GPPosterior`;
 * the mode-switch classifier (binary Laplace GP classifier, Rasmussen & Williams 2006, Algorithms
   3.1-3.2, as :class:`sklearn.gaussian_process.GaussianProcessClassifier` with ``optimizer=None``
   on the stored kernel): Newton iterations for the posterior mode, then the Williams-Barber

@@ -665,7 +665,7 @@ class BatchedGPRegressor(BaseEstimator):
         self.X_train_, self.Y_train_, self.mask_ = X, np.where(mask, Y, np.nan), mask
         x_s, y_s = self._scale_x(X), self._scale_y(Y, mask)
         design = self._design(x_s, y_s, mask)
-        self.posterior_, nll, jitter = fitted_posterior(
+        post, nll, jitter = fitted_posterior(
             self._theta, design, n_groups=self._n_groups, constant_mean=self.mean == "constant",
             covariance=getattr(self, "covariance", "se"), x_loc=self._x_loc,
             x_scale=self._x_scale, y_loc=self._y_loc, y_scale=self._y_scale,
@@ -680,7 +680,7 @@ class BatchedGPRegressor(BaseEstimator):
             )
         self.jitter_ = jitter
         # The posterior given replicates equals that given their means: unique inputs only.
-        post = self.posterior_
+        self.posterior_ = post
         self._x_s, self._chol_inv, self._alpha, self._m_s = (
             post.x_s,
             post.chol_inv,
