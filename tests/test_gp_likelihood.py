@@ -141,6 +141,31 @@ def test_chunked_evaluation_equals_one_chunk(monkeypatch):
         )
 
 
+def test_numpy_lapack_state_equals_scipys_jitter_included():
+    """The predictor's path (NumPy's LAPACK) against SciPy's LAPACK: value, L^-1, alpha, mean."""
+    rng = np.random.default_rng(17)
+    x, y, mask, group = _replicated(rng, n_unique=12, reps=2, n_out=3)
+    x[5] = x[4] + 1e-9  # two nearly equal inputs: a tiny noise makes K singular (jitter)
+    design = lik.collapse_replicates(x, y, mask, group, 2)
+    theta = np.array([[0.1, 0.2, -0.3, -1.5, -1.0], [0.0, 0.5, 0.5, -2.0, -2.0],
+                      [0.0, 1.0, 1.0, -20.0, -20.0]])  # fmt: skip
+    kw = {"n_groups": 2, "constant_mean": True, "want_grad": False, "want_state": True}
+    ref = lik.evaluate(theta, design, **kw)
+    out = lik.evaluate(theta, design, linalg="numpy", **kw)
+    assert ref[2]["jitter"][2] > 0 and ref[2]["jitter"][:2].tolist() == [0.0, 0.0]
+    np.testing.assert_array_equal(out[2]["jitter"], ref[2]["jitter"])
+    np.testing.assert_allclose(out[0], ref[0], rtol=1e-10)
+    # Well-conditioned rows agree to round-off; the jittered one (cond ~1e10) to its conditioning.
+    for rows, rtol in ((slice(0, 2), 1e-10), (slice(2, 3), 1e-5)):
+        for key in ("chol_inv", "alpha", "mean"):
+            a, b = out[2][key][rows], ref[2][key][rows]
+            np.testing.assert_allclose(a, b, rtol=rtol, atol=rtol * np.max(np.abs(b)))
+    with pytest.raises(ValueError, match="gradient needs linalg='scipy'"):
+        lik.evaluate(theta, design, n_groups=2, constant_mean=True, linalg="numpy")
+    with pytest.raises(ValueError, match="linalg must be"):
+        lik.evaluate(theta, design, want_grad=False, n_groups=2, constant_mean=True, linalg="mkl")
+
+
 @pytest.mark.parametrize(("n", "d", "seed"), [(20, 1, 0), (40, 3, 1), (60, 2, 2)])
 def test_lml_at_least_sklearns_on_random_problems(n, d, seed):
     """Per output, the batched fit reaches sklearn's optimum (same model, same restarts) or better."""

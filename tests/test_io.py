@@ -331,3 +331,29 @@ def test_to_si_and_from_si_are_the_division_by_the_prefix():
     assert from_si(9.80665, "g") == 1.0 and to_si(25.4, "mm") == 0.0254
     with pytest.raises(ValueError, match="unknown unit 'furlong'"):
         to_si(1.0, "furlong")
+
+
+def test_read_tree_returns_what_h5py_returns(tmp_path):
+    """The in-memory tree of a file answers ``[()]``, ``attrs``, ``in`` and ``len`` as h5py."""
+    import h5py
+
+    from robovib.io.h5format import read_tree
+
+    path = tmp_path / "t.h5"
+    with h5py.File(path, "w") as h5:
+        h5.attrs["names"] = ["a", "b"]
+        h5.attrs["n"] = 3
+        g = h5.create_group("g")
+        g.create_dataset("x", data=np.arange(6.0).reshape(2, 3))
+        g.create_dataset("s", data=2.5)
+        g.create_dataset("t", data="text")
+        g.create_group("h").attrs["kind"] = "k"
+    with h5py.File(path, "r") as h5:
+        tree = read_tree(h5)
+        assert list(tree.attrs["names"]) == list(h5.attrs["names"]) and tree.attrs["n"] == 3
+        assert set(tree) == {"g"} and len(tree["g"]) == len(h5["g"]) == 4 and "h" in tree["g"]
+        for name in ("x", "s", "t"):
+            ref, got = h5["g"][name][()], tree["g"][name][()]
+            assert type(got) is type(ref) or isinstance(got, type(ref))
+            np.testing.assert_array_equal(got, ref)
+        assert tree["g"]["h"].attrs["kind"] == "k" and len(tree["g"]["h"]) == 0

@@ -48,6 +48,7 @@ def gains(
         loop_margins,
         tune_r_for_delay,
     )
+    from ..io import from_si, to_si
     from ..milling.workflow import pose_extrapolation, pose_modes
 
     if direction not in ("x", "y", "z"):
@@ -56,16 +57,18 @@ def gains(
     modes = {d: m.parameters for d, m in pose_modes(model, (x, y, rz)).items()}
     outside = list(pose_extrapolation(model, (x, y, rz)))
     mode = modes[direction]
-    d = design_lqr(mode, period_ms / 1e3, r=[[r]])
-    da = delay_analysis(d, delay_ms / 1e3)
-    tuned, r_tuned = tune_r_for_delay(mode, period_ms / 1e3, delay_ms / 1e3)
-    aware = design_delay_aware_lqr(mode, period_ms / 1e3, delay_ms / 1e3, r=[[1.0]])
+    period_s, delay_s = to_si(period_ms, "ms"), to_si(delay_ms, "ms")
+    d = design_lqr(mode, period_s, r=[[r]])
+    da = delay_analysis(d, delay_s)
+    tuned, r_tuned = tune_r_for_delay(mode, period_s, delay_s)
+    aware = design_delay_aware_lqr(mode, period_s, delay_s, r=[[1.0]])
     margins = loop_margins(d, round(delay_ms / period_ms))
+    max_delay_ms = from_si(da.max_stable_delay_s, "ms")
     doc = {
         "extrapolation": outside,
         "mode": mode.to_dict(), "w1": d.gains[0], "w2": d.gains[1], "spectral_radius_no_delay": d.spectral_radius,
         "stable_with_delay": da.stable, "spectral_radius_with_delay": da.spectral_radius,
-        "max_stable_delay_ms": 1e3 * da.max_stable_delay_s,
+        "max_stable_delay_ms": max_delay_ms,
         "delay_tuned": {"r": r_tuned, "w1": tuned.gains[0], "w2": tuned.gains[1]},
         "delay_aware": {"gains": aware.gains, "spectral_radius": aware.spectral_radius},
         "margins_with_delay": {"gain_margins": margins.gain_margins, "phase_crossovers_hz": margins.phase_crossovers_hz,
@@ -79,7 +82,7 @@ def gains(
     )
     typer.echo(f"W = [w1 {d.gains[0]:.4g} m/m, w2 {d.gains[1]:.4g} s] (R = {r:g}; a path-correction "
                f"command per m and per m/s of tool-tip motion); with {delay_ms:g} ms delay: "
-               f"{'stable' if da.stable else 'UNSTABLE'} (spectral radius {da.spectral_radius:.3f}, largest stable delay {1e3 * da.max_stable_delay_s:g} ms)")  # fmt: skip
+               f"{'stable' if da.stable else 'UNSTABLE'} (spectral radius {da.spectral_radius:.3f}, largest stable delay {max_delay_ms:g} ms)")  # fmt: skip
     if not da.stable:
         typer.echo(
             f"best-damped R with the delay: {r_tuned:.3g} -> W = [{tuned.gains[0]:.4g} m/m, "

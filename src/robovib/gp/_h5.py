@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..io.h5format import open_checked, write_header
+from ..io.h5format import write_header
 from .calibration import read_calibration, write_calibration
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, symmetric_rz_features
-from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2
+from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2, read_pose_file
 from .regressor import BatchedGPRegressor, GPHyperparameters
 
 _REG_PARAMS = ("kernel", "mean", "normalize", "max_iter", "gtol", "n_noise_groups", "covariance")
@@ -302,67 +302,66 @@ def _str(v) -> str:
 def read_pose_model(cls, path):
 
     path = Path(path)
-    h5, _, version = open_checked(path, {FORMAT: FORMAT_VERSION})
-    with h5:
-        a = h5.attrs
-        params = json.loads(_str(a["params_json"]))
-        params["input_names"] = tuple(params["input_names"])
-        params["directions"] = tuple(params["directions"])
-        model = cls(**params)
-        names, dirs = model._check_params()
-        t = h5["training"]
-        X, Y, mask = t["X"][()], t["Y"][()], t["mask"][()].astype(bool)
-        groups = t["groups"][()].astype(int) if "groups" in t else None
-        switches = {}
-        for d in dirs:
-            g = h5["mode_switches"][d].attrs
-            switches[d] = ModeSwitchDetection(
-                direction=_str(g["direction"]),
-                found=bool(g["found"]),
-                assumed=bool(g["assumed"]),
-                threshold_hz=float(g["threshold_hz"]),
-                delta_bic=float(g["delta_bic"]),
-                ashman_d=float(g["ashman_d"]),
-                gap_sigma=float(g["gap_sigma"]),
-                n_low=int(g["n_low"]),
-                n_high=int(g["n_high"]),
-                reason=_str(g["reason"]),
-            )
-        estimators, columns = [], []
-        for i in range(len(h5["estimators"])):
-            g = h5["estimators"][str(i)]
-            kind = _str(g.attrs["kind"])
-            if kind == "BatchedGPRegressor":
-                estimators.append(read_regressor(g))
-            elif kind == "ModeSwitchingGPRegressor":
-                estimators.append(read_mode_switching(g))
-            else:
-                raise ValueError(f"{path}: unknown estimator kind {kind!r}")
-            columns.append(np.asarray(g.attrs["columns"], int))
-        model.mode_switches_ = switches
-        model.estimators_, model.estimator_columns_ = estimators, columns
-        model._set_fitted(names, dirs, X, Y, mask, groups)
-        model.calibration_ = read_calibration(h5["calibration"]) if "calibration" in h5 else None
-        model.covariances_ = (
-            model.calibration_.covariance
-            if model.calibration_ is not None
-            else tuple(
-                getattr(e, "covariance", "se")
-                for e, cols in zip(estimators, columns, strict=True)
-                for _ in cols
-            )
+    tree, version = read_pose_file(path)
+    a = tree.attrs
+    params = json.loads(_str(a["params_json"]))
+    params["input_names"] = tuple(params["input_names"])
+    params["directions"] = tuple(params["directions"])
+    model = cls(**params)
+    names, dirs = model._check_params()
+    t = tree["training"]
+    X, Y, mask = t["X"][()], t["Y"][()], t["mask"][()].astype(bool)
+    groups = t["groups"][()].astype(int) if "groups" in t else None
+    switches = {}
+    for d in dirs:
+        g = tree["mode_switches"][d].attrs
+        switches[d] = ModeSwitchDetection(
+            direction=_str(g["direction"]),
+            found=bool(g["found"]),
+            assumed=bool(g["assumed"]),
+            threshold_hz=float(g["threshold_hz"]),
+            delta_bic=float(g["delta_bic"]),
+            ashman_d=float(g["ashman_d"]),
+            gap_sigma=float(g["gap_sigma"]),
+            n_low=int(g["n_low"]),
+            n_high=int(g["n_high"]),
+            reason=_str(g["reason"]),
         )
-        if "cv" in h5:
-            c = h5["cv"]
-            cv = {k: c[k][()] for k in c}
-            cv.update({k: v for k, v in c.attrs.items() if k != "output_names"})
-            model.cv_ = cv
-        model.provenance_ = {
-            k: _str(v) if isinstance(v, bytes) else v for k, v in h5["provenance"].attrs.items()
-        }
-        model.file_attrs_ = {
-            "robovib_version": _str(a["robovib_version"]),
-            "created_utc": _str(a["created_utc"]),
-            "format_version": version,
-        }
+    estimators, columns = [], []
+    for i in range(len(tree["estimators"])):
+        g = tree["estimators"][str(i)]
+        kind = _str(g.attrs["kind"])
+        if kind == "BatchedGPRegressor":
+            estimators.append(read_regressor(g))
+        elif kind == "ModeSwitchingGPRegressor":
+            estimators.append(read_mode_switching(g))
+        else:
+            raise ValueError(f"{path}: unknown estimator kind {kind!r}")
+        columns.append(np.asarray(g.attrs["columns"], int))
+    model.mode_switches_ = switches
+    model.estimators_, model.estimator_columns_ = estimators, columns
+    model._set_fitted(names, dirs, X, Y, mask, groups)
+    model.calibration_ = read_calibration(tree["calibration"]) if "calibration" in tree else None
+    model.covariances_ = (
+        model.calibration_.covariance
+        if model.calibration_ is not None
+        else tuple(
+            getattr(e, "covariance", "se")
+            for e, cols in zip(estimators, columns, strict=True)
+            for _ in cols
+        )
+    )
+    if "cv" in tree:
+        c = tree["cv"]
+        cv = {k: c[k][()] for k in c}
+        cv.update({k: v for k, v in c.attrs.items() if k != "output_names"})
+        model.cv_ = cv
+    model.provenance_ = {
+        k: _str(v) if isinstance(v, bytes) else v for k, v in tree["provenance"].attrs.items()
+    }
+    model.file_attrs_ = {
+        "robovib_version": _str(a["robovib_version"]),
+        "created_utc": _str(a["created_utc"]),
+        "format_version": version,
+    }
     return model

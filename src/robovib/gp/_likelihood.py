@@ -12,6 +12,9 @@ parameters, scaling and bookkeeping. Three things make it fast and lean:
   ``potrf`` + ``potri`` in place (2/3 n^3 flops instead of 4 n^3 for a general inverse and a
   product). NumPy and SciPy ship separate OpenBLAS builds: call this under
   :func:`robovib._threads.single_blas_thread` so their thread pools do not contend.
+* **SciPy only when fitting.** SciPy's LAPACK is imported when first needed. The posterior of
+  stored hyperparameters (:func:`evaluate` with ``linalg="numpy"``, value and state only) runs on
+  NumPy's LAPACK, so that :mod:`robovib.gp.predictor` builds the same posterior without SciPy.
 * **Bounded memory.** Rows (outputs x starts) are processed in chunks whose work arrays (three
   ``n x n`` per row) are allocated once per call and fit in :data:`WORK_BYTES`.
 """
@@ -21,7 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack
 
 from .kernels import correlation
 
@@ -29,6 +31,42 @@ _LOG_2PI = np.log(2.0 * np.pi)
 #: Target size of the per-chunk work arrays (bytes); a chunk holds at least one row.
 WORK_BYTES = 48 * 2**20
 _JITTER_STEPS = (1e-10, 1e-8, 1e-6, 1e-4)
+
+
+class _NumpyLapack:
+    """The three LAPACK calls of the value-and-state path, on NumPy's LAPACK (no SciPy).
+
+    Same calling convention as :mod:`scipy.linalg.lapack` (``lower=1`` only): ``dpotrf`` returns
+    the lower Cholesky factor (``info = 1`` when not positive definite or not finite), ``dpotrs``
+    solves with it, ``dtrtri`` inverts it. The input is left unchanged.
+    """
+
+    @staticmethod
+    def dpotrf(a, lower=1, overwrite_a=0, clean=0):
+        try:
+            c = np.linalg.cholesky(a)
+        except np.linalg.LinAlgError:
+            return a, 1
+        return c, 0 if np.all(np.isfinite(c)) else 1
+
+    @staticmethod
+    def dpotrs(c, b, lower=1):
+        return np.linalg.solve(c.T, np.linalg.solve(c, b)), 0
+
+    @staticmethod
+    def dtrtri(c, lower=1, overwrite_c=0):
+        return np.linalg.solve(c, np.eye(c.shape[-1])), 0
+
+
+def _lapack(linalg: str = "scipy"):
+    """The LAPACK wrappers: SciPy's (imported on first use) or NumPy's (:class:`_NumpyLapack`)."""
+    if linalg == "numpy":
+        return _NumpyLapack
+    if linalg != "scipy":
+        raise ValueError(f"linalg must be 'scipy' or 'numpy', got {linalg!r}")
+    from scipy.linalg import lapack
+
+    return lapack
 
 
 @dataclass
@@ -170,13 +208,14 @@ def _factor_and_invert(
     strict lower triangle keeps ``K``. A matrix that stays indefinite after jitter escalation gets
     ``jitter = inf`` (and an identity in ``buf``).
     """
+    lapack = _lapack()
     n = buf.shape[-1]
     diag = np.diagonal(buf, axis1=1, axis2=2).copy()  # potrf overwrites it on failure
     for b in range(buf.shape[0]):
         # buf[b].T is the Fortran view of the same (symmetric) memory: factorised in place.
         c, info = lapack.dpotrf(buf[b].T, lower=1, overwrite_a=1, clean=0)
         if info != 0:
-            c, jitter[b] = _jittered(buf, b, diag[b])
+            c, jitter[b] = _jittered(buf, b, diag[b], lapack)
             if c is None:
                 logdet_half[b] = np.inf
                 buf[b] = np.eye(n)
@@ -191,16 +230,18 @@ def _factor_and_invert(
         buf[:, ju, iu] = buf[:, iu, ju]
 
 
-def _factor_and_solve(buf, rhs, logdet_half, jitter, chol_inv=None) -> None:
+def _factor_and_solve(buf, rhs, logdet_half, jitter, chol_inv=None, linalg="scipy") -> None:
     """In place: rhs[b] <- K_b^-1 rhs[b] via potrf + potrs (value only: no inverse needed).
 
     With ``chol_inv`` (k, n, n), also write the inverse Cholesky factor L^-1 there (trtri).
+    ``linalg``: whose LAPACK (:func:`_lapack`).
     """
+    lapack = _lapack(linalg)
     diag = np.diagonal(buf, axis1=1, axis2=2).copy()
     for b in range(buf.shape[0]):
         c, info = lapack.dpotrf(buf[b].T, lower=1, overwrite_a=1, clean=0)
         if info != 0:
-            c, jitter[b] = _jittered(buf, b, diag[b])
+            c, jitter[b] = _jittered(buf, b, diag[b], lapack)
             if c is None:
                 logdet_half[b] = np.inf
                 if chol_inv is not None:
@@ -226,7 +267,7 @@ def _triangle_weights(n: int) -> np.ndarray:
     return w
 
 
-def _jittered(buf, b, diag):
+def _jittered(buf, b, diag, lapack):
     """Cholesky of buf[b] with escalating jitter, after a failed in-place attempt."""
     # potrf overwrote the Fortran-lower (C-upper) triangle and the diagonal; the strict C-lower
     # triangle is intact.
@@ -253,6 +294,7 @@ def evaluate(
     want_grad: bool = True,
     want_state: bool = False,
     covariance: str = "se",
+    linalg: str = "scipy",
 ):
     """Negative log marginal likelihood (Eq. 33, mean profiled) and gradient for each row.
 
@@ -261,6 +303,8 @@ def evaluate(
     theta : (k, p) log-hyperparameters [log sf, log l (1 or d), log sn (G)] per row.
     design : :class:`Design` whose per-output arrays have ``k`` rows (see :meth:`Design.take`).
     covariance : ``"se"``, ``"matern52"`` or ``"matern32"`` (:func:`robovib.gp.kernels.correlation`).
+    linalg : ``"scipy"`` or ``"numpy"`` (whose LAPACK factorises; ``"numpy"`` needs
+        ``want_grad=False``).
 
     Returns
     -------
@@ -275,6 +319,8 @@ def evaluate(
     nll = np.empty(k)
     grad = np.empty((k, p)) if want_grad else None
     state = None
+    if want_grad and linalg != "scipy":
+        raise ValueError("the gradient needs linalg='scipy'")
     if want_state:
         if want_grad:
             raise ValueError("want_state needs want_grad=False")
@@ -337,7 +383,7 @@ def evaluate(
         else:
             # Value only (screening; and L^-1 for the fitted state): triangular solves.
             out = state["chol_inv"][sl] if want_state else None
-            _factor_and_solve(kinv, rhs, logdet_half, jitter, out)
+            _factor_and_solve(kinv, rhs, logdet_half, jitter, out, linalg)
         kinv_1, kinv_y = rhs[:, :, 0], rhs[:, :, 1]
         failed = ~np.isfinite(logdet_half)
         if constant_mean:

@@ -12,11 +12,49 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "require_pose_inputs"]
+from ..io.h5format import (
+    POSE_MODEL_FORMAT,
+    POSE_MODEL_FORMAT_VERSION,
+    H5Tree,
+    open_checked,
+    read_tree,
+)
 
-#: Format tag and version of pose-model files (:meth:`PoseModalModel.save` writes them).
-FORMAT = "robovib.PoseModalModel"
-FORMAT_VERSION = 1
+__all__ = ["FORMAT", "FORMAT_VERSION", "read_pose_file", "require_pose_inputs"]
+
+#: Format tag and version of pose-model files (:meth:`PoseModalModel.save` writes them); owned by
+#: :mod:`robovib.io.h5format` beside the other tags, kept here under their former names.
+FORMAT = POSE_MODEL_FORMAT
+FORMAT_VERSION = POSE_MODEL_FORMAT_VERSION
+
+
+def read_pose_file(path) -> tuple[H5Tree, int]:
+    """Open a pose-model file, check its tag and version, and read it whole into memory.
+
+    The one reader of the file; :func:`robovib.gp.PoseModalModel.load` (scikit-learn
+    estimators) and :class:`robovib.gp.predictor.PosePredictor` (NumPy ones) interpret what it
+    returns.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file (:meth:`robovib.gp.PoseModalModel.save`).
+
+    Returns
+    -------
+    tree : robovib.io.h5format.H5Tree
+        Root attributes and every group and dataset, as plain dicts and arrays.
+    format_version : int
+        The file's layout version.
+
+    Raises
+    ------
+    ValueError
+        Not a readable HDF5 file, not a pose model, or a newer format version.
+    """
+    h5, _, version = open_checked(path, {FORMAT: FORMAT_VERSION})
+    with h5:
+        return read_tree(h5), version
 
 
 class _RzCos2:

@@ -12,6 +12,12 @@ targets) and converted to data units on the way out::
 
 (the variance as ``σ_f² − |L⁻¹ k*|²``, as scikit-learn, to limit cancellation). Unobserved
 targets have zero ``α`` and zero columns of ``L⁻¹``, so they drop out without a mask.
+
+It is also built in one place: :func:`fitted_posterior` (from log-hyperparameters and the
+replicate-collapsed training set, through :func:`robovib.gp._likelihood.evaluate`), with the
+scaling of :func:`standardisation` and the parameter vector of :func:`theta_from_hyperparameters`.
+The estimator calls them after fitting, the predictor on the stored hyperparameters (with NumPy's
+LAPACK, so without SciPy).
 """
 
 from __future__ import annotations
@@ -20,9 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _likelihood
 from .kernels import correlation
 
-__all__ = ["GPPosterior"]
+__all__ = ["GPPosterior", "fitted_posterior", "standardisation", "theta_from_hyperparameters"]
 
 
 @dataclass(frozen=True)
@@ -107,3 +114,138 @@ class GPPosterior:
         v = np.matmul(self.chol_inv, self._cross(xq, self.x_s).transpose(0, 2, 1))  # (B, n, m)
         cov_s = self._cross(xq, xq) - np.matmul(v.transpose(0, 2, 1), v)
         return cov_s * (self.y_scale**2)[:, None, None]
+
+
+def standardisation(X: np.ndarray, Y: np.ndarray, mask: np.ndarray, normalize: bool):
+    """Input standardisation and target centring/scaling of a fit (observed targets only).
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, d) inputs.
+    Y : numpy.ndarray
+        (n, B) targets (any value where unobserved).
+    mask : numpy.ndarray
+        (n, B) bool, observed.
+    normalize : bool
+        ``False``: identity scaling.
+
+    Returns
+    -------
+    x_loc, x_scale, y_loc, y_scale : numpy.ndarray
+        (d,) and (B,) each.
+
+    Raises
+    ------
+    ValueError
+        An output with constant targets (``normalize=True``).
+    """
+    if not normalize:
+        return np.zeros(X.shape[1]), np.ones(X.shape[1]), np.zeros(Y.shape[1]), np.ones(Y.shape[1])
+    x_loc = X.mean(axis=0)
+    x_scale = X.std(axis=0)
+    x_scale[x_scale == 0] = 1.0
+    counts = mask.sum(axis=0)
+    y_loc = np.where(mask, Y, 0).sum(axis=0) / counts
+    y_scale = np.sqrt(np.where(mask, (Y - y_loc) ** 2, 0).sum(axis=0) / counts)
+    constant = y_scale <= 1e-12 * np.maximum(1.0, np.abs(y_loc))
+    if np.any(constant):
+        raise ValueError(
+            f"outputs {np.flatnonzero(constant).tolist()} have constant targets; "
+            "a GP cannot be fitted to them"
+        )
+    return x_loc, x_scale, y_loc, y_scale
+
+
+def theta_from_hyperparameters(
+    signal_std, length_scales, noise_std, *, n_groups: int, isotropic: bool, x_scale, y_scale
+) -> np.ndarray:
+    """(B, p) log-hyperparameters ``[log sf, log l (1 or d), log sn (G)]`` in the scaled space.
+
+    Parameters
+    ----------
+    signal_std, length_scales, noise_std : array_like
+        Data units: (B,) or scalar; (B, d), (d,) or scalar; (B,), (G,), (B, G) or scalar.
+    n_groups : int
+        Noise groups ``G``.
+    isotropic : bool
+        One length scale per output: the geometric mean of the scaled ones (standardisation makes
+        an isotropic kernel anisotropic in data units).
+    x_scale, y_scale : numpy.ndarray
+        (d,) and (B,) scalings (:func:`standardisation`).
+
+    Returns
+    -------
+    numpy.ndarray
+        (B, p) parameter vectors (not clipped to any bounds).
+    """
+    n_out, n_features = np.size(y_scale), np.size(x_scale)
+    sf = np.broadcast_to(np.asarray(signal_std, float), (n_out,)) / y_scale
+    noise = np.asarray(noise_std, float)
+    if noise.ndim == 1:
+        noise = noise[:, None] if noise.size == n_out else noise[None, :]
+    sn = np.broadcast_to(noise, (n_out, n_groups)) / y_scale[:, None]
+    ls = np.broadcast_to(np.asarray(length_scales, float), (n_out, n_features)) / x_scale
+    if isotropic:
+        ls = np.exp(np.mean(np.log(ls), axis=1, keepdims=True))
+    return np.column_stack([np.log(sf), np.log(ls), np.log(sn)])
+
+
+def fitted_posterior(
+    theta: np.ndarray,
+    design: _likelihood.Design,
+    *,
+    n_groups: int,
+    constant_mean: bool,
+    covariance: str,
+    x_loc: np.ndarray,
+    x_scale: np.ndarray,
+    y_loc: np.ndarray,
+    y_scale: np.ndarray,
+    linalg: str = "scipy",
+) -> tuple[GPPosterior, np.ndarray, np.ndarray]:
+    """The posterior at fixed hyperparameters: Cholesky, profiled (GLS) mean, ``α`` and ``L⁻¹``.
+
+    Parameters
+    ----------
+    theta : numpy.ndarray
+        (B, p) log-hyperparameters (:func:`theta_from_hyperparameters`).
+    design : robovib.gp._likelihood.Design
+        Replicate-collapsed scaled training set (:func:`robovib.gp._likelihood.collapse_replicates`).
+    n_groups : int
+        Noise groups.
+    constant_mean : bool
+        Profiled constant mean (else zero mean).
+    covariance : str
+        Covariance family.
+    x_loc, x_scale, y_loc, y_scale : numpy.ndarray
+        Scaling (:func:`standardisation`).
+    linalg : str
+        ``"scipy"`` or ``"numpy"``: whose LAPACK factorises (same formulas).
+
+    Returns
+    -------
+    posterior : GPPosterior
+        Over the unique training inputs.
+    nll : numpy.ndarray
+        (B,) negative log marginal likelihood in the scaled space (``inf``: not factorised).
+    jitter : numpy.ndarray
+        (B,) jitter added to the diagonal (scaled units; 0 where none was needed).
+    """
+    nll, _, state = _likelihood.evaluate(
+        theta, design, n_groups=n_groups, constant_mean=constant_mean, want_grad=False,
+        want_state=True, covariance=covariance, linalg=linalg,
+    )  # fmt: skip
+    # Unobserved entries are decoupled (unit diagonal) and alpha is zero there; zeroing the
+    # columns of L^-1 makes k* of those entries drop out without a mask at prediction time.
+    chol_inv = state["chol_inv"]
+    chol_inv *= design.obs[:, None, :]
+    sf2 = np.exp(2.0 * theta[:, 0])
+    inv_l2 = np.broadcast_to(
+        np.exp(-2.0 * theta[:, 1:-n_groups]), (theta.shape[0], design.x.shape[1])
+    )
+    posterior = GPPosterior(
+        x_loc, x_scale, y_loc, y_scale, design.x, sf2, inv_l2.copy(), state["mean"],
+        state["alpha"], chol_inv, covariance,
+    )  # fmt: skip
+    return posterior, nll, state["jitter"]

@@ -6,9 +6,10 @@ the time is not the prediction (microseconds) but importing scikit-learn and Sci
 :class:`PosePredictor` reads the same HDF5 file (:meth:`PoseModalModel.save`) and evaluates the
 same posterior without them:
 
-* each GP output (thesis Eq. 9-10): standardised inputs and targets as the fit, squared-exponential
-  kernel with the stored hyperparameters (data units), ``alpha = K_y^-1 (y - m)`` and the latent
-  variance ``sf^2 - |L^-1 k*|^2``;
+* each GP output (thesis Eq. 9-10): the estimator's own construction at the stored
+  hyperparameters (:func:`robovib.gp.posterior.fitted_posterior`: standardisation, replicates
+  collapsed, Cholesky, profiled mean, ``alpha = K_y^-1 (y - m)``), run on NumPy's LAPACK instead
+  of SciPy's, and evaluated by the same :class:`~robovib.gp.posterior.GPPosterior`;
 * the mode-switch classifier (binary Laplace GP classifier, Rasmussen & Williams 2006, Algorithms
   3.1-3.2, as :class:`sklearn.gaussian_process.GaussianProcessClassifier` with ``optimizer=None``
   on the stored kernel): Newton iterations for the posterior mode, then the Williams-Barber
@@ -35,10 +36,12 @@ from pathlib import Path
 import numpy as np
 
 from .._threads import single_blas_thread
+from ._likelihood import collapse_replicates
 from .extrapolation import TrainingRegion
-from .kernels import correlation
-from .pose_file import FORMAT, FORMAT_VERSION, require_pose_inputs
-from .posterior import GPPosterior
+from .pose_file import FORMAT as FORMAT  # re-exported (their former home)
+from .pose_file import FORMAT_VERSION as FORMAT_VERSION
+from .pose_file import read_pose_file, require_pose_inputs
+from .posterior import GPPosterior, fitted_posterior, standardisation, theta_from_hyperparameters
 from .predictive import calibrated_mode_probability
 
 __all__ = [
@@ -67,77 +70,38 @@ def _str(v) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)
 
 
-def _chol(a: np.ndarray) -> np.ndarray:
-    try:
-        L = np.linalg.cholesky(a)
-    except np.linalg.LinAlgError:
-        raise _NeedsJitter("covariance not positive definite without jitter") from None
-    if not np.all(np.isfinite(L)):
-        raise _NeedsJitter("covariance not positive definite without jitter")
-    return L
-
-
-def _tri_inv(L: np.ndarray) -> np.ndarray:
-    """Inverse of a lower-triangular matrix (forward substitution, NumPy only)."""
-    return np.linalg.solve(L, np.eye(L.shape[-1]))
-
-
 class _GP:
-    """Posterior of a fitted BatchedGPRegressor group (stored hyperparameters, data units)."""
+    """Posterior of a fitted BatchedGPRegressor group (stored hyperparameters, data units).
+
+    Built by the estimator's own code (:func:`robovib.gp.posterior.fitted_posterior` on the
+    replicate-collapsed training set), with NumPy's LAPACK instead of SciPy's.
+    """
 
     def __init__(self, group) -> None:
         d = {k: group[k][()] for k in group}
         a = group.attrs
-        kernel = _str(a["kernel"])
         self.covariance = _str(a["covariance"]) if "covariance" in a else "se"
-        normalize = bool(a["normalize"])
-        mean_kind = _str(a["mean"])
         n_groups = int(a["n_noise_groups"])
         X = np.asarray(d["X"], float)
         mask = np.asarray(d["mask"], bool)
         Y = np.where(mask, d["Y"], 0.0)
         groups = np.asarray(d["groups"], int) if n_groups > 1 else np.zeros(X.shape[0], int)
-        n, n_feat = X.shape
-        n_out = Y.shape[1]
-        if normalize:
-            x_loc, x_scale = X.mean(axis=0), X.std(axis=0)
-            x_scale[x_scale == 0] = 1.0
-            counts = mask.sum(axis=0)
-            y_loc = np.where(mask, Y, 0).sum(axis=0) / counts
-            y_scale = np.sqrt(np.where(mask, (Y - y_loc) ** 2, 0).sum(axis=0) / counts)
-        else:
-            x_loc, x_scale = np.zeros(n_feat), np.ones(n_feat)
-            y_loc, y_scale = np.zeros(n_out), np.ones(n_out)
-        sf2 = (np.asarray(d["signal_std"], float) / y_scale) ** 2
-        ls = np.broadcast_to(np.asarray(d["length_scales"], float), (n_out, n_feat)) / x_scale
-        if kernel == "isotropic":
-            ls = np.broadcast_to(np.exp(np.mean(np.log(ls), axis=1, keepdims=True)), ls.shape)
-        noise = np.asarray(d["noise_std"], float).reshape(n_out, -1) / y_scale[:, None]
-        m_s = np.zeros(n_out)
-        x_s = (X - x_loc) / x_scale
-        y_s = np.where(mask, (Y - y_loc) / y_scale, 0.0)
-        inv_l2 = ls**-2.0
-        sq = (x_s[:, None, :] - x_s[None, :, :]) ** 2
-        alpha = np.zeros((n_out, n))
-        chol_inv = np.zeros((n_out, n, n))
-        for b in range(n_out):
-            obs = mask[:, b]
-            k = sf2[b] * correlation(sq[np.ix_(obs, obs)] @ inv_l2[b], self.covariance)
-            k[np.diag_indices_from(k)] += noise[b, groups[obs]] ** 2
-            L = _chol(k)
-            Li = _tri_inv(L)
-            if mean_kind == "constant":  # profiled (GLS) mean at these hyperparameters, as the fit
-                k_inv_1 = Li.T @ Li.sum(axis=1)
-                m_s[b] = (k_inv_1 @ y_s[obs, b]) / k_inv_1.sum()
-            alpha[b, obs] = Li.T @ (Li @ (y_s[obs, b] - m_s[b]))
-            chol_inv[b][np.ix_(obs, obs)] = Li
-        # Unobserved targets: alpha and the L^-1 columns are zero, so they drop out.
-        self.posterior = GPPosterior(
-            x_loc, x_scale, y_loc, y_scale, x_s, sf2, np.ascontiguousarray(inv_l2), m_s, alpha,
-            chol_inv, self.covariance,
+        x_loc, x_scale, y_loc, y_scale = standardisation(X, Y, mask, bool(a["normalize"]))
+        theta = theta_from_hyperparameters(
+            d["signal_std"], d["length_scales"], d["noise_std"], n_groups=n_groups,
+            isotropic=_str(a["kernel"]) == "isotropic", x_scale=x_scale, y_scale=y_scale,
         )  # fmt: skip
-        self.noise_std = noise[:, 0] * y_scale  # first (reference) noise group, data units
-        self.signal_std = np.sqrt(sf2) * y_scale  # data units
+        x_s, y_s = (X - x_loc) / x_scale, np.where(mask, (Y - y_loc) / y_scale, 0.0)
+        design = collapse_replicates(x_s, y_s.T, mask.T, groups, n_groups)
+        self.posterior, nll, jitter = fitted_posterior(
+            theta, design, n_groups=n_groups, constant_mean=_str(a["mean"]) == "constant",
+            covariance=self.covariance, x_loc=x_loc, x_scale=x_scale, y_loc=y_loc,
+            y_scale=y_scale, linalg="numpy",
+        )  # fmt: skip
+        if np.any(jitter > 0) or not np.all(np.isfinite(nll)):
+            raise _NeedsJitter("covariance not positive definite without jitter")
+        self.noise_std = np.exp(theta[:, -n_groups]) * y_scale  # first (reference) group
+        self.signal_std = np.sqrt(self.posterior.sf2) * y_scale  # data units
         self.X_train = X
 
     def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -296,52 +260,47 @@ class PosePredictor:
             Not a readable HDF5 file, not a pose model, a newer format version, or a stored
             covariance that needed jitter (use :meth:`PoseModalModel.load`).
         """
-        from ..io.h5format import open_checked
-
         path = Path(path)
-        h5, _, _ = open_checked(path, {FORMAT: FORMAT_VERSION})
+        tree, _ = read_pose_file(path)
         self = cls()
-        with h5:
-            a = h5.attrs
-            params = json.loads(_str(a["params_json"]))
-            self.input_names = self.input_names_ = tuple(params["input_names"])
-            self.directions = self.directions_ = tuple(params["directions"])
-            self.params_ = params
-            self.output_names_ = tuple(
-                f"{d}_{q}_{u}" for d in self.directions_ for q, u in _QUANTITIES
-            )
-            self.output_units_ = tuple(
-                _UNIT_LABELS[u] for _ in self.directions_ for _, u in _QUANTITIES
-            )
-            t = h5["training"]
-            self.X_train_ = np.asarray(t["X"][()], float)
-            self.n_outputs_ = len(self.output_names_)
-            self._estimators = []
-            try:
-                with single_blas_thread():  # many small matrices: threads only contend
-                    estimators = [h5["estimators"][str(i)] for i in range(len(h5["estimators"]))]
-                    for g in estimators:
-                        kind = _str(g.attrs["kind"])
-                        cols = np.asarray(g.attrs["columns"], int)
-                        if kind == "BatchedGPRegressor":
-                            self._estimators.append((_GP(g), cols))
-                        elif kind == "ModeSwitchingGPRegressor":
-                            self._estimators.append((_Switching(g), cols))
-                        else:
-                            raise ValueError(f"{path}: unknown estimator kind {kind!r}")
-            except _NeedsJitter as exc:
-                raise ValueError(f"{path}: {exc}; load it with PoseModalModel.load") from None
-            self.mode_switches_ = {
-                d: {k: (_str(v) if isinstance(v, bytes | str) else v) for k, v in g.attrs.items()}
-                for d, g in h5["mode_switches"].items()
-            }
-            self.provenance_ = {k: _str(v) if isinstance(v, bytes) else v
-                                for k, v in h5["provenance"].attrs.items()}  # fmt: skip
-            self.calibration_ = None
-            if "calibration" in h5:
-                from .calibration import read_calibration
+        a = tree.attrs
+        params = json.loads(_str(a["params_json"]))
+        self.input_names = self.input_names_ = tuple(params["input_names"])
+        self.directions = self.directions_ = tuple(params["directions"])
+        self.params_ = params
+        self.output_names_ = tuple(f"{d}_{q}_{u}" for d in self.directions_ for q, u in _QUANTITIES)
+        self.output_units_ = tuple(
+            _UNIT_LABELS[u] for _ in self.directions_ for _, u in _QUANTITIES
+        )
+        t = tree["training"]
+        self.X_train_ = np.asarray(t["X"][()], float)
+        self.n_outputs_ = len(self.output_names_)
+        self._estimators = []
+        try:
+            with single_blas_thread():  # many small matrices: threads only contend
+                estimators = [tree["estimators"][str(i)] for i in range(len(tree["estimators"]))]
+                for g in estimators:
+                    kind = _str(g.attrs["kind"])
+                    cols = np.asarray(g.attrs["columns"], int)
+                    if kind == "BatchedGPRegressor":
+                        self._estimators.append((_GP(g), cols))
+                    elif kind == "ModeSwitchingGPRegressor":
+                        self._estimators.append((_Switching(g), cols))
+                    else:
+                        raise ValueError(f"{path}: unknown estimator kind {kind!r}")
+        except _NeedsJitter as exc:
+            raise ValueError(f"{path}: {exc}; load it with PoseModalModel.load") from None
+        self.mode_switches_ = {
+            d: {k: (_str(v) if isinstance(v, bytes | str) else v) for k, v in g.attrs.items()}
+            for d, g in tree["mode_switches"].items()
+        }
+        self.provenance_ = {k: _str(v) if isinstance(v, bytes) else v
+                            for k, v in tree["provenance"].attrs.items()}  # fmt: skip
+        self.calibration_ = None
+        if "calibration" in tree:
+            from .calibration import read_calibration
 
-                self.calibration_ = read_calibration(h5["calibration"])
+            self.calibration_ = read_calibration(tree["calibration"])
         self.region_ = TrainingRegion.of(self.X_train_)
         self.input_min_, self.input_max_ = self.region_.lo, self.region_.hi
         return self

@@ -51,7 +51,7 @@ from .._threads import single_blas_thread
 from . import _likelihood
 from .kernels import COVARIANCES, correlation
 from .optimize import batched_bfgs
-from .posterior import GPPosterior
+from .posterior import fitted_posterior, standardisation, theta_from_hyperparameters
 
 __all__ = ["BatchedGPRegressor", "GPHyperparameters", "GPNumericalError", "JitterWarning"]
 
@@ -73,6 +73,15 @@ class GPNumericalError(np.linalg.LinAlgError):
 
 class JitterWarning(UserWarning):
     """Jitter had to be added to a covariance matrix to factorise it."""
+
+
+def _raise_if_failed(nll: np.ndarray) -> None:
+    failed = ~np.isfinite(nll)
+    if np.any(failed):
+        raise GPNumericalError(
+            f"covariance not positive definite for outputs {np.flatnonzero(failed).tolist()} "
+            f"even with jitter up to {_JITTER_STEPS[-1]:g} x mean diagonal"
+        )
 
 
 @dataclass(frozen=True)
@@ -340,23 +349,7 @@ class BatchedGPRegressor(BaseEstimator):
 
     # ------------------------------------------------------------------ scaling
     def _fit_scalers(self, X, Y, mask):
-        n_out = Y.shape[1]
-        if self.normalize:
-            x_loc = X.mean(axis=0)
-            x_scale = X.std(axis=0)
-            x_scale[x_scale == 0] = 1.0
-            counts = mask.sum(axis=0)
-            y_loc = np.where(mask, Y, 0).sum(axis=0) / counts
-            y_scale = np.sqrt(np.where(mask, (Y - y_loc) ** 2, 0).sum(axis=0) / counts)
-            constant = y_scale <= 1e-12 * np.maximum(1.0, np.abs(y_loc))
-            if np.any(constant):
-                raise ValueError(
-                    f"outputs {np.flatnonzero(constant).tolist()} have constant targets; "
-                    "a GP cannot be fitted to them"
-                )
-        else:
-            x_loc, x_scale = np.zeros(X.shape[1]), np.ones(X.shape[1])
-            y_loc, y_scale = np.zeros(n_out), np.ones(n_out)
+        x_loc, x_scale, y_loc, y_scale = standardisation(X, Y, mask, self.normalize)
         self._x_loc, self._x_scale = x_loc, x_scale
         self._y_loc, self._y_scale = y_loc, y_scale
 
@@ -384,20 +377,10 @@ class BatchedGPRegressor(BaseEstimator):
     def _theta_from_hyperparameters(
         self, hp: GPHyperparameters, n_features: int, clip: bool = True
     ) -> np.ndarray:
-        n_out = self._y_scale.size
-        sf = np.broadcast_to(np.asarray(hp.signal_std, float), (n_out,)) / self._y_scale
-        noise = np.asarray(hp.noise_std, float)
-        if noise.ndim == 1:
-            noise = noise[:, None] if noise.size == n_out else noise[None, :]
-        sn = np.broadcast_to(noise, (n_out, self._n_groups)) / self._y_scale[:, None]
-        ls = (
-            np.broadcast_to(np.asarray(hp.length_scales, float), (n_out, n_features))
-            / self._x_scale
-        )
-        if self.kernel == "isotropic":
-            # Standardisation makes an isotropic kernel anisotropic in data units; keep the mean.
-            ls = np.exp(np.mean(np.log(ls), axis=1, keepdims=True))
-        theta = np.column_stack([np.log(sf), np.log(ls), np.log(sn)])
+        theta = theta_from_hyperparameters(
+            hp.signal_std, hp.length_scales, hp.noise_std, n_groups=self._n_groups,
+            isotropic=self.kernel == "isotropic", x_scale=self._x_scale, y_scale=self._y_scale,
+        )  # fmt: skip
         if not clip:
             return theta
         lower, upper = self._bounds(n_features)
@@ -438,12 +421,8 @@ class BatchedGPRegressor(BaseEstimator):
             want_state=want_state,
             covariance=getattr(self, "covariance", "se"),
         )
-        failed = ~np.isfinite(nll)
-        if np.any(failed) and not allow_fail:
-            raise GPNumericalError(
-                f"covariance not positive definite for outputs {np.flatnonzero(failed).tolist()} "
-                f"even with jitter up to {_JITTER_STEPS[-1]:g} x mean diagonal"
-            )
+        if not allow_fail:
+            _raise_if_failed(nll)
         return nll, grad, state
 
     def _nll_and_grad(self, theta, y, mask, sq_diff, *, want_grad=True, allow_fail=True):
@@ -686,15 +665,12 @@ class BatchedGPRegressor(BaseEstimator):
         self.X_train_, self.Y_train_, self.mask_ = X, np.where(mask, Y, np.nan), mask
         x_s, y_s = self._scale_x(X), self._scale_y(Y, mask)
         design = self._design(x_s, y_s, mask)
-        nll, _, state = self._evaluate(
-            self._theta, design, want_grad=False, allow_fail=False, want_state=True
-        )
-        chol_inv, alpha, m, jitter = (
-            state["chol_inv"],
-            state["alpha"],
-            state["mean"],
-            state["jitter"],
-        )
+        post, nll, jitter = fitted_posterior(
+            self._theta, design, n_groups=self._n_groups, constant_mean=self.mean == "constant",
+            covariance=getattr(self, "covariance", "se"), x_loc=self._x_loc,
+            x_scale=self._x_scale, y_loc=self._y_loc, y_scale=self._y_scale,
+        )  # fmt: skip
+        _raise_if_failed(nll)
         if np.any(jitter > 0):
             warnings.warn(
                 f"jitter added to the covariance of outputs {np.flatnonzero(jitter > 0).tolist()} "
@@ -703,23 +679,17 @@ class BatchedGPRegressor(BaseEstimator):
                 stacklevel=3,
             )
         self.jitter_ = jitter
-        # Predictive variance as sf^2 - |L^-1 k*|^2 (as scikit-learn): less cancellation than
-        # k*^T K^-1 k* when the posterior variance is small.
-        # The posterior given replicates equals that given their means: keep the unique inputs.
-        self._x_s, self._chol_inv, self._alpha, self._m_s = design.x, chol_inv, alpha, m
+        # The posterior given replicates equals that given their means: unique inputs only.
+        self.posterior_ = post
+        self._x_s, self._chol_inv, self._alpha, self._m_s = (
+            post.x_s,
+            post.chol_inv,
+            post.alpha,
+            post.mean_s,
+        )
         self._obs_u = design.obs  # (B, u) outputs observed at each unique input
-        # Unobserved entries are decoupled (unit diagonal) and alpha is zero there; zeroing the
-        # columns of L^-1 makes k* of those entries drop out without a mask at prediction time.
-        self._chol_inv *= design.obs[:, None, :]
-        log_sf, log_l, log_sn = self._split(self._theta)
-        self._sf2 = np.exp(2.0 * log_sf)
-        self._inv_l2 = np.broadcast_to(
-            np.exp(-2.0 * log_l), (self._theta.shape[0], x_s.shape[1])
-        ).copy()
-        self.posterior_ = GPPosterior(
-            self._x_loc, self._x_scale, self._y_loc, self._y_scale, design.x, self._sf2,
-            self._inv_l2, m, alpha, self._chol_inv, self.covariance,
-        )  # fmt: skip
+        self._sf2, self._inv_l2, m = post.sf2, post.inv_l2, post.mean_s
+        _, log_l, log_sn = self._split(self._theta)
         # predict_one's precomputed arrays (data units; see there).
         self._p1_x = design.x * self._x_scale + self._x_loc
         self._p1_neg_half_inv_l2 = -0.5 * self._inv_l2 / self._x_scale**2

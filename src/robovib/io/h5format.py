@@ -17,12 +17,27 @@ from collections.abc import Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 
-__all__ = ["FRF_FORMAT", "FRF_POSE_MODEL_FORMAT", "file_format", "open_checked", "write_header"]
+import numpy as np
+
+__all__ = [
+    "FRF_FORMAT",
+    "FRF_POSE_MODEL_FORMAT",
+    "POSE_MODEL_FORMAT",
+    "POSE_MODEL_FORMAT_VERSION",
+    "H5Tree",
+    "file_format",
+    "open_checked",
+    "read_tree",
+    "write_header",
+]
 
 #: Format tag of FRF collections (:func:`robovib.io.write_frfs_hdf5`), layout version 1.
 FRF_FORMAT = "robovib-frf"
 #: Format tag of hybrid FRF pose models (:meth:`robovib.hybrid.FRFPoseModel.save`), versions 1-2.
 FRF_POSE_MODEL_FORMAT = "robovib-frf-pose-model"
+#: Format tag and layout version of pose models (:meth:`robovib.gp.PoseModalModel.save`).
+POSE_MODEL_FORMAT = "robovib.PoseModalModel"
+POSE_MODEL_FORMAT_VERSION = 1
 
 
 def write_header(h5, format_name: str, format_version: int, **attrs) -> None:
@@ -126,3 +141,59 @@ def open_checked(path, formats: Mapping[str, int], what: str | None = None):
             f"{formats[fmt]}"
         )
     return h5, fmt, version
+
+
+class H5Tree(dict):
+    """An HDF5 group read into memory: a dict of its members plus ``attrs`` (a dict).
+
+    Members are :class:`H5Tree` (subgroups) or NumPy arrays (datasets; scalars as 0-d arrays),
+    so code written for an open ``h5py.Group`` reads it unchanged: ``tree.attrs[name]``,
+    ``tree[name][()]``, ``name in tree``, ``tree.items()``, ``len(tree)``.
+
+    Parameters
+    ----------
+    members : mapping or iterable of (str, object), optional
+        Subgroups and datasets by name.
+    attrs : mapping or iterable of (str, object), optional
+        The group's attributes.
+    """
+
+    def __init__(self, members=(), attrs=None) -> None:
+        super().__init__(members)
+        self.attrs = dict(attrs or {})
+
+
+def read_tree(group) -> H5Tree:
+    """Read an ``h5py`` group (or file) and everything below it into an :class:`H5Tree`.
+
+    Parameters
+    ----------
+    group : h5py.Group
+        An open group or file.
+
+    Returns
+    -------
+    H5Tree
+        Attributes as h5py gives them; datasets as arrays (``tree[name][()]`` returns what
+        ``group[name][()]`` does).
+
+    Examples
+    --------
+    >>> import io, h5py, numpy as np
+    >>> from robovib.io.h5format import read_tree
+    >>> with h5py.File(io.BytesIO(), "w") as h5:
+    ...     h5.attrs["kind"] = "demo"
+    ...     _ = h5.create_group("g").create_dataset("x", data=np.arange(3.0))
+    ...     tree = read_tree(h5)
+    >>> tree.attrs["kind"], tree["g"]["x"][()].tolist()
+    ('demo', [0.0, 1.0, 2.0])
+    """
+    import h5py
+
+    members = {}
+    for name, item in group.items():
+        if isinstance(item, h5py.Group):
+            members[name] = read_tree(item)
+        else:
+            members[name] = np.asarray(item[()])
+    return H5Tree(members, group.attrs.items())

@@ -179,20 +179,19 @@ def chapter3_report(study, provenance: Mapping[str, Any] | None = None) -> Repor
 def _load_model(path):
     """A saved pose model (:class:`robovib.gp.PoseModalModel`: the chapter-3 model, a campaign's
     or a user's) or a hybrid FRF model, by the file's format tag."""
-    from ..gp.predictor import FORMAT as POSE_FORMAT
-    from ..io.h5format import FRF_POSE_MODEL_FORMAT, file_format
+    from ..io.h5format import FRF_POSE_MODEL_FORMAT, POSE_MODEL_FORMAT, file_format
 
     fmt, _ = file_format(path)
     if fmt == FRF_POSE_MODEL_FORMAT:
         from ..hybrid import FRFPoseModel
 
         return FRFPoseModel.load(path)
-    if fmt == POSE_FORMAT:
+    if fmt == POSE_MODEL_FORMAT:
         from ..gp import PoseModalModel
 
         return PoseModalModel.load(path)
     raise ValueError(
-        f"{path}: format {fmt!r} is not a robovib pose model ({POSE_FORMAT}) or hybrid "
+        f"{path}: format {fmt!r} is not a robovib pose model ({POSE_MODEL_FORMAT}) or hybrid "
         f"FRF model ({FRF_POSE_MODEL_FORMAT})"
     )
 
