@@ -49,6 +49,8 @@ def test_map_equals_pose_by_pose_sdm_and_round_trips_netcdf(tmp_path, scheduler)
     back = xr.load_dataset(path)
     np.testing.assert_allclose(back.a_lim_m.values, ds.a_lim_m.values)
     assert back.a_lim_m.attrs["units"] == "m" and back.attrs["method"] == "sdm"
+    # The file header of every robovib file: format tag and layout version.
+    assert (back.attrs["format"], int(back.attrs["format_version"])) == ("robovib-lobe-map", 1)
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
     fig = plot_lobe_map(ds, spindle_rpm=3000)
     assert "[mm]" in fig.axes[0].get_xlabel()

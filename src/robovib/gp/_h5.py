@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..io.h5format import write_header
+from ..io.h5format import as_text, write_header
 from .calibration import read_calibration, write_calibration
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, symmetric_rz_features
 from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2, read_pose_file
@@ -197,7 +197,7 @@ def read_mode_switching(group) -> ModeSwitchingGPRegressor:
         threshold=float(a["threshold"]),
         classifier_features=_features_from_tag(str(a["classifier_features"])),
         kernel=str(a["kernel"]),
-        covariance=_str(a["covariance"]) if "covariance" in a else "se",
+        covariance=as_text(a["covariance"]) if "covariance" in a else "se",
         rng=None if rng < 0 else rng,
         n_noise_groups=int(a["n_noise_groups"]),
     )
@@ -295,16 +295,12 @@ def _cv_figures(cv) -> dict:
     return {"r2": cv.r2, "r2_corr": cv.r2_corr, "rmse": cv.rmse, "grouped": bool(cv.grouped)}
 
 
-def _str(v) -> str:
-    return v.decode() if isinstance(v, bytes) else str(v)
-
-
 def read_pose_model(cls, path):
 
     path = Path(path)
     tree, version = read_pose_file(path)
     a = tree.attrs
-    params = json.loads(_str(a["params_json"]))
+    params = json.loads(as_text(a["params_json"]))
     params["input_names"] = tuple(params["input_names"])
     params["directions"] = tuple(params["directions"])
     model = cls(**params)
@@ -316,7 +312,7 @@ def read_pose_model(cls, path):
     for d in dirs:
         g = tree["mode_switches"][d].attrs
         switches[d] = ModeSwitchDetection(
-            direction=_str(g["direction"]),
+            direction=as_text(g["direction"]),
             found=bool(g["found"]),
             assumed=bool(g["assumed"]),
             threshold_hz=float(g["threshold_hz"]),
@@ -325,12 +321,12 @@ def read_pose_model(cls, path):
             gap_sigma=float(g["gap_sigma"]),
             n_low=int(g["n_low"]),
             n_high=int(g["n_high"]),
-            reason=_str(g["reason"]),
+            reason=as_text(g["reason"]),
         )
     estimators, columns = [], []
     for i in range(len(tree["estimators"])):
         g = tree["estimators"][str(i)]
-        kind = _str(g.attrs["kind"])
+        kind = as_text(g.attrs["kind"])
         if kind == "BatchedGPRegressor":
             estimators.append(read_regressor(g))
         elif kind == "ModeSwitchingGPRegressor":
@@ -357,11 +353,11 @@ def read_pose_model(cls, path):
         cv.update({k: v for k, v in c.attrs.items() if k != "output_names"})
         model.cv_ = cv
     model.provenance_ = {
-        k: _str(v) if isinstance(v, bytes) else v for k, v in tree["provenance"].attrs.items()
+        k: as_text(v) if isinstance(v, bytes) else v for k, v in tree["provenance"].attrs.items()
     }
     model.file_attrs_ = {
-        "robovib_version": _str(a["robovib_version"]),
-        "created_utc": _str(a["created_utc"]),
+        "robovib_version": as_text(a["robovib_version"]),
+        "created_utc": as_text(a["created_utc"]),
         "format_version": version,
     }
     return model

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..io.h5format import as_text
 from .predictive import ModalPredictive, _t_logpdf
 
 __all__ = [
@@ -365,10 +366,6 @@ def uncalibrated_coverage(pred: ModalPredictive, Y: np.ndarray) -> np.ndarray:
     return out
 
 
-def _as_str(v) -> str:
-    return v.decode() if isinstance(v, bytes) else str(v)
-
-
 _CAL_ARRAYS = {
     "scale": "1 (factor on the GP std)",
     "dof": "1 (Student-t degrees of freedom; inf = Gaussian)",
@@ -429,8 +426,8 @@ def read_calibration(group):
     a = group.attrs
     d = {k: group[k][()] for k in _CAL_ARRAYS if k in group}
     return BandCalibration(
-        output_names=tuple(_as_str(v) for v in a["output_names"]),
-        covariance=tuple(_as_str(v) for v in a["covariance"]),
+        output_names=tuple(as_text(v) for v in a["output_names"]),
+        covariance=tuple(as_text(v) for v in a["covariance"]),
         scale=d["scale"],
         dof=d["dof"],
         gamma=d.get("gamma", np.ones_like(d["scale"])),

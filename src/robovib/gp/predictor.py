@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .._threads import single_blas_thread
+from ..io.h5format import as_text
 from ._likelihood import collapse_replicates
 from .extrapolation import TrainingRegion
 from .pose_file import FORMAT as FORMAT  # re-exported (their former home)
@@ -66,10 +67,6 @@ class _NeedsJitter(ValueError):
     pass
 
 
-def _str(v) -> str:
-    return v.decode() if isinstance(v, bytes) else str(v)
-
-
 class _GP:
     """Posterior of a fitted BatchedGPRegressor group (stored hyperparameters, data units).
 
@@ -80,7 +77,7 @@ class _GP:
     def __init__(self, group) -> None:
         d = {k: group[k][()] for k in group}
         a = group.attrs
-        self.covariance = _str(a["covariance"]) if "covariance" in a else "se"
+        self.covariance = as_text(a["covariance"]) if "covariance" in a else "se"
         n_groups = int(a["n_noise_groups"])
         X = np.asarray(d["X"], float)
         mask = np.asarray(d["mask"], bool)
@@ -89,12 +86,12 @@ class _GP:
         x_loc, x_scale, y_loc, y_scale = standardisation(X, Y, mask, bool(a["normalize"]))
         theta = theta_from_hyperparameters(
             d["signal_std"], d["length_scales"], d["noise_std"], n_groups=n_groups,
-            isotropic=_str(a["kernel"]) == "isotropic", x_scale=x_scale, y_scale=y_scale,
+            isotropic=as_text(a["kernel"]) == "isotropic", x_scale=x_scale, y_scale=y_scale,
         )  # fmt: skip
         x_s, y_s = (X - x_loc) / x_scale, np.where(mask, (Y - y_loc) / y_scale, 0.0)
         design = collapse_replicates(x_s, y_s.T, mask.T, groups, n_groups)
         self.posterior, nll, jitter = fitted_posterior(
-            theta, design, n_groups=n_groups, constant_mean=_str(a["mean"]) == "constant",
+            theta, design, n_groups=n_groups, constant_mean=as_text(a["mean"]) == "constant",
             covariance=self.covariance, x_loc=x_loc, x_scale=x_scale, y_loc=y_loc,
             y_scale=y_scale, linalg="numpy",
         )  # fmt: skip
@@ -168,7 +165,7 @@ class _Switching:
     def __init__(self, group) -> None:
         a = group.attrs
         self.switching = np.asarray(a["switching_outputs"], int)
-        self.features = _str(a["classifier_features"])
+        self.features = as_text(a["classifier_features"])
         self.low = _GP(group["low"])
         self.high = _GP(group["high"]) if "high" in group else None
         self.high_mean = group["high_mean"][()] if "high_mean" in group else None
@@ -264,7 +261,7 @@ class PosePredictor:
         tree, _ = read_pose_file(path)
         self = cls()
         a = tree.attrs
-        params = json.loads(_str(a["params_json"]))
+        params = json.loads(as_text(a["params_json"]))
         self.input_names = self.input_names_ = tuple(params["input_names"])
         self.directions = self.directions_ = tuple(params["directions"])
         self.params_ = params
@@ -280,7 +277,7 @@ class PosePredictor:
             with single_blas_thread():  # many small matrices: threads only contend
                 estimators = [tree["estimators"][str(i)] for i in range(len(tree["estimators"]))]
                 for g in estimators:
-                    kind = _str(g.attrs["kind"])
+                    kind = as_text(g.attrs["kind"])
                     cols = np.asarray(g.attrs["columns"], int)
                     if kind == "BatchedGPRegressor":
                         self._estimators.append((_GP(g), cols))
@@ -291,10 +288,10 @@ class PosePredictor:
         except _NeedsJitter as exc:
             raise ValueError(f"{path}: {exc}; load it with PoseModalModel.load") from None
         self.mode_switches_ = {
-            d: {k: (_str(v) if isinstance(v, bytes | str) else v) for k, v in g.attrs.items()}
+            d: {k: (as_text(v) if isinstance(v, bytes | str) else v) for k, v in g.attrs.items()}
             for d, g in tree["mode_switches"].items()
         }
-        self.provenance_ = {k: _str(v) if isinstance(v, bytes) else v
+        self.provenance_ = {k: as_text(v) if isinstance(v, bytes) else v
                             for k, v in tree["provenance"].attrs.items()}  # fmt: skip
         self.calibration_ = None
         if "calibration" in tree:

@@ -22,9 +22,12 @@ import numpy as np
 __all__ = [
     "FRF_FORMAT",
     "FRF_POSE_MODEL_FORMAT",
+    "LOBE_MAP_FORMAT",
+    "LOBE_MAP_FORMAT_VERSION",
     "POSE_MODEL_FORMAT",
     "POSE_MODEL_FORMAT_VERSION",
     "H5Tree",
+    "as_text",
     "file_format",
     "open_checked",
     "read_tree",
@@ -38,6 +41,10 @@ FRF_POSE_MODEL_FORMAT = "robovib-frf-pose-model"
 #: Format tag and layout version of pose models (:meth:`robovib.gp.PoseModalModel.save`).
 POSE_MODEL_FORMAT = "robovib.PoseModalModel"
 POSE_MODEL_FORMAT_VERSION = 1
+#: Format tag and layout version of workspace stability maps (NetCDF-4, an HDF5 file:
+#: :func:`robovib.milling.maps.save_lobe_map`).
+LOBE_MAP_FORMAT = "robovib-lobe-map"
+LOBE_MAP_FORMAT_VERSION = 1
 
 
 def write_header(h5, format_name: str, format_version: int, **attrs) -> None:
@@ -62,7 +69,24 @@ def write_header(h5, format_name: str, format_version: int, **attrs) -> None:
         h5.attrs[key] = value
 
 
-def _as_str(v) -> str:
+def as_text(v) -> str:
+    """An HDF5 attribute as text (h5py returns bytes or str depending on how it was written).
+
+    Parameters
+    ----------
+    v
+        The attribute value.
+
+    Returns
+    -------
+    str
+        The text.
+
+    Examples
+    --------
+    >>> as_text(b"robovib-frf"), as_text("x_mm")
+    ('robovib-frf', 'x_mm')
+    """
     return v.decode() if isinstance(v, bytes) else str(v)
 
 
@@ -97,7 +121,7 @@ def file_format(path) -> tuple[str, int]:
 def _tag(h5) -> tuple[str, int]:
     a = h5.attrs
     version = a.get("format_version", a.get("version", -1))
-    return _as_str(a.get("format", "")), int(version)
+    return as_text(a.get("format", "")), int(version)
 
 
 def open_checked(path, formats: Mapping[str, int], what: str | None = None):

@@ -237,6 +237,7 @@ def workspace_lobe_map(
     import xarray as xr
 
     from .. import __version__
+    from ..io.h5format import LOBE_MAP_FORMAT, LOBE_MAP_FORMAT_VERSION
 
     if method not in ("sdm", "zoa"):
         raise ValueError(f"method must be 'sdm' or 'zoa', got {method!r}")
@@ -323,6 +324,8 @@ def workspace_lobe_map(
         },
         attrs={
             "title": "robovib workspace stability map",
+            "format": LOBE_MAP_FORMAT,
+            "format_version": LOBE_MAP_FORMAT_VERSION,
             "robovib_version": __version__,
             "method": method,
             "settings": json.dumps(settings),
