@@ -123,6 +123,19 @@ def _mode_arrays(modes: Sequence[ModalParameters]):
     )
 
 
+def _checked_simulation(
+    steps_per_tooth, n_tooth_periods, entry_tooth_periods, chatter_fraction_of_feed
+) -> tuple[int, int, int]:
+    m_steps, n_per, n_entry = int(steps_per_tooth), int(n_tooth_periods), int(entry_tooth_periods)
+    if m_steps < 8 or n_per < 20:
+        raise ValueError("need steps_per_tooth >= 8 and n_tooth_periods >= 20")
+    if n_entry < 0:
+        raise ValueError(f"entry_tooth_periods must be >= 0, got {entry_tooth_periods}")
+    if not (np.isfinite(chatter_fraction_of_feed) and chatter_fraction_of_feed > 0):
+        raise ValueError(f"chatter_fraction_of_feed must be > 0, got {chatter_fraction_of_feed!r}")
+    return m_steps, n_per, n_entry
+
+
 def simulate_regenerative_cut(
     modes_x: Sequence[ModalParameters],
     modes_y: Sequence[ModalParameters],
@@ -170,72 +183,24 @@ def simulate_regenerative_cut(
     )
     if depth.ndim != 1 or not (np.all(np.isfinite(depth)) and np.all(depth > 0)):
         raise ValueError("depth_m must be positive axial depths [m]")
-    m_steps, n_per = int(steps_per_tooth), int(n_tooth_periods)
-    if m_steps < 8 or n_per < 20:
-        raise ValueError("need steps_per_tooth >= 8 and n_tooth_periods >= 20")
-    n_entry = int(entry_tooth_periods)
-    if n_entry < 0:
-        raise ValueError(f"entry_tooth_periods must be >= 0, got {entry_tooth_periods}")
-    if not (np.isfinite(chatter_fraction_of_feed) and chatter_fraction_of_feed > 0):
-        raise ValueError(f"chatter_fraction_of_feed must be > 0, got {chatter_fraction_of_feed!r}")
-    n_fl = int(tool.n_flutes)
-    tau = 60.0 / (n_fl * conditions.spindle_rpm)
+    m_steps, n_per, n_entry = _checked_simulation(
+        steps_per_tooth, n_tooth_periods, entry_tooth_periods, chatter_fraction_of_feed
+    )
+    tau = 60.0 / (int(tool.n_flutes) * conditions.spindle_rpm)
     dt = tau / m_steps
     fn, k, z = _mode_arrays(modes)
-    if np.any(fn * dt > 0.1):
-        raise ValueError(
-            f"steps_per_tooth={m_steps} gives {1 / (fn.max() * dt):.1f} steps per period of the "
-            f"{fn.max():.4g} Hz mode; use more (>= 10 per period)"
-        )
-    p00, p01, p10, p11, g0, g1 = zoh_transition(fn, k, z, dt)
-    nx = len(modes_x)
-    selx = np.zeros(len(modes))
-    selx[:nx] = 1.0
-    sely = 1.0 - selx
-    phi_st, phi_ex = engagement_angles(tool, conditions)
-    pitch = 2 * math.pi / n_fl
-    # Flute angles repeat every tooth period (shifted by one flute): tabulate one period.
-    ang = (np.arange(m_steps)[:, None] / m_steps * pitch + pitch * np.arange(n_fl)[None, :]) % (
-        2 * math.pi
-    )
-    s_tab, c_tab = np.sin(ang), np.cos(ang)
-    g_tab = (ang >= phi_st) & (ang <= phi_ex)
-    c = coefficients
-    fz = conditions.feed_per_tooth_m
     b = depth.size
-    xi = np.zeros((b, len(modes)))
-    vi = np.zeros((b, len(modes)))
-    hist_x = np.zeros((m_steps, b))
-    hist_y = np.zeros((m_steps, b))
+    in_feed = np.arange(len(modes)) < len(modes_x)
+    disp, force = _step_rows(
+        np.broadcast_to(fn, (b, fn.size)), np.broadcast_to(k, (b, fn.size)),
+        np.broadcast_to(z, (b, fn.size)), np.broadcast_to(in_feed, (b, fn.size)),
+        np.full(b, float(conditions.spindle_rpm)), depth, tool, conditions, coefficients,
+        steps_per_tooth=m_steps, n_tooth_periods=n_per, entry_tooth_periods=n_entry,
+        record="all",
+    )  # fmt: skip
     n_ramp = m_steps * n_entry
-    n_steps = m_steps * (n_per + n_entry)
-    disp = np.empty((b, n_steps, 2))
-    force = np.empty((b, n_steps, 2))
-    x = np.zeros(b)
-    y = np.zeros(b)
-    a_col = depth[:, None]
-    for i in range(n_steps):
-        kk = i % m_steps
-        if i < n_ramp:
-            a_col = depth[:, None] * ((i + 1) / n_ramp)
-        s, co, g = s_tab[kk], c_tab[kk], g_tab[kk]
-        dx = x - hist_x[kk]
-        dy = y - hist_y[kk]
-        hist_x[kk] = x
-        hist_y[kk] = y
-        h = fz * s + dx[:, None] * s + dy[:, None] * co
-        on = g & (h > 0)
-        h = np.where(on, h, 0.0)
-        ft = a_col * (c.ktc * h + c.kte * on)
-        fr = a_col * (c.krc * h + c.kre * on)
-        fx = np.sum(-ft * co - fr * s, axis=1)
-        fy = np.sum(ft * s - fr * co, axis=1)
-        f = fx[:, None] * selx + fy[:, None] * sely
-        xi, vi = p00 * xi + p01 * vi + g0 * f, p10 * xi + p11 * vi + g1 * f
-        x = xi @ selx
-        y = xi @ sely
-        disp[:, i, 0], disp[:, i, 1] = x, y
-        force[:, i, 0], force[:, i, 1] = fx, fy
+    n_steps = disp.shape[1]
+    fz = conditions.feed_per_tooth_m
     t = (np.arange(n_steps) + 1) * dt
     growth, rate, frac, fch, amp = _indicators(disp[:, n_ramp:], m_steps, dt, 1.0 / tau)
     chatter = _is_chatter(growth, rate, amp, chatter_fraction_of_feed, fz)
@@ -283,7 +248,7 @@ def _is_chatter(growth, rate, amplitude, chatter_fraction_of_feed: float, feed_p
     )
 
 
-def _chatter_of_rows(
+def _step_rows(
     fn_hz: np.ndarray,
     stiffness_n_per_m: np.ndarray,
     damping_ratio: np.ndarray,
@@ -294,40 +259,34 @@ def _chatter_of_rows(
     conditions: CuttingConditions,
     coefficients: CuttingCoefficients,
     *,
-    n_tooth_periods: int = 300,
-    steps_per_tooth: int = 120,
-    entry_tooth_periods: int = 0,
-    chatter_fraction_of_feed: float = 0.1,
-) -> np.ndarray:
-    """Chatter (b,) of b independent cuts, each with its own modes, speed and depth.
+    steps_per_tooth: int,
+    n_tooth_periods: int,
+    entry_tooth_periods: int,
+    record: str,
+):
+    """Step b independent cuts, each with its own modes, speed and depth (module docs).
 
-    The stepping of :func:`simulate_regenerative_cut` with every row its own structure: the
-    (b, n_modes) mode arrays (``fn_hz <= 0`` marks a missing mode: rows may hold different
-    numbers of modes), ``in_feed`` (b, n_modes) True for the feed-direction modes, and a speed
-    per row (the tooth period, hence the step, differs by row; the number of steps per tooth is
-    the same, so one delay buffer serves all). Only the once-per-period samples are kept, so a
-    batch of thousands of cuts fits in memory; chatter is decided as there.
+    The (b, n_modes) mode arrays (``fn_hz <= 0`` marks a missing mode: rows may hold different
+    numbers of modes), ``in_feed`` (b, n_modes) True for the feed-direction modes, a speed per
+    row (the tooth period, hence the step, differs by row; the number of steps per tooth is the
+    same, so one delay buffer serves all). ``record="all"``: the (b, n, 2) displacement and
+    force of every step; ``"poincare"``: only the (b, n_tooth_periods, 2) displacement once per
+    tooth period after the entry, so a batch of thousands of cuts fits in memory.
     """
     fn = np.asarray(fn_hz, float)
     present = fn > 0
     fn = np.where(present, fn, 1.0)
     k = np.where(present, np.asarray(stiffness_n_per_m, float), 1.0)
     z = np.where(present, np.asarray(damping_ratio, float), 0.5)
-    rpm = np.asarray(spindle_rpm, float)
     depth = np.asarray(depth_m, float)
     m_steps, n_per, n_entry = int(steps_per_tooth), int(n_tooth_periods), int(entry_tooth_periods)
-    if m_steps < 8 or n_per < 20:
-        raise ValueError("need steps_per_tooth >= 8 and n_tooth_periods >= 20")
-    if n_entry < 0:
-        raise ValueError(f"entry_tooth_periods must be >= 0, got {entry_tooth_periods}")
-    if not (np.isfinite(chatter_fraction_of_feed) and chatter_fraction_of_feed > 0):
-        raise ValueError(f"chatter_fraction_of_feed must be > 0, got {chatter_fraction_of_feed!r}")
     n_fl = int(tool.n_flutes)
-    dt = (60.0 / (n_fl * rpm) / m_steps)[:, None]
+    dt = (60.0 / (n_fl * np.asarray(spindle_rpm, float)) / m_steps)[:, None]
     if np.any(fn * dt > 0.1):
         raise ValueError(
             f"steps_per_tooth={m_steps} gives {1 / np.max(fn * dt):.1f} steps per period of the "
-            "fastest mode; use more (>= 10 per period)"
+            f"{fn[np.unravel_index(np.argmax(fn * dt), fn.shape)]:.4g} Hz mode; "
+            "use more (>= 10 per period)"
         )
     p00, p01, p10, p11, g0, g1 = zoh_transition(fn, k, z, dt)
     g0, g1 = g0 * present, g1 * present
@@ -335,6 +294,7 @@ def _chatter_of_rows(
     sely = (~np.asarray(in_feed, bool) & present).astype(float)
     phi_st, phi_ex = engagement_angles(tool, conditions)
     pitch = 2 * math.pi / n_fl
+    # Flute angles repeat every tooth period (shifted by one flute): tabulate one period.
     ang = (np.arange(m_steps)[:, None] / m_steps * pitch + pitch * np.arange(n_fl)[None, :]) % (
         2 * math.pi
     )
@@ -349,7 +309,12 @@ def _chatter_of_rows(
     hist_y = np.zeros((m_steps, b))
     n_ramp = m_steps * n_entry
     n_steps = m_steps * (n_per + n_entry)
-    poincare = np.empty((b, n_per, 2))
+    full = record == "all"
+    if full:
+        disp = np.empty((b, n_steps, 2))
+        force = np.empty((b, n_steps, 2))
+    else:
+        poincare = np.empty((b, n_per, 2))
     x = np.zeros(b)
     y = np.zeros(b)
     a_col = depth[:, None]
@@ -373,11 +338,44 @@ def _chatter_of_rows(
         xi, vi = p00 * xi + p01 * vi + g0 * f, p10 * xi + p11 * vi + g1 * f
         x = np.sum(xi * selx, axis=1)
         y = np.sum(xi * sely, axis=1)
-        if i >= n_ramp and kk == m_steps - 1:
+        if full:
+            disp[:, i, 0], disp[:, i, 1] = x, y
+            force[:, i, 0], force[:, i, 1] = fx, fy
+        elif i >= n_ramp and kk == m_steps - 1:
             j = (i - n_ramp) // m_steps
             poincare[:, j, 0], poincare[:, j, 1] = x, y
+    return (disp, force) if full else poincare
+
+
+def _chatter_of_rows(
+    fn_hz: np.ndarray,
+    stiffness_n_per_m: np.ndarray,
+    damping_ratio: np.ndarray,
+    in_feed: np.ndarray,
+    spindle_rpm: np.ndarray,
+    depth_m: np.ndarray,
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    *,
+    n_tooth_periods: int = 300,
+    steps_per_tooth: int = 120,
+    entry_tooth_periods: int = 0,
+    chatter_fraction_of_feed: float = 0.1,
+) -> np.ndarray:
+    """Chatter (b,) of b independent cuts (:func:`_step_rows`), decided from the once-per-period
+    samples as in :func:`simulate_regenerative_cut`."""
+    _checked_simulation(
+        steps_per_tooth, n_tooth_periods, entry_tooth_periods, chatter_fraction_of_feed
+    )
+    poincare = _step_rows(
+        fn_hz, stiffness_n_per_m, damping_ratio, in_feed, spindle_rpm, depth_m, tool,
+        conditions, coefficients, steps_per_tooth=steps_per_tooth,
+        n_tooth_periods=n_tooth_periods, entry_tooth_periods=entry_tooth_periods,
+        record="poincare",
+    )  # fmt: skip
     growth, rate, amp = _poincare_indicators(poincare)
-    return _is_chatter(growth, rate, amp, chatter_fraction_of_feed, fz)
+    return _is_chatter(growth, rate, amp, chatter_fraction_of_feed, conditions.feed_per_tooth_m)
 
 
 def simulated_stability_limit(
