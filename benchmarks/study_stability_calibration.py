@@ -79,6 +79,9 @@ def main(argv=None) -> None:
                          "linear theory on the truth's modes: sdm, or zoa (the method P(stable) "
                          "uses: isolates the model's bands from the linear-theory-vs-simulation "
                          "gap and from the ZOA-vs-SDM gap)")  # fmt: skip
+    ap.add_argument("--margin-samples", type=int, default=20,
+                    help="samples whose time-domain margin is simulated (0: the mean modes' "
+                         "margin for every sample)")  # fmt: skip
     ap.add_argument("--seed", type=int, default=21)
     ap.add_argument("--no-margin", dest="margin", action="store_false",
                     help="reliability table of the linear P(stable) instead of the one with the "
@@ -115,7 +118,8 @@ def main(argv=None) -> None:
             linear = stability_probability(dist, tool, cond, ALUMINIUM_7075, rpm, **kw)
             if args.margin:
                 prob = stability_probability(dist, tool, cond, ALUMINIUM_7075, rpm, **kw,
-                                             time_domain_margin=True)  # fmt: skip
+                                             time_domain_margin=True,
+                                             margin_samples=args.margin_samples)  # fmt: skip
                 ratio = np.asarray(prob.settings["time_domain_ratio"])
             else:
                 prob, ratio = linear, np.ones(rpm.size)

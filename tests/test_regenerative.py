@@ -232,6 +232,11 @@ def test_margin_of_a_sharp_distribution_is_that_of_its_mean():
     r = prob.a_lim_samples_m[:, 0] / prob.mean.a_lim_m[0]
     assert np.all((r >= low[0] - 1e-12) & (r <= high[0] + 1e-12))
     assert prob.settings["margin_samples"] == 2
+    # margin_samples=0: the mean modes' bracket for every sample.
+    mean_only = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=6,
+                                      method="zoa", time_domain_margin=True, margin_samples=0)  # fmt: skip
+    r0 = mean_only.a_lim_samples_m[:, 0] / mean_only.mean.a_lim_m[0]
+    assert np.all((r0 >= low[0] - 1e-12) & (r0 <= high[0] + 1e-12))
     with pytest.raises(ValueError, match="margin_samples"):
         stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=6, method="zoa",
-                              time_domain_margin=True, margin_samples=0)  # fmt: skip
+                              time_domain_margin=True, margin_samples=-1)  # fmt: skip

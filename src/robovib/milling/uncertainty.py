@@ -373,7 +373,8 @@ def stability_probability(
         with the nearest linear envelope, and every ratio is drawn uniformly inside its
         bracket. The ratio of the mean modes is in ``settings["time_domain_ratio"]``.
     margin_samples : int
-        Samples whose margin is simulated (about 0.3 s each for three speeds).
+        Samples whose margin is simulated (about 0.15 s per sample and speed); 0: the mean
+        modes' margin for every sample (the form before per-sample margins).
     entry_tooth_periods : int
         Entry ramp of that simulation (0: the cut starts at full depth, the conservative case).
 
@@ -417,13 +418,13 @@ def stability_probability(
     if time_domain_margin:
         from .time_domain import time_domain_limit_ratios
 
-        if int(margin_samples) < 1:
-            raise ValueError(f"margin_samples must be >= 1, got {margin_samples}")
+        if int(margin_samples) < 0:
+            raise ValueError(f"margin_samples must be >= 0, got {margin_samples}")
         # The mean modes first (their ratio is reported), then the first margin_samples samples
         # with a finite envelope (the samples are in random order), each at its own linear limit.
         finite = np.all(np.isfinite(a_s) & (a_s > 0), axis=1)
         sim = np.flatnonzero(finite)[: int(margin_samples)]
-        if sim.size == 0:
+        if int(margin_samples) > 0 and sim.size == 0:
             raise ValueError("no sample has a finite linear limit at every speed")
         sets = [(mean_f, mean_n)] + [(feed_s[i], norm_s[i]) for i in sim]
         low, high = time_domain_limit_ratios(
@@ -432,12 +433,15 @@ def stability_probability(
             entry_tooth_periods=int(entry_tooth_periods),
         )  # fmt: skip
         ratio = 0.5 * (low[0] + high[0])
-        low_s, high_s = low[1:], high[1:]
-        # A sample not simulated takes the bracket of the simulated sample whose linear
-        # envelope is nearest (log depth over the speeds: the same place on the lobes).
-        log_a = np.log(np.where(finite[:, None], a_s, 1.0))
-        near = np.argmin(np.sum((log_a[:, None, :] - log_a[None, sim, :]) ** 2, axis=2), axis=1)
-        near[sim] = np.arange(sim.size)
+        if sim.size:
+            low_s, high_s = low[1:], high[1:]
+            # A sample not simulated takes the bracket of the simulated sample whose linear
+            # envelope is nearest (log depth over the speeds: the same place on the lobes).
+            log_a = np.log(np.where(finite[:, None], a_s, 1.0))
+            near = np.argmin(np.sum((log_a[:, None, :] - log_a[None, sim, :]) ** 2, axis=2), axis=1)
+            near[sim] = np.arange(sim.size)
+        else:  # margin_samples=0: the mean modes' bracket for every sample
+            low_s, high_s, near = low[:1], high[:1], np.zeros(n, int)
         # The simulated limit is known to its bracket: each sample's ratio is drawn inside it.
         a_s = a_s * gen.uniform(low_s[near], high_s[near])
         mins = mins * low_s[near].min(axis=1)
