@@ -25,7 +25,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
-from .regressor import BatchedGPRegressor, _as_2d_float
+from .regressor import BatchedGPRegressor, _as_2d_float, _checked_query
 
 __all__ = [
     "ModeSwitchDetection",
@@ -272,20 +272,7 @@ class ModeSwitchingGPRegressor(BaseEstimator):
     def _check_query(self, X) -> np.ndarray:
         """``X`` as a finite (n, n_features_in_) float array (clear errors otherwise)."""
         self._require_fitted()
-        if np.ndim(X) == 1 and self.n_features_in_ != 1:
-            raise ValueError(
-                f"X is 1-D but the model has {self.n_features_in_} inputs: Reshape your data "
-                "to (n_query, n_features)"
-            )
-        X = _as_2d_float("X", X, "(n_query, n_features)")
-        if X.shape[1] != self.n_features_in_:
-            raise ValueError(
-                f"X has {X.shape[1]} features, but ModeSwitchingGPRegressor is expecting "
-                f"{self.n_features_in_} features as input"
-            )
-        if not np.all(np.isfinite(X)):
-            raise ValueError("X contains NaN or inf")
-        return X
+        return _checked_query("X", X, self.n_features_in_, "ModeSwitchingGPRegressor")
 
     def _regressor(self) -> BatchedGPRegressor:
         return BatchedGPRegressor(

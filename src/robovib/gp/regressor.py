@@ -158,6 +158,24 @@ def _as_2d_float(name: str, value, ndim_hint: str) -> np.ndarray:
     return arr
 
 
+def _checked_query(name: str, X, n_features: int, estimator: str) -> np.ndarray:
+    """Query inputs as a finite (n, n_features) float array, with sklearn's error wording."""
+    if np.ndim(X) == 1 and n_features != 1:
+        raise ValueError(
+            f"{name} is 1-D but the model has {n_features} inputs: Reshape your data "
+            "to (n_query, n_features)"
+        )
+    Xq = _as_2d_float(name, X, "(n_query, n_features)")
+    if Xq.shape[1] != n_features:
+        raise ValueError(
+            f"{name} has {Xq.shape[1]} features, but {estimator} is expecting "
+            f"{n_features} features as input"
+        )
+    if not np.all(np.isfinite(Xq)):
+        raise ValueError(f"{name} contains NaN or inf")
+    return Xq
+
+
 class BatchedGPRegressor(BaseEstimator):
     """Independent exact GPs for every output column, fitted and evaluated in one batch.
 
@@ -804,19 +822,7 @@ class BatchedGPRegressor(BaseEstimator):
 
     def _predict(self, X, return_std, include_noise):
         self._require_fitted()
-        if np.ndim(X) == 1 and self.n_features_in_ != 1:
-            raise ValueError(
-                f"X is 1-D but the model has {self.n_features_in_} inputs: Reshape your data "
-                "to (n_query, n_features)"
-            )
-        Xq = _as_2d_float("X", X, "(n_query, n_features)")
-        if Xq.shape[1] != self.n_features_in_:
-            raise ValueError(
-                f"X has {Xq.shape[1]} features, but BatchedGPRegressor is expecting "
-                f"{self.n_features_in_} features as input"
-            )
-        if not np.all(np.isfinite(Xq)):
-            raise ValueError("X contains NaN or inf")
+        Xq = _checked_query("X", X, self.n_features_in_, "BatchedGPRegressor")
         mean, std = self.posterior_.predict(Xq)
         if not return_std:
             return mean[:, 0] if self._squeeze else mean
