@@ -166,8 +166,10 @@ def test_mill_lobes_time_domain_margin_from_the_cli():
     assert bad.exit_code != 0 and "n_samples" in bad.output
 
 
-def _bracket_by_single_cuts(mx, my, cond, coef, rpm, lim, factors, **sim):
-    """Reference: one simulate_regenerative_cut batch of depths per speed."""
+def _bracket_by_single_cuts(mx, my, cond, coef, rpm, lim, factors, onset="persistent", **sim):
+    """Reference: one simulate_regenerative_cut batch of depths per speed, the onset found by a
+    plain loop (first: the first chattering depth; persistent: the first depth from which every
+    deeper one chatters)."""
     from dataclasses import replace
 
     low, high = np.ones(len(rpm)), np.ones(len(rpm))
@@ -175,8 +177,9 @@ def _bracket_by_single_cuts(mx, my, cond, coef, rpm, lim, factors, **sim):
         chat = simulate_regenerative_cut(
             mx, my, TOOL, replace(cond, spindle_rpm=speed), coef, a * np.asarray(factors), **sim
         ).chatter
-        if chat.any():
-            j = int(np.argmax(chat))
+        starts = [j for j in range(len(factors)) if chat[j] and (onset == "first" or all(chat[j:]))]
+        if starts:
+            j = starts[0]
             low[i], high[i] = (0.5 * factors[0], factors[0]) if j == 0 else factors[j - 1 : j + 1]
     return low, high
 
@@ -198,12 +201,14 @@ def test_limit_ratios_of_many_structures_match_one_cut_at_a_time():
     lim = np.array([sdm_lobes(a, b, TOOL, cond, ALUMINIUM_7075, rpm).a_lim_m for a, b in sets])
     factors = (0.5, 0.8, 0.9, 1.0)
     sim = dict(steps_per_tooth=30, n_tooth_periods=80)
-    low, high = time_domain_limit_ratios(sets, TOOL, cond, ALUMINIUM_7075, rpm, lim,
-                                         factors=factors, max_batch=5, **sim)  # fmt: skip
-    for s, (a, b) in enumerate(sets):
-        ref = _bracket_by_single_cuts(a, b, cond, ALUMINIUM_7075, rpm, lim[s], factors, **sim)
-        np.testing.assert_array_equal(low[s], ref[0])
-        np.testing.assert_array_equal(high[s], ref[1])
+    for onset in ("persistent", "first"):
+        low, high = time_domain_limit_ratios(sets, TOOL, cond, ALUMINIUM_7075, rpm, lim,
+                                             factors=factors, max_batch=5, onset=onset, **sim)  # fmt: skip
+        for s, (a, b) in enumerate(sets):
+            ref = _bracket_by_single_cuts(a, b, cond, ALUMINIUM_7075, rpm, lim[s], factors,
+                                          onset=onset, **sim)  # fmt: skip
+            np.testing.assert_array_equal(low[s], ref[0])
+            np.testing.assert_array_equal(high[s], ref[1])
     with pytest.raises(ValueError, match="shape"):
         time_domain_limit_ratios(sets, TOOL, cond, ALUMINIUM_7075, rpm, lim[:2])
     with pytest.raises(ValueError, match="positive depth"):
@@ -212,6 +217,32 @@ def test_limit_ratios_of_many_structures_match_one_cut_at_a_time():
         time_domain_limit_ratios([], TOOL, cond, ALUMINIUM_7075, rpm, np.zeros((0, 2)))
     with pytest.raises(TypeError, match="unknown simulation options"):
         time_domain_limit_ratios(sets, TOOL, cond, ALUMINIUM_7075, rpm, lim, n_steps=3)
+
+
+def test_an_isolated_chattering_depth_is_not_the_onset_of_chatter(monkeypatch):
+    # Planted chatter patterns over the factors (one structure each): an island below the
+    # persistent chatter, an island alone, chatter from the first factor, no chatter.
+    from robovib.milling import time_domain
+
+    factors = (0.6, 0.7, 0.8, 0.9, 1.0)
+    patterns = {1.0: "-X-XX", 2.0: "-X---", 3.0: "XXXXX", 4.0: "-----"}
+
+    def planted(fn, k, z, feed, rpm, depth, *args, **kwargs):
+        return np.array([patterns[f][factors.index(round(d, 6))] == "X"
+                         for f, d in zip(fn[:, 0], depth, strict=True)])  # fmt: skip
+
+    monkeypatch.setattr(time_domain, "_chatter_of_rows", planted)
+    sets = [([ModalParameters(f, 1e6, 0.05)], []) for f in patterns]
+    lim = np.ones((len(sets), 1))
+    args = (sets, TOOL, CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3), ALUMINIUM_7075, [RPM], lim)
+    low, high = time_domain.time_domain_limit_ratios(*args, factors=factors)
+    np.testing.assert_array_equal(low[:, 0], [0.8, 1.0, 0.3, 1.0])
+    np.testing.assert_array_equal(high[:, 0], [0.9, 1.0, 0.6, 1.0])
+    low, high = time_domain.time_domain_limit_ratios(*args, factors=factors, onset="first")
+    np.testing.assert_array_equal(low[:, 0], [0.6, 0.6, 0.3, 1.0])
+    np.testing.assert_array_equal(high[:, 0], [0.7, 0.7, 0.6, 1.0])
+    with pytest.raises(ValueError, match="onset"):
+        time_domain.time_domain_limit_ratios(*args, factors=factors, onset="last")
 
 
 def test_margin_of_a_sharp_distribution_is_that_of_its_mean():

@@ -455,6 +455,7 @@ def time_domain_limit_ratio(
     *,
     factors: Sequence[float] = (0.6, 0.7, 0.8, 0.825, 0.85, 0.875, 0.9, 0.925, 0.95, 0.975, 1.0),
     return_bracket: bool = False,
+    onset: str = "persistent",
     **simulation,
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Ratio of the time-domain stability limit to a linear one, per speed.
@@ -464,8 +465,8 @@ def time_domain_limit_ratio(
     entry) can chatter below that limit: the large-amplitude chatter that coexists with the
     stable cut just below the linear limit is reached from the entry transient (the fly-over
     "unsafe zone"). At each speed the cut is simulated at ``factors`` × the linear limit (one
-    batch); the ratio is the midpoint between the deepest factor that stays stable below the
-    first chattering one and that one. It is never above 1 (a simulated limit above the linear
+    batch); the ratio is the midpoint between the onset of chatter (``onset``, see
+    :func:`time_domain_limit_ratios`) and the stable factor below it. It is never above 1 (a simulated limit above the linear
     one is taken as the linear one: the simulation's finite record can miss slow growth) and is
     ``0.75 * factors[0]`` where even the first factor chatters (bracket ``[0.5, 1] * factors[0]``).
 
@@ -485,6 +486,10 @@ def time_domain_limit_ratio(
     return_bracket : bool
         Also return where the ratio lies: ``(low, high)`` arrays (the stable and the chattering
         factor; both 1 where nothing chatters).
+    onset : {"persistent", "first"}
+        Where chatter starts: below the run of chattering factors that reaches the linear limit
+        (default), or at the first chattering factor, isolated or not (the conservative form,
+        robovib's earlier default); see :func:`time_domain_limit_ratios`.
     **simulation
         Passed to :func:`simulate_regenerative_cut` (``n_tooth_periods``, ``steps_per_tooth``,
         ``entry_tooth_periods``, ...).
@@ -513,7 +518,7 @@ def time_domain_limit_ratio(
         raise ValueError(f"spindle_rpm {rpm.shape} and linear_limit_m {lim.shape} differ in shape")
     low, high = time_domain_limit_ratios(
         [(modes_x, modes_y)], tool, conditions, coefficients, rpm, lim[None, :],
-        factors=factors, **simulation,
+        factors=factors, onset=onset, **simulation,
     )  # fmt: skip
     low, high = low[0], high[0]
     return (low, high) if return_bracket else 0.5 * (low + high)
@@ -529,6 +534,7 @@ def time_domain_limit_ratios(
     *,
     factors: Sequence[float] = (0.6, 0.7, 0.8, 0.825, 0.85, 0.875, 0.9, 0.925, 0.95, 0.975, 1.0),
     max_batch: int = 2048,
+    onset: str = "persistent",
     **simulation,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Brackets of the time-domain / linear limit ratio for many mode sets at once.
@@ -554,6 +560,16 @@ def time_domain_limit_ratios(
         Fractions of the linear limit simulated, increasing, in (0, 1].
     max_batch : int
         Cuts simulated at once (memory and cache).
+    onset : {"persistent", "first"}
+        Which chattering factor starts the chatter. ``"persistent"`` (default): the first of
+        the run of chattering factors that goes on up to the linear limit. Below it, a full-depth
+        entry at one isolated depth can reach the coexisting chatter while the depths on both
+        sides stay stable (``...X.....XXXX``: about one pose and speed in six of the virtual
+        robot, one 2.5 % step wide); that island is not where the cut becomes unstable, and
+        taking it as the limit put too many low limits in the samples of
+        :func:`robovib.milling.uncertainty.stability_probability` (cuts just below the predicted
+        limit were stable 6-10 points more often than predicted, issue 24). ``"first"``: the
+        first chattering factor, island or not (conservative; robovib's earlier default).
     **simulation
         ``n_tooth_periods``, ``steps_per_tooth``, ``entry_tooth_periods``,
         ``chatter_fraction_of_feed`` of :func:`simulate_regenerative_cut`.
@@ -561,8 +577,9 @@ def time_domain_limit_ratios(
     Returns
     -------
     low, high : numpy.ndarray (S, n)
-        The deepest stable factor below the first chattering one, and that one (both 1 where
-        nothing chatters; ``0.5, 1 × factors[0]`` where even the first chatters). The ratio of
+        The stable factor below the onset of chatter, and the onset (both 1 where the linear
+        limit itself, ``factors[-1]``, is stable under ``"persistent"`` or nothing chatters;
+        ``0.5, 1 × factors[0]`` where chatter starts at the first factor). The ratio of
         :func:`time_domain_limit_ratio` is their midpoint.
 
     Examples
@@ -593,6 +610,8 @@ def time_domain_limit_ratios(
         )
     if f.ndim != 1 or f.size < 2 or np.any(np.diff(f) <= 0) or f[0] <= 0 or f[-1] > 1:
         raise ValueError("factors must increase within (0, 1] (at least two)")
+    if onset not in ("persistent", "first"):
+        raise ValueError(f"onset must be 'persistent' or 'first', got {onset!r}")
     bad = ~(np.isfinite(lim) & (lim > 0))
     if bad.any():
         s_bad, r_bad = np.argwhere(bad)[0]
@@ -629,6 +648,9 @@ def time_domain_limit_ratios(
             row_depth[sl], tool, conditions, coefficients, **simulation,
         )  # fmt: skip
     chat = chat.reshape(shape)
+    if onset == "persistent":
+        # Chattering from here up to the last factor: isolated chattering depths drop out.
+        chat = np.flip(np.logical_and.accumulate(np.flip(chat, axis=2), axis=2), axis=2)
     low, high = np.ones(shape[:2]), np.ones(shape[:2])
     any_chat = chat.any(axis=2)
     first = np.argmax(chat, axis=2)
