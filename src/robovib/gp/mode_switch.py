@@ -91,6 +91,9 @@ def detect_mode_switch(
     min_ashman_d: float = 3.0,
     min_gap_sigma: float = 3.0,
     min_samples: int = 3,
+    poses=None,
+    distinct_ratio: float = 2.0,
+    max_smooth_fraction: float = 0.75,
 ) -> ModeSwitchDetection:
     """Test whether the natural frequencies of one direction come from two distinct modes.
 
@@ -102,6 +105,21 @@ def detect_mode_switch(
         Label stored in the result.
     min_delta_bic, min_ashman_d, min_gap_sigma, min_samples
         The thresholds of rules 1-4 of the module docstring.
+    poses
+        Optional (n, d) poses of the samples. With them, rule 5 (smooth variation) is applied:
+        two clusters whose mean frequencies differ by less than ``distinct_ratio`` are taken as
+        one mode whose frequency varies over the workspace when a GP of ``log fn`` over the
+        pose, fitted without the pose predicted (grouped by pose, 5 folds), puts more than
+        ``max_smooth_fraction`` of the smaller cluster's samples nearer their own cluster's
+        mean than the other's. A factorial grid with few levels of Rz, for example, shows the
+        X mode's smooth 16-22 Hz variation as two clusters of frequencies; a real switch to
+        another mode (Table A1: 15-23 Hz vs 61-65 Hz) is not predictable from the neighbouring
+        poses, so its high-mode samples are predicted near the low mode.
+    distinct_ratio
+        Ratio of the clusters' mean frequencies from which two clusters are distinct modes
+        without rule 5 (another mode of the arm, not the same mode's drift).
+    max_smooth_fraction
+        See ``poses``.
 
     Returns
     -------
@@ -155,6 +173,17 @@ def detect_mode_switch(
     if min(low.size, high.size) < min_samples:
         return none(f"a mode has fewer than {min_samples} samples", **stats)
     threshold = float(np.exp(0.5 * (low.max() + high.min())))
+    ratio = float(np.exp(high.mean() - low.mean()))
+    if poses is not None and ratio < distinct_ratio:
+        followed = _fraction_predicted_in_cluster(poses, v[:, 0], labels == high_label)
+        if followed > max_smooth_fraction:
+            return none(
+                f"one mode varying over the workspace: the clusters {np.exp(low.mean()):.3g} Hz "
+                f"and {np.exp(high.mean()):.3g} Hz (ratio {ratio:.2f} < {distinct_ratio:g}) are "
+                f"predicted from the neighbouring poses ({100 * followed:.0f} % of the smaller "
+                "cluster's samples nearer their own cluster)",
+                **stats,
+            )
     return ModeSwitchDetection(
         direction,
         True,
@@ -169,6 +198,37 @@ def detect_mode_switch(
         f"{np.exp(high.min()):.3g}-{np.exp(high.max()):.3g} Hz (ΔBIC = {delta_bic:.0f}, "
         f"D = {ashman:.1f}, gap = {gap:.1f} std)",
     )
+
+
+def _fraction_predicted_in_cluster(poses, log_fn: np.ndarray, high: np.ndarray) -> float:
+    """Fraction of the smaller cluster's samples that a smooth GP of ``log fn`` over the pose,
+    fitted without their pose (5 grouped folds, hyperparameters of the full fit), predicts
+    nearer their own cluster's mean than the other's."""
+    from .calibration import grouped_folds
+
+    X = np.asarray(poses, float)
+    if X.ndim != 2 or X.shape[0] != log_fn.size:
+        raise ValueError(
+            f"poses must be (n, d) with one row per frequency ({log_fn.size}), got {X.shape}"
+        )
+    y = log_fn[:, None]
+    full = BatchedGPRegressor(kernel="ard", covariance="matern52", rng=0).fit(X, y)
+    fold = grouped_folds(X, 5, 0)
+    pred = np.empty_like(log_fn)
+    for f in np.unique(fold):
+        tr, te = fold != f, fold == f
+        gp = BatchedGPRegressor(
+            kernel="ard",
+            covariance="matern52",
+            optimizer=None,
+            initial_hyperparameters=full.hyperparameters_,
+        ).fit(X[tr], y[tr])
+        pred[te] = gp.predict(X[te])[:, 0]
+    small = high if high.sum() <= (~high).sum() else ~high
+    own = np.where(small, log_fn[high].mean(), log_fn[~high].mean())
+    other = np.where(small, log_fn[~high].mean(), log_fn[high].mean())
+    nearer_own = np.abs(pred - own) < np.abs(pred - other)
+    return float(np.mean(nearer_own[small]))
 
 
 def symmetric_rz_features(X: np.ndarray) -> np.ndarray:

@@ -267,7 +267,7 @@ class PoseModalModel(BaseEstimator):
         """
         names, dirs = self._check_params()
         X, Y, mask, obs, groups = self._validated(X, Y, mask, groups, names, dirs)
-        self.mode_switches_ = self._detect(obs, mask, dirs)
+        self.mode_switches_ = self._detect(obs, mask, dirs, X)
         if self.mode_switch is True and not any(s.found for s in self.mode_switches_.values()):
             raise ValueError(
                 "mode_switch=True but no direction shows a mode switch: "
@@ -527,7 +527,7 @@ class PoseModalModel(BaseEstimator):
         )
         return self
 
-    def _detect(self, obs, mask, dirs) -> dict[str, ModeSwitchDetection]:
+    def _detect(self, obs, mask, dirs, X=None) -> dict[str, ModeSwitchDetection]:
         nan = float("nan")
         out = {}
         for i, d in enumerate(dirs):
@@ -558,7 +558,9 @@ class PoseModalModel(BaseEstimator):
                     "not tested (mode_switch=False)",
                 )
             else:
-                out[d] = detect_mode_switch(fn, direction=d)
+                out[d] = detect_mode_switch(
+                    fn, direction=d, poses=None if X is None else X[mask[:, 3 * i]]
+                )
         return out
 
     def _set_fitted(self, names, dirs, X, Y, mask, groups) -> None:
