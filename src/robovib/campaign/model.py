@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,6 +25,7 @@ import numpy as np
 
 from ..gp.pose_model import PoseModalModel, load_pose_model
 from ..gp.predictor import PosePrediction, predict_at
+from .quality import ModelQualityWarning, model_quality_warnings
 from .selection import NextPoses, _gps_of, _posterior_cov, next_poses  # noqa: F401 (re-exported)
 
 __all__ = [
@@ -58,6 +60,10 @@ class PoseModelFit:
         Training data (SI outputs) and pose group of each row.
     excluded
         ``(modal.csv row, reason)`` of rows left out (fit flags).
+    warnings
+        Named warnings on the model's quality and on what the table left out
+        (:func:`robovib.campaign.quality.model_quality_warnings`); each is also issued as a
+        :class:`~robovib.campaign.quality.ModelQualityWarning`.
     """
 
     model: object
@@ -66,6 +72,7 @@ class PoseModelFit:
     Y: np.ndarray
     groups: np.ndarray
     excluded: tuple = field(default=())
+    warnings: tuple[str, ...] = field(default=())
 
 
 def _training_table(table, inputs, directions, use_flagged):
@@ -222,7 +229,12 @@ def fit_pose_model_from_table(
         "excluded_rows": [list(e) for e in excluded],
         "mode_switch_found": mode_switches_found(model),
     }
-    return PoseModelFit(model, cv_table, X, Y, groups, excluded)
+    quality = tuple(model_quality_warnings(model, cv_table))
+    if quality:
+        model.provenance_["quality_warnings"] = json.dumps(list(quality))
+    for w in quality:
+        warnings.warn(w, ModelQualityWarning, stacklevel=2)
+    return PoseModelFit(model, cv_table, X, Y, groups, excluded, quality)
 
 
 def mode_switches_found(model) -> dict[str, bool]:

@@ -48,6 +48,8 @@ DOF_GRID = (3.0, 4.0, 6.0, 10.0, 30.0, np.inf)
 LEVELS = (0.5, 0.9, 0.95)
 #: Fewest out-of-fold errors of a mode for a fitted scale and tail.
 MIN_Z = 10
+#: Fewest out-of-fold observations of a mode for a calibration of its own.
+MIN_MODE_OBSERVATIONS = 3
 #: Shapes of the band over the poses tried: ``σ → σ_ref^(1-γ) σ^γ`` (1: the GP's own).
 GAMMA_GRID = (0.5, 1.0)
 
@@ -298,7 +300,10 @@ def calibrate_predictions(pred: ModalPredictive, Y: np.ndarray, thresholds: np.n
     threshold); for each shape ``γ`` of :data:`GAMMA_GRID` the latent std becomes
     ``σ_ref^(1-γ) σ^γ`` (``σ_ref``: the median out-of-fold latent std of that output and mode),
     ``(c, ν)`` are fitted by :func:`fit_student_t`, and the ``γ`` of the highest out-of-fold log
-    predictive density is kept. A mode never observed takes the other mode's calibration.
+    predictive density is kept. A mode observed fewer than :data:`MIN_MODE_OBSERVATIONS`
+    times takes the other mode's calibration: a high mode seen at one or two poses leaves
+    folds without it, whose "high" component is the low one, and scoring against that would
+    blow its band up to nonsense (negative frequencies).
 
     Returns
     -------
@@ -324,7 +329,7 @@ def calibrate_predictions(pred: ModalPredictive, Y: np.ndarray, thresholds: np.n
                 v, s, lpd = fit_student_t(err[sel, j], shaped, noi[sel, j])
                 if lpd > best:
                     best, dof[j, c], scale[j, c], gamma[j, c] = lpd, v, s, g
-        if not np.any(np.isfinite(Y[:, j]) & (modes[:, j] == 1)):
+        if np.sum(np.isfinite(Y[:, j]) & (modes[:, j] == 1)) < MIN_MODE_OBSERVATIONS:
             dof[j, 1], scale[j, 1], gamma[j, 1], ref[j, 1] = (
                 dof[j, 0],
                 scale[j, 0],

@@ -91,6 +91,7 @@ def detect_mode_switch(
     min_ashman_d: float = 3.0,
     min_gap_sigma: float = 3.0,
     min_samples: int = 3,
+    min_high_samples: int = 1,
 ) -> ModeSwitchDetection:
     """Test whether the natural frequencies of one direction come from two distinct modes.
 
@@ -101,7 +102,14 @@ def detect_mode_switch(
     direction
         Label stored in the result.
     min_delta_bic, min_ashman_d, min_gap_sigma, min_samples
-        The thresholds of rules 1-4 of the module docstring.
+        The thresholds of rules 1-4 of the module docstring (``min_samples``: of the low,
+        usual mode).
+    min_high_samples
+        Fewest samples of the high mode. A high mode seen at fewer than ``min_samples``
+        samples is still a switch (issue 36): smoothing it into the low mode would predict
+        a blend of the two that exists nowhere. It then has no GP of its own (a constant with
+        a wide band, :data:`robovib.gp.predictive.UNMODELLED_MODE_RELATIVE_STD`), and the
+        reason says so.
 
     Returns
     -------
@@ -152,8 +160,16 @@ def detect_mode_switch(
             f"no clear gap between the modes: gap = {gap:.2f} within-mode std < {min_gap_sigma:g}",
             **stats,
         )
-    if min(low.size, high.size) < min_samples:
-        return none(f"a mode has fewer than {min_samples} samples", **stats)
+    if low.size < min_samples:
+        return none(f"the low mode has fewer than {min_samples} samples", **stats)
+    if high.size < min_high_samples:
+        return none(f"the high mode has fewer than {min_high_samples} samples", **stats)
+    few = (
+        f"; the high mode at only {high.size} sample(s): too few to model its field (a constant "
+        "with a wide band)"
+        if high.size < min_samples
+        else ""
+    )
     threshold = float(np.exp(0.5 * (low.max() + high.min())))
     return ModeSwitchDetection(
         direction,
@@ -167,7 +183,7 @@ def detect_mode_switch(
         int(high.size),
         f"two modes: {np.exp(low.min()):.3g}-{np.exp(low.max()):.3g} Hz and "
         f"{np.exp(high.min()):.3g}-{np.exp(high.max()):.3g} Hz (ΔBIC = {delta_bic:.0f}, "
-        f"D = {ashman:.1f}, gap = {gap:.1f} std)",
+        f"D = {ashman:.1f}, gap = {gap:.1f} std){few}",
     )
 
 
