@@ -35,7 +35,9 @@ from .predictive import ModalPredictive, _t_logpdf
 __all__ = [
     "DOF_GRID",
     "LEVELS",
+    "UNCALIBRATED_NOTE",
     "BandCalibration",
+    "calibration_status",
     "fit_student_t",
     "grouped_folds",
     "read_calibration",
@@ -50,6 +52,12 @@ LEVELS = (0.5, 0.9, 0.95)
 MIN_Z = 10
 #: Fewest out-of-fold observations of a mode for a calibration of its own.
 MIN_MODE_OBSERVATIONS = 3
+#: What a band of a model without calibration is (text and JSON say "uncalibrated").
+UNCALIBRATED_NOTE = (
+    "uncalibrated: the model has no band calibration (no /calibration in its file), so its "
+    "bands are the plain GP posterior, not checked against held-out poses and typically too "
+    "narrow; refit it with `robovib model fit` for calibrated bands"
+)
 #: Shapes of the band over the poses tried: ``σ → σ_ref^(1-γ) σ^γ`` (1: the GP's own).
 GAMMA_GRID = (0.5, 1.0)
 
@@ -449,3 +457,35 @@ def read_calibration(group):
         pit=d.get("pit"),
         levels=tuple(float(v) for v in a["levels"]),
     )
+
+
+def calibration_status(model) -> dict:
+    """Whether a pose model's bands are calibrated, for text and JSON outputs (issue 38).
+
+    Parameters
+    ----------
+    model : object
+        A pose model (``calibration_``: a :class:`BandCalibration` or None).
+
+    Returns
+    -------
+    dict
+        ``{"calibrated": bool, "bands": str}``: ``bands`` says how (grouped CV, folds, poses)
+        or :data:`UNCALIBRATED_NOTE`.
+
+    Examples
+    --------
+    >>> from robovib.gp.calibration import calibration_status
+    >>> class Plain:
+    ...     calibration_ = None
+    >>> calibration_status(Plain())["bands"].startswith("uncalibrated")
+    True
+    """
+    cal = getattr(model, "calibration_", None)
+    if cal is None:
+        return {"calibrated": False, "bands": UNCALIBRATED_NOTE}
+    return {
+        "calibrated": True,
+        "bands": f"calibrated on a {cal.n_folds}-fold cross-validation grouped by pose "
+        f"({cal.n_poses} poses)",
+    }
