@@ -103,3 +103,34 @@ def test_a_well_explained_output_draws_no_warning():
     # Named: a low R² with a real error; not named: a low R² of an output that hardly varies.
     (only,) = model_quality_warnings(fit.model, bad)
     assert only.startswith("x_fn_hz: grouped-CV R² = 0.10 < 0.5") and "mode switch" not in only
+
+
+def test_mill_predict_bands_draw_both_modes_where_the_dominant_one_is_uncertain():
+    """At X = 2650 mm, Rz = 0° the thesis model gives the ~63 Hz X mode P = 0.88: the band of
+    the peak-to-valley must hold the low mode's value too (it held the high mode's only)."""
+    from robovib.gp.chapter3_model import load_chapter3_predictor
+    from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool, milling_forces
+    from robovib.milling.prediction import convolve_force, summarise_vibration
+    from robovib.milling.workflow import base_frame_forces, predict_at_pose
+    from robovib.modal.parameters import ModalParameters
+
+    model = load_chapter3_predictor()
+    pose = np.array([[2650.0, 0.0, 0.0]])
+    pred = model.predictive(pose)
+    p_high = float(pred.high_probability[0, 0])
+    assert 0.5 < p_high < 0.975  # uncertain, the high mode more probable
+    cond = CuttingConditions(1750.0, 58e-6, 3e-3, 25.4e-3)
+    t = np.arange(3000) / 1000.0
+    force = base_frame_forces(milling_forces(t, MillingTool(), cond, ALUMINIUM_7075), "x")[:, 0]
+
+    def pv(fn_k_c):  # the forced vibration of one mode alone, as predict_at_pose computes it
+        m = ModalParameters.from_fn_k_c(*fn_k_c)
+        return summarise_vibration(convolve_force(force, 1000.0, [m]), 1000.0, 1750.0, 0.5)
+
+    low, high = (pv(pred.mean[0, :3, c]).peak_to_valley_m for c in (0, 1))
+    assert low < 0.1 * high  # two very different answers
+    (x, *_) = predict_at_pose(model, *pose[0], cond, coefficients=ALUMINIUM_7075,
+                              n_samples=200, rng=1)  # fmt: skip
+    assert x.peak_to_valley_m == pytest.approx(high, rel=1e-12)  # the more probable mode
+    lo, hi = x.peak_to_valley_band_m
+    assert lo < 2 * low and hi > high  # the band spans both modes (the mixture)

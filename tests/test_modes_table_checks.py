@@ -131,3 +131,46 @@ def test_the_multimode_fit_refuses_an_outlier_before_fitting(tmp_path):
     path = _write(table, tmp_path / "modes.csv")
     with pytest.raises(ValueError, match=rf"{tmp_path / 'modes.csv'} line 8 column fn_hz"):
         fit_multimode_pose_model(path, n_folds=3)
+
+
+def test_a_gross_outlier_of_a_dominant_mode_table_is_refused_a_mode_switch_is_not(tmp_path):
+    from robovib.campaign import fit_pose_model_from_table
+    from robovib.campaign.table_checks import check_modal_table
+
+    table = _modes_table(n=20)
+    modal = table[table["mode_id"] == "x1"].drop(columns="mode_id").reset_index(drop=True)
+    switched = modal.copy()
+    switched.loc[[3, 4], "fn_hz"] = 63.5  # the ~63 Hz X mode dominating at 2 poses: 3-4x
+    check_modal_table(switched, source="modal.csv")  # passes
+    modal.loc[11, "fn_hz"] = 1e6
+    path = _write(modal, tmp_path / "modal.csv")
+    with pytest.raises(ValueError, match=rf"{tmp_path / 'modal.csv'} line 13 column fn_hz: "
+                       r"1e\+06 is an outlier of direction x"):  # fmt: skip
+        fit_pose_model_from_table(path)
+
+
+def test_gpr_predict_never_prints_a_negative_frequency(tmp_path):
+    """A model fitted past the checks (1e6 Hz kept) predicts fn < 0 at ordinary poses; the
+    command refuses to print it."""
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+    from robovib.gp import PoseModalModel
+
+    t = _modes_table(n=20)
+    t = t[t["mode_id"] == "x1"].reset_index(drop=True)
+    t.loc[6, "fn_hz"] = 1e6
+    X = t[["x_mm", "y_mm", "rz_deg"]].to_numpy()
+    Y = t[["fn_hz", "stiffness_n_per_m", "damping_ns_per_m"]].to_numpy()
+    model = PoseModalModel(directions=("x",), mode_switch=False).fit(X, Y)
+    gen = np.random.default_rng(0)
+    query = np.column_stack([gen.uniform(2100, 2550, 400), gen.uniform(-300, 600, 400),
+                             gen.uniform(0, 180, 400)])  # fmt: skip
+    fn = model.predict(query)[:, 0]
+    assert np.any(fn < 0)  # the degraded model this guards against
+    pose = query[int(np.argmin(fn))]
+    path = model.save(tmp_path / "m.h5")
+    res = CliRunner().invoke(app, ["gpr", "predict", "--model", str(path), "--x", str(pose[0]),
+                                   "--y", str(pose[1]), "--rz", str(pose[2])])  # fmt: skip
+    assert res.exit_code == 1
+    assert "x_fn_hz = -" in res.output and "not a physical mode" in res.output

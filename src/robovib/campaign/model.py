@@ -171,7 +171,8 @@ def fit_pose_model_from_table(
     Raises
     ------
     ValueError
-        Missing columns, unknown inputs, fewer than 2 poses.
+        Missing columns, unknown inputs, fewer than 2 poses, a non-physical value or a gross
+        outlier (:func:`robovib.campaign.table_checks.check_modal_table`: file, line, column).
 
     See ``docs/methods.md`` section 3 (GP pose models).
 
@@ -188,15 +189,23 @@ def fit_pose_model_from_table(
 
     from ..io.csv_table import read_table
 
-    table = (  # the one CSV reader: errors name the line
-        modal_csv
-        if isinstance(modal_csv, pd.DataFrame)
-        else read_table(modal_csv, what="modal table").to_frame()
-    )
+    from .table_checks import check_modal_table
+
+    if isinstance(modal_csv, pd.DataFrame):
+        table, source, lines = modal_csv, "modal table", np.arange(2, len(modal_csv) + 2)
+    else:  # the one CSV reader: errors name the line
+        raw = read_table(modal_csv, what="modal table")
+        table, source, lines = raw.to_frame(), str(modal_csv), np.asarray(raw.lines, int)
     inputs = tuple(inputs)
     missing = [c for c in (*inputs, "direction", *_OUTPUTS) if c not in table.columns]
     if missing:
-        raise ValueError(f"modal table lacks column(s) {', '.join(missing)}")
+        raise ValueError(f"{source} lacks column(s) {', '.join(missing)}")
+    used = np.ones(len(table), bool)
+    if not use_flagged and "flags" in table.columns:
+        flags = table["flags"].astype("string").fillna("")
+        used = ~flags.apply(lambda s: any(f in s for f in _FIT_FLAGS)).to_numpy(bool)
+    # Non-physical values and gross outliers (a 1e6 Hz typo) are refused before the fit.
+    check_modal_table(table[used], source=source, lines=lines[used])
     if not inputs:
         raise ValueError("give at least one input column")
     if directions is None:

@@ -23,6 +23,7 @@ __all__ = [
     "MIN_RELATIVE_RMSE_PCT",
     "ModelQualityWarning",
     "model_quality_warnings",
+    "nonphysical_outputs",
 ]
 
 #: Grouped-CV R² below which an output is named.
@@ -132,4 +133,39 @@ def model_quality_warnings(model, cv_table, *, min_r2: float = MIN_R2) -> list[s
             f"{name}: grouped-CV R² = {r2:.2f} < {min_r2:g}: "
             + (cause if cause else "the model explains little of it between poses")
         )
+    return out
+
+
+def nonphysical_outputs(output_names, means) -> list[str]:
+    """The predicted outputs no mode can have: fn or k <= 0, c < 0 (one line each).
+
+    A smooth GP over a table with a gross outlier, or far from its data, can predict a
+    negative frequency (issue 38: fn = -26 449 Hz at an ordinary pose); such a prediction is
+    refused, not printed.
+
+    Parameters
+    ----------
+    output_names : sequence of str
+        Output names with their unit suffix (``x_fn_hz``, ``x_stiffness_n_per_m``, ...).
+    means : sequence of float
+        The predicted values (SI).
+
+    Returns
+    -------
+    list of str
+        ``"x_fn_hz = -2.645e+04"`` per non-physical output (empty: all physical).
+
+    Examples
+    --------
+    >>> from robovib.campaign.quality import nonphysical_outputs
+    >>> nonphysical_outputs(["x_fn_hz", "x_damping_ns_per_m"], [-26449.0, 10.0])
+    ['x_fn_hz = -2.645e+04']
+    """
+    out = []
+    for name, m in zip(output_names, means, strict=True):
+        m = float(m)
+        positive = name.endswith(("_fn_hz", "_stiffness_n_per_m"))
+        bad = not np.isfinite(m) or (m <= 0 if positive else name.endswith("_ns_per_m") and m < 0)
+        if bad:
+            out.append(f"{name} = {m:.4g}")
     return out

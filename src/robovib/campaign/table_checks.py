@@ -27,12 +27,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["OUTLIER_MIN_FACTOR", "OUTLIER_ROBUST_Z", "ModesTableCheck", "check_modes_table"]
+__all__ = [
+    "DOMINANT_OUTLIER_MIN_FACTOR",
+    "OUTLIER_MIN_FACTOR",
+    "OUTLIER_ROBUST_Z",
+    "ModesTableCheck",
+    "check_modal_table",
+    "check_modes_table",
+]
 
 #: Robust z (|log value - median| / (1.4826 MAD)) beyond which a value may be an outlier.
 OUTLIER_ROBUST_Z = 10.0
 #: ... and the factor from the mode's median it must also exceed, per quantity.
 OUTLIER_MIN_FACTOR = {"fn_hz": 2.0, "stiffness_n_per_m": 30.0, "damping_ns_per_m": 30.0}
+#: The same for the dominant mode of a direction (``modal.csv``), which may switch to another
+#: mode of the arm (Table A1: 15-23 Hz and 61-65 Hz in X): only values no switch explains.
+DOMINANT_OUTLIER_MIN_FACTOR = {"fn_hz": 10.0, "stiffness_n_per_m": 300.0, "damping_ns_per_m": 300.0}
 _VALUES = ("fn_hz", "stiffness_n_per_m", "damping_ns_per_m")
 _SHOWN = 6  # lines named in one message
 
@@ -58,6 +68,80 @@ def _where(source: str, lines, idx) -> str:
     more = f" and {len(idx) - _SHOWN} more" if len(idx) > _SHOWN else ""
     word = "line" if len(idx) == 1 else "lines"
     return f"{source} {word} {', '.join(shown)}{more}"
+
+
+def _refuse_outliers(group, what: str, source: str, lines, factors) -> None:
+    """Refuse a value far from its group's median in robust std and in ratio (line, column)."""
+    idx = group.index.to_numpy()
+    for c in _VALUES:
+        v = np.log(group[c].to_numpy(float))
+        med = float(np.median(v))
+        spread = max(1.4826 * float(np.median(np.abs(v - med))), 0.01)
+        z = np.abs(v - med) / spread
+        far = np.flatnonzero((z > OUTLIER_ROBUST_Z) & (np.abs(v - med) > np.log(factors[c])))
+        if far.size:
+            raise ValueError(
+                f"{_where(source, lines, idx[far])} column {c}: {np.exp(v[far[0]]):.4g} is an "
+                f"outlier of {what} (median {np.exp(med):.4g}, {z[far[0]]:.0f} robust std away): "
+                "correct or remove it"
+            )
+
+
+def _refuse_nonphysical(table, source: str, lines) -> None:
+    """Refuse a non-finite value, fn or k <= 0 or c < 0 (line and column)."""
+    for c in _VALUES:
+        v = table[c].to_numpy(float)
+        bad = np.flatnonzero(~np.isfinite(v) | ((v < 0) if c == "damping_ns_per_m" else (v <= 0)))
+        if bad.size:
+            need = ">= 0" if c == "damping_ns_per_m" else "> 0"
+            raise ValueError(
+                f"{_where(source, lines, table.index.to_numpy()[bad])} column {c}: "
+                f"{float(v[bad[0]])!r} is not a finite value {need} (SI)"
+            )
+
+
+def check_modal_table(table, *, source: str = "modal table", lines=None) -> None:
+    """Refuse non-physical values and gross outliers of a dominant-mode table (``modal.csv``).
+
+    A value is refused where it is non-finite, fn or k <= 0 or c < 0, or more than
+    :data:`OUTLIER_ROBUST_Z` robust std *and* a factor :data:`DOMINANT_OUTLIER_MIN_FACTOR`
+    (10 in fn) from the direction's median: a dominant-mode switch (3-4x in fn) passes, a
+    1e6 Hz typo does not. Rows with an empty value (unobserved) are left to the fit.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        ``direction`` and the fn, k, c columns.
+    source : str
+        The file's name, used in every message.
+    lines : sequence of int, optional
+        File line of each row (default: row numbers counted from 2).
+
+    Raises
+    ------
+    ValueError
+        The file, line(s) and column of the first bad value.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from robovib.campaign.table_checks import check_modal_table
+    >>> t = pd.DataFrame({"direction": "x", "fn_hz": [20.0, 21, 19, 22, 63, 20.5, 1e6],
+    ...                   "stiffness_n_per_m": 3e6, "damping_ns_per_m": 7e3})
+    >>> check_modal_table(t, source="modal.csv")
+    Traceback (most recent call last):
+    ...
+    ValueError: modal.csv line 8 column fn_hz: 1e+06 is an outlier of direction x ...
+    """
+    n = len(table)
+    lines = np.arange(2, n + 2) if lines is None else np.asarray(lines, int)
+    if "direction" not in table.columns or any(c not in table.columns for c in _VALUES):
+        return  # the caller names missing columns
+    table = table.reset_index(drop=True)
+    full = table[table[list(_VALUES)].notna().all(axis=1).to_numpy()]
+    _refuse_nonphysical(full, source, lines)
+    for d, g in full.groupby("direction", sort=True):
+        _refuse_outliers(g, f"direction {d}", source, lines, DOMINANT_OUTLIER_MIN_FACTOR)
 
 
 def check_modes_table(
@@ -135,15 +219,7 @@ def check_modes_table(
     table = table.assign(mode_id=ids)[ids != ""].reset_index(drop=True)
     lines = table["_line"].to_numpy(int)
 
-    for c in _VALUES:
-        v = table[c].to_numpy(float)
-        bad = np.flatnonzero(~np.isfinite(v) | ((v < 0) if c == "damping_ns_per_m" else (v <= 0)))
-        if bad.size:
-            need = ">= 0" if c == "damping_ns_per_m" else "> 0"
-            raise ValueError(
-                f"{_where(source, lines, bad)} column {c}: {float(v[bad[0]])!r} is not a finite value "
-                f"{need} (SI)"
-            )
+    _refuse_nonphysical(table, source, lines)
 
     rec = table["row"].astype(str)
     repeated = table.assign(_r=rec)[["_r", "mode_id"]].duplicated(keep=False).to_numpy()
@@ -180,18 +256,5 @@ def check_modes_table(
                     f"{hi_hz:.4g} Hz at {int(high.sum())} recordings); the lines named hold "
                     "another mode: relabel them"
                 )
-        for c in _VALUES:
-            v = np.log(g[c].to_numpy(float))
-            med = float(np.median(v))
-            spread = max(1.4826 * float(np.median(np.abs(v - med))), 0.01)
-            z = np.abs(v - med) / spread
-            far = np.flatnonzero(
-                (z > OUTLIER_ROBUST_Z) & (np.abs(v - med) > np.log(OUTLIER_MIN_FACTOR[c]))
-            )
-            if far.size:
-                raise ValueError(
-                    f"{_where(source, lines, idx[far])} column {c}: {np.exp(v[far[0]]):.4g} is an "
-                    f"outlier of mode {k} (median {np.exp(med):.4g}, {z[far[0]]:.0f} robust std "
-                    "away): correct or remove it"
-                )
+        _refuse_outliers(g, f"mode {k}", source, lines, OUTLIER_MIN_FACTOR)
     return ModesTableCheck(table.drop(columns="_line"), tuple(warnings))
