@@ -134,3 +134,24 @@ def test_mill_predict_bands_draw_both_modes_where_the_dominant_one_is_uncertain(
     assert x.peak_to_valley_m == pytest.approx(high, rel=1e-12)  # the more probable mode
     lo, hi = x.peak_to_valley_band_m
     assert lo < 2 * low and hi > high  # the band spans both modes (the mixture)
+
+
+def test_model_fit_prints_the_named_warning_in_text_and_json(tmp_path):
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    table, _ = _modal_table()
+    path = tmp_path / "modal.csv"
+    table[table["direction"] == "x"].to_csv(path, index=False)
+    runner = CliRunner()
+    res = runner.invoke(app, ["model", "fit", str(path), "-o", str(tmp_path / "m.h5"), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    named = [w for w in doc["warnings"] if w.startswith("x_fn_hz")]
+    assert len(named) == 1 and "a mode switch seen at 2 poses" in named[0]
+    assert doc["mode_switch_found"] == {"x": True}
+    res = runner.invoke(app, ["model", "fit", str(path), "-o", str(tmp_path / "t.h5")])
+    text = " ".join(res.stdout.split())
+    assert res.exit_code == 0 and "warning: x_fn_hz: grouped-CV R²" in text
+    assert "a mode switch seen at 2 poses" in text
