@@ -155,3 +155,27 @@ def test_model_fit_prints_the_named_warning_in_text_and_json(tmp_path):
     text = " ".join(res.stdout.split())
     assert res.exit_code == 0 and "warning: x_fn_hz: grouped-CV R²" in text
     assert "a mode switch seen at 2 poses" in text
+
+
+def test_a_simulated_campaign_with_the_switch_at_2_of_36_poses_is_named(tmp_path):
+    """The issue's done-when on the whole chain: ``sim campaign`` (hammer recordings of the
+    virtual robot) -> ``campaign process`` -> ``model fit``."""
+    from robovib.campaign import fit_campaign_table, process_campaign
+    from robovib.sim import simulate_campaign
+
+    gen = np.random.default_rng(1)
+    poses = np.column_stack([gen.uniform(2100, 2550, 34), gen.uniform(-300, 600, 34),
+                             gen.uniform(0, 180, 34)])  # fmt: skip
+    poses = np.vstack([poses, SWITCH_POSES])
+    sim = simulate_campaign(poses, tmp_path / "camp", rng=3, directions=("x",), n_hits=1,
+                            n_truth=0)  # fmt: skip
+    process_campaign(sim.manifest, tmp_path / "out", n_workers=1)
+    modal_csv = tmp_path / "out" / "modal.csv"
+    fn = pd.read_csv(modal_csv)["fn_hz"].to_numpy()
+    assert np.sum(fn > 40) == 2  # the ~63 Hz mode dominates at the two poses, only there
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fit = fit_campaign_table(modal_csv)
+    named = [w for w in fit.warnings if w.startswith("x_fn_hz")]
+    assert len(named) == 1 and "a mode switch seen at 2 poses" in named[0]
+    assert any(issubclass(w.category, ModelQualityWarning) for w in caught)
