@@ -65,6 +65,16 @@ def test_a_mode_switch_at_two_of_36_poses_is_named(rare_switch_fit):
     assert json.loads(fit.model.provenance_["quality_warnings"]) == list(fit.warnings)
 
 
+def test_the_model_report_repeats_the_warnings(rare_switch_fit, tmp_path):
+    from robovib.campaign import save_pose_model
+    from robovib.report.kinds import model_report
+
+    fit, _ = rare_switch_fit
+    path = save_pose_model(fit, tmp_path / "m.h5")
+    text = " ".join(p for s in model_report(path).sections for p in s.paragraphs)
+    assert "Warning: x_fn_hz: grouped-CV R²" in text and "a mode switch seen at 2 poses" in text
+
+
 def test_the_dominant_model_never_serves_a_blend(rare_switch_fit):
     fit, robot = rare_switch_fit
     gen = np.random.default_rng(7)
