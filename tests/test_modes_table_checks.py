@@ -73,8 +73,8 @@ def test_conflicting_duplicates_are_refused_identical_ones_counted_once():
     assert len(same.table) == len(table) and "counted once" in same.warnings[0]
     copy["stiffness_n_per_m"] *= 1.2
     damaged = pd.concat([table, copy], ignore_index=True)
-    with pytest.raises(ValueError, match=r"m\.csv lines 6, \d+: recording \d+ has mode x1 twice "
-                       r"with different stiffness_n_per_m \(column stiffness_n_per_m\)"):  # fmt: skip
+    with pytest.raises(ValueError, match=r"m\.csv lines 6, \d+: row \d+, mode_id x1 appears "
+                       r"twice with different stiffness_n_per_m \(column stiffness_n_per_m\)"):  # fmt: skip
         check_modes_table(damaged, source="m.csv")
 
 
@@ -174,3 +174,16 @@ def test_gpr_predict_never_prints_a_negative_frequency(tmp_path):
                                    "--y", str(pose[1]), "--rz", str(pose[2])])  # fmt: skip
     assert res.exit_code == 1
     assert "x_fn_hz = -" in res.output and "not a physical mode" in res.output
+
+
+def test_a_dominant_table_with_one_recording_twice_is_refused():
+    from robovib.campaign.table_checks import check_modal_table
+
+    modal = _modes_table(n=12)
+    modal = modal[modal["mode_id"] == "x1"].drop(columns="mode_id").reset_index(drop=True)
+    copy = modal.iloc[[2]].assign(fn_hz=lambda t: t["fn_hz"] * 1.05)
+    with pytest.raises(
+        ValueError, match=r"modal\.csv lines 4, 14: row 4, direction x appears twice"
+    ):
+        check_modal_table(pd.concat([modal, copy], ignore_index=True), source="modal.csv")
+    check_modal_table(pd.concat([modal, modal.iloc[[2]]], ignore_index=True))  # identical: fine

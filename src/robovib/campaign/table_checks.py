@@ -18,6 +18,10 @@ quietly into a pose model, and what :func:`check_modes_table` does with it:
   median — refused, line and column named. One fn of 1e6 Hz among 20 Hz modes made the GP
   predict fn = -26 449 Hz at an ordinary pose.
 
+:func:`check_modal_table` applies the same care to the dominant-mode table (``modal.csv``):
+non-physical values, one recording twice with different values, and gross outliers (a factor
+10 in fn: a switch of the dominant mode, 3-4x, passes) are refused.
+
 Every error and warning names the file, the line and the column (a DataFrame: its row number).
 """
 
@@ -140,8 +144,30 @@ def check_modal_table(table, *, source: str = "modal table", lines=None) -> None
     table = table.reset_index(drop=True)
     full = table[table[list(_VALUES)].notna().all(axis=1).to_numpy()]
     _refuse_nonphysical(full, source, lines)
+    if "row" in full.columns:  # one recording, one direction: one dominant mode
+        _refuse_conflicting_duplicates(full, ["row", "direction"], source, lines)
     for d, g in full.groupby("direction", sort=True):
         _refuse_outliers(g, f"direction {d}", source, lines, DOMINANT_OUTLIER_MIN_FACTOR)
+
+
+def _refuse_conflicting_duplicates(table, keys, source, lines) -> list[int]:
+    """Refuse rows sharing ``keys`` with different values; return the identical extra copies."""
+    key = table[keys].astype(str)
+    repeated = key.duplicated(keep=False).to_numpy()
+    drop: list[int] = []
+    if not repeated.any():
+        return drop
+    for vals_key, g in table[repeated].groupby([key[c][repeated] for c in keys], sort=False):
+        vals = g[list(_VALUES)].to_numpy(float)
+        if not np.allclose(vals, vals[0], rtol=1e-9, atol=0.0):
+            diff = [c for j, c in enumerate(_VALUES) if not np.allclose(vals[:, j], vals[0, j])]
+            what = ", ".join(f"{k} {v}" for k, v in zip(keys, vals_key, strict=True))
+            raise ValueError(
+                f"{_where(source, lines, g.index.to_numpy())}: {what} appears twice with "
+                f"different {', '.join(diff)} (column {diff[0]}): keep one"
+            )
+        drop.extend(g.index[1:].tolist())
+    return drop
 
 
 def check_modes_table(
@@ -221,21 +247,10 @@ def check_modes_table(
 
     _refuse_nonphysical(table, source, lines)
 
-    rec = table["row"].astype(str)
-    repeated = table.assign(_r=rec)[["_r", "mode_id"]].duplicated(keep=False).to_numpy()
-    if repeated.any():
-        drop = []
-        for (r, k), g in table[repeated].groupby([rec[repeated], "mode_id"], sort=False):
-            vals = g[list(_VALUES)].to_numpy(float)
-            if not np.allclose(vals, vals[0], rtol=1e-9, atol=0.0):
-                diff = [c for j, c in enumerate(_VALUES) if not np.allclose(vals[:, j], vals[0, j])]
-                raise ValueError(
-                    f"{_where(source, lines, g.index.to_numpy())}: recording {r} has mode {k} "
-                    f"twice with different {', '.join(diff)} (column {diff[0]}): keep one"
-                )
-            drop.extend(g.index[1:].tolist())
+    drop = _refuse_conflicting_duplicates(table, ["row", "mode_id"], source, lines)
+    if drop:
         warnings.append(
-            f"{_where(source, lines, np.array(drop))}: repeat an identical (recording, mode_id) "
+            f"{_where(source, lines, np.array(drop))}: repeat an identical (row, mode_id) "
             "row: counted once"
         )
         table = table.drop(index=drop).reset_index(drop=True)
