@@ -150,9 +150,18 @@ def check_modal_table(table, *, source: str = "modal table", lines=None) -> None
         _refuse_outliers(g, f"direction {d}", source, lines, DOMINANT_OUTLIER_MIN_FACTOR)
 
 
+def _cell_text(v) -> str:
+    """A key cell as written (a recording number read as a float is shown as ``4``)."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    return str(int(f)) if f.is_integer() else str(v)
+
+
 def _refuse_conflicting_duplicates(table, keys, source, lines) -> list[int]:
     """Refuse rows sharing ``keys`` with different values; return the identical extra copies."""
-    key = table[keys].astype(str)
+    key = table[keys].apply(lambda col: col.map(_cell_text))
     repeated = key.duplicated(keep=False).to_numpy()
     drop: list[int] = []
     if not repeated.any():
