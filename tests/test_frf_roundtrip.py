@@ -88,7 +88,7 @@ def test_h5_uff_round_trip_keeps_every_field(tmp_path, items):
 
 def _frf(**kw):
     f = np.arange(1.0, 11.0)
-    return FRF(f, np.ones(f.size) * 1e-6, **kw)
+    return FRF(f, np.ones(f.size) * (1 - 0.5j) * 1e-6, **kw)  # complex: readers need phase
 
 
 def test_uff_refuses_what_it_cannot_keep(tmp_path):

@@ -50,8 +50,14 @@ def test_detect_mode_switch_on_synthetic_samples():
     touching = np.concatenate([gen.uniform(9.3, 10.0, 70), gen.uniform(10.2, 11.5, 110)])
     res = detect_mode_switch(np.round(touching, 1))
     assert not res.found and res.gap_sigma < 3
-    # Too few high samples.
-    assert not detect_mode_switch(np.concatenate([gen.uniform(15, 23, 50), [63.0, 64.0]])).found
+    # A high mode at 2 samples is still a switch (never blended into the low mode), said so;
+    # min_high_samples restores the old rule, and too few low samples is never a switch.
+    rare = np.concatenate([gen.uniform(15, 23, 50), [63.0, 64.0]])
+    res = detect_mode_switch(rare)
+    assert res.found and (res.n_low, res.n_high) == (50, 2) and 23 < res.threshold_hz < 63
+    assert "too few to model" in res.reason
+    assert not detect_mode_switch(rare, min_high_samples=3).found
+    assert not detect_mode_switch(np.concatenate([[5.0, 5.1], gen.uniform(15, 23, 50)])).found
     with pytest.raises(ValueError, match="positive"):
         detect_mode_switch([10.0, -1.0, 12.0])
 

@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,6 +25,7 @@ import numpy as np
 
 from ..gp.pose_model import PoseModalModel, load_pose_model
 from ..gp.predictor import PosePrediction, predict_at
+from .quality import ModelQualityWarning, model_quality_warnings
 from .selection import NextPoses, _gps_of, _posterior_cov, next_poses  # noqa: F401 (re-exported)
 
 __all__ = [
@@ -58,6 +60,10 @@ class PoseModelFit:
         Training data (SI outputs) and pose group of each row.
     excluded
         ``(modal.csv row, reason)`` of rows left out (fit flags).
+    warnings
+        Named warnings on the model's quality and on what the table left out
+        (:func:`robovib.campaign.quality.model_quality_warnings`); each is also issued as a
+        :class:`~robovib.campaign.quality.ModelQualityWarning`.
     """
 
     model: object
@@ -66,6 +72,7 @@ class PoseModelFit:
     Y: np.ndarray
     groups: np.ndarray
     excluded: tuple = field(default=())
+    warnings: tuple[str, ...] = field(default=())
 
 
 def _training_table(table, inputs, directions, use_flagged):
@@ -164,7 +171,8 @@ def fit_pose_model_from_table(
     Raises
     ------
     ValueError
-        Missing columns, unknown inputs, fewer than 2 poses.
+        Missing columns, unknown inputs, fewer than 2 poses, a non-physical value or a gross
+        outlier (:func:`robovib.campaign.table_checks.check_modal_table`: file, line, column).
 
     See ``docs/methods.md`` section 3 (GP pose models).
 
@@ -180,16 +188,23 @@ def fit_pose_model_from_table(
     import pandas as pd
 
     from ..io.csv_table import read_table
+    from .table_checks import check_modal_table
 
-    table = (  # the one CSV reader: errors name the line
-        modal_csv
-        if isinstance(modal_csv, pd.DataFrame)
-        else read_table(modal_csv, what="modal table").to_frame()
-    )
+    if isinstance(modal_csv, pd.DataFrame):
+        table, source, lines = modal_csv, "modal table", np.arange(2, len(modal_csv) + 2)
+    else:  # the one CSV reader: errors name the line
+        raw = read_table(modal_csv, what="modal table")
+        table, source, lines = raw.to_frame(), str(modal_csv), np.asarray(raw.lines, int)
     inputs = tuple(inputs)
     missing = [c for c in (*inputs, "direction", *_OUTPUTS) if c not in table.columns]
     if missing:
-        raise ValueError(f"modal table lacks column(s) {', '.join(missing)}")
+        raise ValueError(f"{source} lacks column(s) {', '.join(missing)}")
+    used = np.ones(len(table), bool)
+    if not use_flagged and "flags" in table.columns:
+        flags = table["flags"].astype("string").fillna("")
+        used = ~flags.apply(lambda s: any(f in s for f in _FIT_FLAGS)).to_numpy(bool)
+    # Non-physical values and gross outliers (a 1e6 Hz typo) are refused before the fit.
+    check_modal_table(table[used], source=source, lines=lines[used])
     if not inputs:
         raise ValueError("give at least one input column")
     if directions is None:
@@ -222,7 +237,12 @@ def fit_pose_model_from_table(
         "excluded_rows": [list(e) for e in excluded],
         "mode_switch_found": mode_switches_found(model),
     }
-    return PoseModelFit(model, cv_table, X, Y, groups, excluded)
+    quality = tuple(model_quality_warnings(model, cv_table))
+    if quality:
+        model.provenance_["quality_warnings"] = json.dumps(list(quality))
+    for w in quality:
+        warnings.warn(w, ModelQualityWarning, stacklevel=2)
+    return PoseModelFit(model, cv_table, X, Y, groups, excluded, quality)
 
 
 def mode_switches_found(model) -> dict[str, bool]:

@@ -184,6 +184,11 @@ def fit_multimode_pose_model(
 ):
     """Pose model of every tracked mode of a campaign's ``modes.csv`` (module docstring).
 
+    The table is checked first (:func:`robovib.campaign.table_checks.check_modes_table`):
+    blank ids, duplicates, crossed labels and outliers are refused or named with file, line and
+    column. Every warning is issued as a
+    :class:`~robovib.campaign.quality.ModelQualityWarning` and kept in ``warnings``.
+
     Parameters
     ----------
     modes_csv
@@ -194,30 +199,41 @@ def fit_multimode_pose_model(
     directions
         Physical directions whose modes are modelled.
     min_presence
-        Mode ids seen at fewer than this fraction of the recordings are left out (noted in the
-        provenance): too few poses to learn a field from.
+        Mode ids seen at fewer than this fraction of the recordings are left out (named in a
+        warning and in the provenance): too few poses to learn a field from.
 
     Returns
     -------
     PoseModelFit
         Its model's ``directions`` are the mode ids (``x1``, ``x2``, ...), its provenance has
         ``mode_presence`` (JSON: per id, recordings, seen, fraction) and ``multimode = 1``.
+
+    Raises
+    ------
+    ValueError
+        A damaged table (file, line and column named) or no mode id to model.
     """
+    import warnings
+    from dataclasses import replace
+
     import pandas as pd
 
     from ..io.csv_table import read_table
     from .model import fit_pose_model_from_table
+    from .quality import ModelQualityWarning
+    from .table_checks import check_modes_table
 
-    table = (  # the one CSV reader: errors name the line
-        modes_csv
-        if isinstance(modes_csv, pd.DataFrame)
-        else read_table(modes_csv, what="mode table").to_frame()
-    )
-    if "mode_id" not in table.columns:
-        raise ValueError("the mode table has no mode_id column (track_modes gives it)")
+    if isinstance(modes_csv, pd.DataFrame):
+        table, source, lines = modes_csv, "mode table", None
+    else:  # the one CSV reader: errors name the line
+        raw = read_table(modes_csv, what="mode table")
+        table, source, lines = raw.to_frame(), str(modes_csv), raw.lines
+    # Checked before anything is fitted: errors and warnings name the file, line and column.
+    checked = check_modes_table(table, source=source, lines=lines, inputs=tuple(inputs))
+    notes = list(checked.warnings)
     table = table.assign(mode_id=table["mode_id"].astype("string").fillna("").astype(str))
     n_rec = {d: g["row"].nunique() for d, g in table.groupby("direction")}
-    tracked = table[table["mode_id"] != ""]
+    tracked = checked.table
     presence, ids = {}, []
     for k, g in tracked.groupby("mode_id", sort=True):
         d = mode_direction(k)
@@ -226,9 +242,19 @@ def fit_multimode_pose_model(
                        "presence": float(frac)}  # fmt: skip
         if d in directions and frac >= min_presence:
             ids.append(k)
+    for k in sorted(set(presence) - set(ids)):
+        p = presence[k]
+        if mode_direction(k) in directions:  # other directions are left out by choice
+            notes.append(
+                f"{source}: mode {k} left out of the model: seen at {p['n_seen']} of "
+                f"{p['n_recordings']} recordings ({100 * p['presence']:.0f} %), below "
+                f"min_presence {min_presence:g}"
+            )
+    for w in notes:
+        warnings.warn(w, ModelQualityWarning, stacklevel=2)
     if not ids:
-        raise ValueError(f"no mode id of directions {directions} seen at >= {min_presence} of "
-                         "the recordings")  # fmt: skip
+        raise ValueError(f"{source}: no mode id of directions {directions} seen at >= "
+                         f"{min_presence} of the recordings")  # fmt: skip
     ids.sort(key=lambda k: (mode_direction(k), int(k[len(mode_direction(k)) :])))
     use = tracked[tracked["mode_id"].isin(ids)].assign(direction=lambda t: t["mode_id"])
     use = use.assign(flags="")  # per-mode flags are in mode_flags; the fit checks its own
@@ -242,7 +268,9 @@ def fit_multimode_pose_model(
         "mode_presence": json.dumps(presence),
         "modes_left_out": json.dumps(sorted(set(presence) - set(ids))),
     }
-    return fit
+    if notes or fit.warnings:
+        fit.model.provenance_["quality_warnings"] = json.dumps([*notes, *fit.warnings])
+    return replace(fit, warnings=(*notes, *fit.warnings))
 
 
 def fit_campaign_table(

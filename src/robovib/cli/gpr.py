@@ -108,9 +108,17 @@ def predict(
         from ..gp.chapter3_model import load_chapter3_predictor
 
         pm, source = load_chapter3_predictor(), "thesis chapter-3 model (shipped, Table A1)"
+    from ..campaign.quality import nonphysical_outputs
+    from ..gp.calibration import calibration_status
+
     p = predict_at(pm, pose)
+    bad = nonphysical_outputs([o["output"] for o in p.outputs], [o["mean"] for o in p.outputs])
+    if bad:  # never print a negative frequency (issue 38)
+        fail(f"the model predicts {', '.join(bad)} at {p.pose}: not a physical mode (a gross "
+             "outlier in its training table, or a pose far from its data)")  # fmt: skip
+    bands = calibration_status(pm)  # an uncalibrated model says so (issue 38)
     if json_out:
-        emit_json({"model": source, **p.to_dict()})
+        emit_json({"model": source, **bands, **p.to_dict()})
         return
     con = console()
     where = ", ".join(f"{k}={v:g}" for k, v in p.pose.items())
@@ -134,3 +142,5 @@ def predict(
         )
     for note in p.notes:
         con.print(f"[yellow]note:[/] {escape(note)}")
+    if not bands["calibrated"]:
+        con.print(f"[yellow]warning:[/] bands {escape(bands['bands'])}")

@@ -64,10 +64,13 @@ def predict(
         from ..milling.prediction import resample_force
 
         f = resample_force(*read_force_csv(forces), 1000.0)
+    pose_model = workspace_model(model_path, seed)
     res = predict_at_pose(
-        workspace_model(model_path, seed), x, y, rz, cond, coefficients=material(material_name),
+        pose_model, x, y, rz, cond, coefficients=material(material_name),
         forces_n=f, feed_direction=feed, n_samples=samples, rng=seed,
     )  # fmt: skip
+    checks = _predict_checks(pose_model, (x, y, rz), cond, material(material_name), feed,
+                             samples, res)  # fmt: skip
     rows = [
         {"direction": r.direction, "mean_deflection_mm": from_si(r.mean_deflection_m, "mm"),
          "mean_deflection_band_mm": [from_si(v, "mm") for v in r.mean_deflection_band_m],
@@ -79,7 +82,7 @@ def predict(
     outside = list(res[0].extrapolation)
     if json_out:
         emit_json({"pose_mm_deg": [x, y, 325.0, 0, 0, rz], "spindle_rpm": rpm,
-                   "extrapolation": outside, "predictions": rows})  # fmt: skip
+                   "extrapolation": outside, "predictions": rows, **checks})  # fmt: skip
         return
     band = "[{:.4f}, {:.4f}]".format
     print_table(
@@ -93,6 +96,59 @@ def predict(
         console().print(
             f"[yellow]warning:[/] {', '.join(outside)} outside the calibrated workspace: extrapolation"
         )
+    _print_predict_checks(checks, ap, rpm)
+
+
+def _lobes_checks(model, samples: int) -> dict:
+    """Calibration of a pose model's bands and too few samples for P(stable)'s 5-95 %."""
+    from ..milling.cut_checks import quantile_sample_warning
+
+    if model is None:
+        return {}
+    from ..gp.calibration import calibration_status
+
+    bands = calibration_status(model)
+    warns = [] if bands["calibrated"] else [f"bands {bands['bands']}"]
+    few = quantile_sample_warning(samples, 0.05, "--samples")
+    return {**bands, "warnings": [*warns, *([few] if few else [])]}
+
+
+def _predict_checks(model, pose, cond, coefficients, feed, samples, res) -> dict:
+    """What ``mill predict`` says beside its figures: chatter, implausible inputs, bands."""
+    from ..gp.calibration import calibration_status
+    from ..milling.cut_checks import (
+        cut_stability,
+        implausible_cut_warnings,
+        quantile_sample_warning,
+    )
+    from ..milling.forces import MillingTool
+
+    stab = cut_stability(model, pose, cond, coefficients, feed_direction=feed)
+    biggest = max(max(abs(r.mean_deflection_m), abs(r.peak_to_valley_m)) for r in res)
+    warns = implausible_cut_warnings(MillingTool(), cond, deflection_m=biggest)
+    few = quantile_sample_warning(samples, 0.025, "--samples")
+    bands = calibration_status(model)
+    if not bands["calibrated"]:
+        warns.append(f"bands {bands['bands']}")
+    return {"stability": stab.to_dict(), **bands, "warnings": [*warns, *([few] if few else [])]}
+
+
+def _print_predict_checks(checks: dict, ap_mm: float, rpm: float) -> None:
+    con = console()
+    st = checks["stability"]
+    crit = st["critical_depth_m"]
+    limit = "no limit found" if crit is None else f"limit {from_si(crit, 'mm'):.3f} mm"
+    if st["chatter_predicted"]:
+        con.print(
+            f"[red]CHATTER predicted:[/] ap {ap_mm:g} mm is beyond the stability {limit} at "
+            f"{rpm:g} rpm ({st['method'].upper()}, as mill lobes): the peak-to-valley above is "
+            "the forced vibration of a stable cut, which this cut is not"
+        )
+    else:
+        con.print(f"stable: ap {ap_mm:g} mm below the stability {limit} at {rpm:g} rpm "
+                  f"({st['method'].upper()})")  # fmt: skip
+    for w in checks["warnings"]:
+        con.print(f"[yellow]warning:[/] {w}")
 
 
 @app.command("lobes")
@@ -159,9 +215,10 @@ def lobes(
     from ..milling.workflow import pose_extrapolation
 
     outside = list(pose_extrapolation(model, pose)) if model is not None else []
+    checks = _lobes_checks(model, samples)
     if json_out:
         emit_json({"pose_mm_deg": pose, "material": material_name,
-                   "extrapolation": outside, **doc})  # fmt: skip
+                   "extrapolation": outside, **doc, **checks})  # fmt: skip
         return
     env = chart.envelope
     typer.echo(f"{chart.title.splitlines()[0]}")
@@ -172,6 +229,8 @@ def lobes(
             f"warning: {', '.join(outside)} outside the calibrated workspace: the modes are a GP "
             "extrapolation"
         )
+    for w in checks.get("warnings", ()):
+        typer.echo(f"warning: {w}")
     if doc["minimum_depth_m"] is not None:
         typer.echo(
             f"depth stable at every speed ({method.upper()}): {from_si(doc['minimum_depth_m'], 'mm'):.3f} mm"

@@ -48,11 +48,16 @@ def fit(
 
     Given ``modes.csv`` (``campaign process --modes-band``: a ``mode_id`` column) the model has
     every tracked mode of x and y (directions x1, x2, ..., y1, ...), not the dominant one."""
+    import warnings
+
     from ..campaign import fit_campaign_table, mode_switches_found, save_pose_model
+    from ..campaign.quality import ModelQualityWarning
 
     names = [n.strip() for n in inputs.split(",") if n.strip()]
-    res = fit_campaign_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
-                             n_folds=folds, use_flagged=use_flagged)  # fmt: skip
+    with warnings.catch_warnings():  # printed below from res.warnings (text and JSON)
+        warnings.simplefilter("ignore", ModelQualityWarning)
+        res = fit_campaign_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
+                                 n_folds=folds, use_flagged=use_flagged)  # fmt: skip
     save_pose_model(res, output)
     if plot is not None:
         from ..gp.plot import plot_calibration
@@ -65,7 +70,7 @@ def fit(
             "modal_csv": str(modal_csv), "output": str(output), "inputs": names,
             "n_poses": len(set(res.groups.tolist())), "n_training_rows": len(res.X),
             "mode_switch_found": switches, "excluded_rows": [list(e) for e in res.excluded],
-            "cv": res.cv_table.to_dict(orient="records"),
+            "cv": res.cv_table.to_dict(orient="records"), "warnings": list(res.warnings),
         })  # fmt: skip
         return
     con = console()
@@ -80,7 +85,7 @@ def fit(
     con.print(t)
     con.print("RMSE in the output's SI unit; coverage: held-out hammer tests inside the calibrated "
               "measurement set (docs/bands.md)")  # fmt: skip
-    for w in res.model.calibration_.warnings():
+    for w in (*res.warnings, *res.model.calibration_.warnings()):
         con.print(f"[yellow]warning:[/] {escape(w)}")
     found = [d for d, f in switches.items() if f]
     con.print("mode switch: " + (f"found in {', '.join(found)}" if found else "none found"))

@@ -35,7 +35,9 @@ from .predictive import ModalPredictive, _t_logpdf
 __all__ = [
     "DOF_GRID",
     "LEVELS",
+    "UNCALIBRATED_NOTE",
     "BandCalibration",
+    "calibration_status",
     "fit_student_t",
     "grouped_folds",
     "read_calibration",
@@ -48,6 +50,14 @@ DOF_GRID = (3.0, 4.0, 6.0, 10.0, 30.0, np.inf)
 LEVELS = (0.5, 0.9, 0.95)
 #: Fewest out-of-fold errors of a mode for a fitted scale and tail.
 MIN_Z = 10
+#: Fewest out-of-fold observations of a mode for a calibration of its own.
+MIN_MODE_OBSERVATIONS = 3
+#: What a band of a model without calibration is (text and JSON say "uncalibrated").
+UNCALIBRATED_NOTE = (
+    "uncalibrated: the model has no band calibration (no /calibration in its file), so its "
+    "bands are the plain GP posterior, not checked against held-out poses and typically too "
+    "narrow; refit it with `robovib model fit` for calibrated bands"
+)
 #: Shapes of the band over the poses tried: ``σ → σ_ref^(1-γ) σ^γ`` (1: the GP's own).
 GAMMA_GRID = (0.5, 1.0)
 
@@ -298,7 +308,10 @@ def calibrate_predictions(pred: ModalPredictive, Y: np.ndarray, thresholds: np.n
     threshold); for each shape ``γ`` of :data:`GAMMA_GRID` the latent std becomes
     ``σ_ref^(1-γ) σ^γ`` (``σ_ref``: the median out-of-fold latent std of that output and mode),
     ``(c, ν)`` are fitted by :func:`fit_student_t`, and the ``γ`` of the highest out-of-fold log
-    predictive density is kept. A mode never observed takes the other mode's calibration.
+    predictive density is kept. A mode observed fewer than :data:`MIN_MODE_OBSERVATIONS`
+    times takes the other mode's calibration: a high mode seen at one or two poses leaves
+    folds without it, whose "high" component is the low one, and scoring against that would
+    blow its band up to nonsense (negative frequencies).
 
     Returns
     -------
@@ -324,7 +337,7 @@ def calibrate_predictions(pred: ModalPredictive, Y: np.ndarray, thresholds: np.n
                 v, s, lpd = fit_student_t(err[sel, j], shaped, noi[sel, j])
                 if lpd > best:
                     best, dof[j, c], scale[j, c], gamma[j, c] = lpd, v, s, g
-        if not np.any(np.isfinite(Y[:, j]) & (modes[:, j] == 1)):
+        if np.sum(np.isfinite(Y[:, j]) & (modes[:, j] == 1)) < MIN_MODE_OBSERVATIONS:
             dof[j, 1], scale[j, 1], gamma[j, 1], ref[j, 1] = (
                 dof[j, 0],
                 scale[j, 0],
@@ -444,3 +457,35 @@ def read_calibration(group):
         pit=d.get("pit"),
         levels=tuple(float(v) for v in a["levels"]),
     )
+
+
+def calibration_status(model) -> dict:
+    """Whether a pose model's bands are calibrated, for text and JSON outputs (issue 38).
+
+    Parameters
+    ----------
+    model : object
+        A pose model (``calibration_``: a :class:`BandCalibration` or None).
+
+    Returns
+    -------
+    dict
+        ``{"calibrated": bool, "bands": str}``: ``bands`` says how (grouped CV, folds, poses)
+        or :data:`UNCALIBRATED_NOTE`.
+
+    Examples
+    --------
+    >>> from robovib.gp.calibration import calibration_status
+    >>> class Plain:
+    ...     calibration_ = None
+    >>> calibration_status(Plain())["bands"].startswith("uncalibrated")
+    True
+    """
+    cal = getattr(model, "calibration_", None)
+    if cal is None:
+        return {"calibrated": False, "bands": UNCALIBRATED_NOTE}
+    return {
+        "calibrated": True,
+        "bands": f"calibrated on a {cal.n_folds}-fold cross-validation grouped by pose "
+        f"({cal.n_poses} poses)",
+    }

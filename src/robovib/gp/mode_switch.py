@@ -94,6 +94,7 @@ def detect_mode_switch(
     poses=None,
     distinct_ratio: float = 2.0,
     max_smooth_fraction: float = 0.75,
+    min_high_samples: int = 1,
 ) -> ModeSwitchDetection:
     """Test whether the natural frequencies of one direction come from two distinct modes.
 
@@ -104,7 +105,8 @@ def detect_mode_switch(
     direction
         Label stored in the result.
     min_delta_bic, min_ashman_d, min_gap_sigma, min_samples
-        The thresholds of rules 1-4 of the module docstring.
+        The thresholds of rules 1-4 of the module docstring (``min_samples``: of the low,
+        usual mode).
     poses
         Optional (n, d) poses of the samples. With them, rule 5 (smooth variation) is applied:
         two clusters whose mean frequencies differ by less than ``distinct_ratio`` are taken as
@@ -120,6 +122,12 @@ def detect_mode_switch(
         without rule 5 (another mode of the arm, not the same mode's drift).
     max_smooth_fraction
         See ``poses``.
+    min_high_samples
+        Fewest samples of the high mode. A high mode seen at fewer than ``min_samples``
+        samples is still a switch (issue 36): smoothing it into the low mode would predict
+        a blend of the two that exists nowhere. It then has no GP of its own (a constant with
+        a wide band, :data:`robovib.gp.predictive.UNMODELLED_MODE_RELATIVE_STD`), and the
+        reason says so.
 
     Returns
     -------
@@ -170,8 +178,16 @@ def detect_mode_switch(
             f"no clear gap between the modes: gap = {gap:.2f} within-mode std < {min_gap_sigma:g}",
             **stats,
         )
-    if min(low.size, high.size) < min_samples:
-        return none(f"a mode has fewer than {min_samples} samples", **stats)
+    if low.size < min_samples:
+        return none(f"the low mode has fewer than {min_samples} samples", **stats)
+    if high.size < min_high_samples:
+        return none(f"the high mode has fewer than {min_high_samples} samples", **stats)
+    few = (
+        f"; the high mode at only {high.size} sample(s): too few to model its field (a constant "
+        "with a wide band)"
+        if high.size < min_samples
+        else ""
+    )
     threshold = float(np.exp(0.5 * (low.max() + high.min())))
     ratio = float(np.exp(high.mean() - low.mean()))
     if poses is not None and ratio < distinct_ratio:
@@ -196,7 +212,7 @@ def detect_mode_switch(
         int(high.size),
         f"two modes: {np.exp(low.min()):.3g}-{np.exp(low.max()):.3g} Hz and "
         f"{np.exp(high.min()):.3g}-{np.exp(high.max()):.3g} Hz (ΔBIC = {delta_bic:.0f}, "
-        f"D = {ashman:.1f}, gap = {gap:.1f} std)",
+        f"D = {ashman:.1f}, gap = {gap:.1f} std){few}",
     )
 
 

@@ -23,7 +23,9 @@ dominates plus one GP per mode). The detection rule, on ``log fn`` of the observ
 3. the data have an empty gap between the modes at least 3 times the larger within-mode
    standard deviation of ``log fn`` (so a skewed or merely clustered cloud, as Table A1's Z
    frequencies at 9-11 Hz, is not called a switch);
-4. each mode has at least 3 samples.
+4. the low mode has at least 3 samples. A high mode seen at 1-2 samples is still modelled
+   (classified, a constant with a wide band, no GP of its own) rather than blended into the
+   low mode; ``robovib model fit`` warns that it is too few to model.
 
 The threshold between the modes is the geometric midpoint of the gap. The outcome per
 direction is kept in ``mode_switches_``.

@@ -31,7 +31,48 @@ import numpy as np
 from ..frf.core import FRF
 from .safe_write import atomic_output
 
-__all__ = ["FRF_CSV_UNITS", "read_frf_csv", "write_frf_csv"]
+__all__ = ["FRF_CSV_UNITS", "check_frf_has_phase", "read_frf_csv", "write_frf_csv"]
+
+#: Largest |imaginary part| relative to max |H| at which an FRF counts as phase-free.
+PHASE_FREE_TOLERANCE = 1e-9
+
+
+def check_frf_has_phase(frf: FRF, where: str) -> FRF:
+    """Refuse an FRF without phase: a real-valued or magnitude-only one (issue 38).
+
+    A measured FRF is complex: near a resonance its imaginary part is as large as its
+    magnitude. One whose imaginary part is zero at every frequency is a magnitude (or real
+    part) export; stability limits computed from it are wrong without a word (a minimum stable
+    depth of 80.7 mm against 9.76 mm from the complex FRF).
+
+    Parameters
+    ----------
+    frf : FRF
+        The FRF as read.
+    where : str
+        The file (and record) named in the error.
+
+    Returns
+    -------
+    FRF
+        ``frf``, unchanged.
+
+    Raises
+    ------
+    ValueError
+        The imaginary part is zero (to :data:`PHASE_FREE_TOLERANCE` of max |H|) everywhere.
+    """
+    v = np.asarray(frf.values)
+    peak = float(np.max(np.abs(v))) if v.size else 0.0
+    if peak == 0.0 or np.all(np.abs(np.imag(v)) <= PHASE_FREE_TOLERANCE * peak):
+        what = "zero everywhere" if peak == 0.0 else "zero at every frequency"
+        raise ValueError(
+            f"{where}: FRF{f' {frf.direction}' if frf.direction else ''} has no phase (its "
+            f"imaginary part is {what}): a real-valued or magnitude-only FRF gives wrong modes "
+            "and stability limits; export the complex FRF (real and imaginary parts)"
+        )
+    return frf
+
 
 _G = 9.80665
 #: CSV unit suffix -> (FRF quantity, factor to SI).
@@ -96,7 +137,7 @@ def read_frf_csv(
         decimal commas too), a real column without its imaginary one (or units that differ
         between them), unknown unit or direction, a cell that is not a finite number (the
         column and line are named), frequencies not strictly increasing, coherence outside
-        [0, 1].
+        [0, 1], an FRF without phase (imaginary column zero: :func:`check_frf_has_phase`).
     OSError
         The file cannot be read.
 
@@ -163,6 +204,7 @@ def read_frf_csv(
             raise ValueError(f"{where}: column {coh_name!r} must lie in [0, 1]")
         frf = FRF(f, factor * (data[rname] + 1j * data[iname]), coherence=coh, quantity=quantity,
                   direction=d, source="EMA", meta={"file": p.name})  # fmt: skip
+        check_frf_has_phase(frf, f"{where}: columns {rname!r}, {iname!r}")
         if compliance and quantity != "compliance":
             fmin = min_frequency_hz if min_frequency_hz is not None else float(f[f > 0][0])
             frf = frf.to_compliance(fmin)

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..frf.core import FRF
+from .frf_csv import check_frf_has_phase
 from .h5format import FRF_FORMAT, open_checked, write_header
 from .provenance import set_units, unit_of_key, write_provenance
 from .safe_write import atomic_output
@@ -138,6 +139,7 @@ def read_frfs_hdf5(path: str | Path) -> list[FRF]:
                 )
             except KeyError as exc:
                 raise ValueError(f"{path}: FRF {name} lacks {exc}") from None
+            check_frf_has_phase(out[-1], f"{path}: /frf/{name}/values")
         return out
 
 
@@ -395,6 +397,8 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
         )
     if not out:
         raise ValueError(f"{path}: no dataset 58 FRF records (function type 4)")
+    for i, frf in enumerate(out):
+        check_frf_has_phase(frf, f"{path}: FRF record {i}")
     return _attach_companions(out, companions, lc_index, path)
 
 

@@ -37,6 +37,9 @@ __all__ = [
 ]
 
 DIRECTIONS = ("x", "y", "z")
+#: High-mode probabilities between which the bands of :func:`predict_at_pose` draw from the
+#: model's mixture of the two modes (outside, the other mode cannot reach a 2.5-97.5 % band).
+MIXTURE_BAND_PROBABILITY = (0.025, 0.975)
 FEED_DIRECTIONS = ("x", "y")  #: feed along base +X or +Y (tool axis along Z)
 
 
@@ -289,9 +292,12 @@ def predict_at_pose(
                        for p in pms])  # fmt: skip
         pv, md = [], []
         draws = 0
+        # Where the dominant mode is uncertain (a modelled switch), draw from the model's
+        # mixture of the two modes, never normals around the more probable one (issue 36).
+        mixture = _mixture_draws(model, (x_mm, y_mm, rz_deg), pose, pms, 20 * n_samples, gen)
         while len(pv) < n_samples and draws < 20 * n_samples:
             draws += 1
-            s = gen.normal(mu, sd)
+            s = gen.normal(mu, sd) if mixture is None else mixture[draws - 1]
             if np.any(s <= 0):
                 continue
             try:
@@ -326,6 +332,21 @@ def predict_at_pose(
             )
         )
     return out
+
+
+def _mixture_draws(model, pose, modes: dict, pms: list, n: int, gen) -> np.ndarray | None:
+    """(n, len(pms), 3) latent draws of fn, k, c of the modes ``pms`` from the model's
+    predictive mixture, where the other mode can reach the 2.5-97.5 % band (its probability
+    above 2.5 %); else None."""
+    lo, hi = MIXTURE_BAND_PROBABILITY
+    if not any(p.high_mode_probability is not None and lo < p.high_mode_probability < hi
+               for p in pms) or not hasattr(model, "predictive"):  # fmt: skip
+        return None
+    ids = list(modes)
+    cols = [3 * ids.index(k) + j for k, p in modes.items() if any(p is q for q in pms)
+            for j in range(3)]  # fmt: skip
+    draws = model.predictive(np.asarray(pose, float)[None, :]).sample(n, gen, kind="latent")
+    return draws[:, 0, cols].reshape(n, len(pms), 3)
 
 
 @dataclass(frozen=True)

@@ -323,7 +323,14 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
             "a Student-t scale and tail per output and mode; see docs/bands.md."
         )
     else:
-        paragraphs.append("Bands: the plain GP posterior (not calibrated).")
+        from ..gp.calibration import UNCALIBRATED_NOTE
+
+        paragraphs.append(f"Bands: {UNCALIBRATED_NOTE}.")
+    quality = (getattr(model, "provenance_", None) or {}).get("quality_warnings")
+    if quality:  # model fit's named warnings (issue 36): low grouped-CV R², modes left out
+        import json
+
+        paragraphs += [f"Warning: {w}" for w in json.loads(quality)]
     section = ReportSection(
         title="Pose model of the modal parameters",
         paragraphs=tuple(paragraphs),
