@@ -177,6 +177,8 @@ class PoseModel(Protocol):
 
     def outside_inputs(self, X) -> np.ndarray: ...
 
+    def input_range(self) -> dict[str, tuple[float, float]]: ...
+
     def mode_switch_probability(self, X) -> np.ndarray | None: ...
 
 
@@ -473,6 +475,18 @@ class PosePredictionSide:
         for est, cols in parts:
             p[:, cols[0] // 3] = est.high_mode_probability(X)
         return calibrated_mode_probability(p, getattr(self, "calibration_", None))
+
+    def input_range(self) -> dict[str, tuple[float, float]]:
+        """The training range of every input, ``{name: (min, max)}`` in the input's units.
+
+        Returns
+        -------
+        dict
+            E.g. ``{"x_mm": (2100.0, 2550.0), ...}``: where the model interpolates.
+        """
+        self._require_fitted()
+        lo, hi = self.region_.lo, self.region_.hi
+        return {n: (float(a), float(b)) for n, a, b in zip(self.input_names_, lo, hi, strict=True)}
 
     # ------------------------------------------------------------------ what it is
     @property
