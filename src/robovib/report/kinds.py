@@ -412,9 +412,19 @@ def lobes_report(chart, settings: Mapping[str, Any], provenance=None) -> Report:
     step = max(1, rpm.size // 25)
     samples = pd.DataFrame({"spindle_rpm": rpm[::step], "critical_depth_mm": 1e3 * depth[::step],
                             "limited_by": np.asarray(doc["kind"])[::step]})  # fmt: skip
+    paragraphs = (chart.title.replace("\n", "; "), *chart.notes)
+    if chart.probability is not None:  # P(stable): the sampled limit's 5/95 % quantiles
+        p = chart.probability
+        lo, hi = (np.asarray(p.depth_quantile_m(q), float) for q in (0.05, 0.95))
+        samples["critical_depth_p05_mm"] = 1e3 * lo[::step]
+        samples["critical_depth_p95_mm"] = 1e3 * hi[::step]
+        paragraphs = (*paragraphs, (
+            f"Uncertainty: {p.settings['n_samples']} samples of the pose model's predictive "
+            "distribution; the 5-95 % columns bound the critical depth with 90 % probability, "
+            "and the chart's colour is the probability of a stable cut."))  # fmt: skip
     section = ReportSection(
         title="Chatter stability at the pose",
-        paragraphs=(chart.title.replace("\n", "; "),),
+        paragraphs=paragraphs,
         tables=(("Summary", summary), ("Critical axial depth vs spindle speed", samples)),
         figures=(("Stability chart: envelope, unstable region shaded", plot_lobes_chart(chart)),),
     )
@@ -434,6 +444,7 @@ def lobes_study_report(
     method: str = "sdm",
     model=None,
     rng: int = 0,
+    n_samples: int = 0,
 ) -> Report:
     """Lobes at a pose from the chapter-3 pose model (or ``model``) as a report.
 
@@ -454,10 +465,13 @@ def lobes_study_report(
         Spindle speeds ``start:stop:count`` [rpm].
     method : str
         Stability method (``"sdm"`` or ``"zoa"``).
-    model : object, optional
-        Pose model (default: the shipped chapter-3 model).
+    model : PoseModel, optional
+        Pose model of either kind (dominant-mode or multi-mode; default: the shipped chapter-3
+        model).
     rng : int
-        Seed of the chapter-3 model.
+        Seed of the chapter-3 model and of the samples.
+    n_samples : int
+        Monte-Carlo samples of the model for the probability of a stable cut (0: none).
 
     Returns
     -------
@@ -494,11 +508,14 @@ def lobes_study_report(
         coefficients=mats[material], spindle_rpm=speeds, method=method,
         pose_label=f"X {x_mm:g} mm, Y {y_mm:g} mm, Rz {rz_deg:g}°, feed {feed}",
         material_label=material, pose_model=model, pose=(x_mm, y_mm, rz_deg), feed_direction=feed,
+        n_samples=n_samples, rng=rng,
     )  # fmt: skip
     settings = {"x_mm": x_mm, "y_mm": y_mm, "z_mm": 325.0, "rz_deg": rz_deg, "ae_mm": ae_mm,
                 "material": material, "feed_direction": feed, "rpm_range": rpm_range,
                 "n_speeds": int(speeds.size), "method": method,
                 "tool": "25.4 mm, 2 flutes, 30° helix (thesis §3.5)"}  # fmt: skip
+    if n_samples:
+        settings |= {"n_samples": int(n_samples), "seed": int(rng)}
     return lobes_report(chart, settings)
 
 
