@@ -191,8 +191,10 @@ def extrapolating(model, X) -> np.ndarray:
     numpy.ndarray
         (n,) bool.
     """
+    from .contract import PoseModel
+
     X = np.atleast_2d(np.asarray(X, float))
-    if hasattr(model, "extrapolating") and not hasattr(model, "pose_range_"):
+    if isinstance(model, PoseModel):  # the contract's one rule (box and hull)
         return np.asarray(model.extrapolating(X), bool).reshape(-1)
     lo, hi = training_range(model)
     if X.shape[1] != lo.size:
@@ -218,8 +220,10 @@ def outside_inputs(model, x, names) -> tuple[str, ...]:
     tuple of str
         The names of the inputs outside their training range.
     """
+    from .contract import PoseModel
+
     x = np.asarray(x, float).reshape(-1)
-    if hasattr(model, "outside_inputs") and hasattr(model, "input_names"):
+    if isinstance(model, PoseModel):
         flags = np.asarray(model.outside_inputs(x[None, :]), bool).reshape(-1)
         return tuple(n for n, f in zip(names, flags, strict=True) if f)
     lo, hi = training_range(model)

@@ -568,6 +568,33 @@ class PoseModalModel(PosePredictionSide, BaseEstimator):
             for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True)
         ]  # fmt: skip
 
+    def gp_posteriors(self) -> list:
+        """Every GP of the model: ``(posterior, noise_std, signal_std, columns, mode)``.
+
+        As :meth:`robovib.gp.predictor.PosePredictor.gp_posteriors` (same order, same numbers):
+        ``noise_std`` and ``signal_std`` (B,) in data units (the reference noise group),
+        ``columns`` the model outputs of the B targets, ``mode`` 0 for the low (or only) mode
+        and 1 for the high mode of a switching direction.
+
+        Returns
+        -------
+        list of tuple
+            ``(posterior, noise_std, signal_std, columns, mode)`` per GP.
+        """
+        self._require_fitted()
+        out = []
+        for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
+            cols = np.asarray(cols, int)
+            switching = isinstance(est, ModeSwitchingGPRegressor)
+            gps = [(est.low_model_ if switching else est, cols, 0)]
+            if switching and est.high_model_ is not None:
+                gps.append((est.high_model_, cols[np.asarray(est.switching_outputs, int)], 1))
+            for gp, c, mode in gps:
+                hp = gp.hyperparameters_
+                out.append((gp.posterior_, noise_std_of(hp), np.asarray(hp.signal_std, float),
+                            c, mode))  # fmt: skip
+        return out
+
     # ------------------------------------------------------------------ persistence
     def save(self, path, *, cv=None, provenance: Mapping[str, object] | None = None) -> Path:
         """Write the fitted model to HDF5 (no pickle), atomically (temporary file + rename).

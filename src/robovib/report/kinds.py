@@ -187,9 +187,9 @@ def _load_model(path):
 
         return FRFPoseModel.load(path)
     if fmt == POSE_MODEL_FORMAT:
-        from ..gp import PoseModalModel
+        from ..gp.contract import load_pose_model
 
-        return PoseModalModel.load(path)
+        return load_pose_model(path)
     raise ValueError(
         f"{path}: format {fmt!r} is not a robovib pose model ({POSE_MODEL_FORMAT}) or hybrid "
         f"FRF model ({FRF_POSE_MODEL_FORMAT})"
@@ -240,7 +240,7 @@ def plot_pose_model_slice(model, ax=None, n: int = 60):
     grid[:, 0] = np.linspace(lo[0], hi[0], n)
     mean, std = model.predict(grid, return_std=True)
     names = list(model.output_names_)
-    for i, d in enumerate(getattr(model, "directions_", model.directions)):
+    for i, d in enumerate(model.directions_):
         j = names.index(f"{d}_fn_hz")
         ax.plot(grid[:, 0], mean[:, j], color=f"C{i}", label=f"{d.upper()} fn")
         ax.fill_between(grid[:, 0], mean[:, j] - 2 * std[:, j], mean[:, j] + 2 * std[:, j],
@@ -285,7 +285,9 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
     model = _load_model(path)
     prov = {**report_provenance(provenance, inputs=[path]), **_file_provenance(path)}
     prov.setdefault("model file sha256", file_sha256(path))
-    if hasattr(model, "frequency_hz") and hasattr(model, "pose_range_"):
+    from ..gp.contract import PoseModel
+
+    if not isinstance(model, PoseModel):  # the hybrid FRF model: its own page
         return _frf_model_report(model, path, prov)
     X = np.asarray(model.X_train_, float)
     Y = np.asarray(model.Y_train_, float)
@@ -306,11 +308,21 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
     figures = [
         ("Predicted natural frequencies along the first input", plot_pose_model_slice(model))
     ]
-    cal = getattr(model, "calibration_", None)
+    cal = model.calibration_ if model.calibrated else None
     paragraphs = [
         f"{type(model).__name__} from {path}: {X.shape[0]} training rows, inputs "
-        f"{', '.join(model.input_names)}, outputs {', '.join(names)} (SI)."
+        f"{', '.join(model.input_names)}, outputs {', '.join(names)} (SI).",
+        f"Kind: {model.kind} (modes {', '.join(model.directions_)}); bands "
+        f"{'calibrated' if model.calibrated else 'NOT calibrated'}.",
     ]
+    presence = model.provenance.get("mode_presence")
+    if presence:
+        import json
+
+        seen = json.loads(str(presence))
+        paragraphs.append("Mode presence (fraction of the campaign's recordings that showed the "
+                          "mode): " + ", ".join(f"{k} {v['presence']:.0%}"
+                                                for k, v in sorted(seen.items())))  # fmt: skip
     if cal is not None:
         from ..gp.plot import plot_calibration
 
@@ -330,7 +342,7 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
         tables=tuple(tables),
         figures=tuple(figures),
     )
-    settings = {k: v for k, v in model.get_params().items()} if hasattr(model, "get_params") else {}
+    settings = dict(model.get_params())
     return Report(f"robovib — pose model {Path(path).name}", (section,), settings=settings,
                   provenance=prov)  # fmt: skip
 
