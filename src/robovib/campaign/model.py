@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..gp.pose_model import PoseModalModel, load_pose_model
+from ..gp.loader import load_pose_model
+from ..gp.pose_model import PoseModalModel
 from ..gp.predictor import PosePrediction, predict_at
 from .selection import NextPoses, _gps_of, _posterior_cov, next_poses  # noqa: F401 (re-exported)
 

@@ -324,9 +324,14 @@ def lobe_map(
             typer.echo(f"P(stable) at {depth:g} mm: {np.nanmin(p):.2f}-{np.nanmax(p):.2f} over "
                        f"the map; >= 0.95 at {int(np.sum(p >= 0.95))} of {p.size} poses")  # fmt: skip
     if model_path is not None:
+        n_out = int(ds["extrapolating"].sel(rz_deg=rz).sum())
+        n_none = int(np.isnan(ds["feed_fn_hz"].sel(rz_deg=rz).values).sum())
         typer.echo(f"grid: the model's measured range X {box[0][0]:g}-{box[0][1]:g} mm, "
                    f"Y {box[1][0]:g}-{box[1][1]:g} mm; modes {ds.attrs['feed_modes']} (feed), "
-                   f"{ds.attrs['normal_modes']} (normal)")  # fmt: skip
+                   f"{ds.attrs['normal_modes']} (normal); {n_out} of {nx * ny} poses outside "
+                   "the measured poses (extrapolation, crossed on the plot; the best spots are "
+                   "chosen inside)"
+                   + (f"; no physical mode predicted at {n_none}" if n_none else ""))  # fmt: skip
     for path in (output, plot):
         if path is not None:
             typer.echo(f"wrote {path}")

@@ -28,7 +28,7 @@ A command that needs one mode per direction (a single-DOF controller) asks
 :func:`pick_mode`, which names the mode it picked and why (the largest compliance peak at the
 pose) instead of failing on a multi-mode model.
 
-:func:`load_pose_model` is the one loader of a pose-model file.
+:func:`robovib.gp.loader.load_pose_model` is the one loader of a pose-model file.
 """
 
 from __future__ import annotations
@@ -36,14 +36,12 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from .._threads import single_blas_thread
 from ..modal.parameters import ModalParameters
-from .pose_file import require_pose_inputs
 from .pose_mode import PoseMode, modes_at
 from .predictive import ModalPredictive, assemble, calibrated_mode_probability
 
@@ -54,7 +52,6 @@ __all__ = [
     "PickedMode",
     "PoseModel",
     "PosePredictionSide",
-    "load_pose_model",
     "physical_direction",
     "pick_mode",
 ]
@@ -580,57 +577,3 @@ def pick_mode(model: PoseModel, pose, direction: str) -> PickedMode:
         f"pose ({best.compliance_peak_m_per_n * 1e6:.3g} µm/N; {others})"
     )
     return PickedMode(best, cands, reason)
-
-
-# -------------------------------------------------------------------------- the loader
-def load_pose_model(path, require_inputs=None, *, predict_only: bool = False):
-    """The one loader of a pose-model file (``robovib.PoseModalModel`` HDF5, no pickle).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The model file (``model fit``, :meth:`PoseModalModel.save`): a dominant-mode or a
-        multi-mode model, or the chapter-3 model.
-    require_inputs : sequence of str, optional
-        The input names the caller needs (e.g. ``("x_mm", "y_mm", "rz_deg")``).
-    predict_only : bool
-        ``True``: a :class:`~robovib.gp.predictor.PosePredictor` (NumPy and h5py only, starts in
-        milliseconds; the full model only where the stored covariance needed jitter).
-        ``False``: the :class:`~robovib.gp.PoseModalModel` (scikit-learn; refit, update, save).
-        Both honour :class:`PoseModel` with the same numbers.
-
-    Returns
-    -------
-    PoseModalModel or PosePredictor
-
-    Raises
-    ------
-    ValueError
-        Not a readable HDF5 file, not a robovib pose model, a newer format, or other inputs
-        than required.
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> from robovib.gp import load_chapter3_model, load_pose_model
-    >>> path = load_chapter3_model().save(pathlib.Path(tempfile.mkdtemp()) / "m.h5")
-    >>> load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg")).input_names
-    ('x_mm', 'y_mm', 'rz_deg')
-    >>> load_pose_model(path, predict_only=True).kind
-    'dominant-mode'
-    """
-    path = Path(path)
-    model = None
-    if predict_only:
-        from .predictor import JitterNeeded, PosePredictor
-
-        try:
-            model = PosePredictor.load(path)
-        except JitterNeeded:
-            model = None
-    if model is None:
-        from .pose_model import PoseModalModel
-
-        model = PoseModalModel.load(path)
-    require_pose_inputs(model, path, require_inputs)
-    return model

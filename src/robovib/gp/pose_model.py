@@ -40,7 +40,7 @@ from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
 from . import _h5
-from .contract import PosePredictionSide, load_pose_model
+from .contract import PosePredictionSide
 from .extrapolation import TrainingRegion
 from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
@@ -56,7 +56,6 @@ __all__ = [
     "PoseModalModel",
     "PoseMode",
     "detect_mode_switch",
-    "load_pose_model",
 ]
 
 

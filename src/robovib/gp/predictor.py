@@ -42,7 +42,7 @@ from .contract import PosePredictionSide
 from .extrapolation import TrainingRegion
 from .pose_file import FORMAT as FORMAT  # re-exported (their former home)
 from .pose_file import FORMAT_VERSION as FORMAT_VERSION
-from .pose_file import read_pose_file
+from .pose_file import read_pose_file, require_pose_inputs
 from .posterior import GPPosterior, fitted_posterior, standardisation, theta_from_hyperparameters
 
 __all__ = [
@@ -355,9 +355,14 @@ def load_pose_predictor(path, require_inputs=None):
     PosePredictor or PoseModalModel
         A model with ``predict`` and ``predictive``.
     """
-    from .contract import load_pose_model
+    try:
+        model = PosePredictor.load(path)
+    except JitterNeeded:
+        from .pose_model import PoseModalModel
 
-    return load_pose_model(path, require_inputs, predict_only=True)
+        model = PoseModalModel.load(path)
+    require_pose_inputs(model, path, require_inputs)
+    return model
 
 
 #: Probability band of the high mode in which the dominant mode counts as ambiguous.

@@ -87,7 +87,9 @@ def best_pose(ds, spindle_rpm: float, rz_deg: float) -> dict:
     -------
     dict
         ``critical_depth_m`` (n_y, n_x) [m] (NaN where no lobe was found), ``best_pose_mm``
-        [x, y] [mm], ``best_depth_m`` and ``shallowest_depth_m`` [m].
+        [x, y] [mm] (among the poses inside the model's measured region, where the map says),
+        ``best_depth_m`` and ``shallowest_depth_m`` [m]; for a sampled map also the 5/95 %
+        depths and the best spot stable with 95 % (``best_sure_*``), and ``p_stable``.
 
     Raises
     ------
@@ -98,7 +100,16 @@ def best_pose(ds, spindle_rpm: float, rz_deg: float) -> dict:
     vals = np.where(np.isfinite(at.values), at.values, np.nan)
     if not np.any(np.isfinite(vals)):
         raise ValueError(f"no finite critical depth at {spindle_rpm:g} rpm, rz = {rz_deg:g} deg")
-    i, j = np.unravel_index(np.nanargmax(vals), vals.shape)
+    inside = np.ones(vals.shape, bool)
+    if "extrapolating" in ds:  # the best spot is one the model was measured around
+        inside = ~ds["extrapolating"].sel(rz_deg=rz_deg).transpose("x_mm", "y_mm").values
+        if not np.any(inside & np.isfinite(vals)):
+            inside[:] = True
+
+    def argmax(v):
+        return np.unravel_index(np.nanargmax(np.where(inside, v, np.nan)), v.shape)
+
+    i, j = argmax(vals)
     xs, ys = at["x_mm"].values, at["y_mm"].values
     out = {
         "critical_depth_m": vals.T,
@@ -110,7 +121,7 @@ def best_pose(ds, spindle_rpm: float, rz_deg: float) -> dict:
         q = {k: ds[f"a_lim_{k}_m"].sel(spindle_rpm=spindle_rpm, rz_deg=rz_deg)
              .transpose("x_mm", "y_mm").values for k in ("p05", "p50", "p95")}  # fmt: skip
         safe = np.where(np.isfinite(q["p05"]), q["p05"], np.nan)
-        i, j = np.unravel_index(np.nanargmax(safe), safe.shape)
+        i, j = argmax(safe)
         out |= {
             "critical_depth_p05_m": q["p05"].T,
             "critical_depth_p95_m": q["p95"].T,
@@ -184,7 +195,8 @@ def feed_normal_modes(model, poses: np.ndarray, feed_direction: str = "x"):
     -------
     modes : numpy.ndarray
         (n, 2, m, 3) [fn_hz, stiffness_n_per_m, damping_ratio] of up to ``m`` modes per
-        direction (feed, normal), NaN-padded.
+        direction (feed, normal), NaN-padded; all NaN at a pose where the model predicts no
+        physical mode (far off the measured poses).
     ids : tuple of tuple of str
         Mode ids of the feed and the normal direction (as the model names them).
 
@@ -200,21 +212,34 @@ def feed_normal_modes(model, poses: np.ndarray, feed_direction: str = "x"):
     if not isinstance(model, PoseModel):
         m = mean_modes_at_poses(model, x)[:, [0, 1] if feed_direction == "x" else [1, 0], :]
         return m[:, :, None, :], ((feed_direction,), (normal,))
-    rows = model.mode_set(x)
+    try:
+        rows = model.mode_set(x)
+    except ValueError:  # a pose far off the measured poses predicts no physical mode: no row
+        rows = []
+        for r in x:
+            try:
+                rows.append(model.mode_set(r[None, :])[0])
+            except ValueError:
+                rows.append(None)
+        if all(r is None for r in rows):
+            raise
+    first = next(r for r in rows if r is not None)
     for d in (feed_direction, normal):
-        if d not in rows[0]:
+        if d not in first:
             raise ValueError(
                 f"the pose model has no mode in direction {d!r} (it has modes in "
-                f"{', '.join(sorted(rows[0]))}): a map needs the feed and the normal direction"
+                f"{', '.join(sorted(first))}): a map needs the feed and the normal direction"
             )
-    width = max(len(r[d]) for r in rows for d in (feed_direction, normal))
+    width = max(len(first[d]) for d in (feed_direction, normal))
     out = np.full((len(x), 2, width, 3), np.nan)
     for i, row in enumerate(rows):
+        if row is None:
+            continue
         for j, d in enumerate((feed_direction, normal)):
             for k, m in enumerate(row[d]):
                 p = m.parameters
                 out[i, j, k] = (p.natural_frequency_hz, p.stiffness_n_per_m, p.damping_ratio)
-    ids = tuple(tuple(m.mode_id for m in rows[0][d]) for d in (feed_direction, normal))
+    ids = tuple(tuple(m.mode_id for m in first[d]) for d in (feed_direction, normal))
     return out, ids
 
 
@@ -229,6 +254,8 @@ def _chunk_lobes(modes, tool, cond, coef, rpm, method, options):
     for i in range(n):
         feed = [ModalParameters(*m) for m in modes[i, 0] if np.all(np.isfinite(m))]
         normal = [ModalParameters(*m) for m in modes[i, 1] if np.all(np.isfinite(m))]
+        if not (feed and normal):  # no physical mode predicted at this pose: left NaN
+            continue
         if method == "sdm":
             env = sdm_lobes(feed, normal, tool, cond, coef, rpm, **options)
         else:
@@ -246,6 +273,8 @@ def _chunk_probability(dists, tool, cond, coef, rpm, method, n_samples, seeds, d
     q = np.full((3, n, rpm.size), np.nan)
     p = np.full((n, rpm.size), np.nan)
     for i, (dist, seed) in enumerate(zip(dists, seeds, strict=True)):
+        if dist is None:  # no physical mode predicted at this pose
+            continue
         prob = stability_probability(
             dist, tool, cond, coef, rpm, n_samples=n_samples, method=method, rng=seed, **options
         )
@@ -357,8 +386,13 @@ def workspace_lobe_map(
         raise ValueError("spindle_rpm must be positive [rpm]")
     grid = np.stack(np.meshgrid(xs, ys, rzs, indexing="ij"), axis=-1).reshape(-1, 3)
     every, ids = feed_normal_modes(model, grid, feed_direction)
-    if not np.all(np.any(np.all(np.isfinite(every), axis=-1), axis=-1)):
-        raise ValueError("the pose model returned no x/y mode for some poses")
+    predicted = np.all(np.any(np.all(np.isfinite(every), axis=-1), axis=-1), axis=-1)  # (n,)
+    if not np.any(predicted):
+        raise ValueError("the pose model returned no x/y mode at any pose of the map")
+    from ..gp.contract import PoseModel
+
+    extrap = (np.asarray(model.extrapolating(grid), bool) if isinstance(model, PoseModel)
+              else np.zeros(len(grid), bool))  # fmt: skip
     # the per-pose variables hold the mode with the largest compliance peak of each direction
     z = np.clip(np.nan_to_num(every[..., 2], nan=0.5), 1e-12, 0.999)
     peak = 1.0 / (np.nan_to_num(every[..., 1], nan=np.inf) * z * np.sqrt(1.0 - z * z))
@@ -384,10 +418,7 @@ def workspace_lobe_map(
 
         draws = max(400, 20 * n_samples)
         dists = [mode_distributions_at_pose(model, g, n_draws=draws, rng=int(rng) + i)
-                 for i, g in enumerate(grid)]  # fmt: skip
-        for d in (feed_direction, "y" if feed_direction == "x" else "x"):
-            if any(d not in dist for dist in dists):
-                raise ValueError(f"the pose model has no mode in direction {d!r}")
+                 if ok else None for i, (g, ok) in enumerate(zip(grid, predicted, strict=True))]  # fmt: skip
         opts = {**lobe_options, "feed_direction": feed_direction}
         tasks += [
             dask.delayed(_chunk_probability)(
@@ -442,6 +473,8 @@ def workspace_lobe_map(
                                 {"units": "m", "long_name": "depth stable at every speed"}),
             "best_rpm": (dims, interior, {"units": "rpm", "long_name": "interior maximum of the envelope"}),
             "best_depth_m": (dims, best_d, {"units": "m"}),
+            "extrapolating": (dims, extrap.reshape(mshape), {"units": "1", "long_name":
+                              "pose outside the box or hull of the model's training poses"}),
             "feed_fn_hz": (dims, fm[:, 0, 0].reshape(mshape), {"units": "Hz"}),
             "feed_stiffness_n_per_m": (dims, fm[:, 0, 1].reshape(mshape), {"units": "N/m"}),
             "feed_damping_ratio": (dims, fm[:, 0, 2].reshape(mshape), {"units": "1"}),
@@ -584,14 +617,15 @@ def plot_lobe_map(ds, ax=None, *, spindle_rpm: float | None = None, rz_deg: floa
         field = sel["a_lim_m"].sel(spindle_rpm=float(spindle_rpm), method="nearest")
         what = f"critical depth at {float(field.spindle_rpm):.0f} rpm"
     vals = np.where(np.isfinite(field.values), field.values, np.nan) * 1e3
-    _map_panel(ax, ds, vals, f"{what} [mm]", "viridis", "deepest")
+    out = sel["extrapolating"].values if "extrapolating" in ds else None
+    _map_panel(ax, ds, vals, f"{what} [mm]", "viridis", "deepest", out)
     ax.set_title(f"{ds.attrs.get('method', '').upper()} stability map, Rz = {float(sel.rz_deg):g} deg",
                  fontsize=10)  # fmt: skip
     if second is not None:
         at = sel.sel(spindle_rpm=float(spindle_rpm), method="nearest")
         if "p_stable" in ds:
             v = at["p_stable"].values
-            _map_panel(second, ds, v, "P(stable) [-]", "RdYlGn", "most sure", vmin=0, vmax=1)
+            _map_panel(second, ds, v, "P(stable) [-]", "RdYlGn", "most sure", out, vmin=0, vmax=1)
             second.set_title(
                 f"probability of a stable cut at {ds['p_stable'].attrs['depth_m'] * 1e3:g} mm",
                 fontsize=10,
@@ -599,7 +633,7 @@ def plot_lobe_map(ds, ax=None, *, spindle_rpm: float | None = None, rz_deg: floa
         else:
             v = np.where(np.isfinite(at["a_lim_p05_m"].values), at["a_lim_p05_m"].values, np.nan)
             _map_panel(second, ds, v * 1e3, "5 % quantile of the critical depth [mm]", "viridis",
-                       "deepest sure")  # fmt: skip
+                       "deepest sure", out)  # fmt: skip
             wid = (at["a_lim_p95_m"].values - at["a_lim_p05_m"].values) * 1e3
             cs = second.contour(ds.x_mm.values, ds.y_mm.values, wid.T, colors="w", linewidths=0.8)
             second.clabel(cs, fmt="%.2g mm", fontsize=7)
@@ -608,13 +642,21 @@ def plot_lobe_map(ds, ax=None, *, spindle_rpm: float | None = None, rz_deg: floa
     return ax.figure
 
 
-def _map_panel(ax, ds, vals, label, cmap, best, **kw):
-    """One X-Y image of ``vals`` (n_x, n_y) with its colour bar and the best spot starred."""
+def _map_panel(ax, ds, vals, label, cmap, best, outside=None, **kw):
+    """One X-Y image of ``vals`` (n_x, n_y) with its colour bar, the poses outside the measured
+    region crossed and the best spot (inside it) starred."""
     mesh = ax.pcolormesh(ds.x_mm.values, ds.y_mm.values, vals.T, shading="nearest", cmap=cmap,
                          **kw)  # fmt: skip
     ax.figure.colorbar(mesh, ax=ax, label=label)
-    if np.any(np.isfinite(vals)):
-        i, j = np.unravel_index(np.nanargmax(vals), vals.shape)
+    pick = vals
+    if outside is not None and np.any(outside):
+        gx, gy = np.meshgrid(ds.x_mm.values, ds.y_mm.values, indexing="ij")
+        ax.plot(gx[outside], gy[outside], "x", color="0.3", ms=5, lw=0,
+                label="outside the measured poses (extrapolation)")  # fmt: skip
+        if np.any(~outside & np.isfinite(vals)):
+            pick = np.where(outside, np.nan, vals)
+    if np.any(np.isfinite(pick)):
+        i, j = np.unravel_index(np.nanargmax(pick), pick.shape)
         ax.plot(ds.x_mm.values[i], ds.y_mm.values[j], "*", ms=16, color="w", mec="k",
                 label=f"{best}: X {ds.x_mm.values[i]:.0f}, Y {ds.y_mm.values[j]:.0f} mm")  # fmt: skip
         ax.legend(fontsize=8, loc="lower right")

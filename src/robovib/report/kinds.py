@@ -187,7 +187,7 @@ def _load_model(path):
 
         return FRFPoseModel.load(path)
     if fmt == POSE_MODEL_FORMAT:
-        from ..gp.contract import load_pose_model
+        from ..gp.loader import load_pose_model
 
         return load_pose_model(path)
     raise ValueError(
