@@ -90,7 +90,9 @@ ComplianceRangeOpt = Annotated[
     tuple[float, float] | None,
     typer.Option(
         "--compliance-range",
-        help="Plausible peak compliance LOW HIGH [m/N] of the FRF's resonance "
+        metavar="LOW HIGH",
+        help="Plausible peak compliance LOW HIGH [m/N] of the FRF's resonance, two numbers "
+        "separated by a space "
         "(default 6e-7 1e-3: an industrial robot; lower LOW for a stiffer structure).",
     ),
 ]
