@@ -237,7 +237,9 @@ def lobe_map(
     ] = 0,
     depth: Annotated[
         float | None,
-        typer.Option(help="With --samples: map the probability of a stable cut at this depth [mm]."),
+        typer.Option(
+            help="With --samples: map the probability of a stable cut at this depth [mm]."
+        ),
     ] = None,
     output: Annotated[
         Path | None, typer.Option("-o", "--output", help="NetCDF (.nc) of the map.")
@@ -294,8 +296,11 @@ def lobe_map(
     doc = {
         "method": method,
         "rz_deg": rz,
-        **({"modes_feed": ds.attrs["feed_modes"], "modes_normal": ds.attrs["normal_modes"]}
-           if model_path is not None else {}),
+        **(
+            {"modes_feed": ds.attrs["feed_modes"], "modes_normal": ds.attrs["normal_modes"]}
+            if model_path is not None
+            else {}
+        ),
         "spindle_rpm": rpm,
         "x_mm": xs,
         "y_mm": ys,
