@@ -563,7 +563,7 @@ def control_report(schedule, table9_rows, settings: Mapping[str, Any], provenanc
             title="LQR gain schedule along the path (thesis §4.3, Fig. 23 analogue)",
             paragraphs=(
                 "Gains W = [w1, w2] designed per path point with R tuned for the delay; "
-                "dashed: the Eq. 28-29 polynomial fits.",
+                "dots: the designed gains; lines: the Eq. 28-29 polynomial fits.",
             ),
             notes=notes,
             tables=(("Gains along the path", sched),),
