@@ -163,8 +163,11 @@ def training_range(model) -> tuple[np.ndarray, np.ndarray]:
     TypeError
         The model exposes none of these.
     """
-    if hasattr(model, "input_min_") and hasattr(model, "input_max_"):  # PoseModalModel
-        return np.asarray(model.input_min_, float), np.asarray(model.input_max_, float)
+    from .contract import PoseModel
+
+    if isinstance(model, PoseModel):  # every pose model of either kind
+        lo, hi = np.array(list(model.input_range().values()), float).T
+        return lo, hi
     if hasattr(model, "pose_range_"):
         lo, hi = model.pose_range_
         return np.atleast_1d(np.asarray(lo, float)), np.atleast_1d(np.asarray(hi, float))
