@@ -68,9 +68,6 @@ class JitterNeeded(ValueError):
     """A stored covariance needed jitter to factorise: read the file with the full model."""
 
 
-_NeedsJitter = JitterNeeded
-
-
 class _GP:
     """Posterior of a fitted BatchedGPRegressor group (stored hyperparameters, data units).
 
@@ -102,7 +99,7 @@ class _GP:
             y_scale=y_scale, linalg="numpy",
         )  # fmt: skip
         if np.any(jitter > 0) or not np.all(np.isfinite(nll)):
-            raise _NeedsJitter("covariance not positive definite without jitter")
+            raise JitterNeeded("covariance not positive definite without jitter")
         self.noise_std = np.exp(theta[:, -n_groups]) * y_scale  # first (reference) group
         self.signal_std = np.sqrt(self.posterior.sf2) * y_scale  # data units
         self.X_train = X
