@@ -75,8 +75,9 @@ ModelOpt = Annotated[
     Path | None,
     typer.Option(
         "--model",
-        help="Your pose model (.h5 from 'robovib model fit', inputs x_mm,y_mm,rz_deg); "
-        "default: the thesis' chapter-3 model.",
+        help="Your pose model (.h5 from 'robovib model fit' of modes.csv: every mode, or of "
+        "modal.csv: dominant mode; inputs x_mm,y_mm,rz_deg); default: the thesis' chapter-3 "
+        "model.",
     ),
 ]
 LevelCheckOpt = Annotated[
