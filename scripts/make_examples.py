@@ -10,7 +10,8 @@ Files: ``hammer.uff`` and ``hammer.csv`` (impact-hammer recordings, X direction,
 ``frf.csv`` (compliance FRF of ``hammer.uff`` in um/N), ``milling_record.csv`` (a 100 mm
 acetal cut along the chapter-4 path: forces, tool displacement, path coordinate),
 ``cuts.csv`` (test cuts labelled stable/chatter by the virtual robot's true lobes at a pose),
-``campaign.csv`` (a campaign manifest naming the two hammer recordings), ``poses.csv`` (30
+``campaign_poses.csv`` (36 poses of the README's own-robot campaign, a mode-switch region
+included), ``campaign.csv`` (a campaign manifest naming the two hammer recordings), ``poses.csv`` (30
 poses for a virtual campaign and as next-pose candidates).
 """
 
@@ -83,6 +84,18 @@ def make(out: Path) -> None:
     poses = np.column_stack([px, gen.uniform(-300, 600, n), gen.uniform(0, 180, n)])
     lines = ["x_mm,y_mm,rz_deg"] + [f"{a:.1f},{b:.1f},{c:.1f}" for a, b, c in poses]
     (out / "poses.csv").write_text("\n".join(lines) + "\n")
+    # The README's own-robot campaign: 33 Latin-hypercube poses over the whole Table A1 box
+    # (Rz 60-120 deg beyond X 2580 mm, away from the mode switch) and 3 at full extension with
+    # Rz near 0/180 deg, where the virtual robot's ~63 Hz X mode dominates.
+    from scipy.stats import qmc
+
+    s = qmc.LatinHypercube(d=3, seed=36).random(33)
+    cp = np.column_stack([2100 + 600 * s[:, 0], -300 + 900 * s[:, 1], 180 * s[:, 2]])
+    far = cp[:, 0] > 2580
+    cp[far, 2] = 60 + 60 * s[far, 2]
+    cp = np.vstack([cp, [[2690.0, 50.0, 4.0], [2700.0, 420.0, 177.0], [2685.0, -180.0, 2.0]]])
+    lines = ["x_mm,y_mm,rz_deg"] + [f"{a:.1f},{b:.1f},{c:.1f}" for a, b, c in np.round(cp, 1)]
+    (out / "campaign_poses.csv").write_text("\n".join(lines) + "\n")
 
 
 def main(argv=None) -> int:

@@ -15,6 +15,7 @@ from robovib.control import (
     discretize,
 )
 from robovib.control.schedule import schedule_gains
+from robovib.gp.contract import PosePredictionSide
 from robovib.modal import ModalParameters
 from robovib.studies.table9 import table_9_comparison
 
@@ -523,8 +524,9 @@ def test_cli_control_simulate_offset_mass_feedforward(tmp_path):
     assert res.exit_code == 1 and "unknown actuator" in res.output
 
 
-class _LineModel:
-    """A stand-in pose model: fn rises 2 Hz per 100 mm of y, extrapolating beyond y = 300 mm."""
+class _LineModel(PosePredictionSide):
+    """A stand-in pose model: fn rises 2 Hz per 100 mm of y, extrapolating beyond y = 300 mm
+    (its own ``modes``; the rest of the pose-model contract, e.g. ``mode_set``, inherited)."""
 
     input_names = ("x_mm", "y_mm", "rz_deg")
     directions_ = ("x", "y", "z")

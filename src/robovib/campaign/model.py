@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..gp.pose_model import PoseModalModel, load_pose_model
+from ..gp.loader import load_pose_model
+from ..gp.pose_model import PoseModalModel
 from ..gp.predictor import PosePrediction, predict_at
 from .quality import ModelQualityWarning, model_quality_warnings
 from .selection import NextPoses, _gps_of, _posterior_cov, next_poses  # noqa: F401 (re-exported)

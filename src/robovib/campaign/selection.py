@@ -18,12 +18,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from ..gp.regressor import BatchedGPRegressor
 
 __all__ = ["NextPoses", "next_poses"]
 
@@ -63,33 +59,27 @@ class NextPoses:
     input_names: tuple[str, ...]
 
 
-def _gps_of(model) -> list[tuple[BatchedGPRegressor, np.ndarray]]:
-    """The BatchedGPRegressors of a fitted pose model with the calibration factor of each of
-    their outputs (``calibration_.scale``, 1 where uncalibrated); the per-mode GPs of a
-    mode-switching direction included."""
+def _gps_of(model) -> list:
+    """The BatchedGPRegressors of a fitted :class:`~robovib.gp.PoseModalModel` with the
+    calibration factor of each of their outputs (1 where uncalibrated); the per-mode GPs of a
+    mode-switching direction included (the tests' reference for :func:`next_poses`)."""
     from ..gp.regressor import BatchedGPRegressor
 
-    cal = getattr(model, "calibration_", None)
+    cal = model.calibration_
     out = []
-    for est, cols in zip(
-        getattr(model, "estimators_", []) or [],
-        getattr(model, "estimator_columns_", []) or [],
-        strict=True,
-    ):
+    for est, cols in zip(model.estimators_, model.estimator_columns_, strict=True):
         cols = np.asarray(cols, int)
         scale = np.ones((cols.size, 2)) if cal is None else np.asarray(cal.scale)[cols]
         if isinstance(est, BatchedGPRegressor):
             out.append((est, scale[:, 0]))
             continue
         out.append((est.low_model_, scale[:, 0]))
-        if getattr(est, "high_model_", None) is not None:
+        if est.high_model_ is not None:
             out.append((est.high_model_, scale[np.asarray(est.switching_outputs, int), 1]))
-    if not out:
-        raise ValueError("next_poses needs a fitted pose model (no GPs found in estimators_)")
     return out
 
 
-def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
+def _posterior_cov(gp, Xc: np.ndarray):
     """Latent posterior covariance (B, m, m) at Xc, noise and prior variances (B,), in target
     units (the regressor's own posterior, :class:`robovib.gp.posterior.GPPosterior`)."""
     from ..gp.predictive import noise_std_of
@@ -105,27 +95,21 @@ def _posterior_cov(gp: BatchedGPRegressor, Xc: np.ndarray):
 def _covariances(model, Xc: np.ndarray) -> list:
     """``((cov, noise var, prior var), c²)`` of every GP of the model at the candidates.
 
-    A :class:`~robovib.gp.predictor.PosePredictor` (a saved model read without scikit-learn)
-    gives its posteriors through ``gp_posteriors``; a :class:`~robovib.gp.PoseModalModel`
-    through its fitted regressors (:func:`_gps_of`). Same numbers from the same file.
+    Every pose model (:class:`~robovib.gp.PoseModalModel`, its read-only
+    :class:`~robovib.gp.predictor.PosePredictor`, the hybrid FRF model) gives its GP
+    posteriors through ``gp_posteriors``; same numbers from the same file.
     """
-    if hasattr(model, "gp_posteriors"):
-        cal = getattr(model, "calibration_", None)
-        out = []
-        for post, noise, signal, cols, mode in model.gp_posteriors():
-            c = np.ones(cols.size) if cal is None else np.asarray(cal.scale)[cols, mode]
-            out.append(((post.covariance_at(Xc), noise**2, signal**2), c**2))
-        return out
-    return [(_posterior_cov(gp, Xc), c**2) for gp, c in _gps_of(model)]
+    cal = getattr(model, "calibration_", None)  # the FRF pose model has no band calibration
+    out = []
+    for post, noise, signal, cols, mode in model.gp_posteriors():
+        c = np.ones(cols.size) if cal is None else np.asarray(cal.scale)[cols, mode]
+        out.append(((post.covariance_at(Xc), noise**2, signal**2), c**2))
+    return out
 
 
 def _training_poses(model) -> np.ndarray:
-    """(n, n_inputs) training poses: ``X_train_``, or the first GP posterior's inputs."""
-    X = getattr(model, "X_train_", None)
-    if X is None:
-        post = model.gp_posteriors()[0][0]
-        X = post.x_s * post.x_scale + post.x_loc
-    return np.asarray(X, float)
+    """(n, n_inputs) training poses of the model."""
+    return np.asarray(model.X_train_, float)
 
 
 def next_poses(model, candidates, k: int = 5) -> NextPoses:

@@ -75,8 +75,9 @@ ModelOpt = Annotated[
     Path | None,
     typer.Option(
         "--model",
-        help="Your pose model (.h5 from 'robovib model fit', inputs x_mm,y_mm,rz_deg); "
-        "default: the thesis' chapter-3 model.",
+        help="Your pose model (.h5 from 'robovib model fit' of modes.csv: every mode, or of "
+        "modal.csv: dominant mode; inputs x_mm,y_mm,rz_deg); default: the thesis' chapter-3 "
+        "model.",
     ),
 ]
 LevelCheckOpt = Annotated[
@@ -90,7 +91,9 @@ ComplianceRangeOpt = Annotated[
     tuple[float, float] | None,
     typer.Option(
         "--compliance-range",
-        help="Plausible peak compliance LOW HIGH [m/N] of the FRF's resonance "
+        metavar="LOW HIGH",
+        help="Plausible peak compliance LOW HIGH [m/N] of the FRF's resonance, two numbers "
+        "separated by a space "
         "(default 6e-7 1e-3: an industrial robot; lower LOW for a stiffer structure).",
     ),
 ]

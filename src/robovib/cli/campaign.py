@@ -118,6 +118,10 @@ def process(
     for line, why in res.skipped:
         con.print(f"[yellow]skipped line {line}:[/] {escape(why)}")
     con.print(escape(res.accounting.get("summary", "")))
+    modes = ""
+    if band and (output / "modes.csv").is_file():  # --modes-band: every mode, tracked
+        modes = ", modes.csv (every mode in the band, with mode ids)"
     con.print(
         f"wrote {output}/frfs.h5 ({res.n_frfs} FRFs), modal.csv ({len(table)} rows), campaign.json"
+        + modes
     )

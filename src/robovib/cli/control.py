@@ -48,15 +48,17 @@ def gains(
         loop_margins,
         tune_r_for_delay,
     )
+    from ..gp.contract import pick_mode
     from ..io import from_si, to_si
     from ..milling.workflow import pose_extrapolation, pose_modes
 
     if direction not in ("x", "y", "z"):
-        fail(f"unknown direction {direction!r}")
+        fail(f"unknown direction {direction!r}: give x, y or z")
     model = workspace_model(model_path)
-    modes = {d: m.parameters for d, m in pose_modes(model, (x, y, rz)).items()}
+    pose_modes(model, (x, y, rz))  # checks the pose, names a bad coordinate
+    picked = pick_mode(model, (x, y, rz), direction)  # one mode: says which, of several
     outside = list(pose_extrapolation(model, (x, y, rz)))
-    mode = modes[direction]
+    mode = picked.mode.parameters
     period_s, delay_s = to_si(period_ms, "ms"), to_si(delay_ms, "ms")
     d = design_lqr(mode, period_s, r=[[r]])
     da = delay_analysis(d, delay_s)
@@ -65,7 +67,8 @@ def gains(
     margins = loop_margins(d, round(delay_ms / period_ms))
     max_delay_ms = from_si(da.max_stable_delay_s, "ms")
     doc = {
-        "extrapolation": outside,
+        "extrapolation": outside, "mode_id": picked.mode.mode_id,
+        **({"mode_choice": picked.reason} if picked.reason else {}),
         "mode": mode.to_dict(), "w1": d.gains[0], "w2": d.gains[1], "spectral_radius_no_delay": d.spectral_radius,
         "stable_with_delay": da.stable, "spectral_radius_with_delay": da.spectral_radius,
         "max_stable_delay_ms": max_delay_ms,
@@ -77,6 +80,8 @@ def gains(
     if json_out:
         emit_json(doc)
         return
+    if picked.reason:
+        typer.echo(f"note: {picked.reason}")
     typer.echo(
         f"mode: fn {mode.natural_frequency_hz:.2f} Hz, k {mode.stiffness_n_per_m / 1e6:.3f} MN/m, zeta {mode.damping_ratio:.3f}"
     )
@@ -196,6 +201,8 @@ def _schedule_line(start, end, points, direction, model_path, seed, plot, json_o
     result = schedule_along_line(model, _pose(start, "--start"), _pose(end, "--end"), direction,
                                  points, warn=warnings_seen.append)  # fmt: skip
     sched = result.schedule
+    if result.mode_choice:
+        warnings_seen.append(result.mode_choice)
     outside = [int(i) for i in np.flatnonzero(result.extrapolating)]
     if outside:
         warnings_seen.append(f"{len(outside)} of {points} poses lie outside the model's training data: their modes are GP extrapolations")  # fmt: skip

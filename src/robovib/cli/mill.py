@@ -287,6 +287,19 @@ def lobe_map(
     ] = None,
     chunk: Annotated[int, typer.Option(help="Poses per Dask task.")] = 4,
     steps: opt.StepsOpt = 40,
+    samples: Annotated[
+        int,
+        typer.Option(
+            help="Monte-Carlo samples of the pose model per pose (every modelled mode): the "
+            "5/50/95 % critical depth and the best spot stable with 95 % (0: mean modes only)."
+        ),
+    ] = 0,
+    depth: Annotated[
+        float | None,
+        typer.Option(
+            help="With --samples: map the probability of a stable cut at this depth [mm]."
+        ),
+    ] = None,
     output: Annotated[
         Path | None, typer.Option("-o", "--output", help="NetCDF (.nc) of the map.")
     ] = None,
@@ -295,7 +308,10 @@ def lobe_map(
     model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
-    """Critical axial depth over the workspace × spindle speeds (Dask): where and how fast to mill."""
+    """Critical axial depth over the workspace × spindle speeds (Dask): where and how fast to mill.
+
+    With --model the grid spans the model's measured X-Y range and every modelled mode is used;
+    --samples adds the uncertainty (5/50/95 % critical depth, P(stable) at --depth)."""
     from rich.progress import Progress
 
     from ..milling.chart import parse_rpm_range
@@ -316,8 +332,11 @@ def lobe_map(
     tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     speeds = map_speeds(rpm, None if rpm_range is None else parse_rpm_range(rpm_range))
-    xs, ys = np.linspace(*WORKSPACE_X_MM, nx), np.linspace(*WORKSPACE_Y_MM, ny)
     model = workspace_model(model_path, seed)
+    box = (WORKSPACE_X_MM, WORKSPACE_Y_MM)
+    if model_path is not None:  # your model: the grid spans the poses it was measured at
+        box = (model.input_range()["x_mm"], model.input_range()["y_mm"])
+    xs, ys = np.linspace(*box[0], nx), np.linspace(*box[1], ny)
     with Progress(transient=True, disable=json_out) as bar:
         task = bar.add_task(f"{method.upper()} lobes over the workspace", total=None)
         ds = workspace_lobe_map(
@@ -325,6 +344,7 @@ def lobe_map(
             scheduler=scheduler, n_workers=workers, poses_per_chunk=chunk,
             **({"steps_per_period": steps} if method == "sdm" else {}),
             progress=lambda done, total: bar.update(task, completed=done, total=total),
+            n_samples=samples, depth_m=None if depth is None else to_si(depth, "mm"), rng=seed,
         )  # fmt: skip
     if output is not None:
         save_lobe_map(ds, output)
@@ -335,6 +355,11 @@ def lobe_map(
     doc = {
         "method": method,
         "rz_deg": rz,
+        **(
+            {"modes_feed": ds.attrs["feed_modes"], "modes_normal": ds.attrs["normal_modes"]}
+            if model_path is not None
+            else {}
+        ),
         "spindle_rpm": rpm,
         "x_mm": xs,
         "y_mm": ys,
@@ -351,6 +376,26 @@ def lobe_map(
         f"Y={best['best_pose_mm'][1]:.0f} mm: {from_si(best['best_depth_m'], 'mm'):.2f} mm; "
         f"shallowest: {from_si(best['shallowest_depth_m'], 'mm'):.2f} mm ({method.upper()})"
     )
+    if samples:
+        lo, hi = (from_si(v, "mm") for v in best["best_sure_depth_band_m"])
+        typer.echo(
+            f"deepest cut stable with 95 % ({samples} samples of the model): "
+            f"X={best['best_sure_pose_mm'][0]:.0f}, Y={best['best_sure_pose_mm'][1]:.0f} mm: "
+            f"{lo:.2f} mm (90 % band of the limit there {lo:.2f}-{hi:.2f} mm)"
+        )
+        if depth is not None:
+            p = np.asarray(best["p_stable"])
+            typer.echo(f"P(stable) at {depth:g} mm: {np.nanmin(p):.2f}-{np.nanmax(p):.2f} over "
+                       f"the map; >= 0.95 at {int(np.sum(p >= 0.95))} of {p.size} poses")  # fmt: skip
+    if model_path is not None:
+        n_out = int(ds["extrapolating"].sel(rz_deg=rz).sum())
+        n_none = int(np.isnan(ds["feed_fn_hz"].sel(rz_deg=rz).values).sum())
+        typer.echo(f"grid: the model's measured range X {box[0][0]:g}-{box[0][1]:g} mm, "
+                   f"Y {box[1][0]:g}-{box[1][1]:g} mm; modes {ds.attrs['feed_modes']} (feed), "
+                   f"{ds.attrs['normal_modes']} (normal); {n_out} of {nx * ny} poses outside "
+                   "the measured poses (extrapolation, crossed on the plot; the best spots are "
+                   "chosen inside)"
+                   + (f"; no physical mode predicted at {n_none}" if n_none else ""))  # fmt: skip
     for path in (output, plot):
         if path is not None:
             typer.echo(f"wrote {path}")

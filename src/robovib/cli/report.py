@@ -8,7 +8,17 @@ from typing import Annotated
 
 import typer
 
-from ._common import JsonFlag, KernelOpt, ModeSwitchOpt, SeedOpt, check_kernel, emit_json, new_app
+from ._common import (
+    JsonFlag,
+    KernelOpt,
+    ModelOpt,
+    ModeSwitchOpt,
+    SeedOpt,
+    check_kernel,
+    emit_json,
+    new_app,
+    workspace_model,
+)
 
 app = new_app(
     "Self-contained HTML reports (tables, figures, settings, provenance) to hand on: "
@@ -85,15 +95,25 @@ def lobes(
         str,
         typer.Option(help="sdm (semi-discretization, flip lobes; as mill lobes) or zoa (fast)."),
     ] = "sdm",
+    samples: Annotated[
+        int,
+        typer.Option(
+            help="Monte-Carlo samples of the pose model: probability of a stable cut (0: none)."
+        ),
+    ] = 0,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
-    """Stability lobes at a pose from the chapter-3 model, as a page."""
+    """Stability lobes at a pose from a pose model (either kind; default chapter 3), as a page."""
     from ..report import lobes_study_report
 
-    _check(output)
+    _check(output, *([model_path] if model_path else []))
+    model = None if model_path is None else workspace_model(model_path, seed)
     _done(lobes_study_report(x, y, rz, ae_mm=ae, material=material_name, feed=feed,
-                             rpm_range=rpm_range, method=method, rng=seed), output, json_out)  # fmt: skip
+                             rpm_range=rpm_range, method=method, rng=seed, model=model,
+                             n_samples=samples), output, json_out,
+          *([model_path] if model_path else []))  # fmt: skip
 
 
 @app.command("control")
@@ -107,14 +127,35 @@ def control(
         ),
     ] = None,
     direction: Annotated[
-        str, typer.Option(help="Direction of the virtual-robot path model.")
+        str, typer.Option(help="Direction of the path model or, with --model, of the pose model.")
     ] = "x",
+    start: Annotated[
+        str | None,
+        typer.Option(
+            help="With --model: line start pose in the model's input units (2200,-300,0)."
+        ),
+    ] = None,
+    end: Annotated[str | None, typer.Option(help="With --model: line end pose.")] = None,
+    points: Annotated[int, typer.Option(help="Design points along --start/--end (>= 5).")] = 20,
     seed: SeedOpt = 0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
-    """LQR gain schedule along a path and the thesis Table 9 comparison, as a page."""
+    """LQR gain schedule along a path (a path file, the virtual robot, or a pose model of either
+    kind along --start/--end) and the thesis Table 9 comparison, as a page."""
     from ..studies.reports import control_study_report
 
-    _check(output, path_file)
-    _done(control_study_report(path_file, direction=direction, rng=seed), output, json_out,
-          *([path_file] if path_file else []))  # fmt: skip
+    inputs = [p for p in (path_file, model_path) if p is not None]
+    _check(output, *inputs)
+    if (model_path is None) != (start is None or end is None) or (start is None) != (end is None):
+        raise ValueError("give --model with --start and --end (a line through the pose model), "
+                         "or none of them")  # fmt: skip
+    if model_path is not None and path_file is not None:
+        raise ValueError("give either --path-file or --model, not both")
+    line = None
+    if model_path is not None:
+        line = (workspace_model(model_path, seed, require_inputs=None),
+                [float(v) for v in start.split(",")], [float(v) for v in end.split(",")],
+                points)  # fmt: skip
+    _done(control_study_report(path_file, direction=direction, rng=seed, line=line), output,
+          json_out, *inputs)  # fmt: skip

@@ -9,7 +9,17 @@ import numpy as np
 import typer
 
 from ..io.units import from_si
-from ._common import JsonFlag, Table, console, emit_json, escape, new_app, save_figure, use_agg
+from ._common import (
+    JsonFlag,
+    ModelOpt,
+    Table,
+    console,
+    emit_json,
+    escape,
+    new_app,
+    save_figure,
+    use_agg,
+)
 
 app = new_app(
     "Analytical KR500-3 model: kinematics, stiffness, mass, eigenfrequencies (thesis §3.4)."
@@ -81,9 +91,11 @@ def stiffness(
     y: YOpt,
     z: ZOpt = 325.0,
     rz: Annotated[float, typer.Option("--rz", help="Rotation about the tool axis [deg].")] = 0.0,
+    model_path: ModelOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
-    """Analytical stiffness (Table 4 joint stiffness), principal directions and eigenfrequencies."""
+    """Analytical stiffness (Table 4 joint stiffness), principal directions and eigenfrequencies;
+    a warning where it is off the measured pose model (chapter 3 or --model) by more than 2x."""
     from ..robot.dynamics import cartesian_modes, cartesian_stiffness
 
     robot, q = _workspace_pose(x, y, z, rz)
@@ -101,6 +113,8 @@ def stiffness(
         "mode_directions": modes.directions,
         "cartesian_stiffness_6x6": k,
     }
+    notes = _stiffness_against_measured(doc, x, y, z, rz, model_path)
+    doc["notes"] = notes
     if json_out:
         emit_json(doc)
         return
@@ -112,6 +126,33 @@ def stiffness(
     )
     for f, u in zip(modes.natural_frequencies_hz, modes.directions.T, strict=True):
         typer.echo(f"mode {f:7.2f} Hz  direction {np.round(u, 3).tolist()}")
+    for note in notes:
+        typer.echo(f"warning: {note}")
+
+
+def _stiffness_against_measured(doc, x, y, z, rz, model_path) -> list[str]:
+    """Where the analytical stiffness is off the measured pose model by more than 2x: say so
+    (the rigid-link, joint-stiffness-only model of Table 4 leaves out link and gear
+    compliance and the dominant mode's mass), and add the measured values to ``doc``."""
+    from ..gp.chapter3_model import workspace_predictor
+
+    if abs(z - 325.0) > 1e-9 and model_path is None:
+        return []  # the measured model (Table A1) is of the plane Z = 325 mm
+    model = workspace_predictor(model_path)
+    row = model.mode_set(np.array([[x, y, rz]], float))[0]
+    measured = {d: row[d][0].parameters.stiffness_n_per_m for d in "xyz" if d in row}
+    doc["measured_model_stiffness_n_per_m"] = measured
+    notes = []
+    for d, km in measured.items():
+        ka = doc["directional_stiffness_n_per_m"][d]
+        if not (0.5 <= ka / km <= 2.0):
+            softer = "softer" if ka < km else "stiffer"
+            notes.append(
+                f"{d.upper()}: the analytical model gives {ka / 1e6:.2f} MN/m, the measured pose "
+                f"model's dominant mode {km / 1e6:.2f} MN/m: {abs(1 - ka / km):.0%} {softer} "
+                "(joint stiffness only, rigid links; see `robovib robot compare`)"
+            )
+    return notes
 
 
 @app.command("identify")

@@ -233,6 +233,9 @@ class ModelSchedule:
         The predicted mode at each pose (SI).
     extrapolating
         (n,) bool: pose outside the model's training data.
+    mode_choice
+        How the one controlled mode was picked where the direction has several (a multi-mode
+        model); empty otherwise.
     """
 
     schedule: GainSchedule
@@ -240,6 +243,7 @@ class ModelSchedule:
     input_names: tuple[str, ...]
     modes: tuple[ModalParameters, ...]  #: the predicted mode at each pose (SI)
     extrapolating: np.ndarray  #: bool (n,): pose outside the model's training data
+    mode_choice: str = ""
 
 
 def schedule_along_line(
@@ -284,7 +288,7 @@ def schedule_along_line(
         Wrong pose length or non-finite pose, start equal to end, an unknown direction, a
         model without position inputs, or fewer than 5 points.
     """
-    names = tuple(getattr(model, "input_names", ()))
+    names = tuple(model.input_names)
     a = np.asarray(start, float).reshape(-1)
     b = np.asarray(end, float).reshape(-1)
     if a.size != len(names) or b.size != len(names):
@@ -296,9 +300,14 @@ def schedule_along_line(
         raise ValueError("start and end poses must be finite")
     if int(n_points) != n_points or n_points < 5:
         raise ValueError(f"n_points must be a whole number >= 5, got {n_points!r}")
-    directions = tuple(getattr(model, "directions_", ("x", "y", "z")))
+    from ..gp.contract import physical_direction
+
+    directions = tuple(dict.fromkeys(physical_direction(d) for d in model.directions_))
     if direction not in directions:
-        raise ValueError(f"unknown direction {direction!r}; the model has {', '.join(directions)}")
+        raise ValueError(
+            f"unknown direction {direction!r}: give one of {', '.join(directions)} (the "
+            f"directions of the model's modes {', '.join(model.directions_)})"
+        )
     if "s_m" in names:
         pos = [names.index("s_m")]
         to_m = 1.0
@@ -320,8 +329,18 @@ def schedule_along_line(
         s = poses[:, pos[0]]
         if s[-1] < s[0]:
             poses, s = poses[::-1], s[::-1]
-    rows = model.modes(poses)
-    modes = tuple(row[direction].parameters for row in rows)
-    flags = np.array([bool(row[direction].extrapolating) for row in rows])
+    rows = [row[direction] for row in model.mode_set(poses)]
+    # one mode along the whole line: the one with the largest compliance peak at most points
+    ids = [m.mode_id for m in rows[0]]
+    wins = [max(r, key=lambda m: m.compliance_peak_m_per_n).mode_id for r in rows]
+    chosen = max(ids, key=wins.count)
+    note = ""
+    if len(ids) > 1:
+        note = (f"{direction}: the model has modes {', '.join(ids)}; the schedule controls "
+                f"{chosen}, the largest compliance peak at {wins.count(chosen)} of "
+                f"{len(rows)} points")  # fmt: skip
+    picked = [next(m for m in r if m.mode_id == chosen) for r in rows]
+    modes = tuple(m.parameters for m in picked)
+    flags = np.array([bool(m.mode.extrapolating) for m in picked])
     sched = schedule_gains(s, list(modes), **schedule_kwargs)
-    return ModelSchedule(sched, poses, names, modes, flags)
+    return ModelSchedule(sched, poses, names, modes, flags, note)

@@ -265,6 +265,9 @@ EXAMPLES: dict[str, str] = {
     "(robovib.campaign)",
     "poses.csv": "30 poses x_mm,y_mm,rz_deg inside the Table A1 box, for a virtual campaign and "
     "as next-pose candidates (robovib sim campaign --poses, model next-poses --candidates)",
+    "campaign_poses.csv": "36 poses x_mm,y_mm,rz_deg over the Table A1 box, 3 of them at full "
+    "extension with Rz near 0/180 deg where the ~63 Hz X mode dominates (the README's own-robot "
+    "campaign; none is in poses.csv)",
 }
 
 

@@ -25,7 +25,9 @@ _WHERE = {
     "load_chapter3_model": "chapter3_model",
     "load_chapter3_predictor": "chapter3_model",
     "load_pose_predictor": "predictor",
-    "load_pose_model": "pose_model",
+    "load_pose_model": "loader",
+    "PoseModel": "contract",
+    "pick_mode": "contract",
     "plot_calibration": "plot",
 }
 

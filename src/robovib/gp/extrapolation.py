@@ -163,8 +163,11 @@ def training_range(model) -> tuple[np.ndarray, np.ndarray]:
     TypeError
         The model exposes none of these.
     """
-    if hasattr(model, "input_min_") and hasattr(model, "input_max_"):  # PoseModalModel
-        return np.asarray(model.input_min_, float), np.asarray(model.input_max_, float)
+    from .contract import PoseModel
+
+    if isinstance(model, PoseModel):  # every pose model of either kind
+        lo, hi = np.array(list(model.input_range().values()), float).T
+        return lo, hi
     if hasattr(model, "pose_range_"):
         lo, hi = model.pose_range_
         return np.atleast_1d(np.asarray(lo, float)), np.atleast_1d(np.asarray(hi, float))
@@ -191,8 +194,10 @@ def extrapolating(model, X) -> np.ndarray:
     numpy.ndarray
         (n,) bool.
     """
+    from .contract import PoseModel
+
     X = np.atleast_2d(np.asarray(X, float))
-    if hasattr(model, "extrapolating") and not hasattr(model, "pose_range_"):
+    if isinstance(model, PoseModel):  # the contract's one rule (box and hull)
         return np.asarray(model.extrapolating(X), bool).reshape(-1)
     lo, hi = training_range(model)
     if X.shape[1] != lo.size:
@@ -218,8 +223,10 @@ def outside_inputs(model, x, names) -> tuple[str, ...]:
     tuple of str
         The names of the inputs outside their training range.
     """
+    from .contract import PoseModel
+
     x = np.asarray(x, float).reshape(-1)
-    if hasattr(model, "outside_inputs") and hasattr(model, "input_names"):
+    if isinstance(model, PoseModel):
         flags = np.asarray(model.outside_inputs(x[None, :]), bool).reshape(-1)
         return tuple(n for n, f in zip(names, flags, strict=True) if f)
     lo, hi = training_range(model)

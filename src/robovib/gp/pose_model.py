@@ -42,12 +42,13 @@ from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
 from . import _h5
+from .contract import PosePredictionSide
 from .extrapolation import TrainingRegion
 from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
-from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2, require_pose_inputs
-from .pose_mode import PoseMode, modes_at
-from .predictive import ModalPredictive, assemble, calibrated_mode_probability, noise_std_of
+from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2
+from .pose_mode import PoseMode
+from .predictive import ModalPredictive, noise_std_of
 from .regressor import BatchedGPRegressor
 
 __all__ = [
@@ -57,7 +58,6 @@ __all__ = [
     "PoseModalModel",
     "PoseMode",
     "detect_mode_switch",
-    "load_pose_model",
 ]
 
 
@@ -74,7 +74,7 @@ def _unit_of(name: str) -> str:
 
 
 # ---------------------------------------------------------------------------------- the model
-class PoseModalModel(BaseEstimator):
+class PoseModalModel(PosePredictionSide, BaseEstimator):
     """Dominant modal parameters (fn, k, c) per direction as functions of the pose.
 
     Parameters
@@ -209,22 +209,6 @@ class PoseModalModel(BaseEstimator):
         if int(self.calibration_folds) < 2:
             raise ValueError(f"calibration_folds must be >= 2, got {self.calibration_folds}")
         return names, dirs
-
-    def _check_X(self, X) -> np.ndarray:
-        self._require_fitted()
-        X = np.asarray(X, float)
-        if X.ndim == 1 and len(self.input_names_) == 1:
-            X = X[:, None]
-        if X.ndim == 1:
-            X = X[None, :]
-        if X.ndim != 2 or X.shape[1] != len(self.input_names_):
-            raise ValueError(
-                f"X must be (n, {len(self.input_names_)}) with columns {list(self.input_names_)}, "
-                f"got shape {X.shape}"
-            )
-        if not np.all(np.isfinite(X)):
-            raise ValueError(f"X contains NaN or inf (columns {list(self.input_names_)})")
-        return X
 
     def _require_fitted(self) -> None:
         if not hasattr(self, "estimators_"):
@@ -578,176 +562,41 @@ class PoseModalModel(BaseEstimator):
         self.input_min_, self.input_max_ = self.region_.lo, self.region_.hi
 
     # ------------------------------------------------------------------ prediction
-    def predict(self, X, return_std: bool = False):
-        """Posterior mean (thesis Eq. 9) and optionally latent std (Eq. 10) of every output.
+    # The prediction side (predict, predictive, modes, mode_set, samples, bands,
+    # extrapolating, ...) is the contract's, shared with the SciPy-free PosePredictor.
+    def _prediction_parts(self) -> list:
+        return [
+            (_FittedSwitching(est) if isinstance(est, ModeSwitchingGPRegressor) else _FittedGP(est),
+             cols)
+            for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True)
+        ]  # fmt: skip
 
-        Parameters
-        ----------
-        X
-            (n, n_inputs) poses in the units of ``input_names``.
-        return_std
-            Also return the predictive standard deviation.
+    def gp_posteriors(self) -> list:
+        """Every GP of the model: ``(posterior, noise_std, signal_std, columns, mode)``.
+
+        As :meth:`robovib.gp.predictor.PosePredictor.gp_posteriors` (same order, same numbers):
+        ``noise_std`` and ``signal_std`` (B,) in data units (the reference noise group),
+        ``columns`` the model outputs of the B targets, ``mode`` 0 for the low (or only) mode
+        and 1 for the high mode of a switching direction.
 
         Returns
         -------
-        mean : ndarray (n, 3 * n_directions)
-            SI, columns ``output_names_``; in a direction with a mode switch, the values of the
-            more probable mode (never a blend).
-        std : ndarray (n, 3 * n_directions), if ``return_std``
-
-        Raises
-        ------
-        NotFittedError, ValueError
-
-        Examples
-        --------
-        >>> from robovib.gp import load_chapter3_model
-        >>> mean, std = load_chapter3_model().predict([[2400.0, 0.0, 45.0]], return_std=True)
-        >>> mean.shape == std.shape == (1, 9)
-        True
+        list of tuple
+            ``(posterior, noise_std, signal_std, columns, mode)`` per GP.
         """
-        X = self._check_X(X)
-        mean = np.empty((X.shape[0], self.n_outputs_))
-        std = np.empty_like(mean)
+        self._require_fitted()
+        out = []
         for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
-            m, s = est.predict(X, return_std=True)
-            mean[:, cols], std[:, cols] = m, s
-        return (mean, std) if return_std else mean
-
-    def outside_inputs(self, X) -> np.ndarray:
-        """Which input values lie outside the training range of that input.
-
-        Parameters
-        ----------
-        X
-            (n, n_inputs) poses in the units of ``input_names``.
-
-        Returns
-        -------
-        ndarray of bool (n, n_inputs)
-            True where an input value is below the smallest or above the largest training
-            value of that input.
-        """
-        return self.region_.outside_inputs(self._check_X(X))
-
-    def extrapolating(self, X) -> np.ndarray:
-        """(n,) bool: the pose is outside the calibrated inputs.
-
-        Outside means outside the box of the training inputs (per input, as ``gpr predict``
-        has always reported) or, for two or more inputs, outside the convex hull of the
-        training poses (inside the box but off the measured workspace); one rule for every pose
-        model: :class:`robovib.gp.extrapolation.TrainingRegion`.
-
-        Parameters
-        ----------
-        X
-            (n, n_inputs) poses in the units of ``input_names``.
-
-        Returns
-        -------
-        ndarray of bool (n,)
-            True where the pose is outside the calibrated region.
-        """
-        return self.region_.extrapolating(self._check_X(X))
-
-    def mode_switch_probability(self, X) -> np.ndarray | None:
-        """(n, n_directions) probability that the high mode dominates; None without switches.
-
-        Columns of directions without a modelled switch are NaN. Where the model is calibrated,
-        the classifier's probability recalibrated on the grouped CV (Platt scaling).
-
-        Parameters
-        ----------
-        X
-            (n, n_inputs) poses in the units of ``input_names``.
-
-        Returns
-        -------
-        ndarray (n, n_directions) or None
-            Probability in [0, 1] that the high mode dominates, per direction (columns
-            ``directions_``); None when no direction has a modelled mode switch.
-        """
-        X = self._check_X(X)
-        if not any(isinstance(e, ModeSwitchingGPRegressor) for e in self.estimators_):
-            return None
-        p = np.full((X.shape[0], len(self.directions_)), np.nan)
-        for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
-            if isinstance(est, ModeSwitchingGPRegressor):
-                p[:, cols[0] // 3] = est.high_mode_probability(X)
-        return calibrated_mode_probability(p, getattr(self, "calibration_", None))
-
-    def _raw_predictive(self, X) -> ModalPredictive:
-        """The GP posterior as a :class:`ModalPredictive`, before calibration."""
-        X = self._check_X(X)
-        parts = []
-        for est, cols in zip(self.estimators_, self.estimator_columns_, strict=True):
-            if isinstance(est, ModeSwitchingGPRegressor):
-                parts.append((cols, *est.components(X)))
-            else:
-                m, s = est.predict(X, return_std=True)
-                parts.append((cols, None, (m, s, noise_std_of(est.hyperparameters_)), None))
-        return assemble(self.output_names_, self.output_units_, self.directions_, X.shape[0], parts)
-
-    def predictive(self, X) -> ModalPredictive:
-        """Calibrated predictive distribution of every output (latent and measurement, modes).
-
-        See :mod:`robovib.gp.predictive` and ``docs/bands.md``.
-
-        Parameters
-        ----------
-        X : array_like, shape (n, n_inputs)
-            Poses in the units named by ``input_names``.
-
-        Returns
-        -------
-        ModalPredictive
-            Per output a mixture of the low and high mode (where a switch is modelled) with
-            the calibration of ``calibration_`` (none: the plain GP).
-
-        Examples
-        --------
-        >>> from robovib.gp import load_chapter3_model
-        >>> pred = load_chapter3_model().predictive([[2400.0, 0.0, 45.0]])
-        >>> len(pred.intervals(0.95)[0]) == 9
-        True
-        """
-        raw = self._raw_predictive(X)
-        cal = getattr(self, "calibration_", None)
-        if cal is None:
-            return raw
-        return raw.with_calibration(cal.scale, cal.dof, cal.gamma, cal.ref_std, cal.mode_logit)
-
-    def modes(self, X) -> list[dict[str, PoseMode]]:
-        """The dominant mode of each direction at each pose (one dict per row of ``X``).
-
-        See ``docs/methods.md`` section 3 (GP pose models).
-
-        Parameters
-        ----------
-        X : array_like, shape (n, n_inputs)
-            Poses in the units named by ``input_names`` (e.g. x [mm], y [mm], rz [deg]).
-
-        Returns
-        -------
-        list of dict
-            One ``{direction: PoseMode}`` per pose: the mean :class:`~robovib.modal.ModalParameters`
-            (SI), the standard deviations of fn [Hz], k [N/m] and c [N s/m], the extrapolation flag
-            and the mode-switch probability (or None).
-
-        Raises
-        ------
-        ValueError
-            If a predicted mean is not a physical mode (fn or k <= 0, c < 0), which happens only
-            far outside the calibrated workspace; wrong shape or NaN in ``X``.
-
-        Examples
-        --------
-        >>> from robovib.gp import load_chapter3_model
-        >>> mode = load_chapter3_model().modes([[2400.0, 0.0, 45.0]])[0]["x"]
-        >>> mode.parameters.natural_frequency_hz > 0
-        True
-        """
-        return modes_at(self, self._check_X(X))
+            cols = np.asarray(cols, int)
+            switching = isinstance(est, ModeSwitchingGPRegressor)
+            gps = [(est.low_model_ if switching else est, cols, 0)]
+            if switching and est.high_model_ is not None:
+                gps.append((est.high_model_, cols[np.asarray(est.switching_outputs, int)], 1))
+            for gp, c, mode in gps:
+                hp = gp.hyperparameters_
+                out.append((gp.posterior_, noise_std_of(hp), np.asarray(hp.signal_std, float),
+                            c, mode))  # fmt: skip
+        return out
 
     # ------------------------------------------------------------------ persistence
     def save(self, path, *, cv=None, provenance: Mapping[str, object] | None = None) -> Path:
@@ -828,36 +677,35 @@ def _finite_or_nan(v) -> float:
     return v if math.isfinite(v) else float("nan")
 
 
-def load_pose_model(path, require_inputs=None):
-    """Load a pose model file (``robovib.gp.PoseModalModel``), optionally checking its inputs.
+class _FittedGP:
+    """A fitted BatchedGPRegressor as a part of the contract's prediction side."""
 
-    Parameters
-    ----------
-    path
-        The model's HDF5 file.
-    require_inputs
-        If given, the input names the caller needs (e.g. ``("x_mm", "y_mm", "rz_deg")``).
+    switches_mode = False
 
-    Returns
-    -------
-    PoseModalModel
+    def __init__(self, est: BatchedGPRegressor) -> None:
+        self.est = est
+        self.noise_std = noise_std_of(est.hyperparameters_)
 
-    Raises
-    ------
-    ValueError
-        Not a readable HDF5 file, not a robovib pose model, or other inputs than required.
+    def predict(self, X):
+        return self.est.predict(X, return_std=True)
 
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> from robovib.gp import load_chapter3_model, load_pose_model
-    >>> path = load_chapter3_model().save(pathlib.Path(tempfile.mkdtemp()) / "m.h5")
-    >>> load_pose_model(path, require_inputs=("x_mm", "y_mm", "rz_deg")).input_names
-    ('x_mm', 'y_mm', 'rz_deg')
-    """
-    model = PoseModalModel.load(path)
-    require_pose_inputs(model, path, require_inputs)
-    return model
+
+class _FittedSwitching:
+    """A fitted ModeSwitchingGPRegressor as a part of the contract's prediction side."""
+
+    switches_mode = True
+
+    def __init__(self, est: ModeSwitchingGPRegressor) -> None:
+        self.est = est
+
+    def predict(self, X):
+        return self.est.predict(X, return_std=True)
+
+    def components(self, X):
+        return self.est.components(X)
+
+    def high_mode_probability(self, X):
+        return self.est.high_mode_probability(X)
 
 
 def _stack_predictive(parts, n: int) -> ModalPredictive:

@@ -38,15 +38,16 @@ import numpy as np
 from .._threads import single_blas_thread
 from ..io.h5format import as_text
 from ._likelihood import collapse_replicates
+from .contract import PosePredictionSide
 from .extrapolation import TrainingRegion
 from .pose_file import FORMAT as FORMAT  # re-exported (their former home)
 from .pose_file import FORMAT_VERSION as FORMAT_VERSION
 from .pose_file import read_pose_file, require_pose_inputs
 from .posterior import GPPosterior, fitted_posterior, standardisation, theta_from_hyperparameters
-from .predictive import calibrated_mode_probability
 
 __all__ = [
     "AMBIGUOUS_MODE_PROBABILITY",
+    "JitterNeeded",
     "PosePrediction",
     "PosePredictor",
     "load_pose_predictor",
@@ -63,8 +64,8 @@ _COEFS = np.array([-1854.8214151, 3516.89893646, 221.29346712, 128.12323805, -20
 ]
 
 
-class _NeedsJitter(ValueError):
-    pass
+class JitterNeeded(ValueError):
+    """A stored covariance needed jitter to factorise: read the file with the full model."""
 
 
 class _GP:
@@ -73,6 +74,8 @@ class _GP:
     Built by the estimator's own code (:func:`robovib.gp.posterior.fitted_posterior` on the
     replicate-collapsed training set), with NumPy's LAPACK instead of SciPy's.
     """
+
+    switches_mode = False
 
     def __init__(self, group) -> None:
         d = {k: group[k][()] for k in group}
@@ -96,7 +99,7 @@ class _GP:
             y_scale=y_scale, linalg="numpy",
         )  # fmt: skip
         if np.any(jitter > 0) or not np.all(np.isfinite(nll)):
-            raise _NeedsJitter("covariance not positive definite without jitter")
+            raise JitterNeeded("covariance not positive definite without jitter")
         self.noise_std = np.exp(theta[:, -n_groups]) * y_scale  # first (reference) group
         self.signal_std = np.sqrt(self.posterior.sf2) * y_scale  # data units
         self.X_train = X
@@ -162,6 +165,8 @@ class _LaplaceGPC:
 class _Switching:
     """A stored ModeSwitchingGPRegressor: low-mode GP, optional high-mode GP, classifier."""
 
+    switches_mode = True
+
     def __init__(self, group) -> None:
         a = group.attrs
         self.switching = np.asarray(a["switching_outputs"], int)
@@ -226,13 +231,13 @@ class _Switching:
         return mean, std
 
 
-class PosePredictor:
+class PosePredictor(PosePredictionSide):
     """Predictions of a saved pose model, without scikit-learn (see the module docstring).
 
-    Offers the prediction part of the :class:`~robovib.gp.PoseModalModel` interface:
-    ``input_names``, ``output_names_``, ``output_units_``, ``X_train_``, :meth:`predict`,
-    :meth:`outside_inputs`, :meth:`extrapolating`, :meth:`mode_switch_probability`. To refit,
-    update or save, load the :class:`~robovib.gp.PoseModalModel` itself.
+    Honours the pose-model contract (:class:`robovib.gp.contract.PoseModel`) with the one
+    prediction side of :class:`~robovib.gp.PoseModalModel`
+    (:class:`robovib.gp.contract.PosePredictionSide`); only the GP posteriors are rebuilt here,
+    with NumPy. To refit, update or save, load the :class:`~robovib.gp.PoseModalModel` itself.
 
     Use :meth:`load` (or :func:`load_pose_predictor`).
     """
@@ -285,8 +290,8 @@ class PosePredictor:
                         self._estimators.append((_Switching(g), cols))
                     else:
                         raise ValueError(f"{path}: unknown estimator kind {kind!r}")
-        except _NeedsJitter as exc:
-            raise ValueError(f"{path}: {exc}; load it with PoseModalModel.load") from None
+        except JitterNeeded as exc:
+            raise JitterNeeded(f"{path}: {exc}; load it with PoseModalModel.load") from None
         self.mode_switches_ = {
             d: {k: (as_text(v) if isinstance(v, bytes | str) else v) for k, v in g.attrs.items()}
             for d, g in tree["mode_switches"].items()
@@ -302,92 +307,8 @@ class PosePredictor:
         self.input_min_, self.input_max_ = self.region_.lo, self.region_.hi
         return self
 
-    def _check_X(self, X) -> np.ndarray:
-        X = np.asarray(X, float)
-        n_in = len(self.input_names_)
-        if X.ndim == 1:
-            X = X[:, None] if n_in == 1 else X[None, :]
-        if X.ndim != 2 or X.shape[1] != n_in:
-            raise ValueError(
-                f"X must be (n, {n_in}) with columns {list(self.input_names_)}, got shape {X.shape}"
-            )
-        if not np.all(np.isfinite(X)):
-            raise ValueError(f"X contains NaN or inf (columns {list(self.input_names_)})")
-        return X
-
-    def predict(self, X, return_std: bool = False):
-        """Mean (n, 3 n_directions) SI and optionally the latent std, as PoseModalModel.predict.
-
-        Parameters
-        ----------
-        X : array_like
-            (n, d) inputs in the training units.
-        return_std : bool
-            Also return the latent std.
-
-        Returns
-        -------
-        mean : numpy.ndarray
-            (n, 3 n_directions) SI.
-        std : numpy.ndarray
-            Same shape (only with ``return_std``).
-        """
-        X = self._check_X(X)
-        mean = np.empty((X.shape[0], self.n_outputs_))
-        std = np.empty_like(mean)
-        with single_blas_thread():
-            for est, cols in self._estimators:
-                m, s = est.predict(X)
-                mean[:, cols], std[:, cols] = m, s
-        return (mean, std) if return_std else mean
-
-    def predictive(self, X):
-        """Calibrated predictive distribution, as :meth:`PoseModalModel.predictive`.
-
-        Parameters
-        ----------
-        X : array_like
-            (n, d) inputs in the training units.
-
-        Returns
-        -------
-        ModalPredictive
-            The predictive distribution.
-        """
-        from .predictive import assemble
-
-        X = self._check_X(X)
-        parts = []
-        with single_blas_thread():
-            for est, cols in self._estimators:
-                if isinstance(est, _Switching):
-                    parts.append((cols, *est.components(X)))
-                else:
-                    m, s = est.predict(X)
-                    parts.append((cols, None, (m, s, est.noise_std), None))
-        cal = self.calibration_
-        return assemble(
-            self.output_names_, self.output_units_, self.directions_, X.shape[0], parts,
-            *((None,) * 5 if cal is None
-              else (cal.scale, cal.dof, cal.gamma, cal.ref_std, cal.mode_logit)),
-        )  # fmt: skip
-
-    def modes(self, X) -> list[dict]:
-        """The dominant mode per direction at each pose, as :meth:`PoseModalModel.modes`.
-
-        Parameters
-        ----------
-        X : array_like (n, d)
-            Poses in the units of ``input_names_``.
-
-        Returns
-        -------
-        list of dict
-            ``{direction: PoseMode}`` per row of ``X`` (:func:`robovib.gp.pose_mode.modes_at`).
-        """
-        from .pose_mode import modes_at
-
-        return modes_at(self, self._check_X(X))
+    def _prediction_parts(self) -> list:
+        return self._estimators
 
     def gp_posteriors(self) -> list[tuple[GPPosterior, np.ndarray, np.ndarray, np.ndarray, int]]:
         """Every GP of the model: ``(posterior, noise_std, signal_std, columns, mode)``.
@@ -412,59 +333,6 @@ class PosePredictor:
                 out.append((h.posterior, h.noise_std, h.signal_std, cols[est.switching], 1))
         return out
 
-    def outside_inputs(self, X) -> np.ndarray:
-        """(n, n_inputs) bool: input value outside the training range of that input.
-
-        Parameters
-        ----------
-        X : array_like
-            (n, d) inputs in the training units.
-
-        Returns
-        -------
-        numpy.ndarray
-            (n, n_inputs) bool.
-        """
-        return self.region_.outside_inputs(self._check_X(X))
-
-    def extrapolating(self, X) -> np.ndarray:
-        """(n,) bool: outside the box or the convex hull of the training inputs
-        (:class:`robovib.gp.extrapolation.TrainingRegion`).
-
-        Parameters
-        ----------
-        X : array_like
-            (n, d) inputs in the training units.
-
-        Returns
-        -------
-        numpy.ndarray
-            (n,) bool.
-        """
-        return self.region_.extrapolating(self._check_X(X))
-
-    def mode_switch_probability(self, X) -> np.ndarray | None:
-        """(n, n_directions) probability that the high mode dominates; None without switches.
-
-        Parameters
-        ----------
-        X : array_like
-            (n, d) inputs in the training units.
-
-        Returns
-        -------
-        numpy.ndarray or None
-            (n, n_directions) probabilities.
-        """
-        X = self._check_X(X)
-        if not any(isinstance(e, _Switching) for e, _ in self._estimators):
-            return None
-        p = np.full((X.shape[0], len(self.directions_)), np.nan)
-        for est, cols in self._estimators:
-            if isinstance(est, _Switching):
-                p[:, cols[0] // 3] = est.high_mode_probability(X)
-        return calibrated_mode_probability(p, getattr(self, "calibration_", None))
-
 
 def load_pose_predictor(path, require_inputs=None):
     """A :class:`PosePredictor` of the file, or the full ``PoseModalModel`` where it must be.
@@ -486,9 +354,7 @@ def load_pose_predictor(path, require_inputs=None):
     """
     try:
         model = PosePredictor.load(path)
-    except ValueError as exc:
-        if "jitter" not in str(exc):
-            raise
+    except JitterNeeded:
         from .pose_model import PoseModalModel
 
         model = PoseModalModel.load(path)
@@ -588,7 +454,7 @@ def predict_at(model, pose) -> PosePrediction:
     x = np.array([[float(given[n]) for n in names]])
     if not np.all(np.isfinite(x)):
         raise ValueError(f"pose values must be finite, got {given}")
-    units = getattr(model, "output_units_", None) or (None,) * len(model.output_names_)
+    units = model.output_units_
     pred = model.predictive(x)
     mean, std = pred.point(), pred.point_std("latent")
     std_meas = pred.point_std("measurement")
@@ -612,7 +478,7 @@ def predict_at(model, pose) -> PosePrediction:
 
     outside = outside_inputs(model, x[0], names)  # same range and tolerance as extrapolating()
     p = model.mode_switch_probability(x)
-    dirs = tuple(getattr(model, "directions_", getattr(model, "directions", ())))
+    dirs = tuple(model.directions_)
     high = (
         {} if p is None else {d: float(p[0, i]) for i, d in enumerate(dirs) if np.isfinite(p[0, i])}
     )

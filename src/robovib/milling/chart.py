@@ -430,7 +430,9 @@ def lobes_chart(
         if feed_direction not in ("x", "y"):
             raise ValueError(f"feed_direction must be 'x' or 'y', got {feed_direction!r}")
         normal = "y" if feed_direction == "x" else "x"
-        if set(pose_model.directions) >= {"x", "y"}:  # dominant-mode model (chapter 3)
+        from ..gp.contract import DOMINANT
+
+        if pose_model.kind == DOMINANT:  # one mode per direction (chapter 3, modal.csv)
             dist = mode_distribution_at_pose(pose_model, pose)
             notes = _assumed_mode_notes(pose_model, pose, (feed_direction, normal))
             modes_x, modes_y = (dist[feed_direction].mean,), (dist[normal].mean,)

@@ -17,7 +17,11 @@ import numpy as np
 from .._numeric import median
 from .stability import StabilityLobes
 
-__all__ = ["LobeEnvelope", "zoa_envelope"]
+__all__ = ["SPEED_MARGIN", "LobeEnvelope", "zoa_envelope"]
+
+#: Relative speed margin of :meth:`LobeEnvelope.most_stable_speed`: the spindle holds its speed
+#: to about ±1 % and a 1-2 % error in the predicted natural frequency moves a lobe as much.
+SPEED_MARGIN = 0.02
 
 
 @dataclass(frozen=True)
@@ -105,28 +109,42 @@ class LobeEnvelope:
         return float(np.min(self.a_lim_m))
 
     def most_stable_speed(self) -> tuple[float, float] | None:
-        """Speed [rpm] and depth [m] of the highest *interior* maximum of the envelope.
+        """Speed [rpm] with the deepest cut that stays stable a little either side of it.
 
-        A maximum at the first or last computed speed only says the lobe continues outside the
-        search range, so it is not returned; ``None`` when the envelope has no interior maximum
-        (widen the range).
+        A lobe peak one speed wide is no place to cut: the spindle drifts and the lobes move
+        with the predicted natural frequency by a few %. So each interior speed ``n`` is rated
+        by the depth stable over ``n (1 ± SPEED_MARGIN)`` and its neighbouring speeds on the
+        grid (margin on both sides), and the highest interior maximum of that rating is
+        returned with the rated depth. A maximum at the edge of the computed range only says
+        the lobe continues outside it, so it is not returned; ``None`` when there is no
+        interior maximum (widen the range).
 
         Returns
         -------
         tuple of float or None
-            ``(rpm, depth_m)``, or None.
+            ``(rpm, depth_m)``: the speed and the depth stable within ±``SPEED_MARGIN`` of it
+            (and at its grid neighbours), or None.
         """
         a = np.asarray(self.a_lim_m, float)
         a = np.where(np.isfinite(a), a, np.nan)
+        rpm = np.asarray(self.spindle_rpm, float)
         if a.size < 3:
             return None
-        mid = a[1:-1]
-        peak = (mid >= a[:-2]) & (mid >= a[2:]) & ~((mid == a[:-2]) & (mid == a[2:]))
+        rated = np.full(a.size, np.nan)
+        for i in range(1, a.size - 1):
+            lo, hi = rpm[i] * (1 - SPEED_MARGIN), rpm[i] * (1 + SPEED_MARGIN)
+            near = a[max(i - 1, 0) : i + 2]
+            inside = a[(rpm >= lo) & (rpm <= hi)]
+            ends = np.interp([max(lo, rpm[0]), min(hi, rpm[-1])], rpm, a)
+            rated[i] = np.min(np.concatenate([near, inside, ends]))
+        rated[[0, -1]] = a[[0, -1]]  # the range's edges: a rise towards them is no maximum
+        mid, left, right = rated[1:-1], rated[:-2], rated[2:]
+        peak = (mid >= left) & (mid >= right) & ~((mid == left) & (mid == right))
         idx = np.flatnonzero(np.nan_to_num(peak, nan=0)) + 1
         if idx.size == 0:
             return None
-        best = idx[np.nanargmax(a[idx])]
-        return float(self.spindle_rpm[best]), float(a[best])
+        best = idx[np.nanargmax(rated[idx])]
+        return float(rpm[best]), float(rated[best])
 
     def to_dict(self) -> dict:
         """JSON-ready arrays with units in the keys (``inf`` as ``None``).

@@ -91,9 +91,7 @@ def pose_modes(model, pose) -> dict:
         A non-finite pose coordinate.
     """
     pose = np.asarray(pose, float)
-    names = tuple(getattr(model, "input_names", ())) or tuple(
-        f"input {i}" for i in range(pose.size)
-    )
+    names = tuple(model.input_names)
     for name, v in zip(names, pose, strict=False):
         if not np.isfinite(v):
             unit = name.rsplit("_", 1)[-1] if "_" in name else "model units"
@@ -124,7 +122,7 @@ def pose_extrapolation(model, pose) -> tuple[str, ...]:
     from ..gp.extrapolation import extrapolating, outside_inputs
 
     pose = np.asarray(pose, float).reshape(-1)
-    names = tuple(getattr(model, "input_names", ("x_mm", "y_mm", "rz_deg")))
+    names = tuple(model.input_names)
     outside = outside_inputs(model, pose, names)
     if not outside and bool(extrapolating(model, pose[None, :])[0]):
         return ("hull",)
@@ -266,12 +264,13 @@ def predict_at_pose(
         raise ValueError(f"forces_n must be (n, 3) base-frame forces, got {forces_n.shape}")
     if not np.all(np.isfinite(forces_n)):
         raise ValueError("forces_n contains NaN or inf")
-    pose = pose_modes(model, (x_mm, y_mm, rz_deg))
+    pose_modes(model, (x_mm, y_mm, rz_deg))  # checks the pose, names a bad coordinate
     # dominant-mode model: one mode per direction; multi-mode model (mode ids x1, x2, ..., y1):
     # every modelled mode of a direction, and only the directions it has (issue 29)
-    per_dir: dict[str, list] = {}
-    for k, pm in pose.items():
-        per_dir.setdefault(k if k in DIRECTIONS else k.rstrip("0123456789"), []).append(pm)
+    per_dir = {
+        d: [m.mode for m in ms]
+        for d, ms in model.mode_set(np.array([[x_mm, y_mm, rz_deg]], float))[0].items()
+    }
     outside = pose_extrapolation(model, (x_mm, y_mm, rz_deg))
     gen = np.random.default_rng(rng)
     out = []
@@ -441,12 +440,19 @@ def lobes_at_pose(
     radial_depth_m = check_number(
         "radial_depth_m", radial_depth_m, "m", lo=0.0, lo_open=True, hi=tool.diameter_m
     )
-    modes = {d: m.parameters for d, m in pose_modes(model, (x_mm, y_mm, rz_deg)).items()}
+    pose_modes(model, (x_mm, y_mm, rz_deg))  # checks the pose, names a bad coordinate
+    modes = model.mode_set(np.array([[x_mm, y_mm, rz_deg]], float))[0]  # every mode (contract)
     normal = "y" if feed_direction == "x" else "x"
+    for d in (feed_direction, normal):
+        if d not in modes:
+            raise ValueError(f"the pose model has no mode in direction {d!r} (it has "
+                             f"{', '.join(sorted(modes))})")  # fmt: skip
     cond = CuttingConditions(1000.0, 1e-4, 1e-3, radial_depth_m)
     lobes = stability_lobes(
-        [modes[feed_direction]], [modes[normal]], tool, cond, coefficients, n_lobes=n_lobes
-    )
+        [m.parameters for m in modes[feed_direction]],
+        [m.parameters for m in modes[normal]],
+        tool, cond, coefficients, n_lobes=n_lobes,
+    )  # fmt: skip
     speeds = np.linspace(lo, hi, n_speeds)
     return PoseLobes(
         lobes,

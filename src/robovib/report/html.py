@@ -31,6 +31,7 @@ h2{font-size:1.25rem;margin-top:2rem;color:#0b5394}
 table{border-collapse:collapse;margin:.8rem 0;font-size:.88rem}
 th,td{border:1px solid #c9d1d9;padding:.25rem .55rem;text-align:right}
 th{background:#eef3f8}td:first-child,th:first-child{text-align:left}
+th{max-width:11rem;overflow-wrap:anywhere;vertical-align:bottom}
 figure{margin:1rem 0}figure img{max-width:100%;height:auto;border:1px solid #e1e4e8}
 figcaption,caption{font-size:.85rem;color:#57606a;caption-side:top;text-align:left;padding:.2rem 0}
 .note{background:#fff8c5;border-left:4px solid #d4a72c;padding:.4rem .8rem}

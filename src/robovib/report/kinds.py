@@ -187,9 +187,9 @@ def _load_model(path):
 
         return FRFPoseModel.load(path)
     if fmt == POSE_MODEL_FORMAT:
-        from ..gp import PoseModalModel
+        from ..gp.loader import load_pose_model
 
-        return PoseModalModel.load(path)
+        return load_pose_model(path)
     raise ValueError(
         f"{path}: format {fmt!r} is not a robovib pose model ({POSE_MODEL_FORMAT}) or hybrid "
         f"FRF model ({FRF_POSE_MODEL_FORMAT})"
@@ -240,7 +240,7 @@ def plot_pose_model_slice(model, ax=None, n: int = 60):
     grid[:, 0] = np.linspace(lo[0], hi[0], n)
     mean, std = model.predict(grid, return_std=True)
     names = list(model.output_names_)
-    for i, d in enumerate(getattr(model, "directions_", model.directions)):
+    for i, d in enumerate(model.directions_):
         j = names.index(f"{d}_fn_hz")
         ax.plot(grid[:, 0], mean[:, j], color=f"C{i}", label=f"{d.upper()} fn")
         ax.fill_between(grid[:, 0], mean[:, j] - 2 * std[:, j], mean[:, j] + 2 * std[:, j],
@@ -285,7 +285,9 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
     model = _load_model(path)
     prov = {**report_provenance(provenance, inputs=[path]), **_file_provenance(path)}
     prov.setdefault("model file sha256", file_sha256(path))
-    if hasattr(model, "frequency_hz") and hasattr(model, "pose_range_"):
+    from ..gp.contract import PoseModel
+
+    if not isinstance(model, PoseModel):  # the hybrid FRF model: its own page
         return _frf_model_report(model, path, prov)
     X = np.asarray(model.X_train_, float)
     Y = np.asarray(model.Y_train_, float)
@@ -306,11 +308,21 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
     figures = [
         ("Predicted natural frequencies along the first input", plot_pose_model_slice(model))
     ]
-    cal = getattr(model, "calibration_", None)
+    cal = model.calibration_ if model.calibrated else None
     paragraphs = [
         f"{type(model).__name__} from {path}: {X.shape[0]} training rows, inputs "
-        f"{', '.join(model.input_names)}, outputs {', '.join(names)} (SI)."
+        f"{', '.join(model.input_names)}, outputs {', '.join(names)} (SI).",
+        f"Kind: {model.kind} (modes {', '.join(model.directions_)}); bands "
+        f"{'calibrated' if model.calibrated else 'NOT calibrated'}.",
     ]
+    presence = model.provenance.get("mode_presence")
+    if presence:
+        import json
+
+        seen = json.loads(str(presence))
+        paragraphs.append("Mode presence (fraction of the campaign's recordings that showed the "
+                          "mode): " + ", ".join(f"{k} {v['presence']:.0%}"
+                                                for k, v in sorted(seen.items())))  # fmt: skip
     if cal is not None:
         from ..gp.plot import plot_calibration
 
@@ -337,7 +349,7 @@ def model_report(path, provenance: Mapping[str, Any] | None = None) -> Report:
         tables=tuple(tables),
         figures=tuple(figures),
     )
-    settings = {k: v for k, v in model.get_params().items()} if hasattr(model, "get_params") else {}
+    settings = dict(model.get_params())
     return Report(f"robovib — pose model {Path(path).name}", (section,), settings=settings,
                   provenance=prov)  # fmt: skip
 
@@ -419,9 +431,19 @@ def lobes_report(chart, settings: Mapping[str, Any], provenance=None) -> Report:
     step = max(1, rpm.size // 25)
     samples = pd.DataFrame({"spindle_rpm": rpm[::step], "critical_depth_mm": 1e3 * depth[::step],
                             "limited_by": np.asarray(doc["kind"])[::step]})  # fmt: skip
+    paragraphs = (chart.title.replace("\n", "; "), *chart.notes)
+    if chart.probability is not None:  # P(stable): the sampled limit's 5/95 % quantiles
+        p = chart.probability
+        lo, hi = (np.asarray(p.depth_quantile_m(q), float) for q in (0.05, 0.95))
+        samples["critical_depth_p05_mm"] = 1e3 * lo[::step]
+        samples["critical_depth_p95_mm"] = 1e3 * hi[::step]
+        paragraphs = (*paragraphs, (
+            f"Uncertainty: {p.settings['n_samples']} samples of the pose model's predictive "
+            "distribution; the 5-95 % columns bound the critical depth with 90 % probability, "
+            "and the chart's colour is the probability of a stable cut."))  # fmt: skip
     section = ReportSection(
         title="Chatter stability at the pose",
-        paragraphs=(chart.title.replace("\n", "; "),),
+        paragraphs=paragraphs,
         tables=(("Summary", summary), ("Critical axial depth vs spindle speed", samples)),
         figures=(("Stability chart: envelope, unstable region shaded", plot_lobes_chart(chart)),),
     )
@@ -441,6 +463,7 @@ def lobes_study_report(
     method: str = "sdm",
     model=None,
     rng: int = 0,
+    n_samples: int = 0,
 ) -> Report:
     """Lobes at a pose from the chapter-3 pose model (or ``model``) as a report.
 
@@ -461,10 +484,13 @@ def lobes_study_report(
         Spindle speeds ``start:stop:count`` [rpm].
     method : str
         Stability method (``"sdm"`` or ``"zoa"``).
-    model : object, optional
-        Pose model (default: the shipped chapter-3 model).
+    model : PoseModel, optional
+        Pose model of either kind (dominant-mode or multi-mode; default: the shipped chapter-3
+        model).
     rng : int
-        Seed of the chapter-3 model.
+        Seed of the chapter-3 model and of the samples.
+    n_samples : int
+        Monte-Carlo samples of the model for the probability of a stable cut (0: none).
 
     Returns
     -------
@@ -501,11 +527,14 @@ def lobes_study_report(
         coefficients=mats[material], spindle_rpm=speeds, method=method,
         pose_label=f"X {x_mm:g} mm, Y {y_mm:g} mm, Rz {rz_deg:g}°, feed {feed}",
         material_label=material, pose_model=model, pose=(x_mm, y_mm, rz_deg), feed_direction=feed,
+        n_samples=n_samples, rng=rng,
     )  # fmt: skip
     settings = {"x_mm": x_mm, "y_mm": y_mm, "z_mm": 325.0, "rz_deg": rz_deg, "ae_mm": ae_mm,
                 "material": material, "feed_direction": feed, "rpm_range": rpm_range,
                 "n_speeds": int(speeds.size), "method": method,
                 "tool": "25.4 mm, 2 flutes, 30° helix (thesis §3.5)"}  # fmt: skip
+    if n_samples:
+        settings |= {"n_samples": int(n_samples), "seed": int(rng)}
     return lobes_report(chart, settings)
 
 
@@ -541,7 +570,7 @@ def control_report(schedule, table9_rows, settings: Mapping[str, Any], provenanc
             title="LQR gain schedule along the path (thesis §4.3, Fig. 23 analogue)",
             paragraphs=(
                 "Gains W = [w1, w2] designed per path point with R tuned for the delay; "
-                "dashed: the Eq. 28-29 polynomial fits.",
+                "dots: the designed gains; lines: the Eq. 28-29 polynomial fits.",
             ),
             notes=notes,
             tables=(("Gains along the path", sched),),

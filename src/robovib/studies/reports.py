@@ -6,6 +6,8 @@ The report layer only reads results; this module composes a study with its repor
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..report import Report, chapter3_report, control_report
 from ..report.kinds import report_provenance
 
@@ -50,7 +52,9 @@ def chapter3_study_report(
     return chapter3_report(study, report_provenance(None))
 
 
-def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) -> Report:
+def control_study_report(
+    path_file=None, *, direction: str = "x", rng: int = 0, line=None
+) -> Report:
     """Schedule from a path-modes CSV (or the virtual robot's EMA) + Table 9, as a report.
 
     Parameters
@@ -62,6 +66,10 @@ def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) 
         Direction of the virtual-robot path model.
     rng : int
         Seed of the virtual EMA.
+    line : (model, start, end, n_points), optional
+        Instead: gains along a straight line through a pose model of either kind
+        (:func:`robovib.control.schedule.schedule_along_line`; a multi-mode model's mode is
+        picked by its compliance peak, and the page says so).
 
     Returns
     -------
@@ -71,17 +79,31 @@ def control_study_report(path_file=None, *, direction: str = "x", rng: int = 0) 
     from ..control.schedule import schedule_gains
     from .table9 import table_9_comparison
 
-    if path_file is not None:
-        from ..io import read_path_modes_csv
-
-        s, modes = read_path_modes_csv(path_file)
-    else:
-        from ..sim import virtual_path_modes
-
-        s, modes = virtual_path_modes(direction=direction, rng=rng)
     warnings: list[str] = []
-    sched = schedule_gains(s, modes, warn=warnings.append)
-    settings = {"path_file": str(path_file) if path_file else "virtual-robot EMA along the chapter-4 path",
+    source = str(path_file) if path_file else "virtual-robot EMA along the chapter-4 path"
+    if line is not None:
+        from ..control.schedule import schedule_along_line
+
+        model, start, end, n_points = line
+        res = schedule_along_line(model, start, end, direction, n_points, warn=warnings.append)
+        sched = res.schedule
+        warnings += [res.mode_choice] if res.mode_choice else []
+        if np.any(res.extrapolating):
+            warnings.append(f"{int(np.sum(res.extrapolating))} of {n_points} poses lie outside "
+                            "the model's training data: their modes are GP extrapolations")  # fmt: skip
+        source = (f"pose model ({model.kind}), line {', '.join(f'{v:g}' for v in start)} -> "
+                  f"{', '.join(f'{v:g}' for v in end)} ({', '.join(model.input_names)})")  # fmt: skip
+    else:
+        if path_file is not None:
+            from ..io import read_path_modes_csv
+
+            s, modes = read_path_modes_csv(path_file)
+        else:
+            from ..sim import virtual_path_modes
+
+            s, modes = virtual_path_modes(direction=direction, rng=rng)
+        sched = schedule_gains(s, modes, warn=warnings.append)
+    settings = {"path_file": source,
                 "direction": direction, "period_ms": 4.0, "delay_ms": 32.0, "q": "diag(1, 0.001)"}  # fmt: skip
     rep = control_report(sched, list(table_9_comparison().rows), settings,
                          provenance=report_provenance(None, inputs=[path_file] if path_file else []))  # fmt: skip
