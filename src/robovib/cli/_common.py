@@ -161,10 +161,12 @@ class ErrorHandlingGroup(TyperGroup):
 
     def invoke(self, ctx: click.Context) -> Any:
         from ..io.provenance import set_run_info_provider
+        from ..io.safe_read import recording_inputs
 
         set_run_info_provider(run_info)
         try:
-            return super().invoke(ctx)
+            with recording_inputs():  # no output may replace a file the command read
+                return super().invoke(ctx)
         except _PASSTHROUGH:  # typer.Exit is a RuntimeError in recent Typer: --help exits 0
             raise
         except EXPECTED_ERRORS as exc:

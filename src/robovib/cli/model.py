@@ -49,7 +49,11 @@ def fit(
     Given ``modes.csv`` (``campaign process --modes-band``: a ``mode_id`` column) the model has
     every tracked mode of x and y (directions x1, x2, ..., y1, ...), not the dominant one."""
     from ..campaign import fit_campaign_table, mode_switches_found, save_pose_model
+    from ..io import check_output_path
 
+    for out in (output, plot):  # refused before the fit: onto the table, a FIFO, a link...
+        if out is not None:
+            check_output_path(out, inputs=[modal_csv])
     names = [n.strip() for n in inputs.split(",") if n.strip()]
     res = fit_campaign_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
                              n_folds=folds, use_flagged=use_flagged)  # fmt: skip

@@ -312,9 +312,10 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
     """
     import pyuff
 
+    from .safe_read import check_input_file
     from .units import si_factor
 
-    path = Path(path)
+    path = check_input_file(path, "UFF file")  # regular file, below the size limit
     try:
         sets = pyuff.UFF(str(path)).read_sets()
     except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
@@ -505,7 +506,11 @@ def read_frfs(path: str | Path) -> list[FRF]:
     list of FRF
         Every FRF of the file, in SI.
     """
+    from .safe_read import MAX_BINARY_BYTES, check_input_file
+
     suffix = Path(path).suffix.lower()
+    if suffix in (".h5", ".hdf5", ".uff", ".unv", ".csv"):
+        check_input_file(path, "FRF file", MAX_BINARY_BYTES)
     if suffix in (".h5", ".hdf5"):
         return read_frfs_hdf5(path)
     if suffix in (".uff", ".unv"):
