@@ -20,6 +20,7 @@ written into the ID lines as ``pose=x,y,z,rx,ry,rz``.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -509,8 +510,8 @@ def read_frfs(path: str | Path) -> list[FRF]:
     from .safe_read import MAX_BINARY_BYTES, check_input_file
 
     suffix = Path(path).suffix.lower()
-    if suffix in (".h5", ".hdf5", ".uff", ".unv", ".csv"):
-        check_input_file(path, "FRF file", MAX_BINARY_BYTES)
+    if suffix in (".h5", ".hdf5", ".uff", ".unv", ".csv") or os.path.lexists(path):
+        check_input_file(path, "FRF file", MAX_BINARY_BYTES)  # a FIFO, /dev/zero: refused
     if suffix in (".h5", ".hdf5"):
         return read_frfs_hdf5(path)
     if suffix in (".uff", ".unv"):
@@ -519,4 +520,6 @@ def read_frfs(path: str | Path) -> list[FRF]:
         from .frf_csv import read_frf_csv
 
         return read_frf_csv(path)
-    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv")
+    raise ValueError(
+        f"{path}: unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv"
+    )
