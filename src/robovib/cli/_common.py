@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -25,6 +27,7 @@ __all__ = [
     "OutOpt",
     "SeedOpt",
     "Table",
+    "about_file",
     "check_kernel",
     "check_output",
     "console",
@@ -237,6 +240,22 @@ def emit_json(doc: dict, *, units: dict[str, str] | None = None) -> None:
 
     out = self_describing_document(doc, run_provenance(), units=units)
     typer.echo(json_dumps(out, indent=2))
+
+
+@contextlib.contextmanager
+def about_file(path: Path | None) -> Iterator[None]:
+    """Errors of the work on one input file name it: ``FILE: message`` (unless they do)."""
+    from ..io.safe_write import OutputPathError
+
+    try:
+        yield
+    except OutputPathError:  # about an output, not this input
+        raise
+    except ValueError as exc:
+        msg = str(exc)
+        if path is None or str(path) in msg or Path(path).name in msg:
+            raise
+        raise ValueError(f"{path}: {msg}") from exc
 
 
 def check_output(path: Path | None, inputs=(), force: bool = False) -> None:

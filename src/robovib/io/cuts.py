@@ -93,6 +93,11 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
     rcol, scol = header.index("result"), header.index("spindle_rpm")
     rpm, depth, chat = [], [], []
     for i, row in enumerate(rows[1:], start=2):
+        if len(row) < len(header):
+            raise ValueError(
+                f"{p}, line {i}: {len(row)} cells, expected {len(header)} like the header "
+                f"({', '.join(header)})"
+            )
         try:
             s, d = float(row[scol]), float(row[dcol]) * scale
         except (ValueError, IndexError) as exc:

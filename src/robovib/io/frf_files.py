@@ -491,7 +491,9 @@ def write_frfs(
         from .frf_csv import write_frf_csv
 
         return write_frf_csv(path, frfs, inputs=inputs, force=force)
-    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv")
+    raise ValueError(
+        f"{path}: unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv"
+    )
 
 
 def read_frfs(path: str | Path) -> list[FRF]:

@@ -715,7 +715,7 @@ def read_recording_channels(
     """
     from .safe_read import check_input_file
 
-    path = check_input_file(path, "recording file")  # regular file, below the size limit
+    path = check_input_file(path, "file")  # a regular file below the size limit ("no such file")
     suffix = path.suffix.lower()
     if suffix == ".csv":
         ch = _csv_channels(path, force_sensitivity, response_sensitivity)

@@ -290,11 +290,17 @@ def save_figure(
     Raises
     ------
     OutputPathError
-        See :func:`check_output_path`.
-    ValueError
-        Unknown image format (from matplotlib).
+        See :func:`check_output_path`; also no suffix, or one matplotlib cannot write (the
+        output and the formats named).
     """
-    fmt = Path(os.fspath(path)).suffix.lstrip(".").lower() or None
+    fmt = Path(os.fspath(path)).suffix.lstrip(".").lower()
+    supported = sorted(fig.canvas.get_supported_filetypes())
+    if fmt not in supported:  # else matplotlib names the temporary file's suffix ("tmp")
+        what = f"suffix .{fmt} is not an image format" if fmt else "no suffix names its format"
+        raise OutputPathError(
+            f"output {path}: {what} matplotlib writes (use one of "
+            f"{', '.join('.' + f for f in supported)})"
+        )
     with atomic_output(path, inputs=inputs, force=force) as tmp:
         fig.savefig(tmp, dpi=dpi, format=fmt)
     return Path(os.fspath(path))

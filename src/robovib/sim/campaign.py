@@ -206,6 +206,9 @@ def simulate_campaign(
     out = Path(out_dir)
     rec_dir = out / "recordings"
     inputs = [poses] if isinstance(poses, str | Path) else []
+    for folder in (out, rec_dir):
+        if folder.exists() and not folder.is_dir():
+            raise ValueError(f"output folder {folder} exists and is not a folder")
     if out.is_dir():  # nothing written onto the poses file (or a link, FIFO...): checked first
         planned = [out / "campaign.csv", out / "truth.csv"]
         for k, (i, d) in enumerate((i, d) for i in range(len(p)) for d in directions):
