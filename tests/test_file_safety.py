@@ -169,6 +169,9 @@ def test_cli_fifo_and_dev_zero_inputs_end_in_one_error(tmp_path):
     line = _within(lambda: _error_line(run(app, ["gpr", "predict", "--model", str(fifo),
                                                  "--x", "2400", "--y", "0", "--rz", "45"])))  # fmt: skip
     assert "model.h5" in line and "FIFO" in line
+    report = ["report", "model", str(fifo), "-o", str(tmp_path / "r.html")]
+    line = _within(lambda: _error_line(run(app, report)))
+    assert "model.h5: the model file is a FIFO" in line
     cuts = ["mill", "lobes", "--mode", "x:30,1e7,0.05", "--rpm-range", "1000:2000:500",
             "--cuts", "/dev/zero"]  # fmt: skip
     line = _within(lambda: _error_line(run(app, cuts)))
@@ -192,6 +195,16 @@ def test_output_that_is_a_fifo_device_or_link_is_refused_even_forced(tmp_path):
     assert fifo.is_fifo() and link.is_symlink() and target.read_text() == "keep me"
     with pytest.raises(OutputPathError, match="/dev/null"):
         check_output_path("/dev/null")
+
+
+def test_examples_never_write_through_a_link(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    (tmp_path / "ex").mkdir()
+    (tmp_path / "ex" / "cuts.csv").symlink_to(victim)
+    res = CliRunner().invoke(app, ["examples", "--to", str(tmp_path / "ex")])
+    assert "cuts.csv is a symbolic link" in _error_line(res)
+    assert victim.read_text() == "keep me"
 
 
 def test_output_onto_a_file_read_in_the_same_command_is_refused(tmp_path):
