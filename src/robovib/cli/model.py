@@ -11,6 +11,7 @@ from ._common import (
     JsonFlag,
     KernelOpt,
     Table,
+    about_file,
     check_kernel,
     console,
     emit_json,
@@ -55,8 +56,9 @@ def fit(
         if out is not None:
             check_output_path(out, inputs=[modal_csv])
     names = [n.strip() for n in inputs.split(",") if n.strip()]
-    res = fit_campaign_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
-                             n_folds=folds, use_flagged=use_flagged)  # fmt: skip
+    with about_file(modal_csv):  # "lacks column(s)", "needs 2 poses" name the table
+        res = fit_campaign_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
+                                 n_folds=folds, use_flagged=use_flagged)  # fmt: skip
     save_pose_model(res, output)
     if plot is not None:
         from ..gp.plot import plot_calibration
