@@ -34,6 +34,7 @@ from robovib.io.safe_write import (
 )
 
 fifo_only = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs POSIX FIFOs")
+dev_zero = pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
 
 
 def _within(fn, seconds: float = 10.0):
@@ -104,6 +105,18 @@ def test_size_limit_from_the_caller_and_the_environment(tmp_path, monkeypatch):
         check_input_file(big)
 
 
+def test_readers_stop_at_the_size_limit(tmp_path, monkeypatch):
+    from robovib.io import read_cuts_csv, read_table
+
+    cuts = tmp_path / "cuts.csv"
+    cuts.write_text("spindle_rpm,depth_mm,result\n" + "1500,2,stable\n" * 200)  # 2.8 kB
+    assert read_cuts_csv(cuts).spindle_rpm.size == 200
+    monkeypatch.setenv("ROBOVIB_MAX_INPUT_MB", "0.002")  # 2097 bytes
+    for read in (read_cuts_csv, read_table):
+        with pytest.raises(InputFileError, match=r"cuts\.csv: the .* is 2\d{3} bytes, larger"):
+            read(cuts)
+
+
 def _readers():
     """(name, suffix, call) of every file reader of robovib."""
     from robovib.campaign.manifest import read_manifest
@@ -154,6 +167,7 @@ def test_every_reader_refuses_a_fifo_without_blocking(tmp_path, name, suffix, re
         _within(lambda: read(fifo))
 
 
+@dev_zero
 @pytest.mark.parametrize("name, suffix, read", _readers(), ids=[r[0] for r in _readers()])
 def test_every_reader_refuses_an_endless_device(name, suffix, read):
     # /dev/zero never ends: a reader that reads it grows until memory runs out
