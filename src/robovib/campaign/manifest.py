@@ -127,10 +127,9 @@ def read_manifest(path: str | Path) -> list[CampaignRow]:
         manifest line.
     """
     from ..io.csv_table import read_table
+    from ..io.safe_read import check_input_file
 
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such manifest file")
+    path = check_input_file(path, "manifest file")  # a regular file below the size limit
     try:
         table = read_table(path, what="manifest")
     except ValueError as exc:

@@ -101,6 +101,21 @@ def _training_table(table, inputs, directions, use_flagged):
     return X, Y, np.ravel(groups), tuple(excluded)
 
 
+def _refuse_constant_outputs(Y, directions, source) -> None:
+    """An output with one value at every pose cannot be fitted: name it (not its index)."""
+    names = [f"{d} {out}" for d in directions for out in _OUTPUTS]
+    const = []
+    for j, name in enumerate(names):
+        y = Y[np.isfinite(Y[:, j]), j]
+        if y.size > 1 and np.ptp(y) <= 1e-12 * max(1.0, float(np.abs(y).max())):
+            const.append(f"{name} (= {y[0]:.6g} in all {y.size} rows)")
+    if const:
+        raise ValueError(
+            f"{source}: {'; '.join(const)}: a constant output cannot be fitted by a GP "
+            "(a column copied down by hand, or a fit that hit a bound in every row?)"
+        )
+
+
 def _cv_table(model, Y):
     """Grouped-CV table of a calibrated model (its out-of-fold predictions, per output)."""
     import pandas as pd
@@ -191,6 +206,7 @@ def fit_pose_model_from_table(
     from ..io.csv_table import read_table
     from .table_checks import check_modal_table
 
+    raw = None
     if isinstance(modal_csv, pd.DataFrame):
         table, source, lines = modal_csv, "modal table", np.arange(2, len(modal_csv) + 2)
     else:  # the one CSV reader: errors name the line
@@ -200,6 +216,9 @@ def fit_pose_model_from_table(
     missing = [c for c in (*inputs, "direction", *_OUTPUTS) if c not in table.columns]
     if missing:
         raise ValueError(f"{source} lacks column(s) {', '.join(missing)}")
+    if raw is not None:  # a word in a number column: the file, line and column, not pandas' words
+        for c in (*inputs, *_OUTPUTS):
+            raw.numbers(c, allow_empty=True)
     used = np.ones(len(table), bool)
     if not use_flagged and "flags" in table.columns:
         flags = table["flags"].astype("string").fillna("")
@@ -210,11 +229,18 @@ def fit_pose_model_from_table(
         raise ValueError("give at least one input column")
     if directions is None:
         directions = tuple(d for d in ("x", "y", "z") if d in set(table["direction"]))
+        if not directions:
+            found = sorted({str(v) for v in table["direction"]})[:5]
+            raise ValueError(
+                f"{'modal table' if raw is None else raw.path}: no row has direction x, y or z "
+                f"(column direction holds {', '.join(map(repr, found))})"
+            )
     X, Y, groups, excluded = _training_table(table, inputs, tuple(directions), use_flagged)
     cls = PoseModalModel
     n_poses = int(np.unique(groups).size)
     if n_poses < 2:
         raise ValueError(f"cross-validation needs at least 2 poses, got {n_poses}")
+    _refuse_constant_outputs(Y, tuple(directions), "modal table" if raw is None else raw.path)
     k = min(int(n_folds), n_poses)
     params = dict(input_names=inputs, directions=tuple(directions), kernel=kernel,
                   mode_switch=mode_switch, rng=rng, covariance=covariance, calibrate=True,

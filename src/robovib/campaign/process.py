@@ -15,7 +15,12 @@ succeeded, or with ``skip_bad=True``):
 * ``modal.csv`` — one row per manifest row: the pose columns, ``fn_hz``,
   ``stiffness_n_per_m``, ``damping_ns_per_m``, ``damping_ratio``, their ``*_std_*`` standard
   errors, ``n_hits_used``, ``n_hits_rejected``, ``mean_coherence``, ``flags``;
-* ``campaign.json`` — settings, version, per-row reader reports and skipped rows.
+* ``campaign.json`` — settings, version, per-row reader reports and skipped rows;
+* ``modes.csv`` — with ``modes_band_hz``: every tracked mode of every row.
+
+The four names belong to this function: a run removes the ones it does not write (a
+``modes.csv`` of an earlier run with ``modes_band_hz``), and refuses, before any work, an output
+that is the manifest or one of its recordings (:mod:`robovib.io.safe_write`).
 """
 
 from __future__ import annotations
@@ -40,6 +45,8 @@ __all__ = [
 ]
 
 _FLAG_BAND_EDGE = "fn at the fit band edge"
+#: The files :func:`process_campaign` writes into its output folder (and owns there).
+OUTPUT_FILES = ("frfs.h5", "modal.csv", "campaign.json", "modes.csv")
 
 
 def _default_ranges():
@@ -320,12 +327,13 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
                      modes=modes)  # fmt: skip
 
 
-def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) -> tuple:
+def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped, inputs=()) -> tuple:
     import h5py
     import pandas as pd
 
     from .. import __version__
     from ..io import atomic_output, json_dumps, write_frfs_hdf5
+    from ..io.safe_write import remove_stale_outputs
 
     good = [r for r in results if r.modal is not None]
     table = pd.DataFrame([r.modal for r in good])
@@ -353,9 +361,9 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
     if presence is not None:
         doc["mode_presence"] = presence
     with (
-        atomic_output(out_dir / "frfs.h5") as t_h5,
-        atomic_output(out_dir / "modal.csv") as t_csv,
-        atomic_output(out_dir / "campaign.json") as t_json,
+        atomic_output(out_dir / "frfs.h5", inputs=inputs) as t_h5,
+        atomic_output(out_dir / "modal.csv", inputs=inputs) as t_csv,
+        atomic_output(out_dir / "campaign.json", inputs=inputs) as t_json,
     ):
         write_frfs_hdf5(t_h5, frfs)
         with h5py.File(t_h5, "a") as h5:
@@ -364,9 +372,12 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
             h5.attrs["units"] = "SI (frequency Hz, compliance m/N); pose (m, m, m, deg, deg, deg)"
         table.to_csv(t_csv, index=False, float_format="%.9g")
         t_json.write_text(json_dumps(doc, indent=2))  # NaN -> null + reason
+    written = [out_dir / n for n in OUTPUT_FILES[:3]]
     if modes_table is not None:
-        with atomic_output(out_dir / "modes.csv") as t_modes:
+        with atomic_output(out_dir / "modes.csv", inputs=inputs) as t_modes:
             modes_table.to_csv(t_modes, index=False, float_format="%.9g")
+        written.append(out_dir / "modes.csv")
+    remove_stale_outputs(out_dir, OUTPUT_FILES, written)  # no earlier run's modes.csv left
     return table, len(frfs)
 
 
@@ -491,6 +502,12 @@ def process_campaign(
         raise ValueError(f"n_workers must be >= 1, got {n_workers}")
     if out_dir.exists() and not out_dir.is_dir():
         raise ValueError(f"{out_dir}: exists and is not a folder")
+    inputs = [manifest, *(r.file for r in rows)]
+    if out_dir.is_dir():  # refuse before any work: an output onto the manifest or a recording
+        from ..io.safe_write import check_output_path
+
+        for name in OUTPUT_FILES:
+            check_output_path(out_dir / name, inputs=inputs)
     workers = min(int(n_workers or os.cpu_count() or 1), len(rows))
     results: list[RowResult] = []
     total = len(rows)
@@ -516,7 +533,7 @@ def process_campaign(
         detail = "; ".join(f"line {line}: {why}" for line, why in bad)
         raise ValueError(f"{manifest}: every row failed; nothing written ({detail})")
     out_dir.mkdir(parents=True, exist_ok=True)
-    table, n_frfs = _write_outputs(out_dir, results, settings, manifest, bad)
+    table, n_frfs = _write_outputs(out_dir, results, settings, manifest, bad, inputs)
     return CampaignResult(
         table,
         n_frfs,

@@ -167,7 +167,7 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
     if not np.all(np.isfinite(C)):
         raise ValueError("candidates contain NaN or inf")
     if not 1 <= int(k) <= len(C):
-        raise ValueError(f"k must be in [1, {len(C)}], got {k}")
+        raise ValueError(f"k must be in [1, {len(C)}] (the number of candidate poses), got {k}")
     # Calibrated bands (issue 24): latent and noise variance both scaled by c² per output, so an
     # output whose plain GP band was too narrow weighs more in the choice.
     parts = _covariances(model, C)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -25,6 +27,7 @@ __all__ = [
     "OutOpt",
     "SeedOpt",
     "Table",
+    "about_file",
     "check_kernel",
     "check_output",
     "console",
@@ -164,10 +167,12 @@ class ErrorHandlingGroup(TyperGroup):
 
     def invoke(self, ctx: click.Context) -> Any:
         from ..io.provenance import set_run_info_provider
+        from ..io.safe_read import recording_inputs
 
         set_run_info_provider(run_info)
         try:
-            return super().invoke(ctx)
+            with recording_inputs():  # no output may replace a file the command read
+                return super().invoke(ctx)
         except _PASSTHROUGH:  # typer.Exit is a RuntimeError in recent Typer: --help exits 0
             raise
         except EXPECTED_ERRORS as exc:
@@ -238,6 +243,22 @@ def emit_json(doc: dict, *, units: dict[str, str] | None = None) -> None:
 
     out = self_describing_document(doc, run_provenance(), units=units)
     typer.echo(json_dumps(out, indent=2))
+
+
+@contextlib.contextmanager
+def about_file(path: Path | None) -> Iterator[None]:
+    """Errors of the work on one input file name it: ``FILE: message`` (unless they do)."""
+    from ..io.safe_write import OutputPathError
+
+    try:
+        yield
+    except OutputPathError:  # about an output, not this input
+        raise
+    except ValueError as exc:
+        msg = str(exc)
+        if path is None or str(path) in msg or Path(path).name in msg:
+            raise
+        raise ValueError(f"{path}: {msg}") from exc
 
 
 def check_output(path: Path | None, inputs=(), force: bool = False) -> None:

@@ -13,6 +13,7 @@ from ._common import (
     ModelOpt,
     SeedOpt,
     Table,
+    about_file,
     check_output,
     console,
     emit_json,
@@ -163,7 +164,8 @@ def schedule(
         from ..sim import virtual_path_modes
 
         s, modes = virtual_path_modes(direction=direction, rng=seed)
-    sched = schedule_gains(s, modes, warn=warnings_seen.append)
+    with about_file(path_file):  # "too few path points" names the file
+        sched = schedule_gains(s, modes, warn=warnings_seen.append)
 
     def draw() -> None:
         if plot is not None:

@@ -14,6 +14,7 @@ from ._common import (
     JsonFlag,
     LevelCheckOpt,
     Table,
+    about_file,
     check_output,
     console,
     emit_json,
@@ -110,20 +111,22 @@ def compute(
         fail(f"unknown direction {direction!r}; use x, y or z")
     check_output(output, [recording], force)
     plausible = plausible_ranges(level_check, compliance_range)
-    rec = read_recording(
-        recording, direction,
-        Sensitivity(force_sensitivity, "N") if force_sensitivity else None,
-        Sensitivity(response_sensitivity, response_unit) if response_sensitivity else None,
-    )  # fmt: skip
-    result = impact_compliance_frf(  # the campaign's pipeline (campaign.process_row)
-        rec.forces, rec.responses, rec.sample_rate_hz, f_min_hz=f_min_hz,
-        response_quantity=rec.response_quantity, estimator=estimator,
-        pretrigger_s=to_si(pretrigger_ms, "ms"),
-        force_window_s=None if force_window_ms == 0 else to_si(force_window_ms, "ms"),  # < 0: error
-        exp_window_tau_s=None if exp_window_tau_ms == 0 else to_si(exp_window_tau_ms, "ms"),
-        reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
-        plausible=plausible,
-    )  # fmt: skip
+    with about_file(recording):  # "no impact recorded" names the recording
+        rec = read_recording(
+            recording, direction,
+            Sensitivity(force_sensitivity, "N") if force_sensitivity else None,
+            Sensitivity(response_sensitivity, response_unit) if response_sensitivity else None,
+        )  # fmt: skip
+    with about_file(recording):  # "no impact recorded" etc. name the recording
+        result = impact_compliance_frf(  # the campaign's pipeline (campaign.process_row)
+            rec.forces, rec.responses, rec.sample_rate_hz, f_min_hz=f_min_hz,
+            response_quantity=rec.response_quantity, estimator=estimator,
+            pretrigger_s=to_si(pretrigger_ms, "ms"),
+            force_window_s=None if force_window_ms == 0 else to_si(force_window_ms, "ms"),  # < 0: error
+            exp_window_tau_s=None if exp_window_tau_ms == 0 else to_si(exp_window_tau_ms, "ms"),
+            reject=not keep_flagged, f_max_hz=f_max_hz, direction=rec.direction, pose=rec.pose,
+            plausible=plausible,
+        )  # fmt: skip
     frf = result.frf
     if frf.frequency_hz.size < 5:
         fail(

@@ -13,6 +13,7 @@ from ._common import (
     JsonFlag,
     OutOpt,
     SeedOpt,
+    about_file,
     check_output,
     emit_json,
     new_app,
@@ -95,11 +96,12 @@ def oma(
     from ..io import read_milling_record_csv, write_frfs
 
     check_output(output, [record], force)
-    frfs = oma_frfs_with_path(
-        read_milling_record_csv(record), direction=direction, segment_length_m=segment_m,
-        nperseg=nperseg, noverlap=noverlap, window=window, f_min_hz=fmin, f_max_hz=fmax,
-        spindle_rpm=rpm, min_coherence=min_coherence,
-    )  # fmt: skip
+    with about_file(record):  # "record too short" etc. name the file
+        frfs = oma_frfs_with_path(
+            read_milling_record_csv(record), direction=direction, segment_length_m=segment_m,
+            nperseg=nperseg, noverlap=noverlap, window=window, f_min_hz=fmin, f_max_hz=fmax,
+            spindle_rpm=rpm, min_coherence=min_coherence,
+        )  # fmt: skip
     write_frfs(output, frfs, inputs=[record], force=force)
     doc = {"output": str(output), "segments": len(frfs), "s_mid_m": [f.meta["path_s_m"] for f in frfs],
            "n_bins": int(frfs[0].frequency_hz.size), "df_hz": float(frfs[0].df_hz),
@@ -141,7 +143,8 @@ def fit(
 
     check_output(output, ema, force)
     frfs = [f for path in ema for f in read_frfs(path)]
-    model = fit_frf_model(frfs, inputs, fmin, fmax, df_hz)
+    with about_file(ema[0] if len(ema) == 1 else None):  # "FRF 0: no path coordinate" names it
+        model = fit_frf_model(frfs, inputs, fmin, fmax, df_hz)
     model.save(output, provenance={"ema_files": ",".join(str(p) for p in ema)}, inputs=ema,
                force=force)  # fmt: skip
     doc = {
@@ -182,7 +185,8 @@ def update(
     check_output(output, [model_file, oma_file], force)
     model = FRFPoseModel.load(model_file)
     s = read_frfs(oma_file)
-    rep = model.update_frfs(s, mode=mode, reoptimize=reoptimize)
+    with about_file(oma_file):  # "FRF 0: no path coordinate" names the file
+        rep = model.update_frfs(s, mode=mode, reoptimize=reoptimize)
     model.save(output, provenance={"updated_with": str(oma_file), "update_mode": mode},
                inputs=[model_file, oma_file], force=force)  # fmt: skip
     doc = {"output": str(output), "n_oma": len(s), **rep.to_dict()}

@@ -14,6 +14,7 @@ from ._common import (
     JsonFlag,
     ModelOpt,
     SeedOpt,
+    about_file,
     check_output,
     console,
     emit_json,
@@ -63,7 +64,8 @@ def predict(
         from ..io import read_force_csv
         from ..milling.prediction import resample_force
 
-        f = resample_force(*read_force_csv(forces), 1000.0)
+        with about_file(forces):  # "not uniformly sampled" names the file
+            f = resample_force(*read_force_csv(forces), 1000.0)
     pose_model = workspace_model(model_path, seed)
     res = predict_at_pose(
         pose_model, x, y, rz, cond, coefficients=material(material_name),

@@ -56,8 +56,8 @@ def fit(
     frfs = read_frfs(frf_file)
     try:
         results = fit_frfs(frfs, band, all_modes=modes, max_order=max_order)
-    except ValueError as exc:  # a fit that fails: "FRF i: ..."
-        fail(str(exc))
+    except ValueError as exc:  # a fit that fails: "FILE, FRF i: ..."
+        fail(f"{frf_file}, {exc}")
     docs = [r.to_dict(i) for i, r in enumerate(results)]
     flagged = [(i, r.flags) for i, r in enumerate(results) if r.flagged]
     if json_out:

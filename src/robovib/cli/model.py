@@ -11,6 +11,7 @@ from ._common import (
     JsonFlag,
     KernelOpt,
     Table,
+    about_file,
     check_kernel,
     console,
     emit_json,
@@ -52,9 +53,16 @@ def fit(
 
     from ..campaign import fit_campaign_table, mode_switches_found, save_pose_model
     from ..campaign.quality import ModelQualityWarning
+    from ..io import check_output_path
 
+    for out in (output, plot):  # refused before the fit: onto the table, a FIFO, a link...
+        if out is not None:
+            check_output_path(out, inputs=[modal_csv])
     names = [n.strip() for n in inputs.split(",") if n.strip()]
-    with warnings.catch_warnings():  # printed below from res.warnings (text and JSON)
+    with (
+        warnings.catch_warnings(),
+        about_file(modal_csv),
+    ):  # warnings printed below from res.warnings; errors name the table
         warnings.simplefilter("ignore", ModelQualityWarning)
         res = fit_campaign_table(modal_csv, inputs=names, kernel=check_kernel(kernel),
                                  n_folds=folds, use_flagged=use_flagged)  # fmt: skip

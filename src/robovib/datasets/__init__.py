@@ -327,12 +327,15 @@ def copy_examples(folder, names=None) -> list:
     import shutil
     from pathlib import Path
 
+    from ..io.safe_write import atomic_output
+
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     out = []
     for name in names or list(EXAMPLES):
         src = example_path(name)
         dst = folder / name
-        shutil.copyfile(src, dst)
+        with atomic_output(dst) as tmp:  # never through a link, into a FIFO or over a device
+            shutil.copyfile(src, tmp)
         out.append(dst)
     return out

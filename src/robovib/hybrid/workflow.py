@@ -62,6 +62,10 @@ def fit_frf_model(
         raise ValueError(f"inputs must be one of {list(INPUT_SETS)}, got {inputs!r}")
     if not frfs:
         raise ValueError("no EMA FRFs given")
+    if len(frfs) < 2:  # else the GP names every frequency bin by its index
+        raise ValueError(
+            f"{len(frfs)} EMA FRF given: a model over the {inputs} needs FRFs at 2 or more poses"
+        )
     if f_min_hz is None:  # where all EMA FRFs have data
         f_min_hz = max([2.0, *(float(f.frequency_hz[0]) for f in frfs)])
     grid = frequency_grid(f_min_hz, f_max_hz, df_hz)

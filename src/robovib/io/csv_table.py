@@ -290,10 +290,10 @@ def read_table(path: str | Path, *, what: str = "table", comment: str | None = N
         No such file, an empty file, no data rows, a duplicated column, a line with another
         number of cells than the header (line and counts named).
     """
+    from .safe_read import read_bytes_checked
+
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such {what} file")
-    raw = path.read_bytes()
+    raw = read_bytes_checked(path, f"{what} file")  # a regular file below the size limit
     text, encoding = _decode(raw)
     if comment:  # blank them out: the line numbers stay those of the file
         text = "".join(

@@ -13,6 +13,7 @@ The depth column may be ``depth_mm`` or ``depth_m``; ``result`` is ``stable`` or
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -64,9 +65,18 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
     MeasuredCuts
         The cuts, depths in metres.
     """
+    from .safe_read import read_bytes_checked
+
     p = Path(path)
-    with p.open(newline="") as fh:
-        rows = list(csv.reader(line for line in fh if line.strip() and not line.startswith("#")))
+    raw = read_bytes_checked(p, "cuts file")  # a regular file below the size limit
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(
+            f"{p}: not a text (UTF-8) cuts file: byte {exc.start} cannot be decoded"
+        ) from None
+    lines = io.StringIO(text, newline="")
+    rows = list(csv.reader(ln for ln in lines if ln.strip() and not ln.startswith("#")))
     if not rows:
         raise ValueError(f"{p}: empty cuts file")
     header = [h.strip().lower() for h in rows[0]]
@@ -83,6 +93,11 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
     rcol, scol = header.index("result"), header.index("spindle_rpm")
     rpm, depth, chat = [], [], []
     for i, row in enumerate(rows[1:], start=2):
+        if len(row) < len(header):
+            raise ValueError(
+                f"{p}, line {i}: {len(row)} cells, expected {len(header)} like the header "
+                f"({', '.join(header)})"
+            )
         try:
             s, d = float(row[scol]), float(row[dcol]) * scale
         except (ValueError, IndexError) as exc:

@@ -20,6 +20,7 @@ written into the ID lines as ``pose=x,y,z,rx,ry,rz``.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -314,9 +315,10 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
     """
     import pyuff
 
+    from .safe_read import check_input_file
     from .units import si_factor
 
-    path = Path(path)
+    path = check_input_file(path, "UFF file")  # regular file, below the size limit
     try:
         sets = pyuff.UFF(str(path)).read_sets()
     except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
@@ -493,7 +495,9 @@ def write_frfs(
         from .frf_csv import write_frf_csv
 
         return write_frf_csv(path, frfs, inputs=inputs, force=force)
-    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv")
+    raise ValueError(
+        f"{path}: unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv"
+    )
 
 
 def read_frfs(path: str | Path) -> list[FRF]:
@@ -509,7 +513,11 @@ def read_frfs(path: str | Path) -> list[FRF]:
     list of FRF
         Every FRF of the file, in SI.
     """
+    from .safe_read import MAX_BINARY_BYTES, check_input_file
+
     suffix = Path(path).suffix.lower()
+    if suffix in (".h5", ".hdf5", ".uff", ".unv", ".csv") or os.path.lexists(path):
+        check_input_file(path, "FRF file", MAX_BINARY_BYTES)  # a FIFO, /dev/zero: refused
     if suffix in (".h5", ".hdf5"):
         return read_frfs_hdf5(path)
     if suffix in (".uff", ".unv"):
@@ -518,4 +526,6 @@ def read_frfs(path: str | Path) -> list[FRF]:
         from .frf_csv import read_frf_csv
 
         return read_frf_csv(path)
-    raise ValueError(f"unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv")
+    raise ValueError(
+        f"{path}: unknown FRF file format {suffix!r}; expected .h5, .hdf5, .uff, .unv or .csv"
+    )

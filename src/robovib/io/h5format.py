@@ -148,7 +148,9 @@ def open_checked(path, formats: Mapping[str, int], what: str | None = None):
     """
     import h5py
 
-    path = Path(path)
+    from .safe_read import MAX_BINARY_BYTES, check_input_file
+
+    path = check_input_file(path, what or "HDF5 file", MAX_BINARY_BYTES)  # no FIFO, no device
     try:
         h5 = h5py.File(path, "r")
     except OSError as exc:

@@ -20,10 +20,9 @@ def _float(text: str) -> float:
 def _read_checked(path: str | Path, columns: Sequence[str]):
     """The table as read and the required columns as checked finite floats."""
     from .csv_table import read_table
+    from .safe_read import check_input_file
 
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such pose table")
+    path = check_input_file(path, "pose table")  # a regular file below the size limit
     try:
         raw = read_table(path, what="pose table")
     except ValueError as exc:

@@ -713,9 +713,9 @@ def read_recording_channels(
     ValueError
         Unreadable file, unknown units, mismatched sampling rates, time gaps, no complete hit.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
+    from .safe_read import check_input_file
+
+    path = check_input_file(path, "file")  # a regular file below the size limit ("no such file")
     suffix = path.suffix.lower()
     if suffix == ".csv":
         ch = _csv_channels(path, force_sensitivity, response_sensitivity)

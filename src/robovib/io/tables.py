@@ -50,8 +50,11 @@ def _atomic_write_text(path: Path, text: str, *, inputs=(), force: bool = False)
         tmp.write_text(text)
 
 
-def _read_table(path, columns: Sequence[str]):
-    """(DataFrame, (n, len(columns)) floats) of a CSV (:func:`robovib.io.csv_table.read_table`)."""
+def _read_table(path, columns: Sequence[str], *, time_first: bool = False):
+    """(DataFrame, (n, len(columns)) floats) of a CSV (:func:`robovib.io.csv_table.read_table`).
+
+    ``time_first``: the first column is a time that must rise from line to line (2 rows or more).
+    """
     from .csv_table import read_table
 
     path = Path(path)
@@ -64,6 +67,16 @@ def _read_table(path, columns: Sequence[str]):
     if bad.any():
         r, c = np.argwhere(bad)[0]
         raise ValueError(f"{path} line {table.lines[r]}: {columns[c]} is empty, NaN or inf")
+    if time_first:
+        if len(data) < 2:
+            raise ValueError(f"{path}: {len(data)} sample; a record needs 2 or more")
+        stuck = np.flatnonzero(np.diff(data[:, 0]) <= 0)
+        if stuck.size:
+            i = int(stuck[0]) + 1
+            raise ValueError(
+                f"{path} line {table.lines[i]}: {columns[0]} = {data[i, 0]:.9g} does not rise "
+                f"after {data[i - 1, 0]:.9g} (line {table.lines[i - 1]}): the time must increase"
+            )
     return table.to_frame(), data
 
 
@@ -136,7 +149,7 @@ def write_recording(
     elif suffix == ".csv":
         write_recording_csv(path, recording, inputs=inputs, force=force)
     else:
-        raise ValueError(f"unknown output format {suffix!r}; use .uff or .csv")
+        raise ValueError(f"{path}: unknown output format {suffix!r}; use .uff or .csv")
 
 
 def read_force_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
@@ -157,9 +170,9 @@ def read_force_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     Raises
     ------
     ValueError
-        Missing column, NaN or inf.
+        Missing column, NaN or inf, fewer than 2 rows, a time that does not rise.
     """
-    _, data = _read_table(path, FORCE_COLUMNS)
+    _, data = _read_table(path, FORCE_COLUMNS, time_first=True)
     return data[:, 0], data[:, 1:]
 
 
@@ -184,7 +197,13 @@ def read_path_modes_csv(path: str | Path) -> tuple[np.ndarray, list[ModalParamet
         Missing column, NaN/inf, or a non-physical mode.
     """
     _, data = _read_table(path, PATH_MODE_COLUMNS)
-    return data[:, 0], [ModalParameters(fn, k, z) for _, fn, k, z in data]
+    modes = []
+    for i, (_, fn, k, z) in enumerate(data, start=1):
+        try:
+            modes.append(ModalParameters(fn, k, z))
+        except ValueError as exc:  # which row of which file
+            raise ValueError(f"{path}, data row {i}: {exc}") from None
+    return data[:, 0], modes
 
 
 def write_path_modes_csv(
@@ -245,10 +264,11 @@ def read_milling_record_csv(path: str | Path) -> dict[str, np.ndarray]:
     """
     head = _header(path)
     if "path_s_m" not in head and all(c in head for c in ("x_m", "y_m", "rz_deg")):
-        _, d = _read_table(path, (*MILLING_RECORD_COLUMNS[:-1], "x_m", "y_m", "rz_deg"))
+        cols = (*MILLING_RECORD_COLUMNS[:-1], "x_m", "y_m", "rz_deg")
+        _, d = _read_table(path, cols, time_first=True)
         return {"time_s": d[:, 0], "force_n": d[:, 1:4], "displacement_m": d[:, 4:7],
                 "pose": d[:, 7:10]}  # fmt: skip
-    _, d = _read_table(path, MILLING_RECORD_COLUMNS)
+    _, d = _read_table(path, MILLING_RECORD_COLUMNS, time_first=True)
     return {
         "time_s": d[:, 0],
         "force_n": d[:, 1:4],

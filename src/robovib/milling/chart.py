@@ -131,11 +131,14 @@ def parse_mode_spec(spec: str) -> tuple[str, ModalParameters]:
         raise ValueError(
             f"mode {spec!r}: direction must be x (feed) or y (normal), got {direction!r}"
         )
-    if not 0 <= zeta < 1:
+    if not 0 < zeta < 1:  # an undamped mode has no finite stability limit
         raise ValueError(
-            f"mode {spec!r}: damping ratio ZETA must be in [0, 1), got {zeta} (a ratio, not %)"
+            f"mode {spec!r}: damping ratio ZETA must be in (0, 1), got {zeta} (a ratio, not %)"
         )
-    return direction, ModalParameters(fn, k, zeta)
+    try:
+        return direction, ModalParameters(fn, k, zeta)
+    except ValueError as exc:  # which of several --mode texts, and which number
+        raise ValueError(f"mode {spec!r}: {exc}") from None
 
 
 def parse_mode_specs(specs) -> tuple[tuple[ModalParameters, ...], tuple[ModalParameters, ...]]:
@@ -409,15 +412,21 @@ def lobes_chart(
                 frfs[frf.direction] = frf.to_compliance()
         if not frfs:
             raise ValueError(f"{frf_file}: no FRF with direction x or y")
+        for d, f in frfs.items():
+            if not np.any(np.abs(f.values) > 0):  # LSCF would end in "SVD did not converge"
+                raise ValueError(f"{frf_file}: the {d} FRF is zero at every frequency")
         from ..modal.lscf import fit_modes
 
         fitted = {}
         for d, f in frfs.items():
             try:
                 fitted[d] = tuple(fit_modes(f).modes)
-            except ValueError:
-                if method == "sdm":
-                    raise
+            except ValueError as exc:
+                if method == "sdm":  # the user sets no max_order here: say what to do instead
+                    raise ValueError(
+                        f"{frf_file}: the modes of the {d} FRF cannot be identified for SDM "
+                        f"({exc}); --method zoa uses the measured FRF itself"
+                    ) from None
                 fitted[d] = ()  # the zero-order method uses the measured FRF itself
         modes_x, modes_y = fitted.get("x", ()), fitted.get("y", ())
     probability = None

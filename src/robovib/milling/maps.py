@@ -517,6 +517,76 @@ def workspace_lobe_map(
     return ds
 
 
+#: Seconds a Dask scheduler address gets to accept the connection and greet (handshake).
+SCHEDULER_TIMEOUT_S = 5.0
+
+
+def check_scheduler_address(address: str, timeout_s: float = SCHEDULER_TIMEOUT_S) -> None:
+    """Check, within ``timeout_s``, that a Dask scheduler answers at ``tcp://host:port``.
+
+    ``distributed.Client`` waits for the scheduler's greeting without a limit: a listener
+    that never speaks (another service, a hung scheduler) blocks it forever, and a refused
+    port costs its 30 s connect timeout. A Dask scheduler writes its handshake as soon as it
+    accepts a connection, so the probe connects and waits for the first byte.
+
+    Parameters
+    ----------
+    address : str
+        ``tcp://host:port``.
+    timeout_s : float
+        Seconds for the connection and the first byte of the handshake together.
+
+    Raises
+    ------
+    ValueError
+        A malformed address, a refused connection, an unknown host, or no handshake in time;
+        the message names the address.
+    """
+    import socket
+    import time
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address)
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:  # a port that is not a number
+        host, port = None, None
+    if parts.scheme != "tcp" or not host or port is None:
+        raise ValueError(f"Dask scheduler {address!r}: expected tcp://host:port")
+    start = time.monotonic()
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout_s)
+    except ConnectionRefusedError:
+        raise ValueError(
+            f"Dask scheduler {address}: connection refused (no scheduler listens there)"
+        ) from None
+    except socket.gaierror as exc:
+        raise ValueError(f"Dask scheduler {address}: unknown host {host!r} ({exc})") from None
+    except TimeoutError:
+        raise ValueError(
+            f"Dask scheduler {address}: no connection within {timeout_s:g} s"
+        ) from None
+    except OSError as exc:
+        raise ValueError(
+            f"Dask scheduler {address}: cannot connect ({exc.strerror or exc})"
+        ) from None
+    with sock:
+        sock.settimeout(max(0.1, timeout_s - (time.monotonic() - start)))
+        try:
+            greeting = sock.recv(1)
+        except TimeoutError:
+            greeting = None
+        except OSError as exc:
+            raise ValueError(
+                f"Dask scheduler {address}: connection dropped ({exc.strerror or exc})"
+            ) from None
+    if not greeting:
+        raise ValueError(
+            f"Dask scheduler {address}: something listens there but sent no Dask handshake "
+            f"within {timeout_s:g} s (not a Dask scheduler, or a hung one)"
+        )
+
+
 def _compute(tasks, scheduler: str, workers: int, progress):
     import dask
 
@@ -524,7 +594,12 @@ def _compute(tasks, scheduler: str, workers: int, progress):
     if scheduler.startswith("tcp://"):
         from distributed import Client, as_completed
 
-        with Client(scheduler) as client:
+        check_scheduler_address(scheduler)  # a silent listener would block Client forever
+        try:
+            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+        except OSError as exc:  # TimeoutError and distributed's CommClosedError included
+            raise ValueError(f"Dask scheduler {scheduler}: no connection ({exc})") from None
+        with client:
             futures = client.compute(tasks)
             index = {fut.key: i for i, fut in enumerate(futures)}
             results = [None] * total

@@ -172,6 +172,16 @@ def half_power_estimate(frequency_hz: np.ndarray, compliance: np.ndarray) -> Mod
     return ModalParameters(fn, k, zeta)
 
 
+def _require_peak(values: np.ndarray) -> None:
+    """A zero or flat FRF has no mode: say so instead of the optimiser's or LAPACK's words."""
+    mag = np.abs(np.asarray(values))
+    top = float(np.max(mag)) if mag.size else 0.0
+    if not top > 0:
+        raise ValueError("the FRF is zero at every frequency: no response to fit (a dead channel?)")
+    if float(np.ptp(mag)) <= 1e-9 * top:
+        raise ValueError("the FRF has one magnitude at every frequency: no resonance peak to fit")
+
+
 def fit_dominant_mode(
     frf: FRF,
     band_hz: tuple[float, float] | None = None,
@@ -233,6 +243,7 @@ def fit_dominant_mode(
         )
     h = frf.to_compliance(min_frequency_hz)
     f_all, v_all = h.frequency_hz, h.values
+    _require_peak(v_all)
     guess = half_power_estimate(f_all, v_all)
     if band_hz is None:
         half = max(3 * guess.damping_ratio, 0.2)

@@ -180,8 +180,9 @@ def _load_model(path):
     """A saved pose model (:class:`robovib.gp.PoseModalModel`: the chapter-3 model, a campaign's
     or a user's) or a hybrid FRF model, by the file's format tag."""
     from ..io.h5format import FRF_POSE_MODEL_FORMAT, POSE_MODEL_FORMAT, file_format
+    from ..io.safe_read import MAX_BINARY_BYTES, check_input_file
 
-    fmt, _ = file_format(path)
+    fmt, _ = file_format(check_input_file(path, "model file", MAX_BINARY_BYTES))
     if fmt == FRF_POSE_MODEL_FORMAT:
         from ..hybrid import FRFPoseModel
 

@@ -14,6 +14,10 @@ measurement tools write them (never with robovib's own recording writer):
 The manifest ``campaign.csv`` lists them (paths relative to it); ``truth.csv`` holds the
 virtual robot's dominant mode per direction at ``n_truth`` unseen poses drawn uniformly in
 the bounding box of the campaign poses.
+
+These files belong to :func:`simulate_campaign`: a rerun into the same folder removes the
+recordings of the earlier run it does not write again, and refuses, before writing anything, to
+write onto the poses file it reads (:mod:`robovib.io.safe_write`).
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.safe_write import atomic_output
+from ..io.safe_write import atomic_output, check_output_path, remove_stale_outputs
 from ..io.uff58 import Record58, write_uff58
 from .dynamics import modal_response
 from .experiments import _rng, simulate_hammer_test
@@ -35,6 +39,8 @@ LAYOUTS = ("uff-pairs", "uff-continuous", "uff-triaxial", "csv-daq")
 _Z_MM = 325.0
 _CODE = {"x": 1, "y": 2, "z": 3}
 _CROSS_COUPLING = 0.05
+#: The files :func:`simulate_campaign` owns in its folder (glob patterns).
+_OWNED = ("campaign.csv", "truth.csv", "recordings/pose*_[xyz].uff", "recordings/pose*_[xyz].csv")
 
 
 @dataclass(frozen=True)
@@ -199,6 +205,17 @@ def simulate_campaign(
     gen = _rng(rng)
     out = Path(out_dir)
     rec_dir = out / "recordings"
+    inputs = [poses] if isinstance(poses, str | Path) else []
+    for folder in (out, rec_dir):
+        if folder.exists() and not folder.is_dir():
+            raise ValueError(f"output folder {folder} exists and is not a folder")
+    if out.is_dir():  # nothing written onto the poses file (or a link, FIFO...): checked first
+        planned = [out / "campaign.csv", out / "truth.csv"]
+        for k, (i, d) in enumerate((i, d) for i in range(len(p)) for d in directions):
+            ext = "csv" if layouts[k % len(layouts)] == "csv-daq" else "uff"  # as written below
+            planned.append(rec_dir / f"pose{i:03d}_{d}.{ext}")
+        for target in planned if rec_dir.is_dir() else planned[:2]:
+            check_output_path(target, inputs=inputs)
     rec_dir.mkdir(parents=True, exist_ok=True)
     fs = float(sample_rate_hz)
     rows, paths = [], []
@@ -220,11 +237,12 @@ def simulate_campaign(
                 for h in range(n_hits):
                     recs += [_time_record(rec.forces[h], fs, 13, "N", code, code, h),
                              _time_record(rec.responses[h], fs, 12, "m/s^2", code, code, h)]  # fmt: skip
-                write_uff58(path, recs)
+                write_uff58(path, recs, inputs=inputs)
             elif layout == "uff-continuous":
                 path = rec_dir / f"{name}.uff"
                 write_uff58(path, [_time_record(rec.forces.ravel(), fs, 13, "N", code, code, 0),
-                                   _time_record(rec.responses.ravel(), fs, 12, "m/s^2", code, code, 0)])  # fmt: skip
+                                   _time_record(rec.responses.ravel(), fs, 12, "m/s^2", code, code, 0)],
+                            inputs=inputs)  # fmt: skip
             elif layout == "uff-triaxial":
                 path = rec_dir / f"{name}.uff"
                 recs = []
@@ -237,7 +255,7 @@ def simulate_campaign(
                             else _cross_response(robot, coords, d2, rec.forces[h], fs, gen)
                         )
                         recs.append(_time_record(resp, fs, 12, "m/s^2", _CODE[d2], code, h))
-                write_uff58(path, recs)
+                write_uff58(path, recs, inputs=inputs)
             else:  # csv-daq: acceleration in g, 6-decimal time
                 path = rec_dir / f"{name}.csv"
                 f_all, a_all = rec.forces.ravel(), rec.responses.ravel() / 9.80665
@@ -246,7 +264,7 @@ def simulate_campaign(
                     f"{ti:.6f},{fi:.6g},{ai:.6g}"
                     for ti, fi, ai in zip(t, f_all, a_all, strict=True)
                 )
-                with atomic_output(path) as tmp:
+                with atomic_output(path, inputs=inputs) as tmp:
                     tmp.write_text(f"time_s,force_n,acceleration_{d}_g\n{body}\n")
             paths.append(path)
             rows.append({
@@ -254,11 +272,12 @@ def simulate_campaign(
                 "z_mm": _Z_MM, "rz_deg": rz, "replicate": 0,
             })  # fmt: skip
     manifest = out / "campaign.csv"
-    with atomic_output(manifest) as tmp:
+    with atomic_output(manifest, inputs=inputs) as tmp:
         pd.DataFrame(rows).to_csv(tmp, index=False, float_format="%.6g")
     lo, hi = p.min(axis=0), p.max(axis=0)
     unseen = lo + (hi - lo) * gen.uniform(size=(int(n_truth), 3))
     truth = out / "truth.csv"
-    with atomic_output(truth) as tmp:
+    with atomic_output(truth, inputs=inputs) as tmp:
         truth_table(robot, unseen).to_csv(tmp, index=False, float_format="%.9g")
+    remove_stale_outputs(out, _OWNED, [manifest, truth, *paths])  # an earlier run's recordings
     return SimulatedCampaign(manifest, truth, tuple(paths))
