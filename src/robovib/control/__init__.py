@@ -40,7 +40,7 @@ _WHERE = {
         ["THESIS_Q", "THESIS_R", "DelayAnalysis", "DelayAwareDesign", "LoopMargins",
          "LQRDesign", "closed_loop_with_delay", "continuous_model", "delay_analysis",
          "design_delay_aware_lqr", "design_lqr", "discretize", "loop_margins",
-         "tune_r_for_delay"], "lqr"),
+         "spectral_radius", "tune_r_for_delay"], "lqr"),
     **dict.fromkeys(["SECOND_MODE_HYPOTHESES", "path_band", "path_mode", "plant_set"],
                     "pose_plants"),
     **dict.fromkeys(["GainSchedule", "ModelSchedule", "schedule_along_line", "schedule_gains"],

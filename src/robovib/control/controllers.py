@@ -35,7 +35,7 @@ import numpy as np
 
 from .._linalg import solve_dare
 from ..modal.parameters import ModalParameters
-from .lqr import continuous_model, design_delay_aware_lqr, discretize
+from .lqr import continuous_model, design_delay_aware_lqr, discretize, spectral_radius
 
 __all__ = [
     "Combined",
@@ -848,22 +848,6 @@ def design_tuned_state_feedback(
             if rho < max_radius:
                 best = (np.array([w1, w2]), float(sens[0]), rho)
     return best
-
-
-def spectral_radius(matrix: np.ndarray) -> float:
-    """Largest eigenvalue magnitude (< 1: the discrete loop is stable).
-
-    Parameters
-    ----------
-    matrix : numpy.ndarray
-        Square matrix.
-
-    Returns
-    -------
-    float
-        max |eigenvalue|.
-    """
-    return float(np.max(np.abs(np.linalg.eigvals(matrix))))
 
 
 def delay_aware_gains(

@@ -46,6 +46,7 @@ __all__ = [
     "design_lqr",
     "discretize",
     "loop_margins",
+    "spectral_radius",
     "tune_r_for_delay",
 ]
 
@@ -156,7 +157,7 @@ class LQRDesign:
 
     @property
     def spectral_radius(self) -> float:
-        return float(np.max(np.abs(np.linalg.eigvals(self.closed_loop))))
+        return spectral_radius(self.closed_loop)
 
 
 def design_lqr(
@@ -342,10 +343,10 @@ def delay_analysis(
     from .._checks import check_int
 
     max_search_steps = check_int("max_search_steps", max_search_steps, lo=0, hi=MAX_DELAY_STEPS)
-    rho = float(np.max(np.abs(np.linalg.eigvals(closed_loop_with_delay(design, steps)))))
+    rho = spectral_radius(closed_loop_with_delay(design, steps))
     max_ok = -1
     for d in range(0, int(max_search_steps) + 1):
-        if np.max(np.abs(np.linalg.eigvals(closed_loop_with_delay(design, d)))) < 1:
+        if spectral_radius(closed_loop_with_delay(design, d)) < 1:
             max_ok = d
         else:
             break
@@ -396,7 +397,7 @@ def tune_r_for_delay(
     best = None
     for r in grid:
         design = design_lqr(mode, period_s, q, [[r]], input=input)
-        rho = float(np.max(np.abs(np.linalg.eigvals(closed_loop_with_delay(design, steps)))))
+        rho = spectral_radius(closed_loop_with_delay(design, steps))
         if rho < 1 and (best is None or rho < best[0]):
             best = (rho, design, float(r))
     if best is None:
@@ -429,7 +430,7 @@ class DelayAwareDesign:
 
     @property
     def spectral_radius(self) -> float:
-        return float(np.max(np.abs(np.linalg.eigvals(self.closed_loop))))
+        return spectral_radius(self.closed_loop)
 
 
 def design_delay_aware_lqr(
@@ -562,3 +563,27 @@ def loop_margins(design: LQRDesign, delay_steps: int = 0, n_points: int = 20000)
     return LoopMargins(
         np.array(gms), np.array(wps) / (2 * np.pi), np.array(pms), np.array(wcs) / (2 * np.pi)
     )
+
+
+def spectral_radius(matrix: np.ndarray) -> float:
+    """Largest eigenvalue magnitude (< 1: the discrete loop is stable).
+
+    The one definition every loop analysis of :mod:`robovib.control` uses.
+
+    Parameters
+    ----------
+    matrix : numpy.ndarray
+        Square matrix.
+
+    Returns
+    -------
+    float
+        max |eigenvalue|.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> spectral_radius(np.array([[0.5, 1.0], [0.0, -0.9]]))
+    0.9
+    """
+    return float(np.max(np.abs(np.linalg.eigvals(matrix))))
