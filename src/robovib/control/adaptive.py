@@ -32,7 +32,14 @@ import numpy as np
 from scipy import signal
 
 from ..modal.parameters import ModalParameters
-from .controllers import ForceFeedforward, RepetitiveFeedback, ScheduledTable
+from .controllers import (
+    ForceFeedforward,
+    PathCursor,
+    RepetitiveFeedback,
+    ScheduledTable,
+    map_rows,
+    n_commands,
+)
 
 __all__ = [
     "FadeGuard",
@@ -283,7 +290,7 @@ class TrackingRepetitive(RepetitiveFeedback):
         if self.period_multiple > 1:  # the tracked period's own harmonics are left to others
             own = self._h % self.period_multiple == 0
             for a in self._pinv:
-                self._pinv[a] = np.where(own, 0.0, self._pinv[a])
+                self._pinv[a] = map_rows(self._pinv[a], lambda p: np.where(own, 0.0, p))
         self._on = {a: np.ones(self.n_harmonics, bool) for a in self._pinv}
         self._mag = None
         self._mag0 = None
@@ -427,10 +434,13 @@ class FadeGuard:
         fs = float(sample_rate_hz)
         self._fs = fs
         every = round(period_s * fs)
-        n_cmd = len(np.asarray(coords))
+        n_cmd = n_commands(coords)
         n = (n_cmd + 2) * every
         self.tracker.reset(n, fs)
-        mid = np.asarray(coords)[n_cmd // 2 : n_cmd // 2 + 1]
+        if isinstance(coords, PathCursor):  # a run-time controller: the path's nominal point
+            mid = np.array([coords.nominal_s_m])
+        else:
+            mid = np.asarray(coords)[n_cmd // 2 : n_cmd // 2 + 1]
         self._filters = {}
         for a, m in self.modes.items():
             if isinstance(m, ScheduledTable):

@@ -27,6 +27,7 @@ Controllers (directions are the keys ``0, 1, 2`` = X, Y, Z of the dicts they tak
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -42,11 +43,16 @@ __all__ = [
     "DelayAwareFeedback",
     "ForceFeedforward",
     "KalmanDesign",
+    "LiveMap",
+    "LiveRows",
+    "PathCursor",
     "RepetitiveFeedback",
     "ScheduledTable",
     "StateFeedback",
     "design_kalman",
     "implemented_loop_matrix",
+    "map_rows",
+    "n_commands",
 ]
 
 
@@ -95,6 +101,8 @@ class ScheduledTable:
         numpy.ndarray
             (n, m) interpolated rows.
         """
+        if isinstance(coords, PathCursor):
+            return LiveRows(self, coords)
         c = np.asarray(coords, float)
         s = c if c.ndim == 1 else c[:, 0]
         if self.s_m.size == 1:
@@ -102,6 +110,158 @@ class ScheduledTable:
         return np.column_stack(
             [np.interp(s, self.s_m, self.values[:, j]) for j in range(self.values.shape[1])]
         )
+
+
+class PathCursor:
+    """The path distance of the current command instant, for a controller run one step at a time.
+
+    A planned run gives ``reset`` the coordinates of every command instant; a run-time
+    controller (:class:`~robovib.control.runtime.RuntimeController`) learns the path distance
+    at each step. ``reset(cursor, ...)`` makes every :class:`ScheduledTable` lookup a
+    :class:`LiveRows` that reads the row at the cursor's current distance.
+
+    Parameters
+    ----------
+    capacity
+        Most command instants of a run (buffers are sized for it at ``reset``).
+    nominal_s_m
+        The path distance used where a controller needs one value for the run [m].
+    """
+
+    def __init__(self, capacity: int, nominal_s_m: float):
+        if int(capacity) < 1 or not math.isfinite(nominal_s_m):
+            raise ValueError("a path cursor needs capacity >= 1 and a finite nominal_s_m [m]")
+        self.capacity = int(capacity)
+        self.nominal_s_m = float(nominal_s_m)
+        self.s_m = float(nominal_s_m)
+        self.version = 0
+
+    def __len__(self) -> int:
+        return self.capacity
+
+    def move_to(self, s_m: float) -> None:
+        """Set the path distance [m] of the next command instant."""
+        self.s_m = float(s_m)
+        self.version += 1
+
+
+class LiveRows:
+    """A :class:`ScheduledTable`'s row at a :class:`PathCursor`'s distance (``rows[k]`` of a run).
+
+    ``rows[k]`` (any ``k``) is the linearly interpolated row at the cursor's distance (end
+    values held), computed once per cursor move into a buffer; ``rows[k, j]`` one value;
+    ``rows[:, j]`` a column view. ``shape`` is (capacity, columns).
+
+    Parameters
+    ----------
+    table
+        The table.
+    cursor
+        The cursor.
+    cols
+        Column selection (default all).
+    """
+
+    def __init__(self, table: ScheduledTable, cursor: PathCursor, cols=None):
+        self.table = table
+        self.cursor = cursor
+        self._scalar = cols is not None and np.ndim(cols) == 0  # rows[:, j]: rows[k] a number
+        self._cols = np.arange(table.values.shape[1]) if cols is None else np.atleast_1d(cols)
+        self._values = np.ascontiguousarray(table.values[:, self._cols])
+        self._s = table.s_m.tolist()
+        self._buf = np.empty(self._values.shape[1])
+        self._tmp = np.empty_like(self._buf)
+        self._version = -1
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.cursor.capacity, self._values.shape[1])
+
+    def row(self) -> np.ndarray:
+        """The row at the cursor's distance (a buffer overwritten on the next move)."""
+        if self._version != self.cursor.version:
+            self._version = self.cursor.version
+            v, s, x = self._values, self._s, self.cursor.s_m
+            if len(s) == 1 or x <= s[0]:
+                self._buf[:] = v[0]
+            elif x >= s[-1]:
+                self._buf[:] = v[-1]
+            else:
+                i = bisect.bisect_right(s, x) - 1
+                t = (x - s[i]) / (s[i + 1] - s[i])
+                np.multiply(v[i], 1.0 - t, out=self._buf)
+                np.multiply(v[i + 1], t, out=self._tmp)
+                self._buf += self._tmp
+        return self._buf
+
+    def __getitem__(self, key):
+        if isinstance(key, tuple):
+            k, j = key
+            if isinstance(k, slice):
+                return LiveRows(self.table, self.cursor, self._cols[j])
+            return self.row()[j]
+        return self.row()[0] if self._scalar else self.row()
+
+
+class LiveMap:
+    """``fn`` of a :class:`LiveRows`' row, recomputed once per cursor move (``[k]`` as a run's).
+
+    Parameters
+    ----------
+    rows
+        The live rows.
+    fn
+        Row (m,) -> derived array.
+    """
+
+    def __init__(self, rows, fn):
+        self.rows = rows
+        self.fn = fn
+        self._version = -1
+        self._value = None
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (self.rows.cursor.capacity, *np.shape(self[0]))
+
+    def __getitem__(self, k):
+        cursor = self.rows.cursor
+        if self._version != cursor.version:
+            self._version = cursor.version
+            self._value = self.fn(self.rows.row())
+        return self._value
+
+
+def map_rows(rows, fn):
+    """``fn`` of every row: ``fn(rows)`` for an array (n, m), a :class:`LiveMap` for live rows.
+
+    ``fn`` takes (n, m) rows and returns (n, ...) values row by row (vectorised).
+
+    Parameters
+    ----------
+    rows : numpy.ndarray or LiveRows or LiveMap
+        The rows.
+    fn : callable
+        (n, m) -> (n, ...).
+
+    Returns
+    -------
+    numpy.ndarray or LiveMap
+        The derived rows.
+    """
+    if isinstance(rows, LiveRows):
+        return LiveMap(rows, lambda r: fn(r[None, :])[0])
+    if isinstance(rows, LiveMap):
+        return LiveMap(rows.rows, lambda r, f0=rows.fn: fn(f0(r)[None, ...])[0])
+    return fn(rows)
+
+
+def n_commands(coords) -> int:
+    """Command instants of a run: ``len(coords)``, or a :class:`PathCursor`'s capacity."""
+    if isinstance(coords, PathCursor):
+        return coords.capacity
+    c = np.asarray(coords)
+    return int(c.shape[0]) if c.ndim else 1
 
 
 def _table(spec) -> ScheduledTable:
@@ -252,7 +412,7 @@ class DelayAwareFeedback:
                 )
                 self._kf[a] = ScheduledTable(np.asarray(s_grid, float), rows).at(coords)
             self._xhat = {a: np.zeros(2) for a in self._kf}
-            n = len(np.atleast_1d(coords if np.ndim(coords) == 1 else np.asarray(coords)[:, 0]))
+            n = n_commands(coords)
             self._sent = np.zeros(((n + 2) * self._every + self.delay_samples, 3))
             self._sample = -1
 
@@ -356,7 +516,7 @@ class ForceFeedforward:
             )
         self._p0 = max(1, math.ceil(need / self._n))
         self._k = {a: t.at(coords)[:, 0] for a, t in self.stiffness.items()}
-        n_cmd = next(iter(self._k.values())).size if self._k else 0
+        n_cmd = n_commands(coords) if self._k else 0
         self._buf = np.zeros(((n_cmd + 2) * self._every, 3))
         self._len = 0
         self._sum = np.zeros(3)
@@ -497,13 +657,16 @@ class RepetitiveFeedback:
         hw = np.arange(1, self.n_harmonics + 1) * self._w0
         self._hw = hw
         self._pinv = {}
-        for a, tab in self.modes.items():
-            rows = tab.at(coords)  # (n_cmd, 2): fn, zeta
+
+        def pinv(rows):  # (n_cmd, 2): fn, zeta -> (n_cmd, H) inverse model FRF
             wn = 2 * np.pi * rows[:, :1]
             z = rows[:, 1:2]
             p = wn**2 / (wn**2 - hw**2 + 2j * z * wn * hw)
-            self._pinv[a] = np.where(hw <= self.max_harmonic_ratio * wn, 1.0 / p, 0.0)
-        n_cmd = next(iter(self._pinv.values())).shape[0] if self._pinv else 0
+            return np.where(hw <= self.max_harmonic_ratio * wn, 1.0 / p, 0.0)
+
+        for a, tab in self.modes.items():
+            self._pinv[a] = map_rows(tab.at(coords), pinv)
+        n_cmd = n_commands(coords) if self._pinv else 0
         self._y = np.zeros(((n_cmd + 2) * self._every, 3))
         self._len = 0
         self._u = np.zeros((self.n_harmonics, 3), complex)

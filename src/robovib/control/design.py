@@ -123,11 +123,16 @@ RUNOUT_LEARNING_REVS = 4.0
 def _force_model_r(model: PoseModalModel, s_m: float, direction: str, period_s, delay_s) -> float:
     """LQR weight of the force-model feedforward: best worst case over the band, the second-mode
     hypotheses and the unknown delay (nominal ± 8 ms), at ``s_m`` (:func:`force_model_r`)."""
+    return _force_model_design(model, s_m, direction, period_s, delay_s)[0]
+
+
+def _force_model_design(model, s_m: float, direction: str, period_s, delay_s):
+    """(r, worst RMS ratio) of :func:`_force_model_r`."""
     plants = _model_set(model, s_m, direction)
     nominal = path_mode(model, s_m, direction)
     key = ("force-model", nominal, tuple(tuple(p) for p in plants), period_s, delay_s)
     if key not in _DESIGN_CACHE:
-        _DESIGN_CACHE[key] = force_model_r(plants, nominal, period_s=period_s, delay_s=delay_s)[0]
+        _DESIGN_CACHE[key] = force_model_r(plants, nominal, period_s=period_s, delay_s=delay_s)
     return _DESIGN_CACHE[key]
 
 
@@ -221,6 +226,10 @@ class PathTables:
     plants
         Axis -> the plant set (band corners, second modes) at each design point; not stored
         in a controller file.
+    checks
+        What the stability check over the band found: ``"robust_worst_spectral_radius"`` /
+        ``"lqg_worst_spectral_radius"`` (axis -> per design point) and
+        ``"force_model_worst_rms_ratio"`` (axis -> value).
     period_s, delay_s
         Command period and the delay the designs assume [s].
     """
@@ -236,6 +245,7 @@ class PathTables:
     lqg: dict = field(default_factory=dict)
     force_model_r: dict = field(default_factory=dict)
     plants: dict = field(default_factory=dict)
+    checks: dict = field(default_factory=dict)
 
     def fz(self, a: int) -> ScheduledTable:
         """(fn [Hz], zeta) rows of axis ``a`` along the path."""
@@ -311,17 +321,24 @@ def design_tables(
             if lqg_r is None:  # R picked like the robust design, on the loop with the filter
                 rows = [_robust_r(p, m, period_s, delay_s, r_grid, "kalman")[1]
                         for p, m in zip(tab.plants[a], modes[a], strict=True)]  # fmt: skip
+                tab.checks.setdefault("lqg_worst_spectral_radius", {})[a] = [
+                    _robust_r(p, m, period_s, delay_s, r_grid, "kalman")[0]
+                    for p, m in zip(tab.plants[a], modes[a], strict=True)]  # fmt: skip
             else:
                 rows = [design_delay_aware_lqr(m, period_s, delay_s, r=[[lqg_r]]).gains
                         for m in modes[a]]  # fmt: skip
             tab.lqg[a] = np.array(rows)
     if "robust" in need:
         for a in axes:
-            tab.robust[a] = np.array([_robust_r(p, m, period_s, delay_s, r_grid)[1]
-                                      for p, m in zip(tab.plants[a], modes[a], strict=True)])  # fmt: skip
+            best = [_robust_r(p, m, period_s, delay_s, r_grid)
+                    for p, m in zip(tab.plants[a], modes[a], strict=True)]  # fmt: skip
+            tab.robust[a] = np.array([b[1] for b in best])
+            tab.checks.setdefault("robust_worst_spectral_radius", {})[a] = [b[0] for b in best]
     if "force_model_r" in need:
-        tab.force_model_r = {a: _force_model_r(model, float(np.median(grid)), d, period_s, delay_s)
-                             for a, d in axes.items()}  # fmt: skip
+        fm = {a: _force_model_design(model, float(np.median(grid)), d, period_s, delay_s)
+              for a, d in axes.items()}  # fmt: skip
+        tab.force_model_r = {a: v[0] for a, v in fm.items()}
+        tab.checks["force_model_worst_rms_ratio"] = {a: v[1] for a, v in fm.items()}
     return tab
 
 

@@ -314,7 +314,7 @@ class ForceModelFeedforward:
 
     def _highpass(self, f: np.ndarray) -> np.ndarray:
         if self._f_prev is None:
-            self._f_prev = f.copy()
+            self._f_prev = f[0].copy()  # the first sample (a first cycle may bring several)
         out = np.empty_like(f)
         for i, row in enumerate(f):
             self._f_hp = self._alpha * (self._f_hp + row - self._f_prev)
