@@ -98,7 +98,7 @@ def _path_file(tmp_path, controller="adaptive+force", rpm=250.0):
 
 
 def test_controller_file_says_what_it_is(tmp_path):
-    path, doc = _path_file(tmp_path)
+    path, _ = _path_file(tmp_path)
     back = json.loads(path.read_text())
     assert back["format"] == "robovib.controller" and back["format_version"] == 1
     assert back["provenance"]["control_modes"] == {"x": "x2", "z": "z1"}
@@ -121,7 +121,7 @@ def test_controller_file_says_what_it_is(tmp_path):
     ],
 )
 def test_bad_controller_files_are_refused_with_the_reason(tmp_path, edit, message):
-    path, doc = _path_file(tmp_path)
+    _, doc = _path_file(tmp_path)
     edit(doc)
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps(doc))
