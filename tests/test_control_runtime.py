@@ -55,7 +55,9 @@ def _line():
 
 
 def test_path_travel_and_projection_are_the_closed_form():
-    path = ControlPath.through(("x_mm", "y_mm", "rz_deg"), [[0, 0, 0], [300, 400, 10], [300, 0, 20]])
+    path = ControlPath.through(
+        ("x_mm", "y_mm", "rz_deg"), [[0, 0, 0], [300, 400, 10], [300, 0, 20]]
+    )
     np.testing.assert_allclose(path.s_m, [0.0, 0.5, 0.9])
     # (150, 200) is the middle of the first leg; (400, 200) is 100 mm beside the second leg
     np.testing.assert_allclose(path.coordinate([[150, 200, 99], [400, 200, 0]]), [0.25, 0.7])
@@ -199,3 +201,62 @@ def test_live_lookup_matches_the_planned_lookup_of_the_same_controller(tmp_path)
         u_ref = planned.command(k, y[lo:hi], f[lo:hi])
         u = ctl.step_arrays(f[lo:hi], y[lo:hi] * 1e3, s[k])
         np.testing.assert_allclose(u * 1e-3, u_ref, rtol=1e-9, atol=1e-15)
+
+
+def test_cli_design_and_replay_on_a_logged_cut(tmp_path):
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+    from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
+    from robovib.sim import LinearMove, VirtualRobot, run_closed_loop
+    from robovib.sim.disturbances import REALISTIC_LEVELS
+    from tests.test_cli_smoke import assert_self_describing
+
+    runner = CliRunner()
+    ctl = tmp_path / "ctl.json"
+    args = ["control", "design", "--start", "2350,400,30", "--end", "2350,0,80", "--points", "7",
+            "--controller", "adaptive+force", "-o", str(ctl), "--json"]  # fmt: skip
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert_self_describing(doc, args)
+    assert doc["control_modes"] == {"x": "x", "z": "z"}
+    # an open-loop cut, logged (no controller ran): what would the controller have sent?
+    tool, cond = MillingTool(), CuttingConditions(250.0, 0.3e-3, 3e-3, 6e-3)
+    t = np.arange(2000) / 1000.0
+    local = REALISTIC_LEVELS.cutting_force(t, tool, cond, ACETAL, rng=np.random.default_rng(2))
+    force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
+    move = LinearMove("workspace", (2.35, 0.30, 42.5), (2.35, 0.25, 48.75))
+    run_closed_loop(VirtualRobot(), move, force, 1000.0, None, rng=1).to_csv(tmp_path / "cut.csv")
+    out = tmp_path / "cmds.csv"
+    args = ["control", "replay", str(ctl), "--record", str(tmp_path / "cut.csv"), "--rpm", "250",
+            "-o", str(out), "--json"]  # fmt: skip
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert_self_describing(doc, args)
+    assert doc["commands"] == 500 and set(doc["rms_mm"]) == {"x", "z"}
+    cmds = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert cmds.shape == (500, 6)
+    np.testing.assert_allclose(np.max(np.abs(cmds[:, 2:5]), axis=0),
+                               [doc["peak_correction_mm"][d] for d in "xyz"])  # fmt: skip
+    # the model's open-loop response to the logged force is the size of the logged vibration
+    for d in "xz":
+        assert 0.3 < doc["rms_mm"][d]["predicted_open"] / doc["rms_mm"][d]["measured"] < 3
+    res = runner.invoke(app, ["control", "replay", str(ctl), "--record", str(tmp_path / "cut.csv")])
+    assert res.exit_code == 1 and "spindle speed" in res.output
+
+
+def test_gains_lead_with_a_design_stable_with_the_delay():
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    res = CliRunner().invoke(app, ["control", "gains", "--x", "2400", "--y", "0", "--rz", "45"])
+    assert res.exit_code == 0, res.output
+    first = res.stdout.splitlines()[1]
+    assert first.startswith("stable with the 32 ms delay: delay-aware LQR")
+    res = CliRunner().invoke(app, ["control", "schedule"])
+    line = res.stdout.splitlines()[0]
+    assert "m/m" in line and " s " in line and "stable with 32 ms delay: yes" in line
+    assert "0.00001" not in res.stdout

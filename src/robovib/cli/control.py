@@ -409,7 +409,10 @@ def design(
                "stability": {k: v for k, v in doc["stability"].items()
                              if k.endswith(("radius", "ratio"))}}  # fmt: skip
     if json_out:
-        emit_json(summary)
+        emit_json(summary, units={"design_points": "1 (count)", "extrapolating_points": "1 (count)",
+                                  "force_model_worst_rms_ratio": "1 (ratio)",
+                                  "robust_worst_spectral_radius": "1",
+                                  "lqg_worst_spectral_radius": "1"})  # fmt: skip
         return
     modes = ", ".join(f"{d}: model output {m}" for d, m in summary["control_modes"].items())
     typer.echo(f"wrote {output}: {doc['controller']} along {path.length_m:.3f} m "

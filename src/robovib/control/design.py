@@ -11,6 +11,7 @@ run them on the virtual robot.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -366,6 +367,7 @@ def assemble_controller(
     teeth: int = 1,
     tracker: dict | None = None,
     guard: dict | None = None,
+    learner: dict | None = None,
     model=None,
 ):
     """A fresh run-time controller ``name`` from the design tables.
@@ -383,6 +385,9 @@ def assemble_controller(
     tracker, guard
         Period-tracker and guard settings (default :data:`TRACKER_DEFAULTS`,
         :data:`GUARD_DEFAULTS`).
+    learner
+        Options of the tracking repetitive learners
+        (:class:`~robovib.control.adaptive.TrackingRepetitive`, e.g. ``divergence_test``).
     model
         The pose model: only ``tuned`` needs it (its design depends on the excitation).
 
@@ -425,17 +430,24 @@ def assemble_controller(
             raise ValueError("the tuned controller is designed per excitation: it needs the model")
         return _tuned(tab, excitation_period_s)
     fz = {a: tab.fz(a) for a in axes}
+    learner = dict(learner or {})
+    if learner.get("n_harmonics") == "auto":
+        # every tooth harmonic the learner may use (below max_harmonic_ratio x the highest fn)
+        ratio = learner.get("max_harmonic_ratio", 1.6)
+        fn_max = max(float(np.max(t.values[:, 0])) for t in fz.values())
+        learner["n_harmonics"] = max(1, math.floor(ratio * fn_max * excitation_period_s))
     if name == "repetitive":
         return RepetitiveFeedback(fz, excitation_period_s, delay_s)
     tracker_obj = PeriodTracker(excitation_period_s, **tracker_opts)
     if name == "adaptive-feedforward":
         parts = [TrackingFeedforward(stiff, tracker_obj, delay_s)]
     else:
-        parts = [TrackingRepetitive(fz, tracker_obj, delay_s)]
+        parts = [TrackingRepetitive(fz, tracker_obj, delay_s, **learner)]
     if name == "adaptive+force" and teeth > 1:
         # The once-per-revolution lines of runout (spindle harmonics that are not tooth
         # harmonics), learnt over a revolution, slowly against that window.
-        parts.append(TrackingRepetitive(fz, tracker_obj, delay_s, period_multiple=teeth,
+        runout = {k: v for k, v in learner.items() if k != "n_harmonics"}
+        parts.append(TrackingRepetitive(fz, tracker_obj, delay_s, **runout, period_multiple=teeth,
                                         n_harmonics=2 * teeth,
                                         learning_time_s=RUNOUT_LEARNING_REVS * teeth * excitation_period_s))  # fmt: skip
     if name == "adaptive+force":

@@ -170,6 +170,24 @@ def _settings(what: str, defaults: dict, given: dict | None) -> dict:
     return {**defaults, **{k: float(v) for k, v in (given or {}).items()}}
 
 
+#: The repetitive learners' settings of a controller file (see ``TrackingRepetitive``).
+LEARNER_DEFAULTS = {"divergence_ratio": 1.2, "divergence_test": "correction",
+                    "n_harmonics": "auto", "model_at_tracked_period": True}  # fmt: skip
+
+
+def _learner(given: dict | None) -> dict:
+    unknown = set(given or {}) - set(LEARNER_DEFAULTS)
+    if unknown:
+        raise ValueError(f"unknown learner settings {sorted(unknown)}; expected some of "
+                         f"{sorted(LEARNER_DEFAULTS)}")  # fmt: skip
+    out = {**LEARNER_DEFAULTS, **(given or {})}
+    out["divergence_ratio"] = float(out["divergence_ratio"])
+    out["model_at_tracked_period"] = bool(out["model_at_tracked_period"])
+    if out["n_harmonics"] != "auto":
+        out["n_harmonics"] = int(out["n_harmonics"])
+    return out
+
+
 def _check_timing(period_s: float, delay_s: float, sample_rate_hz: float) -> None:
     if not (math.isfinite(period_s) and period_s > 0 and math.isfinite(sample_rate_hz)
             and sample_rate_hz > 0 and math.isfinite(delay_s) and delay_s >= 0):  # fmt: skip
@@ -247,6 +265,7 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
         "gains": gains,
         "tracker": tracker,
         "guard": guard,
+        "learner": _learner(None),
         "stability": stability,
         "provenance": design.provenance(),
         "units": _UNITS,
@@ -425,6 +444,7 @@ class RuntimeController:
         self.teeth = int(doc.get("excitation", {}).get("teeth", 1))
         self.tracker_settings = _settings("tracker", TRACKER_DEFAULTS, doc.get("tracker"))
         self.guard_settings = _settings("guard", GUARD_DEFAULTS, doc.get("guard"))
+        self.learner_settings = _learner(doc.get("learner"))
         self._inner = None
         self._out = np.zeros(3)
         if self.spindle_rpm is not None or not DESIGNS[self.name].needs_excitation:
@@ -436,11 +456,14 @@ class RuntimeController:
         return round(self.period_s * self.sample_rate_hz)
 
     def reset(self, *, spindle_rpm: float | None = None, teeth: int | None = None,
-              max_duration_s: float = 60.0) -> None:  # fmt: skip
+              max_duration_s: float = 60.0, nominal_s_m: float | None = None) -> None:  # fmt: skip
         """Start a cut: fresh state, buffers for ``max_duration_s`` of it.
 
         Parameters
         ----------
+        nominal_s_m
+            Path coordinate of the cut [m] where a controller needs one value for the whole
+            cut (the guard's open-loop model); default the middle of the designed path.
         spindle_rpm
             Nominal spindle speed [rev/min] of this cut (default the file's).
         teeth
@@ -468,9 +491,12 @@ class RuntimeController:
         period = None if rpm is None else 60.0 / (rpm * teeth)
         self._inner = assemble_controller(self.name, self.tables, excitation_period_s=period,
                                           teeth=teeth, tracker=self.tracker_settings,
-                                          guard=self.guard_settings)  # fmt: skip
+                                          guard=self.guard_settings,
+                                          learner=self.learner_settings)  # fmt: skip
         capacity = math.ceil(max_duration_s / self.period_s)
-        nominal = float(np.median(self.tables.grid))
+        nominal = float(np.median(self.tables.grid)) if nominal_s_m is None else float(nominal_s_m)
+        if not math.isfinite(nominal):
+            raise ValueError(f"nominal_s_m must be finite [m], got {nominal_s_m!r}")
         self._cursor = PathCursor(capacity, nominal)
         self._inner.reset(self._cursor, self.period_s, self.sample_rate_hz)
         self._k = 0
@@ -603,7 +629,8 @@ class _Planned:
         self._s = rt.path_coordinate(coords)
         n = self._s.size
         rt.reset(spindle_rpm=self.spindle_rpm, teeth=self.teeth,
-                 max_duration_s=(n + 2) * rt.period_s)  # fmt: skip
+                 max_duration_s=(n + 2) * rt.period_s,
+                 nominal_s_m=float(self._s[n // 2]))  # fmt: skip
         self.commands_mm = np.zeros((n, 3))
 
     def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
@@ -718,7 +745,8 @@ def replay(runtime: RuntimeController, record: dict, *, spindle_rpm: float | Non
     idx = np.arange(0, t.size, every)
     s = runtime.path_coordinate(np.asarray(coords)[idx])
     runtime.reset(spindle_rpm=spindle_rpm, teeth=teeth,
-                  max_duration_s=(idx.size + 2) * runtime.period_s)  # fmt: skip
+                  max_duration_s=(idx.size + 2) * runtime.period_s,
+                  nominal_s_m=float(s[idx.size // 2]))  # fmt: skip
     cmds = np.zeros((idx.size, 3))
     scale = np.zeros(idx.size)
     for k, i in enumerate(idx):
