@@ -140,7 +140,13 @@ class PathCursor:
         return self.capacity
 
     def move_to(self, s_m: float) -> None:
-        """Set the path distance [m] of the next command instant."""
+        """Set the path distance of the next command instant.
+
+        Parameters
+        ----------
+        s_m : float
+            Path distance [m].
+        """
         self.s_m = float(s_m)
         self.version += 1
 
@@ -178,7 +184,13 @@ class LiveRows:
         return (self.cursor.capacity, self._values.shape[1])
 
     def row(self) -> np.ndarray:
-        """The row at the cursor's distance (a buffer overwritten on the next move)."""
+        """The row at the cursor's distance.
+
+        Returns
+        -------
+        numpy.ndarray
+            (m,) row (a buffer overwritten on the next move).
+        """
         if self._version != self.cursor.version:
             self._version = self.cursor.version
             v, s, x = self._values, self._s, self.cursor.s_m
@@ -257,7 +269,18 @@ def map_rows(rows, fn):
 
 
 def n_commands(coords) -> int:
-    """Command instants of a run: ``len(coords)``, or a :class:`PathCursor`'s capacity."""
+    """Command instants of a run: ``len(coords)``, or a :class:`PathCursor`'s capacity.
+
+    Parameters
+    ----------
+    coords : array_like or PathCursor
+        The run's coordinates.
+
+    Returns
+    -------
+    int
+        The number of command instants.
+    """
     if isinstance(coords, PathCursor):
         return coords.capacity
     c = np.asarray(coords)

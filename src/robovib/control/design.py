@@ -249,12 +249,32 @@ class PathTables:
     checks: dict = field(default_factory=dict)
 
     def fz(self, a: int) -> ScheduledTable:
-        """(fn [Hz], zeta) rows of axis ``a`` along the path."""
+        """(fn [Hz], zeta) rows of axis ``a`` along the path.
+
+        Parameters
+        ----------
+        a : int
+            Tool-tip axis (0 = X, 1 = Y, 2 = Z).
+
+        Returns
+        -------
+        ScheduledTable
+        """
         return ScheduledTable(self.grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
                                                    for m in self.modes[a]]))  # fmt: skip
 
     def stiffness(self, a: int) -> ScheduledTable:
-        """Static stiffness [N/m] rows of axis ``a`` along the path."""
+        """Static stiffness [N/m] rows of axis ``a`` along the path.
+
+        Parameters
+        ----------
+        a : int
+            Tool-tip axis (0 = X, 1 = Y, 2 = Z).
+
+        Returns
+        -------
+        ScheduledTable
+        """
         return ScheduledTable(self.grid, np.array([[m.stiffness_n_per_m] for m in self.modes[a]]))
 
 

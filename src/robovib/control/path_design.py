@@ -14,7 +14,6 @@ that matters for control is the one with the largest peak compliance ``1 / (2 ze
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,7 +145,12 @@ class ControlPath:
         return best_s
 
     def to_dict(self) -> dict:
-        """JSON-ready: input names, vertices (model input units) and travels [m]."""
+        """JSON-ready: input names, vertices (model input units) and travels [m].
+
+        Returns
+        -------
+        dict
+        """
         return {"input_names": list(self.input_names), "vertices": self.vertices.tolist(),
                 "s_m": self.s_m.tolist()}  # fmt: skip
 
@@ -265,7 +269,14 @@ class PathDesign:
         return [self._cache[v] for v in s.tolist()]
 
     def provenance(self) -> dict:
-        """What the design came from: model type, inputs, chosen modes, its provenance."""
+        """What the design came from: model type, inputs, chosen modes, its provenance.
+
+        Returns
+        -------
+        dict
+            ``model_type``, ``input_names``, ``control_modes``, ``model_provenance`` and
+            ``extrapolating_points``.
+        """
         prov = getattr(self.model, "provenance_", None) or {}
         return {"model_type": type(self.model).__name__,
                 "input_names": list(self.path.input_names),
@@ -273,8 +284,3 @@ class PathDesign:
                 "model_provenance": {str(k): (v if isinstance(v, int | float | str | bool) else str(v))
                                      for k, v in dict(prov).items()},
                 "extrapolating_points": int(np.sum(self.extrapolating))}  # fmt: skip
-
-
-def finite_or_none(v: float):
-    """``v`` or None when not finite (JSON)."""
-    return v if math.isfinite(v) else None

@@ -27,10 +27,35 @@ class Controller(Protocol):
     """A controller of a planned run (see the module docs)."""
 
     def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
-        """Prepare a run with the coordinates of every command instant."""
+        """Prepare a run with the coordinates of every command instant.
+
+        Parameters
+        ----------
+        coords : array_like or PathCursor
+            (n_cmd,) path distances [m], (n_cmd, 3) poses, or a cursor.
+        period_s : float
+            Command period [s].
+        sample_rate_hz : float
+            Sensor sample rate [Hz].
+        """
 
     def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
-        """The correction [m] (3,) at command instant ``k``."""
+        """The correction at command instant ``k``.
+
+        Parameters
+        ----------
+        k : int
+            Command instant.
+        tracker_m : numpy.ndarray
+            (m, 3) tracker samples of the period [m].
+        force_n : numpy.ndarray
+            (m, 3) force samples of the period [N].
+
+        Returns
+        -------
+        numpy.ndarray
+            (3,) correction [m].
+        """
 
 
 @runtime_checkable
@@ -41,4 +66,15 @@ class StepController(Protocol):
         """Forget the past: a new cut starts."""
 
     def step(self, measurement) -> np.ndarray:
-        """The correction [mm] (3,) for this cycle's measurement."""
+        """The correction for this cycle's measurement.
+
+        Parameters
+        ----------
+        measurement : object
+            Force [N] and tracker [mm] samples and the path coordinate [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            (3,) correction [mm].
+        """

@@ -559,7 +559,13 @@ class RuntimeController:
         return self._out
 
     def events(self) -> list:
-        """What the guard (and the learners) did and why: :class:`GuardEvent` in time order."""
+        """What the guard (and the learners) did and why.
+
+        Returns
+        -------
+        list of GuardEvent
+            In time order.
+        """
         inner = self._inner
         if inner is None:
             return []
