@@ -420,7 +420,10 @@ def design(
     for key, by_dir in summary["stability"].items():
         for d, v in by_dir.items():
             worst = max(v) if isinstance(v, list) else v
-            typer.echo(f"  {key.replace('_', ' ')} ({d}): {worst:.3f} (< 1 over the band)")
+            verdict = "< 1 over the band" if worst < 1 else "NOT < 1: this part is left out"
+            if key.endswith("radius"):
+                verdict = "stable over the band" if worst < 1 else "NOT stable over the band"
+            typer.echo(f"  {key.replace('_', ' ')} ({d}): {worst:.3f} ({verdict})")
     if summary["extrapolating_points"]:
         typer.echo(f"warning: {summary['extrapolating_points']} design points lie outside the "
                    "model's training data (GP extrapolation)")  # fmt: skip

@@ -306,6 +306,7 @@ class TrackingRepetitive(RepetitiveFeedback):
         self._theta = np.zeros(n)
         self._phase = 0.0
         self._h = np.arange(1, self.n_harmonics + 1)
+        self._eth = np.zeros((self.n_harmonics, n), complex)
         self._fs = float(sample_rate_hz)
         if self.period_multiple > 1:  # the tracked period's own harmonics are left to others
             own = self._h % self.period_multiple == 0
@@ -335,7 +336,10 @@ class TrackingRepetitive(RepetitiveFeedback):
         period = self.period_multiple * self.tracker.period_s
         w_dt = 2 * math.pi * self._dt / period
         m = tracker_m.shape[0]
-        self._theta[self._len : self._len + m] = self._phase + w_dt * np.arange(1, m + 1)
+        new = self._phase + w_dt * np.arange(1, m + 1)
+        self._theta[self._len : self._len + m] = new
+        # each sample's harmonic phasors, computed once (the DFT below slides over them)
+        self._eth[:, self._len : self._len + m] = np.exp(-1j * np.outer(self._h, new))
         self._phase += w_dt * m
         self._y[self._len : self._len + m] = tracker_m
         self._len += m
@@ -344,8 +348,7 @@ class TrackingRepetitive(RepetitiveFeedback):
             lo = self._len - window
             seg = self._y[lo : self._len]
             seg = seg - seg.mean(axis=0)
-            th = self._theta[lo : self._len]
-            resid = 2.0 / window * (np.exp(-1j * np.outer(self._h, th)) @ seg)
+            resid = 2.0 / window * (self._eth[:, lo : self._len] @ seg)
             mag = np.abs(resid)
             if self._mag is None:
                 self._mag0 = mag.copy()

@@ -127,13 +127,16 @@ def _force_model_r(model: PoseModalModel, s_m: float, direction: str, period_s, 
     return _force_model_design(model, s_m, direction, period_s, delay_s)[0]
 
 
-def _force_model_design(model, s_m: float, direction: str, period_s, delay_s):
-    """(r, worst RMS ratio) of :func:`_force_model_r`."""
+def _force_model_design(model, s_m: float, direction: str, period_s, delay_s, true_delays_s=None):
+    """(r, worst RMS ratio) of :func:`_force_model_r` (over ``true_delays_s`` when given)."""
     plants = _model_set(model, s_m, direction)
     nominal = path_mode(model, s_m, direction)
     key = ("force-model", nominal, tuple(tuple(p) for p in plants), period_s, delay_s)
+    if true_delays_s is not None:
+        key = (*key, tuple(true_delays_s))
     if key not in _DESIGN_CACHE:
-        _DESIGN_CACHE[key] = force_model_r(plants, nominal, period_s=period_s, delay_s=delay_s)
+        _DESIGN_CACHE[key] = force_model_r(plants, nominal, period_s=period_s, delay_s=delay_s,
+                                           true_delays_s=true_delays_s)  # fmt: skip
     return _DESIGN_CACHE[key]
 
 
@@ -290,6 +293,7 @@ def design_tables(
     delay_s: float = 0.032,
     lqg_r: float | None = None,
     robust_r_grid=None,
+    force_model_true_delays_s=None,
 ) -> PathTables:
     """The design tables the ``names`` need, with the modes along the path computed once.
 
@@ -314,6 +318,9 @@ def design_tables(
         with the Kalman filter.
     robust_r_grid
         Candidate R values of the robust design (default ``logspace(-2, 3, 11)``).
+    force_model_true_delays_s
+        True delays [s] the force-model weight's worst case is taken over (default the nominal
+        delay and ± 8 ms, :func:`~robovib.control.force_model.force_model_r`).
 
     Returns
     -------
@@ -356,8 +363,8 @@ def design_tables(
             tab.robust[a] = np.array([b[1] for b in best])
             tab.checks.setdefault("robust_worst_spectral_radius", {})[a] = [b[0] for b in best]
     if "force_model_r" in need:
-        fm = {a: _force_model_design(model, float(np.median(grid)), d, period_s, delay_s)
-              for a, d in axes.items()}  # fmt: skip
+        fm = {a: _force_model_design(model, float(np.median(grid)), d, period_s, delay_s,
+                                     force_model_true_delays_s) for a, d in axes.items()}  # fmt: skip
         tab.force_model_r = {a: v[0] for a, v in fm.items()}
         tab.checks["force_model_worst_rms_ratio"] = {a: v[1] for a, v in fm.items()}
     return tab
@@ -470,9 +477,11 @@ def assemble_controller(
         parts.append(TrackingRepetitive(fz, tracker_obj, delay_s, **runout, period_multiple=teeth,
                                         n_harmonics=2 * teeth,
                                         learning_time_s=RUNOUT_LEARNING_REVS * teeth * excitation_period_s))  # fmt: skip
-    if name == "adaptive+force":
+    if name == "adaptive+force" and tab.force_model_r:
+        # the axes whose force model was kept (a controller file leaves out an axis whose
+        # force model amplifies somewhere in the checked band)
         fzk = {a: ScheduledTable(grid, np.column_stack([fz[a].values, stiff[a].values]))
-               for a in axes}  # fmt: skip
+               for a in axes if a in tab.force_model_r}  # fmt: skip
         parts.append(ForceModelFeedforward(fzk, delay_s, r=dict(tab.force_model_r)))
     elif name != "adaptive":
         parts.append(DelayAwareFeedback(robust))

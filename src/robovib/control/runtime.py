@@ -157,9 +157,24 @@ def design_controller(
     design = PathDesign(model, path, directions, n_points)
     axes = {_AXES[d]: d for d in directions}
     tab = design_tables(design, axes, design.grid_s_m, names=[name], s_start=path.s_m[0],
-                        s_end=path.s_m[-1], period_s=period_s, delay_s=delay_s)  # fmt: skip
+                        s_end=path.s_m[-1], period_s=period_s, delay_s=delay_s,
+                        force_model_true_delays_s=_true_delays(delay_s, period_s))  # fmt: skip
+    worst = tab.checks.get("force_model_worst_rms_ratio", {})
+    tab.force_model_r = {a: r for a, r in tab.force_model_r.items() if worst.get(a, 0.0) < 1.0}
     return _document(name, tab, design, period_s, delay_s, sample_rate_hz, spindle_rpm,
                      int(teeth), tracker, guard)  # fmt: skip
+
+
+#: The unknown part of the delay a controller file's force model must not amplify with [s]:
+#: twice the realistic 8 ms (``CutDisturbances``), so a 2x error stays inside the checked band.
+DELAY_UNCERTAINTY_S = 0.016
+
+
+def _true_delays(delay_s: float, period_s: float) -> tuple[float, ...]:
+    """Nominal delay ± whole command periods up to :data:`DELAY_UNCERTAINTY_S`, >= 1 period."""
+    n = round(DELAY_UNCERTAINTY_S / period_s)
+    return tuple(d for d in (delay_s + j * period_s for j in range(-n, n + 1, max(1, n // 2)))
+                 if d >= period_s - 1e-12)  # fmt: skip
 
 
 def _settings(what: str, defaults: dict, given: dict | None) -> dict:
@@ -233,7 +248,7 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
     for key in ("robust", "lqg"):
         if getattr(tab, key):
             gains[key] = {directions[a]: v.tolist() for a, v in getattr(tab, key).items()}
-    if tab.force_model_r:
+    if "force_model_r" in DESIGNS[name].tables:  # the axes kept (may be none)
         gains["force_model_r"] = {directions[a]: r for a, r in tab.force_model_r.items()}
     stability = {
         "band": "posterior mean +- 1.96 std in fn, k and c (the 8 corners), each also with "
@@ -244,7 +259,7 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
     }  # fmt: skip
     stability.update({k: {directions[a]: v for a, v in c.items()} for k, c in tab.checks.items()})
     if name in ("adaptive+force",):
-        stability["true_delays_s"] = [delay_s - 0.008, delay_s, delay_s + 0.008]
+        stability["true_delays_s"] = list(_true_delays(delay_s, period_s))
     return {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -430,7 +445,9 @@ class RuntimeController:
         _check_timing(self.period_s, self.delay_s, self.sample_rate_hz)
         self.path = ControlPath.from_dict(doc["path"])
         self.tables = _tables(doc)
-        for table in DESIGNS[self.name].tables - {"plants"}:
+        if "force_model_r" in DESIGNS[self.name].tables and "force_model_r" not in doc["gains"]:
+            raise ValueError("controller file: malformed design table (no force_model_r gains)")
+        for table in DESIGNS[self.name].tables - {"plants", "force_model_r"}:
             have = getattr(self.tables, table)
             missing = [d for a, d in self.tables.axes.items() if a not in have]
             if missing:
