@@ -834,7 +834,9 @@ def _simulate_file(controller_file, channel, actuator, disturbances, keep_traces
                 "sample_rate_hz": runtime.sample_rate_hz, "seed": rng, "speeds_rpm": None,
                 "disturbances": (disturbances or CutDisturbances()).active(),
                 "controller_file": runtime.doc.get("provenance", {}),
-                "positions": [p if not isinstance(m, LinearMove) else
-                              {"name": p, "start": list(m.start), "end": list(m.end)}
+                "positions": [{"name": p, "path_s_m": m} if not isinstance(m, LinearMove) else
+                              {"name": p, "start_x_m": m.start[0], "start_y_m": m.start[1],
+                               "start_rz_deg": m.start[2], "end_x_m": m.end[0],
+                               "end_y_m": m.end[1], "end_rz_deg": m.end[2]}
                               for p, m in positions]}  # fmt: skip
     return ControlSimulation("milling", tuple(rows), settings)
