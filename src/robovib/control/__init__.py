@@ -4,6 +4,9 @@
 * :mod:`~robovib.control.schedule`: gain schedules over a path or a line through the workspace;
 * :mod:`~robovib.control.controllers` and :mod:`~robovib.control.adaptive`: run-time
   controllers (state feedback, LQG, feedforward, repetitive, period tracking, fade-out guard);
+  :mod:`~robovib.control.loop_analysis`: their closed-loop matrices, learning-loop radii and
+  the tuned design; :mod:`~robovib.control.scheduled`: gains scheduled along the path, looked
+  up for a planned run or live;
 * :mod:`~robovib.control.force_model`: feedforward of the measured force through the pose model;
 * :mod:`~robovib.control.pose_plants`: the plants a design must hold on (GP band, second modes);
 * :mod:`~robovib.control.band_stability`: stability of designed controllers over that band;
