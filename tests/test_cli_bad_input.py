@@ -296,6 +296,25 @@ case("control-schedule-same-position", "control schedule --start 2400,0,0 --end 
 case("control-schedule-line-and-file", LINE + " --path-file {sched}")
 case("control-schedule-model-without-line", "control schedule --model {model}")
 bad_options("control-schedule-line", LINE, {"--points": ["3", "-1"], "--direction": ["q"]})
+DESIGN = "control design --model {model} --start 2400,-200,0 --end 2400,400,0"
+bad_inputs(
+    "control-design-model",
+    "control design --model {IN} --start 2400,-200,0 --end 2400,400,0 -o {out:.json}",
+    ".h5",
+)
+bad_inputs("control-design-path", "control design --path {IN} -o {out:.json}", ".csv")
+bad_outputs("control-design", DESIGN + " -o {OUT}", ".json", "model")
+case("control-design-no-path", "control design -o {out:.json}")
+case("control-design-unknown", DESIGN + " --controller magic -o {out:.json}")
+case("control-design-tuned", DESIGN + " --controller tuned -o {out:.json}")
+case(
+    "control-design-same-position", "control design --start 2400,0,0 --end 2400,0,30 -o {out:.json}"
+)
+bad_options("control-design", DESIGN + " -o {out:.json}", {
+    "--points": ["3"], "--delay-ms": ["30", "nan", "-4"], "--period-ms": ["0"], "--rpm": ["0", "nan"],
+    "--teeth": ["0"], "--directions": ["q"]})  # fmt: skip
+bad_inputs("control-replay-file", "control replay {IN} --record {cut} --rpm 250", ".json")
+case("control-replay-not-a-controller", "control replay {sched} --record {cut} --rpm 250")
 case("control-table9-unknown-option", "control table9 --bogus")
 case("control-simulate-unknown", "control simulate bogus-experiment")
 

@@ -9,6 +9,7 @@ import numpy as np
 import typer
 
 from ._common import (
+    ForceOpt,
     JsonFlag,
     ModelOpt,
     SeedOpt,
@@ -67,7 +68,21 @@ def gains(
     aware = design_delay_aware_lqr(mode, period_s, delay_s, r=[[1.0]])
     margins = loop_margins(d, round(delay_ms / period_ms))
     max_delay_ms = from_si(da.max_stable_delay_s, "ms")
+    tuned_stable = delay_analysis(tuned, delay_s).stable
+    if da.stable:
+        lead = {"design": "lqr", "gains": list(d.gains), "stable_with_delay": True,
+                "advice": f"the LQR gains (R = {r:g}) are stable with the delay"}  # fmt: skip
+    elif aware.spectral_radius < 1:
+        lead = {"design": "delay-aware-lqr", "gains": list(aware.gains), "stable_with_delay": True,
+                "advice": "the delay-aware LQR (R = 1) on [x, v, u_{k-1}..u_{k-d}]; the 2-gain "
+                          "W of the thesis is unstable with the delay at this R"}  # fmt: skip
+    else:
+        lead = {"design": None, "gains": None, "stable_with_delay": False,
+                "advice": "no state feedback designed here is stable with the delay: use "
+                          "feedforward (feedforward+robust) or repetitive control "
+                          "(adaptive+force): robovib control design"}  # fmt: skip
     doc = {
+        "recommended": lead,
         "extrapolation": outside, "mode_id": picked.mode.mode_id,
         **({"mode_choice": picked.reason} if picked.reason else {}),
         "mode": mode.to_dict(), "w1": d.gains[0], "w2": d.gains[1], "spectral_radius_no_delay": d.spectral_radius,
@@ -86,13 +101,27 @@ def gains(
     typer.echo(
         f"mode: fn {mode.natural_frequency_hz:.2f} Hz, k {mode.stiffness_n_per_m / 1e6:.3f} MN/m, zeta {mode.damping_ratio:.3f}"
     )
+    if lead["design"] == "lqr":
+        typer.echo(f"stable with the {delay_ms:g} ms delay: W below (R = {r:g})")
+    elif lead["design"] == "delay-aware-lqr":
+        n_hist = len(aware.gains) - 2
+        typer.echo(f"stable with the {delay_ms:g} ms delay: delay-aware LQR (R = 1), u = -K [x, v, "
+                   f"u_k-1 .. u_k-{n_hist}], K = [{aware.gains[0]:.4g} m/m, {aware.gains[1]:.4g} s, "
+                   + ", ".join(f"{g:.3g}" for g in aware.gains[2:])
+                   + f"] (spectral radius {aware.spectral_radius:.3f})")  # fmt: skip
+    else:
+        typer.echo(f"NO state feedback here is stable with the {delay_ms:g} ms delay: use feedforward "
+                   "or repetitive control (robovib control design --controller adaptive+force "
+                   "or feedforward+robust)")  # fmt: skip
+    if not tuned_stable and lead["design"] != "lqr":
+        typer.echo("the thesis' 2-gain form below is unstable with the delay at every R tried")
     typer.echo(f"W = [w1 {d.gains[0]:.4g} m/m, w2 {d.gains[1]:.4g} s] (R = {r:g}; a path-correction "
                f"command per m and per m/s of tool-tip motion); with {delay_ms:g} ms delay: "
                f"{'stable' if da.stable else 'UNSTABLE'} (spectral radius {da.spectral_radius:.3f}, largest stable delay {max_delay_ms:g} ms)")  # fmt: skip
     if not da.stable:
         typer.echo(
             f"best-damped R with the delay: {r_tuned:.3g} -> W = [{tuned.gains[0]:.4g} m/m, "
-            f"{tuned.gains[1]:.4g} s]"
+            f"{tuned.gains[1]:.4g} s] ({'stable' if tuned_stable else 'UNSTABLE'} with the delay)"
         )
     if margins.gain_margins.size:
         typer.echo(
@@ -178,8 +207,9 @@ def schedule(
         emit_json(doc)
         draw()
         return
-    for si, w1, w2 in zip(sched.s_m, sched.w1, sched.w2, strict=True):
-        typer.echo(f"s = {si:6.3f} m   w1 = {w1:9.5f}   w2 = {w2:9.5f}")
+    for si, w1, w2, rr, ok in zip(sched.s_m, sched.w1, sched.w2, sched.r, sched.stable_with_delay, strict=True):  # fmt: skip
+        typer.echo(f"s = {si:6.3f} m   w1 = {w1:10.3e} m/m   w2 = {w2:10.3e} s   R = {rr:8.3g}   "
+                   f"stable with 32 ms delay: {'yes' if ok else 'NO'}")  # fmt: skip
     for w in warnings_seen:
         typer.echo(f"warning: {w}")
     if plot is not None:
@@ -217,9 +247,9 @@ def _schedule_line(start, end, points, direction, model_path, seed, plot, json_o
         units = ", ".join(result.input_names)
         emit_json(doc, units={"poses": f"model input units ({units}), one row per point"})
     else:
-        for si, pose, m, w1, w2, ex in zip(sched.s_m, result.poses, result.modes, sched.w1, sched.w2, result.extrapolating, strict=True):  # fmt: skip
+        for si, pose, m, w1, w2, ok, ex in zip(sched.s_m, result.poses, result.modes, sched.w1, sched.w2, sched.stable_with_delay, result.extrapolating, strict=True):  # fmt: skip
             flag = "  (extrapolation)" if ex else ""
-            typer.echo(f"s = {si:6.3f} m  pose {', '.join(f'{v:g}' for v in pose)}  fn {m.natural_frequency_hz:6.2f} Hz  w1 = {w1:9.5f}  w2 = {w2:9.5f}{flag}")  # fmt: skip
+            typer.echo(f"s = {si:6.3f} m  pose {', '.join(f'{v:g}' for v in pose)}  fn {m.natural_frequency_hz:6.2f} Hz  w1 = {w1:10.3e} m/m  w2 = {w2:10.3e} s  stable with 32 ms delay: {'yes' if ok else 'NO'}{flag}")  # fmt: skip
         for w in warnings_seen:
             typer.echo(f"warning: {w}")
     if plot is not None:
@@ -268,11 +298,19 @@ def simulate(
             "RMS per cut and controller (X and Z figures: NAME_x.png, NAME_z.png)."
         ),
     ] = None,
+    controller_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--controller-file",
+            help="Run this controller file (control design) "
+            "instead: milling only, at Positions 1 and 2 of its path.",
+        ),
+    ] = None,
     seed: SeedOpt = 0,
     json_out: JsonFlag = False,
 ) -> None:
     """Closed-loop runs on the virtual robot, controllers designed from the path model only."""
-    check_output(plot)
+    check_output(plot, [controller_file] if controller_file is not None else [])
     from rich.progress import Progress
 
     from ..studies.control_closed_loop import simulate_control
@@ -282,7 +320,8 @@ def simulate(
         task = bar.add_task("virtual EMA along the path, designs, closed-loop runs", total=None)
         try:
             result = simulate_control(experiment, controller or None, actuator=actuator,
-                                      disturbances=dist, keep_traces=plot is not None, rng=seed)  # fmt: skip
+                                      disturbances=dist, keep_traces=plot is not None,
+                                      controller_file=controller_file, rng=seed)  # fmt: skip
         except ValueError as exc:
             fail(str(exc))
         bar.update(task, completed=1)
@@ -303,3 +342,163 @@ def simulate(
         if not json_out:
             for path in written:
                 typer.echo(f"wrote {path}")
+
+
+@app.command("design")
+def design(
+    output: Annotated[
+        Path, typer.Option("-o", "--output", help="Controller file to write (.json).")
+    ],
+    controller: Annotated[
+        str,
+        typer.Option(
+            help="adaptive+force (recommended), feedforward+robust, robust, lqg, thesis, "
+            "constant-start, constant-end, feedforward, repetitive, adaptive, "
+            "adaptive+robust, adaptive-feedforward."
+        ),
+    ] = "adaptive+force",
+    path_file: Annotated[
+        Path | None,
+        typer.Option(
+            "--path",
+            help="CSV of the tool path's poses, one column per model input "
+            "(e.g. x_mm,y_mm,rz_deg), in path order.",
+        ),
+    ] = None,
+    start: Annotated[
+        str | None,
+        typer.Option(help="Line start pose in the model's input units, e.g. 2350,450,30."),
+    ] = None,
+    end: Annotated[str | None, typer.Option(help="Line end pose (as --start).")] = None,
+    directions: Annotated[str, typer.Option(help="Controlled directions, e.g. x,z.")] = "x,z",
+    points: Annotated[int, typer.Option(help="Design points along the path (>= 5).")] = 21,
+    rpm: Annotated[
+        float | None,
+        typer.Option(help="Nominal spindle speed [rpm]; default: given at reset/replay."),
+    ] = None,
+    teeth: Annotated[int, typer.Option(help="Cutter teeth.")] = 2,
+    period_ms: Annotated[float, typer.Option(help="Command period [ms] (RSI: 4 ms).")] = 4.0,
+    delay_ms: Annotated[float, typer.Option(help="Transport delay [ms] (KRC4: 32 ms).")] = 32.0,
+    model_path: ModelOpt = None,
+    force: ForceOpt = False,
+    json_out: JsonFlag = False,
+) -> None:
+    """A controller file from your pose model along your path (gains, tracker, guard, checks)."""
+    from ..control.path_design import ControlPath
+    from ..control.runtime import design_controller, write_controller_file
+    from ..io import to_si
+
+    inputs = [p for p in (path_file, model_path) if p is not None]
+    check_output(output, inputs, force)
+    if (start is None) != (end is None):
+        fail("give both --start and --end (a line through the pose model), or --path")
+    if (start is None) == (path_file is None):
+        fail("give either --path (a CSV of poses) or --start/--end")
+    model = workspace_model(model_path, require_inputs=None)
+    names = tuple(model.input_names)
+    try:
+        if path_file is not None:
+            from ..io.poses import read_pose_array
+
+            vertices = read_pose_array(path_file, names)
+        else:
+            vertices = [_pose(start, "--start"), _pose(end, "--end")]
+        path = ControlPath.through(names, vertices)
+        doc = design_controller(model, path, controller,
+                                directions=tuple(d.strip() for d in directions.split(",")),
+                                n_points=points, period_s=to_si(period_ms, "ms"),
+                                delay_s=to_si(delay_ms, "ms"), spindle_rpm=rpm, teeth=teeth)  # fmt: skip
+    except ValueError as exc:
+        fail(str(exc))
+    write_controller_file(output, doc, inputs=inputs, force=force)
+    summary = {"output": str(output), "controller": doc["controller"],
+               "control_modes": doc["provenance"]["control_modes"],
+               "path_length_m": path.length_m, "design_points": len(doc["grid_s_m"]),
+               "extrapolating_points": doc["provenance"]["extrapolating_points"],
+               "stability": {k: v for k, v in doc["stability"].items()
+                             if k.endswith(("radius", "ratio"))}}  # fmt: skip
+    if json_out:
+        emit_json(summary, units={"design_points": "1 (count)", "extrapolating_points": "1 (count)",
+                                  "force_model_worst_rms_ratio": "1 (ratio)",
+                                  "robust_worst_spectral_radius": "1",
+                                  "lqg_worst_spectral_radius": "1"})  # fmt: skip
+        return
+    modes = ", ".join(f"{d}: model output {m}" for d, m in summary["control_modes"].items())
+    typer.echo(f"wrote {output}: {doc['controller']} along {path.length_m:.3f} m "
+               f"({summary['design_points']} design points; {modes})")  # fmt: skip
+    for key, by_dir in summary["stability"].items():
+        for d, v in by_dir.items():
+            worst = max(v) if isinstance(v, list) else v
+            verdict = "< 1 over the band" if worst < 1 else "NOT < 1: this part is left out"
+            if key.endswith("radius"):
+                verdict = "stable over the band" if worst < 1 else "NOT stable over the band"
+            typer.echo(f"  {key.replace('_', ' ')} ({d}): {worst:.3f} ({verdict})")
+    if summary["extrapolating_points"]:
+        typer.echo(f"warning: {summary['extrapolating_points']} design points lie outside the "
+                   "model's training data (GP extrapolation)")  # fmt: skip
+
+
+@app.command("replay")
+def replay_cmd(
+    controller_file: Annotated[Path, typer.Argument(help="Controller file (control design).")],
+    record: Annotated[
+        Path,
+        typer.Option(
+            help="Logged cut CSV: time_s, force_{x,y,z}_n, displacement_{x,y,z}_m and "
+            "path_s_m or x_m,y_m,rz_deg (the layout 'hybrid oma' reads)."
+        ),
+    ],
+    rpm: Annotated[
+        float | None, typer.Option(help="Spindle speed of the cut [rpm] (default the file's).")
+    ] = None,
+    teeth: Annotated[int | None, typer.Option(help="Cutter teeth (default the file's).")] = None,
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "-o",
+            "--output",
+            help="CSV of the commands: time_s, path_s_m, correction_{x,y,z}_mm, guard_scale.",
+        ),
+    ] = None,
+    force: ForceOpt = False,
+    json_out: JsonFlag = False,
+) -> None:
+    """What the controller would have commanded on a logged cut, what its guard did, and the
+    vibration the model predicts with the correction."""
+    from ..control.runtime import load_controller, replay
+    from ..io import read_milling_record_csv
+
+    check_output(output, [controller_file, record], force)
+    try:
+        runtime = load_controller(controller_file)
+        result = replay(runtime, read_milling_record_csv(record), spindle_rpm=rpm, teeth=teeth)
+    except ValueError as exc:
+        fail(str(exc))
+    if output is not None:
+        from ..io.safe_write import atomic_output
+
+        lines = ["time_s,path_s_m,correction_x_mm,correction_y_mm,correction_z_mm,guard_scale"]
+        lines += [",".join(f"{v:.17g}" for v in (t, s, *u, g)) for t, s, u, g in zip(
+            result.time_s, result.path_s_m, result.commands_mm, result.guard_scale, strict=True)]  # fmt: skip
+        with atomic_output(output, inputs=[controller_file, record], force=force) as tmp:
+            tmp.write_text("\n".join(lines) + "\n")
+    events = [{"time_s": e.time_s, "target": e.target, "reason": e.reason} for e in result.events]
+    peak = np.max(np.abs(result.commands_mm), axis=0)
+    doc = {"controller": runtime.name, "commands": int(result.commands_mm.shape[0]),
+           "peak_correction_mm": {d: float(peak[a]) for d, a in zip("xyz", range(3), strict=True)},
+           "guard_events": events, "rms_mm": result.rms_mm,
+           "output": None if output is None else str(output)}  # fmt: skip
+    if json_out:
+        emit_json(doc, units={"target": "1 (guard fade target)", "commands": "count"})
+        return
+    typer.echo(f"{runtime.name}: {doc['commands']} commands over {result.time_s[-1]:.2f} s, "
+               "peak correction " + ", ".join(f"{d} {v:.4f} mm" for d, v in doc["peak_correction_mm"].items()))  # fmt: skip
+    typer.echo("guard: " + ("no event (full correction throughout)" if not events else ""))
+    for e in events:
+        typer.echo(f"  {e['time_s']:.2f} s -> {e['target']:g}: {e['reason']}")
+    for d, v in result.rms_mm.items():
+        typer.echo(f"RMS {d.upper()}: measured {v['measured']:.4f} mm, model open loop "
+                   f"{v['predicted_open']:.4f} mm, model with the correction "
+                   f"{v['predicted_corrected']:.4f} mm")  # fmt: skip
+    if output is not None:
+        typer.echo(f"wrote {output}")

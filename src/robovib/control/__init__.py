@@ -4,12 +4,22 @@
 * :mod:`~robovib.control.schedule`: gain schedules over a path or a line through the workspace;
 * :mod:`~robovib.control.controllers` and :mod:`~robovib.control.adaptive`: run-time
   controllers (state feedback, LQG, feedforward, repetitive, period tracking, fade-out guard);
+  :mod:`~robovib.control.loop_analysis`: their closed-loop matrices, learning-loop radii and
+  the tuned design; :mod:`~robovib.control.scheduled`: gains scheduled along the path, looked
+  up for a planned run or live;
 * :mod:`~robovib.control.force_model`: feedforward of the measured force through the pose model;
 * :mod:`~robovib.control.pose_plants`: the plants a design must hold on (GP band, second modes);
 * :mod:`~robovib.control.band_stability`: stability of designed controllers over that band;
 * :mod:`~robovib.control.channel`: what a command channel allows a state feedback (§4.3.2);
-* :mod:`~robovib.control.design`: the controllers of the closed-loop studies, designed from a
-  path model only (:func:`~robovib.control.design.build_controllers`).
+* :mod:`~robovib.control.design`: the registry of designs (:data:`~robovib.control.design.DESIGNS`)
+  over one path design: the modes along the path computed once, names checked first
+  (:func:`~robovib.control.design.build_controllers` for the closed-loop studies);
+* :mod:`~robovib.control.path_design`: a path through any pose model (dominant or multi-mode);
+* :mod:`~robovib.control.runtime`: controller files (:func:`~robovib.control.runtime.design_controller`),
+  the run-time controller an RSI bridge calls (:func:`~robovib.control.runtime.load_controller`,
+  ``reset`` / ``step``) and :func:`~robovib.control.runtime.replay` over a logged cut;
+* :mod:`~robovib.control.protocol`: the ``Controller`` (planned run) and ``StepController``
+  (run time) protocols.
 
 Names are imported on first use (PEP 562): designing gains at one pose
 (:mod:`~robovib.control.lqr`, NumPy only) does not pay for SciPy's signal module, which the
@@ -31,8 +41,14 @@ _WHERE = {
          "ScheduledTable", "StateFeedback", "design_kalman", "design_tuned_state_feedback",
          "implemented_loop_matrix", "lqg_loop_matrix"], "controllers"),
     **dict.fromkeys(
-        ["CONTROLLERS", "DEFAULT_CONTROLLER", "THESIS_PRINTED_END_GAINS",
-         "THESIS_PRINTED_START_GAINS", "build_controllers", "thesis_printed_gains"], "design"),
+        ["CONTROLLERS", "DEFAULT_CONTROLLER", "DESIGNS", "THESIS_PRINTED_END_GAINS",
+         "THESIS_PRINTED_START_GAINS", "assemble_controller", "build_controllers",
+         "check_controller_names", "design_tables", "thesis_printed_gains"], "design"),
+    **dict.fromkeys(["ControlPath", "PathDesign"], "path_design"),
+    **dict.fromkeys(["Controller", "StepController"], "protocol"),
+    **dict.fromkeys(
+        ["Measurement", "ReplayResult", "RuntimeController", "design_controller",
+         "load_controller", "replay", "write_controller_file"], "runtime"),
     **dict.fromkeys(
         ["ForceModelFeedforward", "force_model_r", "force_model_variance_ratio",
          "unpredictable_fraction"], "force_model"),
@@ -40,7 +56,7 @@ _WHERE = {
         ["THESIS_Q", "THESIS_R", "DelayAnalysis", "DelayAwareDesign", "LoopMargins",
          "LQRDesign", "closed_loop_with_delay", "continuous_model", "delay_analysis",
          "design_delay_aware_lqr", "design_lqr", "discretize", "loop_margins",
-         "tune_r_for_delay"], "lqr"),
+         "spectral_radius", "tune_r_for_delay"], "lqr"),
     **dict.fromkeys(["SECOND_MODE_HYPOTHESES", "path_band", "path_mode", "plant_set"],
                     "pose_plants"),
     **dict.fromkeys(["GainSchedule", "ModelSchedule", "schedule_along_line", "schedule_gains"],

@@ -32,7 +32,14 @@ import numpy as np
 from scipy import signal
 
 from ..modal.parameters import ModalParameters
-from .controllers import ForceFeedforward, RepetitiveFeedback, ScheduledTable
+from .controllers import (
+    ForceFeedforward,
+    PathCursor,
+    RepetitiveFeedback,
+    ScheduledTable,
+    map_rows,
+    n_commands,
+)
 
 __all__ = [
     "FadeGuard",
@@ -244,6 +251,18 @@ class TrackingRepetitive(RepetitiveFeedback):
     divergence_ratio
         A harmonic whose smoothed residual magnitude exceeds this multiple of its open-loop
         value is dropped (> 0; 1.2: 20 % above).
+    divergence_test
+        ``"residual"``: the residual alone decides (above). ``"correction"``: the harmonic is
+        dropped only when, in addition, the tip motion its learnt correction makes through the
+        model (``|P_model U_h|``) exceeds ``divergence_ratio`` x the open-loop residual: a
+        diverging learner overshoots the disturbance it cancels, while a residual that grows
+        from unlearnable (non-periodic) response near a resonance leaves the correction at the
+        disturbance's size and the harmonic is kept.
+    model_at_tracked_period
+        Evaluate the inverse model FRF ``1 / P`` at the harmonics of the *tracked* period
+        (``True``) rather than the nominal one: near a resonance a few per cent of spindle-speed
+        error turn the model's phase by tens of degrees (``d phase / d (f / fn) = 1 / zeta``
+        there).
     period_multiple
         The learnt period in tracked periods (integer >= 1): 1 learns the tooth-passing lines;
         the number of teeth learns over one spindle revolution (the runout lines).
@@ -260,6 +279,8 @@ class TrackingRepetitive(RepetitiveFeedback):
         *,
         divergence_ratio: float = 1.2,
         period_multiple: int = 1,
+        divergence_test: str = "residual",
+        model_at_tracked_period: bool = False,
         **kwargs,
     ):
         m = int(period_multiple)
@@ -270,6 +291,12 @@ class TrackingRepetitive(RepetitiveFeedback):
             raise ValueError("divergence_ratio must be > 0")
         self.tracker = tracker
         self.divergence_ratio = float(divergence_ratio)
+        if divergence_test not in ("residual", "correction"):
+            raise ValueError(
+                f"divergence_test must be 'residual' or 'correction', got {divergence_test!r}"
+            )
+        self.divergence_test = divergence_test
+        self.model_at_tracked_period = bool(model_at_tracked_period)
         self.period_multiple = m
 
     def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
@@ -279,22 +306,40 @@ class TrackingRepetitive(RepetitiveFeedback):
         self._theta = np.zeros(n)
         self._phase = 0.0
         self._h = np.arange(1, self.n_harmonics + 1)
+        self._eth = np.zeros((self.n_harmonics, n), complex)
         self._fs = float(sample_rate_hz)
         if self.period_multiple > 1:  # the tracked period's own harmonics are left to others
             own = self._h % self.period_multiple == 0
             for a in self._pinv:
-                self._pinv[a] = np.where(own, 0.0, self._pinv[a])
+                self._pinv[a] = map_rows(self._pinv[a], lambda p: np.where(own, 0.0, p))
         self._on = {a: np.ones(self.n_harmonics, bool) for a in self._pinv}
+        if self.model_at_tracked_period:
+            self._fz_rows = {a: tab.at(coords) for a, tab in self.modes.items()}
+            self._own = (self._h % self.period_multiple == 0) if self.period_multiple > 1 else None
         self._mag = None
         self._mag0 = None
         self.events: list[GuardEvent] = []
+
+    def _pinv_at(self, a: int, k: int, period: float) -> np.ndarray:
+        """Inverse model FRF at the harmonics of the tracked ``period`` (not the nominal)."""
+        fn, z = self._fz_rows[a][k][:2]
+        wn = 2 * math.pi * fn
+        hw = self._h * (2 * math.pi / period)
+        p = wn**2 / (wn**2 - hw**2 + 2j * z * wn * hw)
+        out = np.where(hw <= self.max_harmonic_ratio * wn, 1.0 / p, 0.0)
+        if self._own is not None:
+            out[self._own] = 0.0
+        return out
 
     def command(self, k: int, tracker_m: np.ndarray, force_n: np.ndarray) -> np.ndarray:
         self.tracker.update(k, force_n)
         period = self.period_multiple * self.tracker.period_s
         w_dt = 2 * math.pi * self._dt / period
         m = tracker_m.shape[0]
-        self._theta[self._len : self._len + m] = self._phase + w_dt * np.arange(1, m + 1)
+        new = self._phase + w_dt * np.arange(1, m + 1)
+        self._theta[self._len : self._len + m] = new
+        # each sample's harmonic phasors, computed once (the DFT below slides over them)
+        self._eth[:, self._len : self._len + m] = np.exp(-1j * np.outer(self._h, new))
         self._phase += w_dt * m
         self._y[self._len : self._len + m] = tracker_m
         self._len += m
@@ -303,8 +348,7 @@ class TrackingRepetitive(RepetitiveFeedback):
             lo = self._len - window
             seg = self._y[lo : self._len]
             seg = seg - seg.mean(axis=0)
-            th = self._theta[lo : self._len]
-            resid = 2.0 / window * (np.exp(-1j * np.outer(self._h, th)) @ seg)
+            resid = 2.0 / window * (self._eth[:, lo : self._len] @ seg)
             mag = np.abs(resid)
             if self._mag is None:
                 self._mag0 = mag.copy()
@@ -316,7 +360,11 @@ class TrackingRepetitive(RepetitiveFeedback):
                 self._mag0 = np.maximum(self._mag0, mag)
             for a, pinv in self._pinv.items():
                 bad = self._on[a] & (self._mag[:, a] > self.divergence_ratio * self._mag0[:, a])
-                bad &= pinv[k] != 0
+                row = self._pinv_at(a, k, period) if self.model_at_tracked_period else pinv[k]
+                bad &= row != 0
+                if self.divergence_test == "correction" and bad.any():
+                    tip = np.abs(self._u[:, a]) / np.where(row != 0, np.abs(row), np.inf)
+                    bad &= tip > self.divergence_ratio * self._mag0[:, a]
                 for h in np.flatnonzero(bad):
                     self._on[a][h] = False
                     self._u[h, a] = 0.0
@@ -324,7 +372,7 @@ class TrackingRepetitive(RepetitiveFeedback):
                         f"direction {a} harmonic {h + 1}: learning diverged (residual "
                         f"{self._mag[h, a] * 1e3:.4f} mm > {self.divergence_ratio:g} x open loop "
                         f"{self._mag0[h, a] * 1e3:.4f} mm), dropped"))  # fmt: skip
-                self._u[:, a] -= self._gain * resid[:, a] * pinv[k] * self._on[a]
+                self._u[:, a] -= self._gain * resid[:, a] * row * self._on[a]
         target = self._phase + w_dt * (self._delay + np.arange(self._every))
         phase = np.exp(1j * np.outer(self._h, target)).mean(axis=1)
         return np.real(phase @ self._u)
@@ -427,10 +475,13 @@ class FadeGuard:
         fs = float(sample_rate_hz)
         self._fs = fs
         every = round(period_s * fs)
-        n_cmd = len(np.asarray(coords))
+        n_cmd = n_commands(coords)
         n = (n_cmd + 2) * every
         self.tracker.reset(n, fs)
-        mid = np.asarray(coords)[n_cmd // 2 : n_cmd // 2 + 1]
+        if isinstance(coords, PathCursor):  # a run-time controller: the path's nominal point
+            mid = np.array([coords.nominal_s_m])
+        else:
+            mid = np.asarray(coords)[n_cmd // 2 : n_cmd // 2 + 1]
         self._filters = {}
         for a, m in self.modes.items():
             if isinstance(m, ScheduledTable):

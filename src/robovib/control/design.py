@@ -11,6 +11,8 @@ run them on the virtual robot.
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -42,10 +44,18 @@ if TYPE_CHECKING:
 __all__ = [
     "CONTROLLERS",
     "DEFAULT_CONTROLLER",
+    "DESIGNS",
+    "GUARD_DEFAULTS",
     "RUNOUT_LEARNING_REVS",
     "THESIS_PRINTED_END_GAINS",
     "THESIS_PRINTED_START_GAINS",
+    "TRACKER_DEFAULTS",
+    "Design",
+    "PathTables",
+    "assemble_controller",
     "build_controllers",
+    "check_controller_names",
+    "design_tables",
     "thesis_printed_gains",
 ]
 
@@ -114,12 +124,384 @@ RUNOUT_LEARNING_REVS = 4.0
 def _force_model_r(model: PoseModalModel, s_m: float, direction: str, period_s, delay_s) -> float:
     """LQR weight of the force-model feedforward: best worst case over the band, the second-mode
     hypotheses and the unknown delay (nominal ± 8 ms), at ``s_m`` (:func:`force_model_r`)."""
+    return _force_model_design(model, s_m, direction, period_s, delay_s)[0]
+
+
+def _force_model_design(model, s_m: float, direction: str, period_s, delay_s, true_delays_s=None):
+    """(r, worst RMS ratio) of :func:`_force_model_r` (over ``true_delays_s`` when given)."""
     plants = _model_set(model, s_m, direction)
     nominal = path_mode(model, s_m, direction)
     key = ("force-model", nominal, tuple(tuple(p) for p in plants), period_s, delay_s)
+    if true_delays_s is not None:
+        key = (*key, tuple(true_delays_s))
     if key not in _DESIGN_CACHE:
-        _DESIGN_CACHE[key] = force_model_r(plants, nominal, period_s=period_s, delay_s=delay_s)[0]
+        _DESIGN_CACHE[key] = force_model_r(plants, nominal, period_s=period_s, delay_s=delay_s,
+                                           true_delays_s=true_delays_s)  # fmt: skip
     return _DESIGN_CACHE[key]
+
+
+@dataclass(frozen=True)
+class Design:
+    """One entry of the design registry :data:`DESIGNS`.
+
+    Attributes
+    ----------
+    tables
+        The design tables the controller is assembled from (``"schedule"``, ``"robust"``,
+        ``"lqg"``, ``"force_model_r"``; the modes along the path are always there).
+    needs_excitation
+        The controller needs the excitation (tooth) period at assembly.
+    in_file
+        It can be written to a controller file (its design does not depend on the spindle
+        speed: ``tuned`` does, and is designed per cut).
+    """
+
+    tables: frozenset
+    needs_excitation: bool
+    in_file: bool = True
+
+
+#: Registry of the controller designs over one path design: name -> :class:`Design`.
+DESIGNS: dict[str, Design] = {
+    "thesis": Design(frozenset({"schedule"}), False),
+    "constant-start": Design(frozenset({"schedule"}), False),
+    "constant-end": Design(frozenset({"schedule"}), False),
+    "tuned": Design(frozenset({"plants"}), True, in_file=False),
+    "lqg": Design(frozenset({"lqg"}), False),
+    "robust": Design(frozenset({"robust"}), False),
+    "feedforward": Design(frozenset(), True),
+    "feedforward+robust": Design(frozenset({"robust"}), True),
+    "repetitive": Design(frozenset(), True),
+    "adaptive": Design(frozenset(), True),
+    "adaptive+robust": Design(frozenset({"robust"}), True),
+    "adaptive-feedforward": Design(frozenset({"robust"}), True),
+    "adaptive+force": Design(frozenset({"force_model_r"}), True),
+}
+assert tuple(DESIGNS) == CONTROLLERS
+
+
+def check_controller_names(names) -> tuple[str, ...]:
+    """The names as a tuple, or a ValueError naming the unknown ones (before any design runs).
+
+    Parameters
+    ----------
+    names : iterable of str
+        Controller names.
+
+    Returns
+    -------
+    tuple of str
+        The names.
+
+    Raises
+    ------
+    ValueError
+        A name not in :data:`DESIGNS`.
+    """
+    names = tuple(names)
+    unknown = set(names) - set(CONTROLLERS)
+    if unknown:
+        raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
+    return names
+
+
+@dataclass
+class PathTables:
+    """Everything the controllers of :data:`DESIGNS` are assembled from, designed once per path.
+
+    Attributes
+    ----------
+    grid
+        (n,) path distances [m] of the design points.
+    axes
+        Controlled tool-tip axis (0 = X, 1 = Y, 2 = Z) -> model direction.
+    modes
+        Axis -> the model's mode at each design point.
+    schedule
+        Axis -> :class:`~robovib.control.schedule.GainSchedule` (the thesis' Eq. 28-29 design).
+    constant
+        ``"constant-start"`` / ``"constant-end"`` -> axis -> (w1, w2).
+    robust
+        Axis -> (n, 2 + d) delay-aware gains of the robust design.
+    lqg
+        Axis -> (n, 2 + d) delay-aware gains of the LQG design.
+    force_model_r
+        Axis -> LQR weight of the force-model feedforward.
+    plants
+        Axis -> the plant set (band corners, second modes) at each design point; not stored
+        in a controller file.
+    checks
+        What the stability check over the band found: ``"robust_worst_spectral_radius"`` /
+        ``"lqg_worst_spectral_radius"`` (axis -> per design point) and
+        ``"force_model_worst_rms_ratio"`` (axis -> value).
+    period_s, delay_s
+        Command period and the delay the designs assume [s].
+    """
+
+    grid: np.ndarray
+    axes: dict
+    modes: dict
+    period_s: float
+    delay_s: float
+    schedule: dict = field(default_factory=dict)
+    constant: dict = field(default_factory=dict)
+    robust: dict = field(default_factory=dict)
+    lqg: dict = field(default_factory=dict)
+    force_model_r: dict = field(default_factory=dict)
+    plants: dict = field(default_factory=dict)
+    checks: dict = field(default_factory=dict)
+
+    def fz(self, a: int) -> ScheduledTable:
+        """(fn [Hz], zeta) rows of axis ``a`` along the path.
+
+        Parameters
+        ----------
+        a : int
+            Tool-tip axis (0 = X, 1 = Y, 2 = Z).
+
+        Returns
+        -------
+        ScheduledTable
+        """
+        return ScheduledTable(self.grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
+                                                   for m in self.modes[a]]))  # fmt: skip
+
+    def stiffness(self, a: int) -> ScheduledTable:
+        """Static stiffness [N/m] rows of axis ``a`` along the path.
+
+        Parameters
+        ----------
+        a : int
+            Tool-tip axis (0 = X, 1 = Y, 2 = Z).
+
+        Returns
+        -------
+        ScheduledTable
+        """
+        return ScheduledTable(self.grid, np.array([[m.stiffness_n_per_m] for m in self.modes[a]]))
+
+
+def design_tables(
+    model: PoseModalModel,
+    axes: dict[int, str],
+    s_grid,
+    *,
+    names=CONTROLLERS,
+    s_start: float | None = None,
+    s_end: float | None = None,
+    period_s: float = 0.004,
+    delay_s: float = 0.032,
+    lqg_r: float | None = None,
+    robust_r_grid=None,
+    force_model_true_delays_s=None,
+) -> PathTables:
+    """The design tables the ``names`` need, with the modes along the path computed once.
+
+    Parameters
+    ----------
+    model
+        A path model over ``input_names=("s_m",)`` (or a
+        :class:`~robovib.control.path_design.PathDesign`).
+    axes
+        Controlled axes: tool-tip axis index (0 = X, 1 = Y, 2 = Z) -> model direction.
+    s_grid
+        Path distances [m] of the design points.
+    names
+        Controllers the tables are for (checked first).
+    s_start, s_end
+        Path distances [m] of the ``constant-start`` / ``constant-end`` designs (default the
+        first grid point).
+    period_s, delay_s
+        Command period and the delay the designs account for [s].
+    lqg_r
+        Control weight R of the LQG design; None: chosen like the robust design, on the loop
+        with the Kalman filter.
+    robust_r_grid
+        Candidate R values of the robust design (default ``logspace(-2, 3, 11)``).
+    force_model_true_delays_s
+        True delays [s] the force-model weight's worst case is taken over (default the nominal
+        delay and ± 8 ms, :func:`~robovib.control.force_model.force_model_r`).
+
+    Returns
+    -------
+    PathTables
+
+    Raises
+    ------
+    ValueError
+        Unknown names.
+    """
+    names = check_controller_names(names)
+    need = set().union(*(DESIGNS[n].tables for n in names)) if names else set()
+    grid = np.asarray(s_grid, float)
+    r_grid = np.logspace(-2, 3, 11) if robust_r_grid is None else np.asarray(robust_r_grid)
+    modes = {a: [path_mode(model, si, d) for si in grid] for a, d in axes.items()}
+    tab = PathTables(grid, dict(axes), modes, float(period_s), float(delay_s))
+    if {"robust", "plants"} & need or ("lqg" in need and lqg_r is None):
+        tab.plants = {a: [_model_set(model, si, d) for si in grid] for a, d in axes.items()}
+    if "schedule" in need:
+        tab.schedule = {a: _schedule(model, d, grid) for a, d in axes.items()}
+        for name, s_at in (("constant-start", s_start), ("constant-end", s_end)):
+            s_at = grid[0] if s_at is None else s_at
+            tab.constant[name] = {a: s.gains_at(s_at) for a, s in tab.schedule.items()}
+    if "lqg" in need:
+        for a in axes:
+            if lqg_r is None:  # R picked like the robust design, on the loop with the filter
+                rows = [_robust_r(p, m, period_s, delay_s, r_grid, "kalman")[1]
+                        for p, m in zip(tab.plants[a], modes[a], strict=True)]  # fmt: skip
+                tab.checks.setdefault("lqg_worst_spectral_radius", {})[a] = [
+                    _robust_r(p, m, period_s, delay_s, r_grid, "kalman")[0]
+                    for p, m in zip(tab.plants[a], modes[a], strict=True)]  # fmt: skip
+            else:
+                rows = [design_delay_aware_lqr(m, period_s, delay_s, r=[[lqg_r]]).gains
+                        for m in modes[a]]  # fmt: skip
+            tab.lqg[a] = np.array(rows)
+    if "robust" in need:
+        for a in axes:
+            best = [_robust_r(p, m, period_s, delay_s, r_grid)
+                    for p, m in zip(tab.plants[a], modes[a], strict=True)]  # fmt: skip
+            tab.robust[a] = np.array([b[1] for b in best])
+            tab.checks.setdefault("robust_worst_spectral_radius", {})[a] = [b[0] for b in best]
+    if "force_model_r" in need:
+        fm = {a: _force_model_design(model, float(np.median(grid)), d, period_s, delay_s,
+                                     force_model_true_delays_s) for a, d in axes.items()}  # fmt: skip
+        tab.force_model_r = {a: v[0] for a, v in fm.items()}
+        tab.checks["force_model_worst_rms_ratio"] = {a: v[1] for a, v in fm.items()}
+    return tab
+
+
+_NEEDS_EXCITATION = {
+    "feedforward": "feedforward controllers need excitation_period_s [s]",
+    "feedforward+robust": "feedforward controllers need excitation_period_s [s]",
+    "tuned": "the tuned controller needs excitation_period_s [s]",
+    "repetitive": "the repetitive controller needs excitation_period_s [s]",
+    "adaptive": "the adaptive controllers need the nominal excitation_period_s [s]",
+}
+
+#: Default period-tracker settings (:class:`~robovib.control.adaptive.PeriodTracker`).
+TRACKER_DEFAULTS = {"rel_range": 0.1, "window_periods": 2.0, "update_periods": 1.0,
+                    "smoothing": 0.5}  # fmt: skip
+#: Default fade-out guard settings (:class:`~robovib.control.adaptive.FadeGuard`).
+GUARD_DEFAULTS = {"min_periodicity": 0.5, "max_ratio": 1.0, "window_s": 0.5, "check_s": 0.1,
+                  "fade_time_s": 0.2, "warmup_s": 0.5}  # fmt: skip
+
+
+def assemble_controller(
+    name: str,
+    tab: PathTables,
+    *,
+    excitation_period_s: float | None = None,
+    teeth: int = 1,
+    tracker: dict | None = None,
+    guard: dict | None = None,
+    learner: dict | None = None,
+    model=None,
+):
+    """A fresh run-time controller ``name`` from the design tables.
+
+    Parameters
+    ----------
+    name
+        A name of :data:`DESIGNS`.
+    tab
+        The tables (:func:`design_tables`).
+    excitation_period_s
+        Nominal period of the disturbing force [s] (the controllers that need it).
+    teeth
+        The cutter's teeth; above 1 ``adaptive+force`` also learns the runout lines.
+    tracker, guard
+        Period-tracker and guard settings (default :data:`TRACKER_DEFAULTS`,
+        :data:`GUARD_DEFAULTS`).
+    learner
+        Options of the tracking repetitive learners
+        (:class:`~robovib.control.adaptive.TrackingRepetitive`, e.g. ``divergence_test``).
+    model
+        The pose model: only ``tuned`` needs it (its design depends on the excitation).
+
+    Returns
+    -------
+    object
+        A controller with ``reset`` / ``command`` (:class:`~robovib.control.protocol.Controller`).
+
+    Raises
+    ------
+    ValueError
+        Unknown name, or a controller that needs ``excitation_period_s`` without it.
+    """
+    check_controller_names([name])
+    if DESIGNS[name].needs_excitation and excitation_period_s is None:
+        raise ValueError(_NEEDS_EXCITATION.get(name, _NEEDS_EXCITATION["adaptive"]))
+    grid, axes, delay_s = tab.grid, tab.axes, tab.delay_s
+    tracker_opts = {**TRACKER_DEFAULTS, **(tracker or {})}
+    guard_opts = {**GUARD_DEFAULTS, **(guard or {})}
+    if name == "thesis":
+        return StateFeedback({a: ScheduledTable(grid, np.column_stack([s.w1, s.w2]))
+                              for a, s in tab.schedule.items()})  # fmt: skip
+    if name in ("constant-start", "constant-end"):
+        return StateFeedback(dict(tab.constant[name]))
+    if name == "lqg":
+        gains = {a: ScheduledTable(grid, tab.lqg[a]) for a in axes}
+        kal = {a: (grid, [design_kalman(m) for m in tab.modes[a]]) for a in axes}
+        return DelayAwareFeedback(gains, kal, delay_samples=round(delay_s * 1000.0))
+    robust = {a: ScheduledTable(grid, tab.robust[a]) for a in tab.robust}
+    if name == "robust":
+        return DelayAwareFeedback(robust)
+    stiff = {a: tab.stiffness(a) for a in axes}
+    if name == "feedforward":
+        return ForceFeedforward(stiff, excitation_period_s, delay_s)
+    if name == "feedforward+robust":
+        return Combined(ForceFeedforward(stiff, excitation_period_s, delay_s),
+                        DelayAwareFeedback(robust))  # fmt: skip
+    if name == "tuned":
+        if model is None:
+            raise ValueError("the tuned controller is designed per excitation: it needs the model")
+        return _tuned(tab, excitation_period_s)
+    fz = {a: tab.fz(a) for a in axes}
+    learner = dict(learner or {})
+    if learner.get("n_harmonics") == "auto":
+        # every tooth harmonic the learner may use (below max_harmonic_ratio x the highest fn)
+        ratio = learner.get("max_harmonic_ratio", 1.6)
+        fn_max = max(float(np.max(t.values[:, 0])) for t in fz.values())
+        learner["n_harmonics"] = max(1, math.floor(ratio * fn_max * excitation_period_s))
+    if name == "repetitive":
+        return RepetitiveFeedback(fz, excitation_period_s, delay_s)
+    tracker_obj = PeriodTracker(excitation_period_s, **tracker_opts)
+    if name == "adaptive-feedforward":
+        parts = [TrackingFeedforward(stiff, tracker_obj, delay_s)]
+    else:
+        parts = [TrackingRepetitive(fz, tracker_obj, delay_s, **learner)]
+    if name == "adaptive+force" and teeth > 1:
+        # The once-per-revolution lines of runout (spindle harmonics that are not tooth
+        # harmonics), learnt over a revolution, slowly against that window.
+        runout = {k: v for k, v in learner.items() if k != "n_harmonics"}
+        parts.append(TrackingRepetitive(fz, tracker_obj, delay_s, **runout, period_multiple=teeth,
+                                        n_harmonics=2 * teeth,
+                                        learning_time_s=RUNOUT_LEARNING_REVS * teeth * excitation_period_s))  # fmt: skip
+    if name == "adaptive+force" and tab.force_model_r:
+        # the axes whose force model was kept (a controller file leaves out an axis whose
+        # force model amplifies somewhere in the checked band)
+        fzk = {a: ScheduledTable(grid, np.column_stack([fz[a].values, stiff[a].values]))
+               for a in axes if a in tab.force_model_r}  # fmt: skip
+        parts.append(ForceModelFeedforward(fzk, delay_s, r=dict(tab.force_model_r)))
+    elif name != "adaptive":
+        parts.append(DelayAwareFeedback(robust))
+    return FadeGuard(Combined(*parts), tracker_obj, fz, delay_s, **guard_opts)
+
+
+def _tuned(tab: PathTables, excitation_period_s: float) -> StateFeedback:
+    out = {}
+    for a in tab.axes:
+        rows = []
+        for plants in tab.plants[a]:
+            key = ("tuned", tuple(tuple(p) for p in plants), excitation_period_s, tab.period_s,
+                   tab.delay_s)  # fmt: skip
+            if key not in _DESIGN_CACHE:
+                _DESIGN_CACHE[key] = design_tuned_state_feedback(
+                    plants, plants[0][0], 1.0 / excitation_period_s,
+                    period_s=tab.period_s, delay_s=tab.delay_s)[0]  # fmt: skip
+            rows.append(_DESIGN_CACHE[key])
+        out[a] = ScheduledTable(tab.grid, np.array(rows))
+    return StateFeedback(out)
 
 
 def build_controllers(
@@ -141,8 +523,10 @@ def build_controllers(
 
     ``constant-start`` / ``constant-end`` use the pose-dependent design at ``s_start`` /
     ``s_end``. The feedforward, tuned, repetitive and adaptive controllers need
-    ``excitation_period_s`` (the force's period). Designs are cached per process (keyed by
-    their inputs); the returned controllers are fresh objects.
+    ``excitation_period_s`` (the force's period). The names are checked before any design
+    runs; the modes along the path are computed once (:func:`design_tables`) and every
+    controller is assembled from those tables (:func:`assemble_controller`). Designs are cached
+    per process (keyed by their inputs); the returned controllers are fresh objects.
 
     Parameters
     ----------
@@ -183,138 +567,20 @@ def build_controllers(
     ValueError
         Unknown names, or a controller that needs ``excitation_period_s`` without it.
     """
-    grid = np.asarray(s_grid, float)
-    r_grid = np.logspace(-2, 3, 11) if robust_r_grid is None else np.asarray(robust_r_grid)
-    out: dict[str, object] = {}
-    need_sched = {"thesis", "constant-start", "constant-end"} & set(names)
-    sched = {a: _schedule(model, d, grid) for a, d in axes.items()} if need_sched else {}
-    if "thesis" in names:
-        out["thesis"] = StateFeedback(
-            {a: ScheduledTable(grid, np.column_stack([s.w1, s.w2])) for a, s in sched.items()}
-        )
-    for name, s_at in (("constant-start", s_start), ("constant-end", s_end)):
-        if name in names:
-            s_at = grid[0] if s_at is None else s_at
-            out[name] = StateFeedback({a: s.gains_at(s_at) for a, s in sched.items()})
-    if "lqg" in names:
-        gains, kal = {}, {}
-        for a, d in axes.items():
-            modes = [path_mode(model, si, d) for si in grid]
-            if lqg_r is None:  # R picked like the robust design, on the loop with the filter
-                rows = [_robust_r(_model_set(model, si, d), m, period_s, delay_s, r_grid, "kalman")[1]
-                        for si, m in zip(grid, modes, strict=True)]  # fmt: skip
-            else:
-                rows = [
-                    design_delay_aware_lqr(m, period_s, delay_s, r=[[lqg_r]]).gains for m in modes
-                ]
-            gains[a] = ScheduledTable(grid, np.array(rows))
-            kal[a] = (grid, [design_kalman(m) for m in modes])
-        out["lqg"] = DelayAwareFeedback(gains, kal, delay_samples=round(delay_s * 1000.0))
-    robust = None
-    if "robust" in names or "feedforward+robust" in names:
-        tabs = {}
-        for a, d in axes.items():
-            rows = [
-                _robust_r(
-                    _model_set(model, si, d), path_mode(model, si, d), period_s, delay_s, r_grid
-                )[1]
-                for si in grid
-            ]
-            tabs[a] = ScheduledTable(grid, np.array(rows))
-        robust = tabs
-        if "robust" in names:
-            out["robust"] = DelayAwareFeedback(robust)
-    if "feedforward" in names or "feedforward+robust" in names:
-        if excitation_period_s is None:
-            raise ValueError("feedforward controllers need excitation_period_s [s]")
-        stiff = {
-            a: ScheduledTable(grid, np.array([[path_mode(model, si, d).stiffness_n_per_m] for si in grid]))
-            for a, d in axes.items()
-        }  # fmt: skip
-        if "feedforward" in names:
-            out["feedforward"] = ForceFeedforward(stiff, excitation_period_s, delay_s)
-        if "feedforward+robust" in names:
-            out["feedforward+robust"] = Combined(
-                ForceFeedforward(stiff, excitation_period_s, delay_s), DelayAwareFeedback(robust)
-            )
-    if "tuned" in names:
-        if excitation_period_s is None:
-            raise ValueError("the tuned controller needs excitation_period_s [s]")
-        tab = {}
-        for a, d in axes.items():
-            rows = []
-            for si in grid:
-                plants = _model_set(model, si, d)
-                key = (
-                    "tuned",
-                    tuple(tuple(p) for p in plants),
-                    excitation_period_s,
-                    period_s,
-                    delay_s,
-                )
-                if key not in _DESIGN_CACHE:
-                    _DESIGN_CACHE[key] = design_tuned_state_feedback(
-                        plants, plants[0][0], 1.0 / excitation_period_s,
-                        period_s=period_s, delay_s=delay_s)[0]  # fmt: skip
-                rows.append(_DESIGN_CACHE[key])
-            tab[a] = ScheduledTable(grid, np.array(rows))
-        out["tuned"] = StateFeedback(tab)
-    if "repetitive" in names:
-        if excitation_period_s is None:
-            raise ValueError("the repetitive controller needs excitation_period_s [s]")
-        modes = {
-            a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
-                                              for m in (path_mode(model, si, d) for si in grid)]))
-            for a, d in axes.items()
-        }  # fmt: skip
-        out["repetitive"] = RepetitiveFeedback(modes, excitation_period_s, delay_s)
-    adaptive = {"adaptive", "adaptive+robust", "adaptive-feedforward", "adaptive+force"} & set(
-        names
-    )
-    if adaptive:
-        if excitation_period_s is None:
-            raise ValueError("the adaptive controllers need the nominal excitation_period_s [s]")
-        fz = {
-            a: ScheduledTable(grid, np.array([[m.natural_frequency_hz, m.damping_ratio]
-                                              for m in (path_mode(model, si, d) for si in grid)]))
-            for a, d in axes.items()
-        }  # fmt: skip
-        stiff = {
-            a: ScheduledTable(grid, np.array([[path_mode(model, si, d).stiffness_n_per_m] for si in grid]))
-            for a, d in axes.items()
-        }  # fmt: skip
-        if robust is None:
-            robust = {
-                a: ScheduledTable(grid, np.array([
-                    _robust_r(_model_set(model, si, d), path_mode(model, si, d), period_s, delay_s, r_grid)[1]
-                    for si in grid]))
-                for a, d in axes.items()
-            }  # fmt: skip
-        for name in adaptive:
-            tracker = PeriodTracker(excitation_period_s)
-            if name == "adaptive-feedforward":
-                parts = [TrackingFeedforward(stiff, tracker, delay_s)]
-            else:
-                parts = [TrackingRepetitive(fz, tracker, delay_s)]
-            if name == "adaptive+force" and teeth > 1:
-                # The once-per-revolution lines of runout (spindle harmonics that are not tooth
-                # harmonics), learnt over a revolution, slowly against that window.
-                parts.append(TrackingRepetitive(fz, tracker, delay_s, period_multiple=teeth,
-                                                n_harmonics=2 * teeth,
-                                                learning_time_s=RUNOUT_LEARNING_REVS * teeth * excitation_period_s))  # fmt: skip
-            if name == "adaptive+force":
-                fzk = {a: ScheduledTable(grid, np.column_stack([fz[a].values, stiff[a].values]))
-                       for a in axes}  # fmt: skip
-                parts.append(ForceModelFeedforward(fzk, delay_s, r={
-                    a: _force_model_r(model, float(np.median(grid)), d, period_s, delay_s)
-                    for a, d in axes.items()}))  # fmt: skip
-            elif name != "adaptive":
-                parts.append(DelayAwareFeedback(robust))
-            out[name] = FadeGuard(Combined(*parts), tracker, fz, delay_s)
-    unknown = set(names) - set(CONTROLLERS)
-    if unknown:
-        raise ValueError(f"unknown controllers {sorted(unknown)}; expected some of {CONTROLLERS}")
-    return out
+    names = check_controller_names(names)
+    for n in names:
+        if DESIGNS[n].needs_excitation and excitation_period_s is None:
+            assemble_controller(n, PathTables(np.zeros(0), {}, {}, period_s, delay_s))  # raises
+    tab = design_tables(model, axes, s_grid, names=names, s_start=s_start, s_end=s_end,
+                        period_s=period_s, delay_s=delay_s, lqg_r=lqg_r,
+                        robust_r_grid=robust_r_grid)  # fmt: skip
+    # the order of the result rows since the studies began (tuned after the feedforwards)
+    build_order = ("thesis", "constant-start", "constant-end", "lqg", "robust", "feedforward",
+                   "feedforward+robust", "tuned", "repetitive", "adaptive", "adaptive+robust",
+                   "adaptive-feedforward", "adaptive+force")  # fmt: skip
+    order = [n for n in build_order if n in names]
+    return {n: assemble_controller(n, tab, excitation_period_s=excitation_period_s, teeth=teeth,
+                                   model=model) for n in order}  # fmt: skip
 
 
 #: The thesis' printed constant gains (w1, w2) at the start of the Table 7 path (extended end).

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..modal.parameters import ModalParameters
 from .controllers import ScheduledTable
-from .lqr import continuous_model, design_delay_aware_lqr, discretize
+from .lqr import continuous_model, design_delay_aware_lqr, discretize, spectral_radius
 
 __all__ = [
     "ForceModelFeedforward",
@@ -179,7 +179,7 @@ def force_model_variance_ratio(
     d_m, d_t = round(delay_s / period_s), round(true_delay_s / period_s)
     g = _gains(model, period_s, d_m, r) if gains is None else gains
     a, b, c = _loop(plant, model, period_s, d_m, d_t, g)
-    if np.max(np.abs(np.linalg.eigvals(a))) >= 1:
+    if spectral_radius(a) >= 1:
         return math.inf
     var = (c @ solve_discrete_lyapunov(a, b @ b.T) @ c.T)[0, 0]
     npl = 2 * len(_plant(plant))  # open loop: the plant block alone
@@ -314,7 +314,7 @@ class ForceModelFeedforward:
 
     def _highpass(self, f: np.ndarray) -> np.ndarray:
         if self._f_prev is None:
-            self._f_prev = f.copy()
+            self._f_prev = f[0].copy()  # the first sample (a first cycle may bring several)
         out = np.empty_like(f)
         for i, row in enumerate(f):
             self._f_hp = self._alpha * (self._f_hp + row - self._f_prev)

@@ -37,15 +37,18 @@ __all__ = [
     "THESIS_R",
     "DelayAnalysis",
     "DelayAwareDesign",
+    "KalmanDesign",
     "LQRDesign",
     "LoopMargins",
     "closed_loop_with_delay",
     "continuous_model",
     "delay_analysis",
     "design_delay_aware_lqr",
+    "design_kalman",
     "design_lqr",
     "discretize",
     "loop_margins",
+    "spectral_radius",
     "tune_r_for_delay",
 ]
 
@@ -156,7 +159,7 @@ class LQRDesign:
 
     @property
     def spectral_radius(self) -> float:
-        return float(np.max(np.abs(np.linalg.eigvals(self.closed_loop))))
+        return spectral_radius(self.closed_loop)
 
 
 def design_lqr(
@@ -342,10 +345,10 @@ def delay_analysis(
     from .._checks import check_int
 
     max_search_steps = check_int("max_search_steps", max_search_steps, lo=0, hi=MAX_DELAY_STEPS)
-    rho = float(np.max(np.abs(np.linalg.eigvals(closed_loop_with_delay(design, steps)))))
+    rho = spectral_radius(closed_loop_with_delay(design, steps))
     max_ok = -1
     for d in range(0, int(max_search_steps) + 1):
-        if np.max(np.abs(np.linalg.eigvals(closed_loop_with_delay(design, d)))) < 1:
+        if spectral_radius(closed_loop_with_delay(design, d)) < 1:
             max_ok = d
         else:
             break
@@ -396,7 +399,7 @@ def tune_r_for_delay(
     best = None
     for r in grid:
         design = design_lqr(mode, period_s, q, [[r]], input=input)
-        rho = float(np.max(np.abs(np.linalg.eigvals(closed_loop_with_delay(design, steps)))))
+        rho = spectral_radius(closed_loop_with_delay(design, steps))
         if rho < 1 and (best is None or rho < best[0]):
             best = (rho, design, float(r))
     if best is None:
@@ -429,7 +432,7 @@ class DelayAwareDesign:
 
     @property
     def spectral_radius(self) -> float:
-        return float(np.max(np.abs(np.linalg.eigvals(self.closed_loop))))
+        return spectral_radius(self.closed_loop)
 
 
 def design_delay_aware_lqr(
@@ -562,3 +565,96 @@ def loop_margins(design: LQRDesign, delay_steps: int = 0, n_points: int = 20000)
     return LoopMargins(
         np.array(gms), np.array(wps) / (2 * np.pi), np.array(pms), np.array(wcs) / (2 * np.pi)
     )
+
+
+def spectral_radius(matrix: np.ndarray) -> float:
+    """Largest eigenvalue magnitude (< 1: the discrete loop is stable).
+
+    The one definition every loop analysis of :mod:`robovib.control` uses.
+
+    Parameters
+    ----------
+    matrix : numpy.ndarray
+        Square matrix.
+
+    Returns
+    -------
+    float
+        max |eigenvalue|.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> spectral_radius(np.array([[0.5, 1.0], [0.0, -0.9]]))
+    0.9
+    """
+    return float(np.max(np.abs(np.linalg.eigvals(matrix))))
+
+
+@dataclass(frozen=True)
+class KalmanDesign:
+    """Steady-state Kalman filter of one mode at the sensor rate (state [x, v]).
+
+    ``phi`` (2, 2), ``gamma_u`` (2,) (applied correction [m] -> state), ``gain`` (2,) the
+    filter gain ``L`` of the update ``x += L (y - x[0])``, ``p`` the a-priori covariance.
+
+    Attributes
+    ----------
+    phi
+        (2, 2) state transition over one sensor sample.
+    gamma_u
+        (2,) applied correction [m] -> state.
+    gain
+        (2,) filter gain ``L``.
+    p
+        (2, 2) a-priori covariance.
+    """
+
+    phi: np.ndarray
+    gamma_u: np.ndarray
+    gain: np.ndarray
+    p: np.ndarray
+
+
+def design_kalman(
+    mode: ModalParameters,
+    dt_s: float = 1e-3,
+    *,
+    force_std_n: float = 20.0,
+    tracker_noise_m: float = 2e-6,
+    tracker_resolution_m: float = 1e-5,
+) -> KalmanDesign:
+    """Kalman filter for ``[x, v]`` of ``mode`` from tracker samples every ``dt_s``.
+
+    The unmeasured force is white process noise of std ``force_std_n`` [N] held over each
+    sample; the tracker noise variance is ``tracker_noise_m**2 + tracker_resolution_m**2 / 12``
+    (quantisation). The steady-state a-priori covariance solves the filter Riccati equation
+    (DARE on the dual problem, :func:`robovib._linalg.solve_dare`; the same as python-control
+    ``dlqe``, tested).
+
+    Parameters
+    ----------
+    mode : ModalParameters
+        The (model) mode.
+    dt_s : float
+        Sensor sample period [s].
+    force_std_n : float
+        Std of the unmeasured force [N] (process noise).
+    tracker_noise_m, tracker_resolution_m : float
+        Tracker white noise (std) and quantisation [m].
+
+    Returns
+    -------
+    KalmanDesign
+        The steady-state filter.
+    """
+    a, bu = continuous_model(mode, input="displacement")
+    _, bf = continuous_model(mode, input="force")
+    phi, gu = discretize(a, bu, dt_s)
+    _, gf = discretize(a, bf, dt_s)
+    qn = (gf @ gf.T) * force_std_n**2
+    rn = np.array([[tracker_noise_m**2 + tracker_resolution_m**2 / 12.0]])
+    c = np.array([[1.0, 0.0]])
+    p = solve_dare(phi.T, c.T, qn, rn)
+    gain = (p @ c.T @ np.linalg.inv(c @ p @ c.T + rn))[:, 0]
+    return KalmanDesign(phi, gu[:, 0], gain, p)

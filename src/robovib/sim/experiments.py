@@ -141,7 +141,7 @@ class MotionRecord:
         """(3,) largest absolute noise-free tool-tip displacement per axis X, Y, Z [m]."""
         return np.abs(self.true_displacement_m).max(axis=0)
 
-    def to_csv(self, path, *, inputs=(), force: bool = False) -> None:
+    def to_csv(self, path, *, inputs=(), force: bool = False, digits: int = 9) -> None:
         """CSV with ``time_s, force_{x,y,z}_n, displacement_{x,y,z}_m`` and the pose columns.
 
         Parameters
@@ -152,6 +152,8 @@ class MotionRecord:
             Files the output was made from (never overwritten unless ``force``).
         force : bool
             Allow ``path`` to be one of ``inputs``.
+        digits : int
+            Significant digits (17: every float read back exactly, e.g. for a replay).
         """
         import pandas as pd
 
@@ -167,7 +169,7 @@ class MotionRecord:
         from ..io.safe_write import atomic_output
 
         with atomic_output(path, inputs=inputs, force=force) as tmp:
-            pd.DataFrame(cols).to_csv(tmp, index=False, float_format="%.9g")
+            pd.DataFrame(cols).to_csv(tmp, index=False, float_format=f"%.{int(digits)}g")
 
 
 def _rng(rng) -> np.random.Generator:

@@ -84,6 +84,7 @@ __all__ = [
     "ControlSimulation",
     "build_controllers",
     "calibrate_channel",
+    "file_milling_positions",
     "fixed_pose_offset_mass",
     "milling_study",
     "offset_mass_study",
@@ -393,6 +394,7 @@ def milling_study(
     background_noise_rel: float = 0.15,
     disturbances: CutDisturbances | None = None,
     keep_traces: bool = False,
+    runtime=None,
     rng=0,
 ) -> list[dict]:
     """Table 10 analogue: RMS X and Z vibration [mm] (about the mean) open vs each controller.
@@ -416,7 +418,8 @@ def milling_study(
     conditions
         (spindle rpm, feed per tooth [m], axial depth [m]) per cut.
     positions
-        (name, path distance [m] of the cut's middle) pairs.
+        (name, path distance [m] of the cut's middle) pairs, or (name,
+        :class:`~robovib.sim.LinearMove`) pairs: the cut itself (e.g. in the workspace).
     controllers
         Controller names from :data:`CONTROLLERS` (open loop is always run).
     channel
@@ -435,6 +438,10 @@ def milling_study(
         Disturbances of a real cut (default none).
     keep_traces
         Keep the X and Z displacement records (``trace_m``, (n, 2) [m]).
+    runtime
+        A :class:`~robovib.control.runtime.RuntimeController` (a controller file) to run
+        instead of ``controllers``: the one controller of the file, every step through its
+        ``step`` (row name ``"<name> (file)"``; ``commands_mm`` with ``keep_traces``).
     rng
         Seed of the force noise and the sensor noise.
 
@@ -451,27 +458,39 @@ def milling_study(
     gen = np.random.default_rng(rng)
     rows = []
     for pos_name, s_mid in positions:
-        move = LinearMove("path", (s_mid - cut_length_m / 2,), (s_mid + cut_length_m / 2,))
+        if isinstance(s_mid, LinearMove):
+            move = s_mid
+        else:
+            move = LinearMove("path", (s_mid - cut_length_m / 2,), (s_mid + cut_length_m / 2,))
         grid = np.linspace(move.start[0], move.end[0], 6)
         for i, (rpm, fz, ap) in enumerate(conditions):
             cond = CuttingConditions(rpm, fz, ap, radial_depth_m)
             n = round(move.length_m / cond.feed_speed_m_per_s(tool) * 1000.0)
             t = np.arange(n) / 1000.0
             local = dist.cutting_force(t, tool, cond, coefficients, rng=gen)
-            # Feed along the path (-Y); normal = Z x feed = +X; axial = Z.
-            force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
+            if move.domain == "path":
+                # Feed along the path (-Y); normal = Z x feed = +X; axial = Z.
+                force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
+            else:  # feed along the move; normal = Z x feed; axial = Z
+                feed = move.feed_direction()
+                normal = np.cross([0.0, 0.0, 1.0], feed)
+                force = np.outer(local[:, 0], feed) + np.outer(local[:, 1], normal)
+                force[:, 2] += local[:, 2]
             force += gen.normal(size=force.shape) * background_noise_rel * force.std(axis=0)
             ctrls = {"open": None}
-            ctrls.update(build_controllers(model, {0: "x", 2: "z"}, grid, names=controllers,
-                                           excitation_period_s=1.0 / cond.tooth_passing_hz(tool),
-                                           teeth=tool.n_flutes))  # fmt: skip
+            if runtime is not None:
+                ctrls[f"{runtime.name} (file)"] = runtime.planned(rpm, tool.n_flutes)
+            else:
+                ctrls.update(build_controllers(model, {0: "x", 2: "z"}, grid, names=controllers,
+                                               excitation_period_s=1.0 / cond.tooth_passing_hz(tool),
+                                               teeth=tool.n_flutes))  # fmt: skip
             base = {"test": i + 1, "position": pos_name, "speed_rpm": rpm, "feed_mm": fz * 1e3,
                     "axial_depth_mm": ap * 1e3}  # fmt: skip
             open_rms = None
             for name, ctrl in ctrls.items():
                 disp, err = _run(robot, move, force, ctrl, rng, true_channel, **sensor)
                 row = {**base, "controller": name, "unstable": err}
-                if isinstance(ctrl, FadeGuard):
+                if isinstance(ctrl, FadeGuard) or hasattr(ctrl, "all_events"):
                     row["guard_events"] = "; ".join(
                         f"{e.time_s:.2f} s -> {e.target:g}: {e.reason}" for e in ctrl.all_events()
                     )
@@ -483,6 +502,8 @@ def milling_study(
                         row[f"{d}_reduction_pct"] = 100 * (1 - rms / open_rms[d])
                 if keep_traces and disp is not None:
                     row["trace_m"] = disp[:, [0, 2]]
+                    if runtime is not None and name != "open":
+                        row["trace_commands_mm"] = ctrl.commands_mm.copy()
                 if name == "open":
                     open_rms = {"x": row["x_rms_mm"], "z": row["z_rms_mm"]}
                     continue
@@ -680,6 +701,7 @@ def simulate_control(
     speeds_rpm=(480.0, 960.0),
     disturbances: CutDisturbances | None = None,
     keep_traces: bool = False,
+    controller_file=None,
     rng=0,
 ) -> ControlSimulation:
     """Closed-loop runs on the virtual robot with controllers designed from the path model.
@@ -701,6 +723,10 @@ def simulate_control(
         (:class:`~robovib.sim.disturbances.CutDisturbances`, e.g. from ``CutDisturbances.parse``).
     keep_traces
         Keep the displacement records (for :meth:`ControlSimulation.plot`).
+    controller_file
+        Milling only: a controller file (path) or
+        :class:`~robovib.control.runtime.RuntimeController` to run instead of ``controllers``
+        (:func:`file_milling_positions` says where its cuts are).
     rng
         Seed of the virtual EMA and the sensor noise.
 
@@ -725,6 +751,12 @@ def simulate_control(
     channel = ACTUATORS[actuator]
     if disturbances is not None and disturbances.active() and experiment != "milling":
         raise ValueError("disturbances apply to the milling experiment only")
+    if controller_file is not None:
+        if controllers is not None:
+            raise ValueError("give either controllers or a controller file, not both")
+        if experiment != "milling":
+            raise ValueError("a controller file runs the milling experiment only")
+        return _simulate_file(controller_file, channel, actuator, disturbances, keep_traces, rng)
     robot = VirtualRobot()
     model = path_modal_model(
         robot, directions=("x",) if experiment == "offset-mass" else ("x", "z"), rng=rng
@@ -740,3 +772,71 @@ def simulate_control(
                 "speeds_rpm": list(speeds_rpm) if experiment == "offset-mass" else None,
                 "disturbances": (disturbances or CutDisturbances()).active()}  # fmt: skip
     return ControlSimulation(experiment, tuple(rows), settings)
+
+
+def file_milling_positions(runtime, cut_length_m: float = 0.05) -> tuple:
+    """Where the Table 10 cuts of a controller file run on the virtual robot.
+
+    A file designed on a path model (input ``s_m``) cuts at Positions 1 and 2 of the chapter-4
+    path (s = 0.35 and 1.00 m). A file designed on a workspace model (``x_mm, y_mm, rz_deg``)
+    cuts on its own path, at the same fractions of it (0.35 / 1.235 and 1.00 / 1.235), each
+    cut ``cut_length_m`` long in the workspace.
+
+    Parameters
+    ----------
+    runtime : RuntimeController
+        The controller file.
+    cut_length_m : float
+        Length of each cut [m].
+
+    Returns
+    -------
+    tuple
+        (name, path distance [m] or :class:`~robovib.sim.LinearMove`) pairs.
+
+    Raises
+    ------
+    ValueError
+        A path too short for the cuts, or inputs the virtual robot does not have.
+    """
+    path = runtime.path
+    if path.input_names == ("s_m",):
+        return (("Position 1", POSITION_1_S_M), ("Position 2", POSITION_2_S_M))
+    if set(path.input_names) != {"x_mm", "y_mm", "rz_deg"}:
+        raise ValueError(f"the virtual robot's workspace has x_mm, y_mm, rz_deg; the controller's "
+                         f"path is in {', '.join(path.input_names)}")  # fmt: skip
+    if path.length_m < 2 * cut_length_m:
+        raise ValueError(f"the controller's path ({path.length_m:.3f} m) is too short for "
+                         f"{cut_length_m * 1e3:g} mm cuts")  # fmt: skip
+    out = []
+    for name, s_ref in (("Position 1", POSITION_1_S_M), ("Position 2", POSITION_2_S_M)):
+        mid = path.s_m[0] + s_ref / PATH_LENGTH_M * path.length_m
+        lo = min(max(mid - cut_length_m / 2, path.s_m[0]), path.s_m[-1] - cut_length_m)
+        ends = path.poses_at([lo, lo + cut_length_m])
+        cols = [path.input_names.index(n) for n in ("x_mm", "y_mm", "rz_deg")]
+        a, b = ends[0, cols], ends[1, cols]
+        out.append((name, LinearMove("workspace", (a[0] * 1e-3, a[1] * 1e-3, a[2]),
+                                     (b[0] * 1e-3, b[1] * 1e-3, b[2]))))  # fmt: skip
+    return tuple(out)
+
+
+def _simulate_file(controller_file, channel, actuator, disturbances, keep_traces, rng):
+    from ..control.runtime import RuntimeController, load_controller
+
+    runtime = (controller_file if isinstance(controller_file, RuntimeController)
+               else load_controller(controller_file))  # fmt: skip
+    positions = file_milling_positions(runtime)
+    rows = milling_study(VirtualRobot(), None, positions=positions, channel=channel,
+                         disturbances=disturbances, keep_traces=keep_traces, runtime=runtime,
+                         rng=rng)  # fmt: skip
+    settings = {"controllers": [f"{runtime.name} (file)"], "actuator": actuator,
+                "channel": channel.to_dict(), "command_period_s": runtime.period_s,
+                "sample_rate_hz": runtime.sample_rate_hz, "seed": rng, "speeds_rpm": None,
+                "disturbances": (disturbances or CutDisturbances()).active(),
+                "controller_file": runtime.doc.get("provenance", {}),
+                "positions": [{"name": p, "path_s_m": m} if not isinstance(m, LinearMove) else
+                              {"name": p, "start_x_m": m.start[0], "start_y_m": m.start[1],
+                               "start_rz_deg": m.start[2], "end_x_m": m.end[0],
+                               "end_y_m": m.end[1], "end_rz_deg": m.end[2]}
+                              for p, m in positions]}  # fmt: skip
+    return ControlSimulation("milling", tuple(rows), settings)
