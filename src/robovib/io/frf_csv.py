@@ -64,12 +64,14 @@ def check_frf_has_phase(frf: FRF, where: str) -> FRF:
     """
     v = np.asarray(frf.values)
     peak = float(np.max(np.abs(v))) if v.size else 0.0
-    if peak == 0.0 or np.all(np.abs(np.imag(v)) <= PHASE_FREE_TOLERANCE * peak):
-        what = "zero everywhere" if peak == 0.0 else "zero at every frequency"
+    name = f"FRF{f' {frf.direction}' if frf.direction else ''}"
+    if peak == 0.0:
+        raise ValueError(f"{where}: the {name} is zero at every frequency: nothing was measured")
+    if np.all(np.abs(np.imag(v)) <= PHASE_FREE_TOLERANCE * peak):
         raise ValueError(
-            f"{where}: FRF{f' {frf.direction}' if frf.direction else ''} has no phase (its "
-            f"imaginary part is {what}): a real-valued or magnitude-only FRF gives wrong modes "
-            "and stability limits; export the complex FRF (real and imaginary parts)"
+            f"{where}: {name} has no phase (its imaginary part is zero at every frequency): a "
+            "real-valued or magnitude-only FRF gives wrong modes and stability limits; export "
+            "the complex FRF (real and imaginary parts)"
         )
     return frf
 

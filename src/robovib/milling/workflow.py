@@ -267,10 +267,9 @@ def predict_at_pose(
     pose_modes(model, (x_mm, y_mm, rz_deg))  # checks the pose, names a bad coordinate
     # dominant-mode model: one mode per direction; multi-mode model (mode ids x1, x2, ..., y1):
     # every modelled mode of a direction, and only the directions it has (issue 29)
-    per_dir = {
-        d: [m.mode for m in ms]
-        for d, ms in model.mode_set(np.array([[x_mm, y_mm, rz_deg]], float))[0].items()
-    }
+    mode_set = model.mode_set(np.array([[x_mm, y_mm, rz_deg]], float))[0]
+    per_dir = {d: [m.mode for m in ms] for d, ms in mode_set.items()}
+    ids_per_dir = {d: [m.mode_id for m in ms] for d, ms in mode_set.items()}
     outside = pose_extrapolation(model, (x_mm, y_mm, rz_deg))
     gen = np.random.default_rng(rng)
     out = []
@@ -293,7 +292,9 @@ def predict_at_pose(
         draws = 0
         # Where the dominant mode is uncertain (a modelled switch), draw from the model's
         # mixture of the two modes, never normals around the more probable one (issue 36).
-        mixture = _mixture_draws(model, (x_mm, y_mm, rz_deg), pose, pms, 20 * n_samples, gen)
+        mixture = _mixture_draws(
+            model, (x_mm, y_mm, rz_deg), ids_per_dir[d], pms, 20 * n_samples, gen
+        )
         while len(pv) < n_samples and draws < 20 * n_samples:
             draws += 1
             s = gen.normal(mu, sd) if mixture is None else mixture[draws - 1]
@@ -333,17 +334,16 @@ def predict_at_pose(
     return out
 
 
-def _mixture_draws(model, pose, modes: dict, pms: list, n: int, gen) -> np.ndarray | None:
-    """(n, len(pms), 3) latent draws of fn, k, c of the modes ``pms`` from the model's
-    predictive mixture, where the other mode can reach the 2.5-97.5 % band (its probability
-    above 2.5 %); else None."""
+def _mixture_draws(model, pose, mode_ids: list, pms: list, n: int, gen) -> np.ndarray | None:
+    """(n, len(pms), 3) latent draws of fn, k, c of the modes ``pms`` (ids ``mode_ids``, as in
+    the model's ``directions_``) from the model's predictive mixture, where the other mode can
+    reach the 2.5-97.5 % band (its probability above 2.5 %); else None."""
     lo, hi = MIXTURE_BAND_PROBABILITY
     if not any(p.high_mode_probability is not None and lo < p.high_mode_probability < hi
-               for p in pms) or not hasattr(model, "predictive"):  # fmt: skip
+               for p in pms):  # fmt: skip
         return None
-    ids = list(modes)
-    cols = [3 * ids.index(k) + j for k, p in modes.items() if any(p is q for q in pms)
-            for j in range(3)]  # fmt: skip
+    ids = list(model.directions_)
+    cols = [3 * ids.index(k) + j for k in mode_ids for j in range(3)]
     draws = model.predictive(np.asarray(pose, float)[None, :]).sample(n, gen, kind="latent")
     return draws[:, 0, cols].reshape(n, len(pms), 3)
 
