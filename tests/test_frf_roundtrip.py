@@ -133,7 +133,7 @@ def _as_legacy(path, version=1):
     import h5py
 
     with h5py.File(path, "a") as h5:
-        for key in ("format_version", "created_utc"):
+        for key in ("format_version", "created_utc", "content_sha256"):
             if key in h5.attrs:
                 del h5.attrs[key]
         h5.attrs["version"] = version

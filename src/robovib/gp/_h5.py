@@ -27,6 +27,7 @@ import numpy as np
 
 from .. import __version__
 from ..io.h5format import as_text, write_header
+from ..io.h5safe import seal
 from .calibration import read_calibration, write_calibration
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, symmetric_rz_features
 from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2, read_pose_file
@@ -269,6 +270,7 @@ def write_pose_model(model, path, *, cv=None, provenance=None) -> None:
         p.attrs["robovib_version"] = __version__
         for k, v in (provenance or {}).items():
             p.attrs[str(k)] = v if isinstance(v, int | float | str | bool) else json.dumps(v)
+        seal(h5)
 
 
 def _params_json(model) -> str:

@@ -291,10 +291,12 @@ def read_provenance(path_or_h5) -> dict:
     KeyError
         The file has no provenance group (written by an older robovib or another tool).
     """
-    import h5py
-
     if isinstance(path_or_h5, str | os.PathLike):
-        with h5py.File(path_or_h5, "r") as h5:
+        from .h5format import _open
+        from .h5safe import check_self_contained
+
+        with _open(Path(path_or_h5)) as h5:
+            check_self_contained(h5, path_or_h5)  # links and external storage refused
             return read_provenance(h5)
     h5 = path_or_h5
     if "provenance" not in h5:
