@@ -65,8 +65,17 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
         The cuts, depths in metres.
     """
     p = Path(path)
-    with p.open(newline="") as fh:
-        rows = list(csv.reader(line for line in fh if line.strip() and not line.startswith("#")))
+    try:
+        with p.open(newline="", encoding="utf-8") as fh:
+            lines = [line for line in fh if line.strip() and not line.startswith("#")]
+    except UnicodeDecodeError as exc:
+        raise ValueError(
+            f"{p}: not a text (UTF-8) cuts table: undecodable byte at offset {exc.start}"
+        ) from None
+    try:
+        rows = list(csv.reader(lines))
+    except csv.Error as exc:
+        raise ValueError(f"{p}: not a readable CSV table ({exc})") from None
     if not rows:
         raise ValueError(f"{p}: empty cuts file")
     header = [h.strip().lower() for h in rows[0]]
@@ -83,6 +92,11 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
     rcol, scol = header.index("result"), header.index("spindle_rpm")
     rpm, depth, chat = [], [], []
     for i, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise ValueError(
+                f"{p}, line {i}: {len(row)} fields where the header has {len(header)} "
+                f"({', '.join(header)}): a damaged or cut-short file"
+            )
         try:
             s, d = float(row[scol]), float(row[dcol]) * scale
         except (ValueError, IndexError) as exc:

@@ -400,6 +400,21 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
     except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
         raise ValueError(f"{path}: not a readable UFF file ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
+    from .recording import _check_uff_complete
+
+    _check_uff_complete(path, sum(s.get("type") == 58 for s in sets))
+    try:
+        return _frfs_of_uff_sets(sets, path, si_factor)
+    except ValueError as exc:  # the record's own check: name the file
+        msg = str(exc)
+        raise ValueError(msg if str(path) in msg else f"{path}: {msg}") from None
+    except (KeyError, IndexError, TypeError, AttributeError):
+        raise ValueError(
+            f"{path}: a dataset 58 lacks a field or holds an unreadable one: a damaged file"
+        ) from None
+
+
+def _frfs_of_uff_sets(sets, path: Path, si_factor) -> list[FRF]:
     out = []
     lc_index: dict[int, int] = {}  # load case -> FRF index, for robovib's companion records
     companions = []

@@ -126,7 +126,11 @@ def _open(path: Path):
         raise ValueError(f"{path}: is a folder, not an HDF5 file") from None
     except PermissionError:
         raise ValueError(f"{path}: permission denied") from None
-    except OSError:
+    except OSError as exc:
+        if "truncated file" in str(exc):
+            raise ValueError(
+                f"{path}: not a readable HDF5 file (truncated: it ends before its own data)"
+            ) from None
         raise ValueError(f"{path}: not a readable HDF5 file (damaged or another format)") from None
 
 
