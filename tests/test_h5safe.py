@@ -300,3 +300,19 @@ def test_files_without_a_checksum_still_load(pose_file):
 
     assert read_pose_file(pose_file)[0].checksum == "none stored"
     np.testing.assert_array_equal(PosePredictor.load(pose_file).predict([[2000.0, 0.0, 0.0]]), ref)
+
+
+def test_input_files_record_every_hdf5_file_read_named_or_not(tmp_path):
+    """The shipped default model is read without being named: input_files still lists it."""
+    import hashlib
+    import json
+
+    argv = ["gpr", "predict", "--x", "2000", "--y", "0", "--rz", "0", "--json"]
+    doc = json.loads(CliRunner().invoke(app, argv).stdout)
+    (item,) = doc["input_files"]
+    assert item["path"] == str(chapter3_model_path())
+    assert item["sha256"] == hashlib.sha256(chapter3_model_path().read_bytes()).hexdigest()
+    model = tmp_path / "mine.h5"
+    shutil.copy(chapter3_model_path(), model)
+    doc = json.loads(CliRunner().invoke(app, [*argv, "--model", str(model)]).stdout)
+    assert [i["path"] for i in doc["input_files"]] == [str(model)]

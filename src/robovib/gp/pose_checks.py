@@ -178,8 +178,9 @@ def check_pose_tree(tree: H5Tree, path) -> None:
         _check_calibration(c, c.group(tree, "calibration", "calibration"), m)
     if "cv" in tree:
         cv = c.group(tree, "cv", "cv")
-        for key in cv:
-            c.array(cv, key, "cv", kind="biuf", shape=(m,))
+        for key in cv:  # a figure per output, or one number (e.g. grouped, n_splits)
+            one = np.ndim(cv[key]) == 0 and not isinstance(cv[key], H5Tree)
+            c.array(cv, key, "cv", kind="biuf", shape=() if one else (m,))
     c.group(tree, "provenance", "provenance")
 
 

@@ -237,6 +237,9 @@ def open_verified(
     except BaseException:
         h5.close()
         raise
+    from .provenance import note_input_file
+
+    note_input_file(path)  # the run's input_files record every file read, named or not
     return h5, fmt, version, seal
 
 
