@@ -299,6 +299,8 @@ def test_files_without_a_checksum_still_load(pose_file):
     from robovib.gp.pose_file import read_pose_file
 
     assert read_pose_file(pose_file)[0].checksum == "none stored"
+    assert PoseModalModel.load(pose_file).file_attrs_["content_sha256"] == "none stored"
+    assert PoseModalModel.load(chapter3_model_path()).file_attrs_["content_sha256"] == "verified"
     np.testing.assert_array_equal(PosePredictor.load(pose_file).predict([[2000.0, 0.0, 0.0]]), ref)
 
 

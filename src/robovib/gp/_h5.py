@@ -361,5 +361,7 @@ def read_pose_model(cls, path):
         "robovib_version": as_text(a["robovib_version"]),
         "created_utc": as_text(a["created_utc"]),
         "format_version": version,
+        # "verified", or "none stored" (written before robovib sealed its files)
+        "content_sha256": tree.checksum,
     }
     return model

@@ -34,6 +34,9 @@ class TreeChecker:
     """Checks of the members of an :class:`~robovib.io.h5format.H5Tree`, each failing with a
     :class:`~robovib.io.h5safe.FileContentError` that names the file and the member.
 
+    The methods share their parameters: ``tree`` (the group read into memory), ``name`` (the
+    member or attribute in it) and ``member`` (the group's path in the file, for the message).
+
     Parameters
     ----------
     path : str or pathlib.Path
@@ -44,9 +47,34 @@ class TreeChecker:
         self.path = path
 
     def fail(self, member: str | None, problem: str):
+        """Raise the error for ``member`` (a path in the file) and ``problem`` (words).
+
+        Parameters
+        ----------
+        member : str or None
+            Path of the member in the file.
+        problem : str
+            What is wrong.
+        """
         raise FileContentError(self.path, problem, member)
 
     def group(self, tree, name: str, member: str) -> H5Tree:
+        """The subgroup ``name`` (refused when missing or a dataset).
+
+        Parameters
+        ----------
+        tree : H5Tree
+            The group holding it.
+        name : str
+            Its name.
+        member : str
+            Its path in the file.
+
+        Returns
+        -------
+        H5Tree
+            The subgroup.
+        """
         if name not in tree:
             self.fail(member, "group is missing")
         g = tree[name]
@@ -55,17 +83,67 @@ class TreeChecker:
         return g
 
     def attr(self, tree, name: str, member: str):
+        """The attribute ``name`` (refused when missing).
+
+        Parameters
+        ----------
+        tree : H5Tree
+            The group holding it.
+        name : str
+            The attribute.
+        member : str
+            The group's path in the file.
+
+        Returns
+        -------
+        object
+            The value as h5py gives it.
+        """
         if name not in tree.attrs:
             self.fail(member or "/", f"attribute '{name}' is missing")
         return tree.attrs[name]
 
     def text(self, tree, name: str, member: str) -> str:
+        """The text attribute ``name`` (refused when missing or not text).
+
+        Parameters
+        ----------
+        tree : H5Tree
+            The group holding it.
+        name : str
+            The attribute.
+        member : str
+            The group's path in the file.
+
+        Returns
+        -------
+        str
+            The text.
+        """
         v = self.attr(tree, name, member)
         if not isinstance(v, str | bytes):
             self.fail(member or "/", f"attribute '{name}' is not text")
         return as_text(v)
 
-    def number(self, tree, name: str, member: str, *, integer=False) -> float:
+    def number(self, tree, name: str, member: str, *, integer: bool = False) -> float:
+        """The single finite number (or integer) attribute ``name``.
+
+        Parameters
+        ----------
+        tree : H5Tree
+            The group holding it.
+        name : str
+            The attribute.
+        member : str
+            The group's path in the file.
+        integer : bool
+            Require an integer.
+
+        Returns
+        -------
+        float or int
+            The number.
+        """
         v = np.asarray(self.attr(tree, name, member))
         ok = v.ndim == 0 and v.dtype.kind in ("biu" if integer else "biuf")
         if not ok or (v.dtype.kind == "f" and not np.isfinite(v)):
@@ -74,14 +152,65 @@ class TreeChecker:
         return v.item()
 
     def ints(self, tree, name: str, member: str) -> np.ndarray:
+        """The attribute ``name`` as a list of integers.
+
+        Parameters
+        ----------
+        tree : H5Tree
+            The group holding it.
+        name : str
+            The attribute.
+        member : str
+            The group's path in the file.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) integers.
+        """
         v = np.asarray(self.attr(tree, name, member))
         if v.ndim != 1 or v.dtype.kind not in "iu":
             self.fail(member or "/", f"attribute '{name}' is not a list of integers")
         return v
 
-    def array(self, tree, name: str, member: str, *, kind: str, shape: tuple,
-              finite: bool = False, positive: bool = False, optional: bool = False):  # fmt: skip
-        """A dataset of ``kind`` and ``shape`` (None in ``shape``: any length)."""
+    def array(
+        self,
+        tree,
+        name: str,
+        member: str,
+        *,
+        kind: str,
+        shape: tuple,
+        finite: bool = False,
+        positive: bool = False,
+        optional: bool = False,
+    ):
+        """The dataset ``name``, checked for element kind, shape and values.
+
+        Parameters
+        ----------
+        tree : H5Tree
+            The group holding it.
+        name : str
+            The dataset.
+        member : str
+            The group's path in the file.
+        kind : str
+            Accepted NumPy kinds (``"f"``, ``"iu"``, ``"biu"``...).
+        shape : tuple
+            Expected shape; None for an axis of any length.
+        finite : bool
+            Refuse NaN and inf.
+        positive : bool
+            Refuse values <= 0.
+        optional : bool
+            Return None when missing instead of refusing.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            The data.
+        """
         where = f"{member}/{name}" if member else name
         if name not in tree:
             if optional:
@@ -93,7 +222,7 @@ class TreeChecker:
         v = np.asarray(v)
         if v.dtype.kind not in kind:
             names = {"b": "booleans", "i": "integers", "u": "integers", "f": "real numbers"}
-            want = " or ".join(dict.fromkeys(names[k] for k in kind))
+            want = " or ".join(dict.fromkeys(names.get(k, k) for k in kind))
             self.fail(where, f"holds {v.dtype} values, expected {want}")
         if v.ndim != len(shape) or any(
             s is not None and s != n for s, n in zip(shape, v.shape, strict=False)

@@ -115,23 +115,9 @@ def file_format(path) -> tuple[str, int]:
 
 
 def _open(path: Path):
-    """``h5py.File(path, "r")``, or a one-line error naming the file."""
-    import h5py
+    from .h5safe import open_file
 
-    try:
-        return h5py.File(path, "r")
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise ValueError(f"{path}: is a folder, not an HDF5 file") from None
-    except PermissionError:
-        raise ValueError(f"{path}: permission denied") from None
-    except OSError as exc:
-        if "truncated file" in str(exc):
-            raise ValueError(
-                f"{path}: not a readable HDF5 file (truncated: it ends before its own data)"
-            ) from None
-        raise ValueError(f"{path}: not a readable HDF5 file (damaged or another format)") from None
+    return open_file(path)
 
 
 def _tag(h5, path=None) -> tuple[str, int]:

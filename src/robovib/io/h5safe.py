@@ -26,6 +26,7 @@ import hashlib
 import json
 import os
 from collections.abc import Iterator
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -37,6 +38,7 @@ __all__ = [
     "Scan",
     "check_self_contained",
     "content_sha256",
+    "open_file",
     "read_array",
     "scan",
     "seal",
@@ -241,6 +243,42 @@ def _check_dataset(ds, member: str, path, file_size: int | None) -> int:
     return logical
 
 
+def open_file(path: Path):
+    """``h5py.File(path, "r")``, or a one-line error naming the file.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+
+    Returns
+    -------
+    h5py.File
+        The file, open for reading (close it: ``with``).
+
+    Raises
+    ------
+    ValueError
+        Missing, a folder, not readable, truncated, or not HDF5.
+    """
+    import h5py
+
+    try:
+        return h5py.File(path, "r")
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise ValueError(f"{path}: is a folder, not an HDF5 file") from None
+    except PermissionError:
+        raise ValueError(f"{path}: permission denied") from None
+    except OSError as exc:
+        if "truncated file" in str(exc):
+            raise ValueError(
+                f"{path}: not a readable HDF5 file (truncated: it ends before its own data)"
+            ) from None
+        raise ValueError(f"{path}: not a readable HDF5 file (damaged or another format)") from None
+
+
 def _file_size(h5, path) -> int | None:
     """Size on disk of the file behind ``h5`` (None for an in-memory file)."""
     try:
@@ -252,7 +290,19 @@ def _file_size(h5, path) -> int | None:
 
 
 class Scan(NamedTuple):
-    """What :func:`scan` found: see its Returns."""
+    """What :func:`scan` found.
+
+    Parameters
+    ----------
+    members : dict
+        Member path -> array (datasets; None when not read) or None (groups).
+    attrs : dict
+        Member path -> attributes of every group (``""``: the scanned group).
+    checksum : str
+        ``"verified"``, ``"none stored"`` or ``"not checked"``.
+    digest : str or None
+        :func:`content_sha256` of what was read (None when nothing was read).
+    """
 
     members: dict
     attrs: dict

@@ -320,10 +320,9 @@ def read_provenance(path_or_h5) -> dict:
         The file has no provenance group (written by an older robovib or another tool).
     """
     if isinstance(path_or_h5, str | os.PathLike):
-        from .h5format import _open
-        from .h5safe import check_self_contained
+        from .h5safe import check_self_contained, open_file
 
-        with _open(Path(path_or_h5)) as h5:
+        with open_file(Path(path_or_h5)) as h5:
             check_self_contained(h5, path_or_h5)  # links and external storage refused
             return read_provenance(h5)
     h5 = path_or_h5
