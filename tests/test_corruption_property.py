@@ -201,8 +201,9 @@ def _datasets(h5) -> list[str]:
 
 
 def _restructure(path: Path, how: str, pick: int, other: Path) -> None:
-    """Damage one dataset's structure; the checksum is recomputed where the result is still
-    self-contained (as an editing sender would), else removed."""
+    """Damage one dataset's structure. The checksum is recomputed where the result is still
+    self-contained and breaks the format (as an editing sender would), removed where it
+    reaches outside the file, and kept (now stale) where a member is lost."""
     with h5py.File(path, "a") as h5:
         names = _datasets(h5)
         name = names[pick % len(names)]
@@ -213,8 +214,8 @@ def _restructure(path: Path, how: str, pick: int, other: Path) -> None:
             h5.create_dataset(name, data=old.reshape(-1)[:-1] if old.size > 1 else np.zeros((2, 2)))
         elif how == "dtype":
             h5.create_dataset(name, data=np.asarray(old).astype("S12"))
-        elif how == "drop":
-            pass
+        elif how == "drop":  # a member lost: the stored checksum no longer matches
+            reseal = None
         elif how == "soft_link":
             h5[name] = h5py.SoftLink("/" + names[(pick + 1) % len(names)])
             reseal = False
@@ -237,7 +238,7 @@ def _restructure(path: Path, how: str, pick: int, other: Path) -> None:
             raise AssertionError(how)
         if reseal:
             seal(h5)
-        elif CHECKSUM_ATTR in h5.attrs:
+        elif reseal is not None and CHECKSUM_ATTR in h5.attrs:
             del h5.attrs[CHECKSUM_ATTR]
 
 

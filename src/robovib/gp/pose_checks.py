@@ -383,13 +383,25 @@ def _check_switching(c: TreeChecker, g, member: str, d: int, n_out: int) -> None
 def _check_calibration(c: TreeChecker, g, m: int) -> None:
     member = "calibration"
     names = np.asarray(c.attr(g, "output_names", member))
-    if names.ndim != 1 or names.size != m:
+    if names.ndim != 1 or names.size != m or names.dtype.kind not in "OSU":
         c.fail(member, f"attribute 'output_names' does not name the {m} outputs")
-    for key in ("covariance", "levels"):
-        c.attr(g, key, member)
+    cov = np.asarray(c.attr(g, "covariance", member))
+    if cov.ndim != 1 or cov.dtype.kind not in "OSU":
+        c.fail(member, "attribute 'covariance' is not a list of covariance names")
+    levels = np.asarray(c.attr(g, "levels", member))
+    if levels.ndim != 1 or levels.dtype.kind not in "f" or not np.all(np.isfinite(levels)):
+        c.fail(member, "attribute 'levels' is not a list of probabilities")
     for key in ("n_folds", "n_poses"):
         c.number(g, key, member, integer=True)
     scale = c.array(g, "scale", member, kind="f", shape=(m, None), finite=True, positive=True)
     c.array(g, "dof", member, kind="f", shape=scale.shape)
-    c.array(g, "n", member, kind="biuf", shape=(m,))
-    c.group(g, "lpd_by_covariance", f"{member}/lpd_by_covariance")
+    for key in ("gamma", "ref_std", "mode_logit"):
+        c.array(g, key, member, kind="f", shape=scale.shape, optional=True)
+    for key in ("n", "nlpd", "rmse"):
+        c.array(g, key, member, kind="biuf", shape=(m,))
+    for key in ("coverage", "coverage_uncalibrated"):
+        c.array(g, key, member, kind="f", shape=(m, levels.size))
+    c.array(g, "pit", member, kind="f", shape=(None, m), optional=True)
+    lpd = c.group(g, "lpd_by_covariance", f"{member}/lpd_by_covariance")
+    for key in lpd:
+        c.array(lpd, key, f"{member}/lpd_by_covariance", kind="f", shape=(m,))

@@ -104,11 +104,16 @@ def _walk(h5, path) -> Iterator[tuple[str, object]]:
                 path, f"groups nested more than {MAX_DEPTH} deep; not a robovib file", prefix
             )
         try:
-            names = sorted(group.keys())
+            names = list(group.keys())
         except (KeyError, OSError, RuntimeError, ValueError, UnicodeDecodeError):
             raise FileContentError(
                 path, "group members cannot be listed (damaged file)", prefix or "/"
             ) from None
+        if not all(isinstance(n, str) for n in names):
+            raise FileContentError(
+                path, "a member name is not valid text (damaged file)", prefix or "/"
+            )
+        names.sort()
         for name in names:
             member = f"{prefix}/{name}" if prefix else name
             try:
@@ -415,11 +420,16 @@ def _read(ds, member: str, path) -> np.ndarray:
 
 def _read_attrs(obj, path, member: str) -> dict:
     try:
-        return dict(obj.attrs.items())
+        attrs = dict(obj.attrs.items())
     except (OSError, RuntimeError, KeyError, TypeError, ValueError, UnicodeDecodeError):
         raise FileContentError(
             path, "attributes cannot be read (damaged file)", member or "/"
         ) from None
+    if not all(isinstance(k, str) for k in attrs):
+        raise FileContentError(
+            path, "an attribute name is not valid text (damaged file)", member or "/"
+        )
+    return attrs
 
 
 def check_self_contained(h5, path) -> None:
