@@ -29,7 +29,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from robovib.io.h5safe import CHECKSUM_ATTR, seal
+from robovib.io.h5safe import CHECKSUM_ATTR, USERBLOCK_SIZE, seal, seal_file
 
 QUERY = np.array([[2000.0, -300.0, 30.0], [2600.0, 400.0, -60.0]])
 
@@ -240,6 +240,12 @@ def _restructure(path: Path, how: str, pick: int, other: Path) -> None:
             seal(h5)
         elif reseal is not None and CHECKSUM_ATTR in h5.attrs:
             del h5.attrs[CHECKSUM_ATTR]
+    if reseal:
+        seal_file(path)
+    elif reseal is not None:  # blank the byte checksum too: an unsealed file
+        data = bytearray(path.read_bytes())
+        data[:USERBLOCK_SIZE] = bytes(USERBLOCK_SIZE)
+        path.write_bytes(bytes(data))
 
 
 FLIPS = st.lists(

@@ -23,7 +23,15 @@ from robovib.gp import PoseModalModel
 from robovib.gp.chapter3_model import chapter3_model_path
 from robovib.gp.predictor import PosePredictor
 from robovib.io import read_frfs, write_frfs
-from robovib.io.h5safe import CHECKSUM_ATTR, FileContentError, content_sha256, seal
+from robovib.io.h5safe import (
+    CHECKSUM_ATTR,
+    USERBLOCK_SIZE,
+    FileContentError,
+    check_file_seal,
+    content_sha256,
+    seal,
+    seal_file,
+)
 from robovib.io.provenance import read_provenance
 
 SECRET = b"root:x:0:0:root:/root:/bin/bash\n" * 200  # stands in for /etc/passwd
@@ -76,6 +84,17 @@ def _replace(path, member, build, *, reseal=True):
             seal(h5)
         elif CHECKSUM_ATTR in h5.attrs:
             del h5.attrs[CHECKSUM_ATTR]
+    if reseal:
+        seal_file(path)
+    else:
+        _strip_file_seal(path)
+
+
+def _strip_file_seal(path):
+    """Blank the byte checksum in the user block: the file reads as an unsealed one."""
+    data = bytearray(path.read_bytes())
+    data[:USERBLOCK_SIZE] = bytes(USERBLOCK_SIZE)
+    path.write_bytes(bytes(data))
 
 
 def _external_storage(secret):
@@ -186,22 +205,51 @@ def test_compressed_bomb_is_refused(pose_file):
     _refused(PosePredictor.load, pose_file, "training/X", "chunked or compressed")
 
 
-def test_a_flipped_bit_in_a_value_is_an_error_not_another_answer(pose_file):
-    with h5py.File(pose_file) as h5:
+def _flip_in_training_x(path):
+    with h5py.File(path) as h5:
         offset = h5["training/X"].id.get_offset()
-    data = bytearray(pose_file.read_bytes())
+    data = bytearray(path.read_bytes())
     data[offset + 8 * 10 + 3] ^= 0x10  # a low bit of one pose coordinate
-    pose_file.write_bytes(bytes(data))
-    with h5py.File(pose_file) as h5:  # still a valid HDF5 file with a plausible value
+    path.write_bytes(bytes(data))
+    with h5py.File(path) as h5:  # still a valid HDF5 file with a plausible value
         assert np.all(np.isfinite(h5["training/X"][()]))
-    _refused(PosePredictor.load, pose_file, None, "does not match its checksum")
-    _refused(PoseModalModel.load, pose_file, None, "does not match its checksum")
+
+
+def test_a_flipped_bit_in_a_value_is_an_error_not_another_answer(pose_file):
+    """Caught by the byte checksum before HDF5 parses the file, and by the content checksum
+    where the byte one is gone."""
+    _flip_in_training_x(pose_file)
+    _refused(PosePredictor.load, pose_file, None, "bytes do not match the checksum")
+    _refused(PoseModalModel.load, pose_file, None, "bytes do not match the checksum")
+    _strip_file_seal(pose_file)
+    _refused(PosePredictor.load, pose_file, None, "content does not match its checksum")
+    _refused(PoseModalModel.load, pose_file, None, "content does not match its checksum")
+
+
+def test_damaged_metadata_never_reaches_the_hdf5_library(tmp_path):
+    """Two bit flips that make libhdf5 itself crash (segmentation fault in h5py's attribute
+    reading, found by the corruption property) are refused from the byte checksum first."""
+    from robovib.hybrid import FRFPoseModel
+
+    f = np.linspace(2, 40, 12)
+    h = np.array([(1 + s) * 1e-6 / (1 - (f / 15) ** 2 + 0.1j * f / 15) for s in (0.0, 1.2)])
+    path = tmp_path / "m.h5"
+    FRFPoseModel(f).fit(np.array([0.0, 1.2]), h).save(path)
+    assert check_file_seal(path) == "verified"
+    data = bytearray(path.read_bytes())
+    for where in range(USERBLOCK_SIZE, len(data), 997):  # every region: header, heap, data
+        damaged = bytearray(data)
+        damaged[where] ^= 0x04
+        path.write_bytes(bytes(damaged))
+        _refused(FRFPoseModel.load, path, None, "bytes do not match the checksum")
 
 
 def test_truncated_file_is_refused(pose_file):
     data = pose_file.read_bytes()
     pose_file.write_bytes(data[: len(data) // 2])
-    _refused(PosePredictor.load, pose_file, None, "HDF5")
+    _refused(PosePredictor.load, pose_file, None, "cut short")
+    _strip_file_seal(pose_file)
+    _refused(PosePredictor.load, pose_file, None, "not a readable HDF5 file (truncated")
 
 
 @pytest.mark.parametrize(
@@ -290,12 +338,14 @@ def test_writers_seal_and_the_seal_is_independent_of_layout(tmp_path, frf_file):
     assert stored == digest
     with h5py.File(chapter3_model_path()) as h5:  # the shipped model is sealed
         assert h5.attrs[CHECKSUM_ATTR] == content_sha256(h5)
+    assert check_file_seal(chapter3_model_path()) == check_file_seal(frf_file) == "verified"
 
 
 def test_files_without_a_checksum_still_load(pose_file):
     ref = PosePredictor.load(pose_file).predict([[2000.0, 0.0, 0.0]])
     with h5py.File(pose_file, "a") as h5:
         del h5.attrs[CHECKSUM_ATTR]
+    _strip_file_seal(pose_file)
     from robovib.gp.pose_file import read_pose_file
 
     assert read_pose_file(pose_file)[0].checksum == "none stored"

@@ -326,7 +326,7 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
 
     from .. import __version__
     from ..io import atomic_output, json_dumps, write_frfs_hdf5
-    from ..io.h5safe import seal
+    from ..io.h5safe import seal, seal_file
 
     good = [r for r in results if r.modal is not None]
     table = pd.DataFrame([r.modal for r in good])
@@ -364,6 +364,7 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped) ->
             h5.attrs["manifest"] = str(manifest)
             h5.attrs["units"] = "SI (frequency Hz, compliance m/N); pose (m, m, m, deg, deg, deg)"
             seal(h5)  # the checksum covers the attributes added here
+        seal_file(t_h5)
         table.to_csv(t_csv, index=False, float_format="%.9g")
         t_json.write_text(json_dumps(doc, indent=2))  # NaN -> null + reason
     if modes_table is not None:

@@ -1077,38 +1077,40 @@ class FRFPoseModel(BaseEstimator):
         import h5py
 
         from ..io.h5format import write_header
-        from ..io.h5safe import seal
+        from ..io.h5safe import USERBLOCK_SIZE, seal, seal_file
         from ..io.provenance import set_units, write_provenance
         from ..io.safe_write import atomic_output
 
         self._require_fitted()
         gp = self.gp_
-        with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
-            write_header(
-                h5, _FORMAT, _VERSION,
-                units="frequency_hz Hz; targets and noise um/N (Re, Im of compliance); inputs "
-                "in the units of input_names; every dataset's unit in its 'units' attribute",
-            )  # fmt: skip
-            h5.attrs["kernel"] = self.kernel
-            h5.attrs["input_names"] = list(self.input_names)
-            h5.attrs["direction"] = getattr(self, "direction_", None) or ""
-            h5.attrs["compliance_unit"] = "um/N"
-            h5.attrs["frequency_unit"] = "Hz"
-            h5.attrs["groups"] = "0=EMA,1=OMA"
-            h5.attrs["targets"] = "columns: Re of n_f bins, then Im of n_f bins"
-            for key, value in (provenance or {}).items():
-                h5.attrs[f"provenance/{key}"] = value
-            for name, value in {
-                "frequency_hz": self.frequency_hz_, "X_train": gp.X_train_, "Y_train": np.nan_to_num(gp.Y_train_),
-                "mask": gp.mask_, "groups": gp._active_groups, "theta": gp._theta, "x_loc": gp._x_loc,
-                "x_scale": gp._x_scale, "y_loc": gp._y_loc, "y_scale": gp._y_scale,
-                "pose_lo": self.pose_range_[0], "pose_hi": self.pose_range_[1],
-            }.items():  # fmt: skip
-                set_units(
-                    h5.create_dataset(name, data=value), _DATASET_UNITS.get(name, "input units")
-                )
-            write_provenance(h5, inputs=inputs)
-            seal(h5)
+        with atomic_output(path, inputs=inputs, force=force) as tmp:
+            with h5py.File(tmp, "w", userblock_size=USERBLOCK_SIZE) as h5:
+                write_header(
+                    h5, _FORMAT, _VERSION,
+                    units="frequency_hz Hz; targets and noise um/N (Re, Im of compliance); inputs "
+                    "in the units of input_names; every dataset's unit in its 'units' attribute",
+                )  # fmt: skip
+                h5.attrs["kernel"] = self.kernel
+                h5.attrs["input_names"] = list(self.input_names)
+                h5.attrs["direction"] = getattr(self, "direction_", None) or ""
+                h5.attrs["compliance_unit"] = "um/N"
+                h5.attrs["frequency_unit"] = "Hz"
+                h5.attrs["groups"] = "0=EMA,1=OMA"
+                h5.attrs["targets"] = "columns: Re of n_f bins, then Im of n_f bins"
+                for key, value in (provenance or {}).items():
+                    h5.attrs[f"provenance/{key}"] = value
+                for name, value in {
+                    "frequency_hz": self.frequency_hz_, "X_train": gp.X_train_, "Y_train": np.nan_to_num(gp.Y_train_),
+                    "mask": gp.mask_, "groups": gp._active_groups, "theta": gp._theta, "x_loc": gp._x_loc,
+                    "x_scale": gp._x_scale, "y_loc": gp._y_loc, "y_scale": gp._y_scale,
+                    "pose_lo": self.pose_range_[0], "pose_hi": self.pose_range_[1],
+                }.items():  # fmt: skip
+                    set_units(
+                        h5.create_dataset(name, data=value), _DATASET_UNITS.get(name, "input units")
+                    )
+                write_provenance(h5, inputs=inputs)
+                seal(h5)
+            seal_file(tmp)
 
     @classmethod
     def load(cls, path) -> FRFPoseModel:

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..frf.core import FRF
 from .h5format import FRF_FORMAT, as_text, open_checked, write_header
-from .h5safe import FileContentError, read_array, seal
+from .h5safe import USERBLOCK_SIZE, FileContentError, read_array, seal, seal_file
 from .provenance import set_units, unit_of_key, write_provenance
 from .safe_write import atomic_output
 
@@ -73,41 +73,45 @@ def write_frfs_hdf5(
     """
     import h5py
 
-    with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
-        write_header(
-            h5, _FORMAT, 1,
-            units="frequency_hz Hz; values SI per quantity (compliance m/N, mobility m/s/N, "
-            "accelerance m/s^2/N); pose X, Y, Z m, Rx, Ry, Rz deg; exp_window_tau_s s",
-        )  # fmt: skip
-        grp = h5.create_group("frf")
-        for i, frf in enumerate(frfs):
-            g = grp.create_group(f"{i:06d}")
-            set_units(g.create_dataset("frequency_hz", data=frf.frequency_hz), "Hz")
-            set_units(g.create_dataset("values", data=frf.values), FRF_UNITS[frf.quantity])
-            if frf.coherence is not None:
-                set_units(g.create_dataset("coherence", data=frf.coherence), "1")
-            g.attrs["quantity"] = frf.quantity
-            g.attrs["direction"] = frf.direction or ""
-            g.attrs["source"] = frf.source
-            g.attrs["estimator"] = frf.estimator
-            g.attrs["n_averages"] = int(frf.n_averages)
-            g.attrs["exp_window_tau_s"] = (
-                np.nan if frf.exp_window_tau_s is None else frf.exp_window_tau_s
-            )
-            g.attrs["pose"] = (
-                np.full(6, np.nan) if frf.pose is None else np.asarray(frf.pose, float)
-            )
-            for key, value in frf.meta.items():
-                if isinstance(value, np.ndarray):
-                    set_units(g.create_dataset(f"meta_{key}", data=value), unit_of_key(key) or "1")
-                elif isinstance(value, int | float | str | bool | np.generic):
-                    g.attrs[f"meta_{key}"] = value
-                else:
-                    raise ValueError(
-                        f"FRF meta {key!r} of type {type(value).__name__} cannot be stored"
-                    )
-        write_provenance(h5, inputs=inputs)
-        seal(h5)
+    with atomic_output(path, inputs=inputs, force=force) as tmp:
+        with h5py.File(tmp, "w", userblock_size=USERBLOCK_SIZE) as h5:
+            write_header(
+                h5, _FORMAT, 1,
+                units="frequency_hz Hz; values SI per quantity (compliance m/N, mobility m/s/N, "
+                "accelerance m/s^2/N); pose X, Y, Z m, Rx, Ry, Rz deg; exp_window_tau_s s",
+            )  # fmt: skip
+            grp = h5.create_group("frf")
+            for i, frf in enumerate(frfs):
+                g = grp.create_group(f"{i:06d}")
+                set_units(g.create_dataset("frequency_hz", data=frf.frequency_hz), "Hz")
+                set_units(g.create_dataset("values", data=frf.values), FRF_UNITS[frf.quantity])
+                if frf.coherence is not None:
+                    set_units(g.create_dataset("coherence", data=frf.coherence), "1")
+                g.attrs["quantity"] = frf.quantity
+                g.attrs["direction"] = frf.direction or ""
+                g.attrs["source"] = frf.source
+                g.attrs["estimator"] = frf.estimator
+                g.attrs["n_averages"] = int(frf.n_averages)
+                g.attrs["exp_window_tau_s"] = (
+                    np.nan if frf.exp_window_tau_s is None else frf.exp_window_tau_s
+                )
+                g.attrs["pose"] = (
+                    np.full(6, np.nan) if frf.pose is None else np.asarray(frf.pose, float)
+                )
+                for key, value in frf.meta.items():
+                    if isinstance(value, np.ndarray):
+                        set_units(
+                            g.create_dataset(f"meta_{key}", data=value), unit_of_key(key) or "1"
+                        )
+                    elif isinstance(value, int | float | str | bool | np.generic):
+                        g.attrs[f"meta_{key}"] = value
+                    else:
+                        raise ValueError(
+                            f"FRF meta {key!r} of type {type(value).__name__} cannot be stored"
+                        )
+            write_provenance(h5, inputs=inputs)
+            seal(h5)
+        seal_file(tmp)
 
 
 def read_frfs_hdf5(path: str | Path) -> list[FRF]:

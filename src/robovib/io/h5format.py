@@ -207,7 +207,6 @@ def open_verified(
     from .h5safe import verify_seal
 
     path = Path(path)
-    # (the input-file checks of robovib.io.safe_read go here: a regular file, within limits)
     h5 = _open(path)
     try:
         fmt, version = _tag(h5, path)

@@ -8,11 +8,15 @@ contiguous and uncompressed, in the file itself. :func:`check_self_contained` re
 else from the file's metadata alone, before any data is read, so the data a reader then reads
 is bounded by the file's size on disk.
 
-Every robovib writer seals its file with :func:`seal`: the root attribute ``content_sha256``
-is the SHA-256 of every dataset and attribute (:func:`content_sha256`). :func:`verify_seal`
-recomputes it on reading, so a flipped bit in a value is an error rather than a different
-answer. Files written before the seal existed have no such attribute and are read as before
-(:func:`verify_seal` returns ``"none stored"``).
+Every robovib writer seals its file twice. :func:`seal` stores the root attribute
+``content_sha256``, the SHA-256 of every dataset and attribute (:func:`content_sha256`), which
+:func:`verify_seal` recomputes on reading: a flipped bit in a value is an error rather than a
+different answer. :func:`seal_file` then writes the SHA-256 of the file's bytes into its first
+:data:`USERBLOCK_SIZE` bytes (HDF5's user block), which :func:`open_file` checks *before* the
+HDF5 library parses anything: damaged HDF5 metadata can crash the library itself (a
+segmentation fault, not an exception), so a damaged sealed file never reaches it. Files written
+before the seals existed have neither and are read as before (``"none stored"``); a damaged
+unsealed file is parsed, and the HDF5 library's robustness is then the limit.
 
 Every error is a :class:`FileContentError`: one line that names the file, the member and the
 problem in words.
@@ -34,19 +38,26 @@ import numpy as np
 __all__ = [
     "CHECKSUM_ATTR",
     "MAX_OBJECTS",
+    "USERBLOCK_SIZE",
     "FileContentError",
     "Scan",
+    "check_file_seal",
     "check_self_contained",
     "content_sha256",
     "open_file",
     "read_array",
     "scan",
     "seal",
+    "seal_file",
     "verify_seal",
 ]
 
 #: Root attribute holding the SHA-256 of a file's content (:func:`content_sha256`).
 CHECKSUM_ATTR = "content_sha256"
+#: Bytes reserved at the start of every robovib HDF5 file (HDF5's user block, which the HDF5
+#: library skips) for the SHA-256 of the rest of the file (:func:`seal_file`).
+USERBLOCK_SIZE = 512
+_FILE_SEAL_MAGIC = b"robovib file sha256 "
 #: Most groups and datasets a robovib file may hold (a pose model holds about 100).
 MAX_OBJECTS = 100_000
 #: Deepest group nesting a robovib file may have (a pose model nests 4 deep).
@@ -265,9 +276,15 @@ def open_file(path: Path):
     ------
     ValueError
         Missing, a folder, not readable, truncated, or not HDF5.
+    FileContentError
+        The file's bytes do not match the checksum in its user block (:func:`seal_file`).
     """
     import h5py
 
+    # Every HDF5 file robovib reads is opened here (open_checked, file_format,
+    # read_provenance): the input-file checks of robovib.io.safe_read (a regular file, within
+    # the size limits) belong on the next line.
+    check_file_seal(path)
     try:
         return h5py.File(path, "r")
     except FileNotFoundError:
@@ -571,3 +588,69 @@ def verify_seal(h5, path) -> str:
         check_self_contained(h5, path)
         return "none stored"
     return scan(h5, path, read=True).checksum
+
+
+def seal_file(path) -> None:
+    """Write the SHA-256 of a closed HDF5 file's bytes into its user block (the last step of
+    every robovib HDF5 writer, after :func:`seal` and closing the file).
+
+    The file must have been created with ``userblock_size=USERBLOCK_SIZE``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The closed file.
+
+    Raises
+    ------
+    ValueError
+        The file has no user block of :data:`USERBLOCK_SIZE` bytes.
+    """
+    with open(path, "r+b") as fh:
+        head = fh.read(USERBLOCK_SIZE)
+        if len(head) < USERBLOCK_SIZE or head.startswith(b"\x89HDF"):
+            raise ValueError(f"{path}: no {USERBLOCK_SIZE}-byte user block to seal")
+        digest = hashlib.sha256()
+        while block := fh.read(1 << 20):
+            digest.update(block)
+        stamp = _FILE_SEAL_MAGIC + digest.hexdigest().encode() + b"\n"
+        fh.seek(0)
+        fh.write(stamp.ljust(USERBLOCK_SIZE, b"\0"))
+
+
+def check_file_seal(path) -> str:
+    """Check a file's bytes against the checksum in its user block, before HDF5 parses it.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+
+    Returns
+    -------
+    str
+        ``"verified"``, or ``"none stored"`` (no robovib user block: an older or foreign file).
+
+    Raises
+    ------
+    FileContentError
+        The bytes after the user block do not match its checksum.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(USERBLOCK_SIZE)
+            if not head.startswith(_FILE_SEAL_MAGIC):
+                return "none stored"
+            digest = hashlib.sha256()
+            while block := fh.read(1 << 20):
+                digest.update(block)
+    except OSError:
+        return "none stored"  # h5py says why it cannot open the file
+    stored = head[len(_FILE_SEAL_MAGIC) :].split(b"\n", 1)[0]
+    if stored != digest.hexdigest().encode():
+        raise FileContentError(
+            path,
+            "its bytes do not match the checksum robovib wrote at its start: the file was "
+            "changed, damaged or cut short after robovib wrote it",
+        )
+    return "verified"
