@@ -133,10 +133,20 @@ def _as_legacy(path, version=1):
     import h5py
 
     with h5py.File(path, "a") as h5:
-        for key in ("format_version", "created_utc"):
+        for key in ("format_version", "created_utc", "content_sha256"):
             if key in h5.attrs:
                 del h5.attrs[key]
         h5.attrs["version"] = version
+    _unseal(path)
+
+
+def _unseal(path):
+    """Blank the byte checksum robovib writes in the user block (older files have none)."""
+    from robovib.io.h5safe import USERBLOCK_SIZE
+
+    data = bytearray(path.read_bytes())
+    data[:USERBLOCK_SIZE] = bytes(USERBLOCK_SIZE)
+    path.write_bytes(bytes(data))
 
 
 def test_h5_header_is_the_io_convention_and_old_files_load(tmp_path):

@@ -55,18 +55,29 @@ def test_frf_pose_model_interpolates_and_round_trips(tmp_path):
     with h5py.File(path, "a") as h5:  # the header before io.h5format: "version", version 2
         assert int(h5.attrs["format_version"]) == 2 and "created_utc" in h5.attrs
         assert "um/N" in h5.attrs["units"]
-        del h5.attrs["format_version"], h5.attrs["created_utc"]
+        del h5.attrs["format_version"], h5.attrs["created_utc"], h5.attrs["content_sha256"]
         h5.attrs["version"] = 2
+    _unseal(path)
     old = FRFPoseModel.load(path)
     np.testing.assert_allclose(old.predict([0.5, 0.9]), model.predict([0.5, 0.9]), rtol=1e-10)
     with h5py.File(path, "a") as h5:
         h5.attrs["version"] = 3
+    _unseal(path)
     with pytest.raises(ValueError, match="format version 3; this robovib reads versions 1 to 2"):
         FRFPoseModel.load(path)
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"garbage")
     with pytest.raises(ValueError, match="HDF5"):
         FRFPoseModel.load(bad)
+
+
+def _unseal(path):
+    """Blank the byte checksum robovib writes in the user block (older files have none)."""
+    from robovib.io.h5safe import USERBLOCK_SIZE
+
+    data = bytearray(path.read_bytes())
+    data[:USERBLOCK_SIZE] = bytes(USERBLOCK_SIZE)
+    path.write_bytes(bytes(data))
 
 
 def test_updating_modes_and_next_poses():

@@ -175,6 +175,11 @@ def test_load_errors(tmp_path, switch_model):
     path = switch_model[0].save(tmp_path / "v.h5")
     with h5py.File(path, "a") as h5:
         h5.attrs["format_version"] = 99
+    with pytest.raises(ValueError, match="bytes do not match the checksum"):
+        PoseModalModel.load(path)  # changed after robovib wrote it
+    data = bytearray(path.read_bytes())
+    data[:512] = bytes(512)  # no byte checksum (as in files written before robovib stored one)
+    path.write_bytes(bytes(data))
     with pytest.raises(ValueError, match="format version 99"):
         PoseModalModel.load(path)
     with pytest.raises(ValueError, match="does not exist"):

@@ -333,6 +333,7 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped, in
 
     from .. import __version__
     from ..io import atomic_output, json_dumps, write_frfs_hdf5
+    from ..io.h5safe import seal, seal_file
     from ..io.safe_write import remove_stale_outputs
 
     good = [r for r in results if r.modal is not None]
@@ -370,6 +371,8 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped, in
             h5.attrs["settings"] = settings_json
             h5.attrs["manifest"] = str(manifest)
             h5.attrs["units"] = "SI (frequency Hz, compliance m/N); pose (m, m, m, deg, deg, deg)"
+            seal(h5)  # the checksum covers the attributes added here
+        seal_file(t_h5)
         table.to_csv(t_csv, index=False, float_format="%.9g")
         t_json.write_text(json_dumps(doc, indent=2))  # NaN -> null + reason
     written = [out_dir / n for n in OUTPUT_FILES[:3]]

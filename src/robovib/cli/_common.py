@@ -166,7 +166,7 @@ class ErrorHandlingGroup(TyperGroup):
         return super().main(args, prog_name, *a, **kw)
 
     def invoke(self, ctx: click.Context) -> Any:
-        from ..io.provenance import set_run_info_provider
+        from ..io.provenance import forget_files_read, set_run_info_provider
         from ..io.safe_read import recording_inputs
 
         set_run_info_provider(run_info)
@@ -189,6 +189,8 @@ class ErrorHandlingGroup(TyperGroup):
                 err=True,
             )
             raise typer.Exit(code=1) from None
+        finally:
+            forget_files_read()  # the run is over: later library calls record their own
 
 
 def set_debug(value: bool) -> None:

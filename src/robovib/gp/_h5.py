@@ -27,6 +27,7 @@ import numpy as np
 
 from .. import __version__
 from ..io.h5format import as_text, write_header
+from ..io.h5safe import USERBLOCK_SIZE, seal, seal_file
 from .calibration import read_calibration, write_calibration
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, symmetric_rz_features
 from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2, read_pose_file
@@ -219,7 +220,7 @@ def read_mode_switching(group) -> ModeSwitchingGPRegressor:
 def write_pose_model(model, path, *, cv=None, provenance=None) -> None:
     import h5py
 
-    with h5py.File(path, "w") as h5:
+    with h5py.File(path, "w", userblock_size=USERBLOCK_SIZE) as h5:
         write_header(h5, FORMAT, FORMAT_VERSION)
         a = h5.attrs
         a["params_json"] = _params_json(model)
@@ -269,6 +270,8 @@ def write_pose_model(model, path, *, cv=None, provenance=None) -> None:
         p.attrs["robovib_version"] = __version__
         for k, v in (provenance or {}).items():
             p.attrs[str(k)] = v if isinstance(v, int | float | str | bool) else json.dumps(v)
+        seal(h5)
+    seal_file(path)
 
 
 def _params_json(model) -> str:
@@ -359,5 +362,7 @@ def read_pose_model(cls, path):
         "robovib_version": as_text(a["robovib_version"]),
         "created_utc": as_text(a["created_utc"]),
         "format_version": version,
+        # "verified", or "none stored" (written before robovib sealed its files)
+        "content_sha256": tree.checksum,
     }
     return model

@@ -16,7 +16,7 @@ from ..io.h5format import (
     POSE_MODEL_FORMAT,
     POSE_MODEL_FORMAT_VERSION,
     H5Tree,
-    open_checked,
+    open_verified,
     read_tree,
 )
 
@@ -51,10 +51,17 @@ def read_pose_file(path) -> tuple[H5Tree, int]:
     ------
     ValueError
         Not a readable HDF5 file, not a pose model, or a newer format version.
+    robovib.io.h5safe.FileContentError
+        The file reaches outside itself, does not match its checksum, or a member is missing,
+        of the wrong type or shape, or not finite (:mod:`robovib.gp.pose_checks`).
     """
-    h5, _, version = open_checked(path, {FORMAT: FORMAT_VERSION})
+    from .pose_checks import check_pose_tree
+
+    h5, _, version, _ = open_verified(path, {FORMAT: FORMAT_VERSION}, read_whole=True)
     with h5:
-        return read_tree(h5), version
+        tree = read_tree(h5, path)  # links, storage, checksum checked as it reads
+    check_pose_tree(tree, path)
+    return tree, version
 
 
 class _RzCos2:

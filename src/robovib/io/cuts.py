@@ -76,7 +76,10 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
             f"{p}: not a text (UTF-8) cuts file: byte {exc.start} cannot be decoded"
         ) from None
     lines = io.StringIO(text, newline="")
-    rows = list(csv.reader(ln for ln in lines if ln.strip() and not ln.startswith("#")))
+    try:
+        rows = list(csv.reader(ln for ln in lines if ln.strip() and not ln.startswith("#")))
+    except csv.Error as exc:
+        raise ValueError(f"{p}: not a readable CSV table ({exc})") from None
     if not rows:
         raise ValueError(f"{p}: empty cuts file")
     header = [h.strip().lower() for h in rows[0]]
@@ -93,7 +96,7 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
     rcol, scol = header.index("result"), header.index("spindle_rpm")
     rpm, depth, chat = [], [], []
     for i, row in enumerate(rows[1:], start=2):
-        if len(row) < len(header):
+        if len(row) != len(header):
             raise ValueError(
                 f"{p}, line {i}: {len(row)} cells, expected {len(header)} like the header "
                 f"({', '.join(header)})"

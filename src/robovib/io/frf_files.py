@@ -28,7 +28,8 @@ import numpy as np
 
 from ..frf.core import FRF
 from .frf_csv import check_frf_has_phase
-from .h5format import FRF_FORMAT, open_checked, write_header
+from .h5format import FRF_FORMAT, as_text, open_checked, write_header
+from .h5safe import USERBLOCK_SIZE, FileContentError, read_array, seal, seal_file
 from .provenance import set_units, unit_of_key, write_provenance
 from .safe_write import atomic_output
 
@@ -74,74 +75,157 @@ def write_frfs_hdf5(
     """
     import h5py
 
-    with atomic_output(path, inputs=inputs, force=force) as tmp, h5py.File(tmp, "w") as h5:
-        write_header(
-            h5, _FORMAT, 1,
-            units="frequency_hz Hz; values SI per quantity (compliance m/N, mobility m/s/N, "
-            "accelerance m/s^2/N); pose X, Y, Z m, Rx, Ry, Rz deg; exp_window_tau_s s",
-        )  # fmt: skip
-        grp = h5.create_group("frf")
-        for i, frf in enumerate(frfs):
-            g = grp.create_group(f"{i:06d}")
-            set_units(g.create_dataset("frequency_hz", data=frf.frequency_hz), "Hz")
-            set_units(g.create_dataset("values", data=frf.values), FRF_UNITS[frf.quantity])
-            if frf.coherence is not None:
-                set_units(g.create_dataset("coherence", data=frf.coherence), "1")
-            g.attrs["quantity"] = frf.quantity
-            g.attrs["direction"] = frf.direction or ""
-            g.attrs["source"] = frf.source
-            g.attrs["estimator"] = frf.estimator
-            g.attrs["n_averages"] = int(frf.n_averages)
-            g.attrs["exp_window_tau_s"] = (
-                np.nan if frf.exp_window_tau_s is None else frf.exp_window_tau_s
-            )
-            g.attrs["pose"] = (
-                np.full(6, np.nan) if frf.pose is None else np.asarray(frf.pose, float)
-            )
-            for key, value in frf.meta.items():
-                if isinstance(value, np.ndarray):
-                    set_units(g.create_dataset(f"meta_{key}", data=value), unit_of_key(key) or "1")
-                elif isinstance(value, int | float | str | bool | np.generic):
-                    g.attrs[f"meta_{key}"] = value
-                else:
-                    raise ValueError(
-                        f"FRF meta {key!r} of type {type(value).__name__} cannot be stored"
-                    )
-        write_provenance(h5, inputs=inputs)
+    with atomic_output(path, inputs=inputs, force=force) as tmp:
+        with h5py.File(tmp, "w", userblock_size=USERBLOCK_SIZE) as h5:
+            write_header(
+                h5, _FORMAT, 1,
+                units="frequency_hz Hz; values SI per quantity (compliance m/N, mobility m/s/N, "
+                "accelerance m/s^2/N); pose X, Y, Z m, Rx, Ry, Rz deg; exp_window_tau_s s",
+            )  # fmt: skip
+            grp = h5.create_group("frf")
+            for i, frf in enumerate(frfs):
+                g = grp.create_group(f"{i:06d}")
+                set_units(g.create_dataset("frequency_hz", data=frf.frequency_hz), "Hz")
+                set_units(g.create_dataset("values", data=frf.values), FRF_UNITS[frf.quantity])
+                if frf.coherence is not None:
+                    set_units(g.create_dataset("coherence", data=frf.coherence), "1")
+                g.attrs["quantity"] = frf.quantity
+                g.attrs["direction"] = frf.direction or ""
+                g.attrs["source"] = frf.source
+                g.attrs["estimator"] = frf.estimator
+                g.attrs["n_averages"] = int(frf.n_averages)
+                g.attrs["exp_window_tau_s"] = (
+                    np.nan if frf.exp_window_tau_s is None else frf.exp_window_tau_s
+                )
+                g.attrs["pose"] = (
+                    np.full(6, np.nan) if frf.pose is None else np.asarray(frf.pose, float)
+                )
+                for key, value in frf.meta.items():
+                    if isinstance(value, np.ndarray):
+                        set_units(
+                            g.create_dataset(f"meta_{key}", data=value), unit_of_key(key) or "1"
+                        )
+                    elif isinstance(value, int | float | str | bool | np.generic):
+                        g.attrs[f"meta_{key}"] = value
+                    else:
+                        raise ValueError(
+                            f"FRF meta {key!r} of type {type(value).__name__} cannot be stored"
+                        )
+            write_provenance(h5, inputs=inputs)
+            seal(h5)
+        seal_file(tmp)
 
 
 def read_frfs_hdf5(path: str | Path) -> list[FRF]:
+    """Read a robovib FRF file (:func:`write_frfs_hdf5`), checked member by member.
+
+    The file must touch only itself and match its checksum (:mod:`robovib.io.h5safe`); each
+    FRF's datasets must be 1-D arrays of the same length (frequency real, values complex,
+    coherence real) and its attributes of the written types.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``.h5`` file.
+
+    Returns
+    -------
+    list of FRF
+        The FRFs in stored order.
+
+    Raises
+    ------
+    ValueError
+        Not a robovib FRF file, or a member missing or of the wrong type or shape (a
+        :class:`robovib.io.h5safe.FileContentError` naming the file and the member).
+    """
     path = Path(path)
     h5, _, _ = open_checked(path, {_FORMAT: 1}, what=f"robovib FRF ({_FORMAT})")
     with h5:
-        out = []
-        for name in sorted(h5["frf"]):
-            g = h5["frf"][name]
-            try:
-                pose = np.asarray(g.attrs["pose"], float)
-                tau = float(g.attrs["exp_window_tau_s"])
-                out.append(
-                    FRF(
-                        frequency_hz=g["frequency_hz"][()],
-                        values=g["values"][()],
-                        coherence=g["coherence"][()] if "coherence" in g else None,
-                        quantity=str(g.attrs["quantity"]),
-                        direction=str(g.attrs["direction"]) or None,
-                        pose=None if np.all(np.isnan(pose)) else tuple(pose.tolist()),
-                        source=str(g.attrs["source"]),
-                        n_averages=int(g.attrs["n_averages"]),
-                        exp_window_tau_s=None if np.isnan(tau) else tau,
-                        estimator=str(g.attrs["estimator"]),
-                        meta={
-                            **{k[5:]: g.attrs[k] for k in g.attrs if k.startswith("meta_")},
-                            **{k[5:]: g[k][()] for k in g if k.startswith("meta_")},
-                        },
-                    )
-                )
-            except KeyError as exc:
-                raise ValueError(f"{path}: FRF {name} lacks {exc}") from None
-            check_frf_has_phase(out[-1], f"{path}: /frf/{name}/values")
-        return out
+        if "frf" not in h5 or not isinstance(h5["frf"], _h5py().Group):
+            raise FileContentError(path, "group is missing", "frf")
+        return [_read_frf_group(h5["frf"][name], f"frf/{name}", path)
+                for name in sorted(h5["frf"])]  # fmt: skip
+
+
+def _h5py():
+    import h5py
+
+    return h5py
+
+
+def _frf_attr(g, key: str, member: str, path, kind: str):
+    if key not in g.attrs:
+        raise FileContentError(path, f"attribute '{key}' is missing", member)
+    v = g.attrs[key]
+    if kind == "text":
+        if not isinstance(v, str | bytes):
+            raise FileContentError(path, f"attribute '{key}' is not text", member)
+        return as_text(v)
+    arr = np.asarray(v)
+    if arr.dtype.kind not in "biuf" or (kind == "int" and arr.dtype.kind == "f"):
+        raise FileContentError(path, f"attribute '{key}' is not a number", member)
+    if kind == "pose":
+        if arr.shape != (6,):
+            raise FileContentError(path, f"attribute '{key}' is not 6 numbers", member)
+        return arr.astype(float)
+    if arr.ndim != 0:
+        raise FileContentError(path, f"attribute '{key}' is not a single number", member)
+    return int(arr) if kind == "int" else float(arr)
+
+
+def _frf_data(g, key: str, member: str, path, kinds: str, optional: bool = False):
+    if key not in g:
+        if optional:
+            return None
+        raise FileContentError(path, "dataset is missing", f"{member}/{key}")
+    v = read_array(g, key, path, member=f"{member}/{key}")
+    if v.dtype.kind not in kinds:
+        want = "complex numbers" if kinds == "fc" else "real numbers"
+        raise FileContentError(path, f"holds {v.dtype} values, expected {want}", f"{member}/{key}")
+    if v.ndim != 1:
+        raise FileContentError(path, f"has shape {v.shape}, expected one axis", f"{member}/{key}")
+    return v
+
+
+def _read_frf_group(g, member: str, path) -> FRF:
+    if not isinstance(g, _h5py().Group):
+        raise FileContentError(path, "is a dataset where an FRF group was expected", member)
+    f = _frf_data(g, "frequency_hz", member, path, "iuf")
+    values = _frf_data(g, "values", member, path, "fc")
+    coherence = _frf_data(g, "coherence", member, path, "iuf", optional=True)
+    for key, v in (("values", values), ("coherence", coherence)):
+        if v is not None and v.shape != f.shape:
+            raise FileContentError(
+                path, f"has {v.size} bins but frequency_hz has {f.size}", f"{member}/{key}"
+            )
+    pose = _frf_attr(g, "pose", member, path, "pose")
+    tau = _frf_attr(g, "exp_window_tau_s", member, path, "float")
+    meta = {}
+    for k in g.attrs:
+        if k.startswith("meta_"):
+            v = g.attrs[k]
+            meta[k[5:]] = as_text(v) if isinstance(v, bytes) else v
+    for k in g:
+        if k.startswith("meta_"):
+            meta[k[5:]] = read_array(g, k, path, member=f"{member}/{k}")
+    try:
+        frf = FRF(
+            frequency_hz=f,
+            values=values,
+            coherence=coherence,
+            quantity=_frf_attr(g, "quantity", member, path, "text"),
+            direction=_frf_attr(g, "direction", member, path, "text") or None,
+            pose=None if np.all(np.isnan(pose)) else tuple(pose.tolist()),
+            source=_frf_attr(g, "source", member, path, "text"),
+            n_averages=_frf_attr(g, "n_averages", member, path, "int"),
+            exp_window_tau_s=None if np.isnan(tau) else tau,
+            estimator=_frf_attr(g, "estimator", member, path, "text"),
+            meta=meta,
+        )
+    except ValueError as exc:  # the FRF's own checks, in words
+        raise FileContentError(path, str(exc), member) from None
+    return check_frf_has_phase(frf, f"{path}: /{member}/values")
 
 
 def _uff_scalar_meta(i: int, frf: FRF) -> str:
@@ -324,6 +408,21 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
     except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
         raise ValueError(f"{path}: not a readable UFF file ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
+    from .recording import _check_uff_complete
+
+    _check_uff_complete(path, sum(s.get("type") == 58 for s in sets))
+    try:
+        return _frfs_of_uff_sets(sets, path, si_factor)
+    except ValueError as exc:  # the record's own check: name the file
+        msg = str(exc)
+        raise ValueError(msg if str(path) in msg else f"{path}: {msg}") from None
+    except (KeyError, IndexError, TypeError, AttributeError):
+        raise ValueError(
+            f"{path}: a dataset 58 lacks a field or holds an unreadable one: a damaged file"
+        ) from None
+
+
+def _frfs_of_uff_sets(sets, path: Path, si_factor) -> list[FRF]:
     out = []
     lc_index: dict[int, int] = {}  # load case -> FRF index, for robovib's companion records
     companions = []

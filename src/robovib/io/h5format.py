@@ -30,6 +30,7 @@ __all__ = [
     "as_text",
     "file_format",
     "open_checked",
+    "open_verified",
     "read_tree",
     "write_header",
 ]
@@ -108,20 +109,36 @@ def file_format(path) -> tuple[str, int]:
     ValueError
         Not a readable HDF5 file.
     """
-    import h5py
-
     path = Path(path)
+    with _open(path) as h5:
+        return _tag(h5, path)
+
+
+def _open(path: Path):
+    from .h5safe import open_file
+
+    return open_file(path)
+
+
+def _tag(h5, path=None) -> tuple[str, int]:
+    from .h5safe import FileContentError
+
     try:
-        with h5py.File(path, "r") as h5:
-            return _tag(h5)
-    except OSError as exc:
-        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
-
-
-def _tag(h5) -> tuple[str, int]:
-    a = h5.attrs
-    version = a.get("format_version", a.get("version", -1))
-    return as_text(a.get("format", "")), int(version)
+        a = h5.attrs
+        version = a.get("format_version", a.get("version", -1))
+        fmt = a.get("format", "")
+    except (OSError, RuntimeError, KeyError, TypeError, ValueError):
+        raise FileContentError(
+            path or h5.filename, "root attributes cannot be read (damaged file)"
+        ) from None
+    if not isinstance(fmt, str | bytes) or np.ndim(version) != 0:
+        raise FileContentError(path or h5.filename, "format tag or version is not a single value")
+    try:
+        return as_text(fmt), int(version)
+    except (TypeError, ValueError, UnicodeDecodeError):
+        raise FileContentError(
+            path or h5.filename, f"format version {version!r} is not an integer"
+        ) from None
 
 
 def open_checked(path, formats: Mapping[str, int], what: str | None = None):
@@ -145,28 +162,71 @@ def open_checked(path, formats: Mapping[str, int], what: str | None = None):
     ------
     ValueError
         Not a readable HDF5 file, another format, or a version newer than supported.
+    robovib.io.h5safe.FileContentError
+        The file reaches outside itself (external storage or links, virtual datasets, soft
+        links), declares more data than it stores, or its content does not match its checksum
+        (see :mod:`robovib.io.h5safe`).
     """
-    import h5py
+    h5, fmt, version, _ = open_verified(path, formats, what)
+    return h5, fmt, version
 
+
+def open_verified(
+    path, formats: Mapping[str, int], what: str | None = None, *, read_whole: bool = False
+):
+    """:func:`open_checked` that also says whether the file's checksum was verified.
+
+    Before any data is read the file is checked to touch only itself
+    (:func:`robovib.io.h5safe.check_self_contained`), then its content is checked against the
+    checksum robovib's writers store (:func:`robovib.io.h5safe.verify_seal`).
+
+    Parameters
+    ----------
+    path
+        The file.
+    formats
+        Accepted format tags -> the newest version this robovib reads of each.
+    what
+        Words for the error message (default: the accepted tags).
+    read_whole
+        The caller reads the whole file with :func:`read_tree`, which makes the same checks
+        in the same pass: they are not made here (the checksum is returned as
+        ``"not checked"``).
+
+    Returns
+    -------
+    h5py.File, str, int, str
+        The open file (close it: ``with``), its format tag and version, and ``"verified"`` or
+        ``"none stored"`` (a file written before robovib stored checksums).
+
+    Raises
+    ------
+    ValueError
+        As :func:`open_checked`.
+    """
+    from .h5safe import verify_seal
     from .safe_read import MAX_BINARY_BYTES, check_input_file
 
     path = check_input_file(path, what or "HDF5 file", MAX_BINARY_BYTES)  # no FIFO, no device
+    h5 = _open(path)
     try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise ValueError(f"{path}: not a readable HDF5 file ({exc})") from None
-    fmt, version = _tag(h5)
-    if fmt not in formats:
+        fmt, version = _tag(h5, path)
+        if fmt not in formats:
+            expected = what or " or ".join(formats)
+            raise ValueError(f"{path}: not a {expected} file (format tag {fmt!r})")
+        if version < 1 or version > formats[fmt]:
+            raise ValueError(
+                f"{path}: {fmt} format version {version}; this robovib reads versions 1 to "
+                f"{formats[fmt]}"
+            )
+        seal = "not checked" if read_whole else verify_seal(h5, path)
+    except BaseException:
         h5.close()
-        expected = what or " or ".join(formats)
-        raise ValueError(f"{path}: not a {expected} file (format tag {fmt!r})")
-    if version < 1 or version > formats[fmt]:
-        h5.close()
-        raise ValueError(
-            f"{path}: {fmt} format version {version}; this robovib reads versions 1 to "
-            f"{formats[fmt]}"
-        )
-    return h5, fmt, version
+        raise
+    from .provenance import note_input_file
+
+    note_input_file(path)  # the run's input_files record every file read, named or not
+    return h5, fmt, version, seal
 
 
 class H5Tree(dict):
@@ -187,21 +247,35 @@ class H5Tree(dict):
     def __init__(self, members=(), attrs=None) -> None:
         super().__init__(members)
         self.attrs = dict(attrs or {})
+        #: ``"verified"``, ``"none stored"`` or None (not checked): the file's checksum.
+        self.checksum: str | None = None
 
 
-def read_tree(group) -> H5Tree:
+def read_tree(group, path=None) -> H5Tree:
     """Read an ``h5py`` group (or file) and everything below it into an :class:`H5Tree`.
+
+    Only what the file itself stores is read: links, external storage, virtual datasets and
+    datasets not stored in full are refused first (:func:`robovib.io.h5safe.scan`),
+    so what is read is bounded by the file's size on disk.
 
     Parameters
     ----------
     group : h5py.Group
         An open group or file.
+    path : str or pathlib.Path, optional
+        The file, for messages (default: the file's name).
 
     Returns
     -------
     H5Tree
         Attributes as h5py gives them; datasets as arrays (``tree[name][()]`` returns what
         ``group[name][()]`` does).
+
+    Raises
+    ------
+    robovib.io.h5safe.FileContentError
+        A member that reaches outside the file or cannot be read, or (``group`` a file's root)
+        content that does not match the file's checksum; named with the file.
 
     Examples
     --------
@@ -214,12 +288,17 @@ def read_tree(group) -> H5Tree:
     >>> tree.attrs["kind"], tree["g"]["x"][()].tolist()
     ('demo', [0.0, 1.0, 2.0])
     """
-    import h5py
+    from .h5safe import scan
 
-    members = {}
-    for name, item in group.items():
-        if isinstance(item, h5py.Group):
-            members[name] = read_tree(item)
-        else:
-            members[name] = np.asarray(item[()])
-    return H5Tree(members, group.attrs.items())
+    members, attrs, checksum, _ = scan(group, path, read=True, verify=True)
+    root = H5Tree(attrs=attrs[""])
+    root.checksum = checksum
+    groups = {"": root}
+    for member in sorted(members, key=lambda m: m.count("/")):
+        parent, _, name = member.rpartition("/")
+        value = members[member]
+        if value is None:
+            groups[member] = H5Tree(attrs=attrs[member])
+            value = groups[member]
+        groups[parent][name] = value
+    return root

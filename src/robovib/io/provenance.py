@@ -25,6 +25,8 @@ import numpy as np
 __all__ = [
     "command_settings",
     "file_sha256",
+    "forget_files_read",
+    "note_input_file",
     "read_provenance",
     "run_provenance",
     "set_run_info_provider",
@@ -91,6 +93,10 @@ def unit_of_key(key: str) -> str | None:
 
 
 _PROVIDER: ContextVar[Callable[[], dict] | None] = ContextVar("robovib_run_info", default=None)
+#: Files the readers opened during the run in progress (HDF5 models and data, e.g. the shipped
+#: default model), recorded in its ``input_files`` beside the files named on the command line.
+#: None: no run in progress, nothing recorded.
+_FILES_READ: ContextVar[tuple[str, ...] | None] = ContextVar("robovib_files_read", default=None)
 
 
 def command_settings(params, output_names=("output", "plot", "output_dir")) -> dict:
@@ -151,7 +157,29 @@ def set_run_info_provider(provider: Callable[[], dict] | None):
     object
         Token that restores the previous provider.
     """
+    _FILES_READ.set(())
     return _PROVIDER.set(provider)
+
+
+def forget_files_read() -> None:
+    """End of a run: forget the files :func:`note_input_file` recorded, and stop recording."""
+    _FILES_READ.set(None)
+
+
+def note_input_file(path: str | os.PathLike) -> None:
+    """Record a file a reader opened, for the ``input_files`` of the run in progress.
+
+    Only while a run is in progress (from :func:`set_run_info_provider` to
+    :func:`forget_files_read`, the CLI command): a library call records nothing.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file read.
+    """
+    read = _FILES_READ.get()
+    if read is not None and str(path) not in read:
+        _FILES_READ.set((*read, str(path)))
 
 
 def file_sha256(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
@@ -226,7 +254,7 @@ def run_provenance(
         command = [Path(argv[0]).name or "python", *argv[1:]]
     merged = {**info.get("settings", {}), **(dict(settings) if settings else {})}
     paths: list[str] = []
-    for p in [*info.get("inputs", ()), *inputs]:
+    for p in [*info.get("inputs", ()), *(_FILES_READ.get() or ()), *inputs]:
         if p is None:
             continue
         s = str(p)
@@ -291,10 +319,11 @@ def read_provenance(path_or_h5) -> dict:
     KeyError
         The file has no provenance group (written by an older robovib or another tool).
     """
-    import h5py
-
     if isinstance(path_or_h5, str | os.PathLike):
-        with h5py.File(path_or_h5, "r") as h5:
+        from .h5safe import check_self_contained, open_file
+
+        with open_file(Path(path_or_h5)) as h5:
+            check_self_contained(h5, path_or_h5)  # links and external storage refused
             return read_provenance(h5)
     h5 = path_or_h5
     if "provenance" not in h5:
