@@ -342,10 +342,10 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped, in
     if settings.modes_band_hz is not None:
         from .multimode import track_modes
 
-        inputs = [c for c in ("x_mm", "y_mm", "z_mm", "rz_deg") if c in table.columns]
+        pose_columns = [c for c in ("x_mm", "y_mm", "z_mm", "rz_deg") if c in table.columns]
         modes_table = pd.DataFrame([m for r in good for m in r.modes])
         if len(modes_table):
-            modes_table, presence = track_modes(modes_table, inputs)
+            modes_table, presence = track_modes(modes_table, pose_columns)
     frfs = [f for r in good for f in r.frfs]
     accounting = campaign_accounting(results)
     settings_json = json.dumps(asdict(settings))
