@@ -381,7 +381,8 @@ def test_too_short_hits_for_the_fit_band_is_an_error(tmp_path):
 @example(frac=0.999, n_hits=3, seed=0)  # inside the last number
 def test_cut_uff_is_an_error_never_a_partial_read(tmp_path_factory, frac, n_hits, seed):
     """A UFF file cut anywhere: an error, or (cut between two whole hits) every hit it holds."""
-    pyuff = pytest.importorskip("pyuff")
+    import pyuff
+
     fs, n = 1024.0, 512
     forces, resp = hits(n_hits, n, fs, seed)
     sets = []
