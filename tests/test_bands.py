@@ -13,6 +13,7 @@ from robovib.gp.predictive import ModalPredictive
 
 
 # ------------------------------------------------------------------------------ kernels
+@pytest.mark.oracle
 @pytest.mark.parametrize(("covariance", "nu"), [("matern52", 2.5), ("matern32", 1.5), ("se", None)])
 def test_covariance_families_match_scikit_learn(covariance, nu):
     from sklearn.gaussian_process import GaussianProcessRegressor
@@ -50,6 +51,7 @@ def test_unknown_covariance_is_refused():
 
 
 # ------------------------------------------------------------------------------ predictive
+@pytest.mark.oracle
 @pytest.mark.parametrize("dof", [1, 2, 3, 4, 6, 10, 30, np.inf])
 def test_numpy_student_t_matches_scipy(dof):
     from robovib.gp.predictive import _t_cdf, _t_logpdf, t_quantile
@@ -70,6 +72,7 @@ def _one(p, means, lat, noise, scale=(1.0, 1.0), dof=(np.inf, np.inf)) -> ModalP
     )  # fmt: skip
 
 
+@pytest.mark.oracle
 def test_single_component_sets_are_scipy_intervals():
     g = _one(0.0, (10.0, 10.0), (0.3, 0.3), (0.4, 0.4))
     (iv,) = g.intervals(0.95, "measurement")[0][0]
@@ -85,6 +88,7 @@ def test_single_component_sets_are_scipy_intervals():
     np.testing.assert_allclose(t.point_std("latent"), stats.t.std(4.0, 0.0, 0.6))
 
 
+@pytest.mark.oracle
 def test_bimodal_set_holds_its_mass_and_matches_the_scipy_mixture():
     pr = _one(0.3, (16.0, 63.5), (0.5, 0.4), (0.2, 0.3), scale=(1.2, 0.9), dof=(6.0, np.inf))
     s = pr.component_scale("measurement")[0, 0]

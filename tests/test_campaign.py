@@ -18,8 +18,6 @@ from robovib.campaign import (
 )
 from robovib.sim import VirtualRobot, simulate_campaign, truth_table
 
-pytest.importorskip("pyuff")
-
 
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory):

@@ -7,6 +7,10 @@ converter: every value must come out the same, every error with the same message
 
 from __future__ import annotations
 
+import importlib.util
+import re
+import tomllib
+from importlib import metadata
 from pathlib import Path
 from typing import Annotated
 
@@ -76,9 +80,33 @@ def test_light_conversion_gives_what_typer_gives(args):
     assert _run(args, light=True) == _run(args, light=False)
 
 
+def _version(text: str) -> tuple[int, ...]:
+    return tuple(int(re.match(r"\d+", part).group()) for part in text.split(".")[:3])
+
+
+def test_typer_is_inside_the_pinned_range():
+    """pyproject bounds Typer from above: a Typer release can change how every option converts,
+    so a Typer outside the range fails here (it is never skipped)."""
+    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    spec = next(d for d in pyproject["project"]["dependencies"] if d.startswith("typer"))
+    bounds = dict(re.findall(r"(>=|<)\s*([\d.]+)", spec))
+    assert set(bounds) == {">=", "<"}, f"typer needs a lower and an upper bound, got {spec!r}"
+    installed = _version(metadata.version("typer"))
+    assert _version(bounds[">="]) <= installed < _version(bounds["<"]), (installed, spec)
+
+
 def test_light_conversion_is_installed_on_the_robovib_tree():
-    """Every plain parameter of the robovib CLI, ``--help`` included, gets the light converter."""
-    pytest.importorskip("typer._coercion", reason="older Typer: click converts, no Pydantic")
+    """Every plain parameter of the robovib CLI, ``--help`` included, gets the light converter.
+
+    A Typer without ``typer._coercion`` must not convert through Pydantic at all (then the light
+    converter has nothing to replace); otherwise the converter must be installed. Neither case
+    skips."""
+    if importlib.util.find_spec("typer._coercion") is None:
+        requires = metadata.requires("typer") or []
+        assert not any(r.lower().startswith("pydantic") for r in requires), (
+            "this Typer converts through Pydantic elsewhere: update robovib/cli/_coerce.py"
+        )
+        return
     from robovib.cli import app
 
     cmd = typer.main.get_command(app)

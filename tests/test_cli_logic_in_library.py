@@ -49,7 +49,8 @@ def test_frf_prediction_peak_and_flagged_fraction():
 
 
 def test_map_speeds_and_best_pose():
-    xr = pytest.importorskip("xarray")
+    import xarray as xr
+
     from robovib.milling.maps import best_pose, map_speeds
 
     np.testing.assert_array_equal(map_speeds(1750.0), [1750.0])

@@ -36,7 +36,8 @@ def test_riccati_solution_and_python_control():
     a, b, p, q, r = d.ad, d.bd, d.p, THESIS_Q, THESIS_R
     residual = a.T @ p @ a - (a.T @ p @ b) @ np.linalg.solve(r + b.T @ p @ b, b.T @ p @ a) + q - p
     assert np.max(np.abs(residual)) < 1e-9 * np.max(np.abs(p))  # Eq. 26
-    control = pytest.importorskip("control")
+    import control
+
     w_ref, _, _ = control.dlqr(a, b, q, r)
     np.testing.assert_allclose(d.gains, np.ravel(w_ref), rtol=1e-8)
     assert d.spectral_radius < 1  # without delay the loop is stable
@@ -172,8 +173,9 @@ def test_schedule_cli_from_a_path_file(tmp_path):
 
 @pytest.mark.parametrize(("r", "delay"), [(100.0, 8), (1.0, 0), (1.0, 8)])
 def test_loop_margins_match_python_control(r, delay):
-    control = pytest.importorskip("control")
     import warnings
+
+    import control
 
     from robovib.control import loop_margins
 
@@ -192,7 +194,8 @@ def test_loop_margins_match_python_control(r, delay):
 
 
 def test_kalman_design_matches_python_control_dlqe():
-    control = pytest.importorskip("control")
+    import control
+
     from robovib.control.controllers import design_kalman
     from robovib.control.lqr import continuous_model, discretize
 

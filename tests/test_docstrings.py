@@ -21,8 +21,7 @@ import pathlib
 import re
 
 import pytest
-
-validate = pytest.importorskip("numpydoc.validate").validate
+from numpydoc.validate import validate
 
 ENTRY_POINTS = [
     "robovib.datasets.load_table_a1",

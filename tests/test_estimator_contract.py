@@ -163,6 +163,7 @@ EXPECTED_FAILED_CHECKS = {
     ],
     ids=lambda e: type(e).__name__,
 )
+@pytest.mark.oracle
 def test_scikit_learn_check_estimator(est):
     """scikit-learn's ``check_estimator``: every check passes except those listed above (each
     with its reason); a listed check that passes fails this test (no stale reasons)."""

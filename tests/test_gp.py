@@ -26,6 +26,7 @@ def _sklearn(hp: GPHyperparameters, b: int, X, y):
     return GaussianProcessRegressor(kernel, alpha=hp.noise_std[b] ** 2, optimizer=None).fit(X, y)
 
 
+@pytest.mark.oracle
 @pytest.mark.parametrize("kernel", ["isotropic", "ard"])
 def test_fixed_hyperparameters_match_sklearn(kernel):
     rng = np.random.default_rng(1)
@@ -54,6 +55,7 @@ def test_fixed_hyperparameters_match_sklearn(kernel):
     np.testing.assert_allclose(s1, std[0], atol=1e-12)
 
 
+@pytest.mark.oracle
 def test_fitted_model_in_data_units_matches_sklearn():
     """Normalisation and the estimated constant mean are reported correctly in data units."""
     rng = np.random.default_rng(2)
@@ -131,6 +133,7 @@ def test_batched_equals_one_at_a_time():
         assert abs(int(single.n_iter_[0]) - int(batch.n_iter_[b])) <= 1
 
 
+@pytest.mark.oracle
 def test_bfgs_reaches_scipy_optimum():
     rng = np.random.default_rng(6)
     X, Y = _data(rng, n=30)

@@ -166,6 +166,7 @@ def test_numpy_lapack_state_equals_scipys_jitter_included():
         lik.evaluate(theta, design, want_grad=False, n_groups=2, constant_mean=True, linalg="mkl")
 
 
+@pytest.mark.oracle
 @pytest.mark.parametrize(("n", "d", "seed"), [(20, 1, 0), (40, 3, 1), (60, 2, 2)])
 def test_lml_at_least_sklearns_on_random_problems(n, d, seed):
     """Per output, the batched fit reaches sklearn's optimum (same model, same restarts) or better."""

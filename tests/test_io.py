@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pytest
+import pyuff
 from synthetic import hammer_hits
 from typer.testing import CliRunner
 
@@ -20,7 +21,6 @@ from robovib.io import (
 )
 
 MODE = (18.0, 1.5e6, 0.04)
-pyuff = pytest.importorskip("pyuff")
 
 
 @pytest.fixture
@@ -39,6 +39,7 @@ def test_recording_uff_round_trip(tmp_path, recording):
     np.testing.assert_allclose(back.responses, recording.responses, rtol=1e-6, atol=1e-12)
 
 
+@pytest.mark.oracle
 def test_reads_uff_written_by_pyuff_with_other_units(tmp_path):
     """A file prepared with pyuff directly (accelerations in g, force in kN) is converted to SI."""
     fs, n = 1000.0, 512

@@ -187,6 +187,8 @@ def test_issue_case_short_last_hit_cli(tmp_path):
     noise=st.floats(0.0, 0.004),
     seed=st.integers(0, 1000),
 )
+# The draw that once failed: subnormal noise repeats its extreme value (issue 41).
+@example(fs=1000.0, width_ms=3.0, level=0.6, noise=5e-324, seed=32)
 def test_clipped_force_is_flagged_free_one_is_not(fs, width_ms, level, noise, seed):
     """A hammer pulse clipped at `level` of its peak (with noise of `noise` x peak on the whole
     record) is flagged when its plateau holds >= 2 exactly equal samples or >= 3 noisy ones;
@@ -203,6 +205,30 @@ def test_clipped_force_is_flagged_free_one_is_not(fs, width_ms, level, noise, se
         assert (overload_reason(clipped) is not None) == (plateau >= 2)
     elif plateau >= 3 and noise * 500.0 * 3 < 0.02 * limit:
         assert overload_reason(clipped + eps) is not None, plateau
+
+
+@pytest.mark.parametrize("fs", [1000.0, 10240.0])
+def test_noise_a_few_steps_deep_is_no_overload(fs):
+    """Noise of a few subnormal steps (5e-324) or a few ADC codes repeats its extreme by
+    chance; that is no overload, while the same records clipped are still flagged."""
+    n = round(0.5 * fs)
+    free = half_sine_pulse(n, fs, 0.05 + 0.37 / fs, 3e-3, 500.0)  # a free top is one sample
+    clipped = np.minimum(free, 0.6 * free.max())
+    false_alarms = 0
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        subnormal = rng.normal(size=n) * 5e-324 * 500.0  # multiples of 2.47e-321
+        assert np.all(np.abs(subnormal) < np.finfo(float).tiny)
+        lsb = 500.0 / 2**23  # 24-bit input range of +-500 N
+        adc = np.round((free + rng.normal(size=n) * 1.5 * lsb) / lsb) * lsb
+        for record in (free + subnormal, adc):
+            false_alarms += overload_reason(record) is not None
+        assert "equal samples" in overload_reason(clipped + subnormal)
+        assert "equal samples" in overload_reason(
+            np.minimum(adc, np.round(0.6 * 500.0 / lsb) * lsb)
+        )
+    assert false_alarms == 0
+    assert overload_reason(np.full(64, 5e-324)) is None  # a subnormal record is zero
 
 
 def test_issue_cases_clipped(tmp_path):
@@ -355,7 +381,8 @@ def test_too_short_hits_for_the_fit_band_is_an_error(tmp_path):
 @example(frac=0.999, n_hits=3, seed=0)  # inside the last number
 def test_cut_uff_is_an_error_never_a_partial_read(tmp_path_factory, frac, n_hits, seed):
     """A UFF file cut anywhere: an error, or (cut between two whole hits) every hit it holds."""
-    pyuff = pytest.importorskip("pyuff")
+    import pyuff
+
     fs, n = 1024.0, 512
     forces, resp = hits(n_hits, n, fs, seed)
     sets = []

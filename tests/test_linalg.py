@@ -11,6 +11,7 @@ from robovib.control.lqr import THESIS_Q, _delay_augmented, continuous_model, di
 from robovib.modal import ModalParameters
 
 
+@pytest.mark.oracle
 def test_expm_of_one_matrix_matches_scipy():
     rng = np.random.default_rng(0)
     for scale in (1e-3, 1.0, 30.0):
@@ -19,6 +20,7 @@ def test_expm_of_one_matrix_matches_scipy():
         np.testing.assert_allclose(batched_expm(a), ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
 
 
+@pytest.mark.oracle
 def test_expm_of_a_stack_with_small_and_large_norms_matches_scipy():
     """Degree 9 below 1-norm 2.098, degree 13 with squaring above: both to SciPy's precision."""
     rng = np.random.default_rng(1)
@@ -35,6 +37,7 @@ def _residual(a, b, q, r, x):
     return np.max(np.abs(a.T @ x @ a - a.T @ x @ b @ gain + q - x)) / np.max(np.abs(x))
 
 
+@pytest.mark.oracle
 @pytest.mark.parametrize("fn_hz", [8.0, 16.4, 63.0])
 @pytest.mark.parametrize("zeta", [0.02, 0.2])
 @pytest.mark.parametrize("plant_input", ["displacement", "force"])

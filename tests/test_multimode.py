@@ -177,7 +177,6 @@ def test_modes_band_setting_checked():
 
 def test_campaign_process_tracks_the_virtual_robots_modes(tmp_path):
     """modes.csv of a virtual campaign holds the truth's modes under consistent ids."""
-    pytest.importorskip("pyuff")
     import warnings
 
     from robovib.campaign import process_campaign

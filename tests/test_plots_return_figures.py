@@ -3,15 +3,15 @@
 import pathlib
 import re
 
+import matplotlib
 import numpy as np
 import pytest
 
-matplotlib = pytest.importorskip("matplotlib")
 matplotlib.use("Agg")  # tests choose the backend, never the library
 
-from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.figure import Figure
 
-from robovib.modal import ModalParameters  # noqa: E402
+from robovib.modal import ModalParameters
 
 
 def test_library_never_saves_figures():

@@ -88,6 +88,7 @@ def test_modes_and_next_poses_are_the_same_for_both(shipped):
     assert got.total_variance_before == pytest.approx(ref.total_variance_before, rel=1e-8)
 
 
+@pytest.mark.oracle
 def test_laplace_classifier_matches_scikit_learn():
     from sklearn.gaussian_process import GaussianProcessClassifier
     from sklearn.gaussian_process.kernels import RBF

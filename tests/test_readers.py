@@ -3,13 +3,13 @@ pyuff or by hand (never by robovib's own writer), one per layout."""
 
 import numpy as np
 import pytest
+import pyuff
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robovib.frf import check_hit, segment_hits
 from robovib.io import read_recording, read_recording_channels
 
-pyuff = pytest.importorskip("pyuff")
 SETTINGS = settings(
     max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )

@@ -45,6 +45,7 @@ def test_render_is_self_contained_and_escapes_text():
     assert "robovib_version" in text and "robovib test" in text
 
 
+@pytest.mark.browser
 def test_write_is_atomic_and_page_loads_in_browser(tmp_path):
     frame = pd.DataFrame({"fn_hz": [16.5, 22.0]})
     report = Report(

@@ -31,12 +31,14 @@ def report(tmp_path, kind: str, *args: str) -> tuple:
     return out, text
 
 
+@pytest.mark.browser
 def test_chapter3_report(tmp_path):
     out, text = report(tmp_path, "chapter3", "--n-splits", "2", "--no-mode-switch")
     assert "Thesis Table 2" in text
     assert_page_ok(out, "report_chapter3.png")
 
 
+@pytest.mark.browser
 def test_lobes_report(tmp_path):
     out, text = report(tmp_path, "lobes", "--x", "2400", "--y", "0", "--rz", "45",
                        "--rpm-range", "500:2500:40")  # fmt: skip
@@ -53,6 +55,7 @@ def test_lobes_report(tmp_path):
     assert f"<td>{mill['method']}</td>" in text
 
 
+@pytest.mark.browser
 def test_control_report(tmp_path):
     from robovib.io import write_path_modes_csv
     from robovib.modal import ModalParameters
@@ -65,6 +68,7 @@ def test_control_report(tmp_path):
     assert_page_ok(out, "report_control.png", min_figures=1)
 
 
+@pytest.mark.browser
 def test_model_report_pose_model(tmp_path):
     """A user's pose model (campaign format) fitted on a known smooth truth."""
     from robovib.gp import PoseModalModel
@@ -82,6 +86,7 @@ def test_model_report_pose_model(tmp_path):
     assert_page_ok(out, "report_model.png")
 
 
+@pytest.mark.browser
 def test_model_report_hybrid_frf_model(tmp_path):
     from robovib.hybrid import FRFPoseModel
     from robovib.modal import ModalParameters

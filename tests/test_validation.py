@@ -14,6 +14,7 @@ from robovib.gp.validation import (
 )
 
 
+@pytest.mark.oracle
 def test_regression_scores_match_sklearn():
     rng = np.random.default_rng(0)
     t = rng.normal(size=(40, 3))
@@ -35,6 +36,7 @@ def test_polynomial_regression_recovers_quadratic():
     np.testing.assert_allclose(model.predict(Xq), np.column_stack([yq, 2 * yq]), rtol=1e-8)
 
 
+@pytest.mark.oracle
 def test_cv_matches_sklearn_cross_val_predict():
     rng = np.random.default_rng(2)
     X = rng.normal(size=(50, 2))

@@ -121,12 +121,37 @@ def workspace_model(path: Path | None, seed: int = 0, require_inputs=("x_mm", "y
     return workspace_predictor(path, seed=seed, require_inputs=require_inputs)
 
 
-try:  # Typer >= 0.2x vendors Click as typer._click: its context stack and exceptions are those
-    from typer._click.exceptions import ClickException as _TyperClickException
-    from typer._click.globals import get_current_context as _current_context
-except ImportError:  # pragma: no cover - older Typer on the real Click
-    _TyperClickException = click.exceptions.ClickException
-    _current_context = click.get_current_context
+class _TrackedContext(typer.Context):
+    """Typer's public context class, keeping a stack of the contexts entered, so that
+    :func:`run_info` finds the running command's parameters without Typer's private globals."""
+
+    def __enter__(self):
+        _CONTEXTS.append(self)
+        return super().__enter__()
+
+    def __exit__(self, *exc_info):
+        if _CONTEXTS and _CONTEXTS[-1] is self:
+            _CONTEXTS.pop()
+        return super().__exit__(*exc_info)
+
+
+_CONTEXTS: list[typer.Context] = []
+
+
+def _track_contexts(command: Any) -> None:
+    """Every command under ``command`` makes :class:`_TrackedContext` contexts (click's public
+    ``context_class`` attribute)."""
+    stack = [command]
+    while stack:
+        cmd = stack.pop()
+        cmd.context_class = _TrackedContext
+        stack.extend(getattr(cmd, "commands", {}).values())
+
+
+def _current_context():
+    """The innermost context entered (the running command's), or None."""
+    return _CONTEXTS[-1] if _CONTEXTS else None
+
 
 #: Library errors reported as one line ``error: ...`` with exit code 1.
 EXPECTED_ERRORS = (ValueError, OSError, RuntimeError, KeyError, ImportError)
@@ -140,17 +165,12 @@ def new_app(help: str, **kwargs) -> typer.Typer:
 
 def _click_passthrough() -> tuple[type, ...]:
     """Click's own exceptions (usage errors, --help exits), also those of the click copy that
-    recent Typer vendors as ``typer._click``: click reports them itself, never as "unexpected"."""
-    kinds: list[type] = [
+    recent Typer vendors: they derive from Typer's public ``TyperException``, ``Exit`` and
+    ``Abort``. Click reports them itself, never as "unexpected"."""
+    return (
         click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort,
-        typer.Exit, typer.Abort, _TyperClickException,
-    ]  # fmt: skip
-    try:
-        from typer._click import exceptions as vendored
-    except ImportError:  # older Typer: plain click only
-        return tuple(kinds)
-    names = ("ClickException", "Exit", "Abort")
-    return (*kinds, *(getattr(vendored, n) for n in names if hasattr(vendored, n)))
+        typer.Exit, typer.Abort, getattr(typer, "TyperException", click.ClickException),
+    )  # fmt: skip
 
 
 #: Exceptions that keep their own meaning (usage errors, exits) - never turned into "error: ...".
@@ -163,6 +183,7 @@ class ErrorHandlingGroup(TyperGroup):
     def main(self, args=None, prog_name=None, *a, **kw):
         _STATE["argv"] = [str(v) for v in (sys.argv[1:] if args is None else args)]
         install_light_coercion(self)  # plain values without Pydantic (see _coerce)
+        _track_contexts(self)
         return super().main(args, prog_name, *a, **kw)
 
     def invoke(self, ctx: click.Context) -> Any:
@@ -222,7 +243,7 @@ def run_info() -> dict:
     """
     from ..io.provenance import command_settings
 
-    ctx = _current_context(silent=True)
+    ctx = _current_context()
     params = [] if ctx is None else [
         (p.name, ctx.params[p.name], getattr(p, "help", None)) for p in ctx.command.params
         if p.name != "json_out" and p.name in ctx.params

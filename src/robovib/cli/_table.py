@@ -19,7 +19,7 @@ class Table(_RichTable):
         cols = self.columns
         need = (
             sum(
-                max([len(str(c)) for c in col._cells] + [len(str(col.header)), 1]) + 3
+                max([len(str(c)) for c in col.cells] + [len(str(col.header)), 1]) + 3
                 for col in cols
             )
             + 1
@@ -31,10 +31,11 @@ class Table(_RichTable):
 
         if self.title:
             yield Text.from_markup(str(self.title), style="bold")
+        cells = [list(col.cells) for col in cols]  # rich's public view of a column's cells
         for r in range(self.row_count):
-            for col in cols:
+            for col, col_cells in zip(cols, cells, strict=True):
                 head = str(col.header).replace("\n", " ")
-                yield Text.from_markup(f"  {head}: {col._cells[r]}")
+                yield Text.from_markup(f"  {head}: {col_cells[r]}")
             yield Text("")
         if self.caption:
             yield Text.from_markup(str(self.caption))

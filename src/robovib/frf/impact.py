@@ -119,10 +119,16 @@ def overload_reason(
     min_plateau: int = 3,
     rel_band: float = 0.01,
     kink: float = 3.0,
+    min_fraction: float = 1e-3,
 ) -> str | None:
     """Why a channel looks clipped (overloaded), or None.
 
-    Three signatures, each on the largest and on the most negative excursion:
+    Three signatures, each on the largest and on the most negative excursion whose extreme is
+    at least ``min_fraction`` of the record's peak ``max |x|``. A smaller excursion is noise or
+    quantisation beside the signal, not a signal that reached an input range (input ranges are
+    symmetric, so the clipped side is the larger one; the fraction leaves 60 dB for an offset).
+    Noise a few quantisation steps (or subnormal floating-point steps) deep repeats its extreme
+    value by chance, which is no overload. A record whose peak is subnormal is treated as zero.
 
     1. **Full scale**: ``|x|`` reaches 99.9 % of a given input range.
     2. **Equal samples**: ``run`` or more consecutive samples exactly at the extreme (an ADC
@@ -144,6 +150,8 @@ def overload_reason(
         Input range in the record's unit (None: unknown).
     min_plateau, rel_band, kink
         Flat-top test settings (samples, fraction of the extreme, fraction of the band).
+    min_fraction
+        Smallest extreme, as a fraction of the record's peak, of an excursion that is tested.
 
     Returns
     -------
@@ -152,7 +160,7 @@ def overload_reason(
     """
     x = np.asarray(x, float)
     peak = float(np.max(np.abs(x))) if x.size else 0.0
-    if peak == 0:
+    if peak < np.finfo(float).tiny:  # zero or subnormal: no signal at all
         return None
     if full_scale is not None and peak >= 0.999 * full_scale:
         return f"reaches {peak:.4g} of the {full_scale:.4g} full scale"
@@ -160,7 +168,7 @@ def overload_reason(
     for sign in (1.0, -1.0):
         y = sign * x
         top = float(y.max())
-        if top <= 0:
+        if top <= 0 or top < min_fraction * peak:
             continue
         i0, n_eq = _longest_run(y >= top * (1 - 1e-12))
         if n_eq >= run:

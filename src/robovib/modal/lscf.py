@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._threads import single_blas_thread
 from ..frf.core import FRF
 from .parameters import ModalParameters, remove_exponential_window_damping
 from .sdof import MAX_RELATIVE_RMS_ERROR
@@ -71,20 +72,39 @@ def lscf_poles(frequency_hz, values, order: int, f_max_hz: float | None = None) 
         (order,) complex poles [rad/s].
     """
     f = np.asarray(frequency_hz, float)
+    r, s, t, dt = _lscf_normal_matrices(f, values, order, f_max_hz)
+    return _lscf_poles_of_order(r, s, t, dt, order)
+
+
+def _lscf_normal_matrices(f, values, max_order: int, f_max_hz: float | None = None):
+    """Normal-equation blocks R, S, T of the LSCF model of ``max_order``, summed S/T over outputs.
+
+    The z-domain basis of order ``n`` is the first ``n + 1`` columns of the basis of any higher
+    order, so the blocks of every order ``n <= max_order`` are the leading ``(n+1, n+1)``
+    sub-blocks of these (the stabilization diagram builds them once, not once per order).
+    Returns ``(r, s, t, dt)``: ``s`` and ``t`` have shape (n_outputs, max_order+1, max_order+1).
+    """
     h = _as_frf_matrix(values)
     h = h / np.max(np.abs(h))  # conditioning only; poles are scale-free
     f_max = float(f[-1] if f_max_hz is None else f_max_hz)
     dt = 1.0 / (2.0 * f_max)
     z = np.exp(1j * 2 * np.pi * f * dt)
-    basis = z[:, None] ** np.arange(order + 1)[None, :]  # (n_f, n+1)
+    basis = z[:, None] ** np.arange(max_order + 1)[None, :]  # (n_f, n+1)
     r = np.real(basis.conj().T @ basis)
-    m = np.zeros((order + 1, order + 1))
+    y = -h[:, :, None] * basis[None]  # (n_outputs, n_f, n+1)
+    s = np.real(basis.conj().T[None] @ y)
+    t = np.real(np.swapaxes(y.conj(), 1, 2) @ y)
+    return r, s, t, dt
+
+
+def _lscf_poles_of_order(r, s, t, dt: float, order: int) -> np.ndarray:
+    """Poles (rad/s) of the LSCF model of ``order`` from the blocks of a model of order >= it."""
+    k = order + 1
+    r, s, t = r[:k, :k], s[:, :k, :k], t[:, :k, :k]
     r_inv = np.linalg.pinv(r)
-    for h_o in h:
-        y = -h_o[:, None] * basis
-        s = np.real(basis.conj().T @ y)
-        t = np.real(y.conj().T @ y)
-        m += t - s.T @ r_inv @ s
+    m = np.zeros((k, k))
+    for s_o, t_o in zip(s, t, strict=True):
+        m += t_o - s_o.T @ r_inv @ s_o
     a = np.linalg.lstsq(m[:order, :order], -m[:order, order], rcond=None)[0]
     coeffs = np.concatenate([a, [1.0]])
     roots = np.roots(coeffs[::-1])
@@ -204,10 +224,14 @@ def stabilization_diagram(
         )
     orders, fns, zetas, stables = [], [], [], []
     prev_fn = prev_zeta = None
+    # Small matrices (max_order + 1 square): BLAS threads only contend, and a busy machine
+    # multiplied the multi-mode campaign processing time by 10 (issue 37).
+    with single_blas_thread():
+        blocks = _lscf_normal_matrices(f, values, max_order)
     for n in range(int(min_order), int(max_order) + 1):
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), single_blas_thread():
             warnings.simplefilter("ignore", RuntimeWarning)
-            fn, zeta = _physical(lscf_poles(f, values, n), f[0], f[-1], max_zeta)
+            fn, zeta = _physical(_lscf_poles_of_order(*blocks, n), f[0], f[-1], max_zeta)
         stable = np.zeros(fn.size, bool)
         if prev_fn is not None and prev_fn.size:
             for i in range(fn.size):
@@ -439,7 +463,8 @@ def fit_modes(
         raise ValueError("no stable mode found in the band; widen it or raise max_order")
     wn = 2 * np.pi * fns
     poles = -zetas * wn + 1j * wn * np.sqrt(1 - zetas**2)
-    residues, ur, lr = lsfd_residues(f, v, poles)
+    with single_blas_thread():
+        residues, ur, lr = lsfd_residues(f, v, poles)
     modes, kept, flags = [], [], []
     for r, (fn, zeta, p) in enumerate(zip(fns, zetas, poles, strict=True)):
         wd = p.imag
