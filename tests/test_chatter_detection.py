@@ -122,7 +122,7 @@ def test_reader_and_cli_on_a_simulated_record(tmp_path):
     lines = ["time_s,force_x_n,displacement_x_mm,displacement_y_mm"]
     lines += [f"{a:.6f},{10 * b:.6g},{0.0:.6g},{1e3 * b:.9g}" for a, b in zip(t, y, strict=True)]
     path.write_text("\n".join(lines) + "\n")
-    signal, fs, cols = read_detection_record(path)
+    _, fs, cols = read_detection_record(path)
     assert cols == ["displacement_y_mm"] and fs == pytest.approx(FS)  # constant x dropped
     out = CliRunner().invoke(app, ["mill", "detect", str(path), "--rpm", str(RPM), "--json"])
     assert out.exit_code == 0, out.output

@@ -220,7 +220,7 @@ def detect_chatter(
     if not 0 < min_line_fraction < 1:
         raise ValueError(f"min_line_fraction must be in (0, 1), got {min_line_fraction!r}")
     fs = float(sample_rate_hz)
-    n_win = int(round(window_s * fs))
+    n_win = round(window_s * fs)
     k = int(n_segments)
     n_seg = n_win // k
     if n_seg < 8:
@@ -244,7 +244,7 @@ def detect_chatter(
     if searched.sum() < 3:
         raise ValueError("no off-harmonic frequencies to search: lower window_s/n_segments")
     thr = peak_threshold(false_alarm_rate, int(searched.sum()), k)
-    half_floor = max(int(round(floor_width_hz / df / 2)), 8)
+    half_floor = max(round(floor_width_hz / df / 2), 8)
     taper = np.hanning(n_seg)
     t_seg = np.arange(n_seg)
     out = {key: np.empty(n_windows) for key in ("hz", "ratio", "frac", "rms")}
