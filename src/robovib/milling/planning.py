@@ -40,7 +40,14 @@ from .cut_posterior import p_stable, weighted_quantile
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool
 from .structures import StructureSamples
 
-__all__ = ["PathPlan", "path_segments", "plan_path", "plot_path_plan", "read_path_csv"]
+__all__ = [
+    "PathPlan",
+    "path_segments",
+    "plan_path",
+    "plan_report",
+    "plot_path_plan",
+    "read_path_csv",
+]
 
 
 def path_segments(points_mm, n_segments: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -177,6 +184,12 @@ class PathPlan:
                 row["sdm_mean_limit_mm"] = self.settings["checks"]["sdm_mean_limit_m"][i] * 1e3
             out.append(row)
         return out
+
+    def to_frame(self):
+        """The per-segment table as a :class:`pandas.DataFrame` (units in the column names)."""
+        import pandas as pd
+
+        return pd.DataFrame(self.rows())
 
     def to_dict(self) -> dict:
         return {
@@ -533,11 +546,58 @@ def plot_path_plan(plan: PathPlan, *, color_by: str = "depth"):
     ax0.set_aspect("equal", adjustable="datalim")
     s = np.concatenate([[0], np.cumsum(plan.length_mm)[:-1]]) + 0.5 * plan.length_mm
     ax1.step(s, plan.rz_deg, where="mid", color="C0", label="Rz [deg]")
-    ax1.set(xlabel="path length [mm]", ylabel="Rz [deg]")
+    grid = plan.settings.get("rz_grid_deg") or [float(plan.rz_deg.min()), float(plan.rz_deg.max())]
+    pad = max(5.0, 0.05 * (grid[-1] - grid[0]))
+    ax1.set(xlabel="path length [mm]", ylabel="Rz [deg]", ylim=(grid[0] - pad, grid[-1] + pad))
     ax2 = ax1.twinx()
     ax2.step(s, plan.spindle_rpm, where="mid", color="C1", label="speed [rpm]")
     ax2.set_ylabel("spindle speed [rpm]")
     ax1.set_title(f"Rz and speed along the path (P(stable) >= {plan.settings['p_required']:g})")
-    fig.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
+    fig.legend(loc="lower right", fontsize=8)
     return fig
+
+
+def plan_report(plan: PathPlan, update=None, provenance=None):
+    """An HTML report (:mod:`robovib.report`) of a plan: the table, the figure, the comparison.
+
+    Parameters
+    ----------
+    plan : PathPlan
+        The plan.
+    update : CutUpdate, optional
+        The test cuts that updated the forecast (how far they moved it).
+    provenance : dict, optional
+        Inputs and versions.
+
+    Returns
+    -------
+    robovib.report.Report
+    """
+    from ..report import result_report
+
+    fixed = plan.fixed
+    paras = [
+        f"Mean MRR along the path {plan.mean_mrr_m3_per_s * 1e9:.1f} mm³/s at P(stable) >= "
+        f"{plan.settings['p_required']:g}; best single fixed Rz {fixed['rz_deg']:g}° and speed "
+        f"{fixed['spindle_rpm']:g} rpm: {fixed['mean_mrr_mm3_per_s']:.1f} mm³/s ({fixed['rule']}).",
+    ]
+    if "one_depth" in fixed:
+        one = fixed["one_depth"]
+        paras.append(
+            f"One Rz, speed and depth for the whole path: {one['depth_mm']:.2f} mm at "
+            f"{one['rz_deg']:g}°, {one['spindle_rpm']:g} rpm: {one['mean_mrr_mm3_per_s']:.1f} mm³/s."
+        )
+    if update is not None:
+        d = update.to_dict()
+        paras.append(
+            f"{d['n_cuts']} test cuts (label noise {d['label_noise']:g}) moved the forecast: "
+            f"effective sample size {d['effective_sample_size_prior']:.0f} -> "
+            f"{d['effective_sample_size']:.1f}, information {d['information_nats']:.2f} nats, "
+            f"median limit at the cuts {100 * d['median_limit_shift_rel']:+.0f} %."
+        )
+    return result_report(
+        "Cut plan along the tool path", plan,
+        figures=[("Path coloured by the allowed depth; Rz and speed along it", plot_path_plan(plan))],
+        paragraphs=paras, settings=plan.settings, provenance=provenance,
+    )  # fmt: skip
