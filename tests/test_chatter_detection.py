@@ -54,14 +54,20 @@ def test_chatter_line_found_with_its_frequency_and_harmonics_ignored():
     chat = detect_chatter(_forced(t) + noise + grow * np.sin(2 * np.pi * 17.3 * t), FS, RPM, TEETH)
     assert chat.result == "chatter"
     assert chat.chatter_frequency_hz == pytest.approx(17.3, abs=0.6)
-    # the same strong line exactly on the 3rd spindle harmonic (runout): not chatter
-    f3 = 3 * RPM / 60
-    runout = detect_chatter(_forced(t) + noise + 4e-5 * np.sin(2 * np.pi * f3 * t), FS, RPM, TEETH)
+    # a 3-flute tool: a strong line on the 2nd spindle harmonic is runout, not chatter ...
+    f2 = 2 * RPM / 60
+    runout = detect_chatter(_forced(t) + noise + 4e-5 * np.sin(2 * np.pi * f2 * t), FS, RPM, 3)
     assert runout.result == "stable"
     # ... unless runout lines are not masked (then it is an off-tooth-harmonic line)
-    unmasked = detect_chatter(_forced(t) + noise + 4e-5 * np.sin(2 * np.pi * f3 * t), FS, RPM,
-                              TEETH, runout=False)  # fmt: skip
+    unmasked = detect_chatter(_forced(t) + noise + 4e-5 * np.sin(2 * np.pi * f2 * t), FS, RPM,
+                              3, runout=False)  # fmt: skip
     assert unmasked.result == "chatter"
+    # flip chatter at half the tooth-passing frequency (the spindle frequency of 2 flutes)
+    f_half = RPM * TEETH / 60 / 2
+    flip = detect_chatter(_forced(t) + noise + grow * np.sin(2 * np.pi * f_half * t), FS, RPM,
+                          TEETH)  # fmt: skip
+    assert flip.result == "chatter"
+    assert flip.chatter_frequency_hz == pytest.approx(f_half, abs=0.6)
     # a small line (below the RMS asked for) is not chatter
     small = detect_chatter(_forced(t) + noise + 3e-6 * np.sin(2 * np.pi * 17.3 * t), FS, RPM,
                            TEETH, min_line_rms=5e-6)  # fmt: skip

@@ -16,13 +16,20 @@ force). A window chatters when
    ``T`` for which pure noise exceeds it in any of the ``M`` off-harmonic bins of a window with
    probability ``false_alarm_rate`` (``1 - (1 - p)^M = alpha``, ``p`` the Gamma tail of one bin,
    divided by the Gamma median the floor estimates), *and*
-2. **it is large**: the vibration within ``line_width_hz`` of that line carries at least
+2. **it is large**: the vibration within ``line_width_hz`` of that line and of its sidebands
+   ``f_c + k N n / 60`` (the regenerative chatter's family, off the harmonics) carries at least
    ``min_line_fraction`` of the window's vibration (mean and linear trend removed) and, where
    given, an RMS of at least ``min_line_rms`` (for a displacement: a fraction of the feed). A
    significant but tiny line (a noise-driven resonance of a stable cut, a grazing flute) does not
    mark the surface: the same rule as the time-domain indicator of
    :mod:`robovib.milling.time_domain` (chatter is the vibration that is not tooth-periodic, when
    it is a sizeable part of the motion).
+
+**Flip (period-doubling) chatter** vibrates at ``(m + 1/2)`` times the tooth-passing frequency:
+with two flutes these are the odd spindle harmonics, where runout lines are masked. So the
+strongest half-tooth line is a second candidate, tested the same way (significance against the
+floor, size); a runout that carries half of the vibration and 5 % of the feed would be called
+flip chatter (a limitation: runout of that size is a fault of its own).
 
 The stated false-alarm rate is that of condition 1 on white or smooth coloured Gaussian noise
 (checked on synthetic noise in the tests); condition 2 can only lower it. The frequency of the
@@ -55,9 +62,9 @@ class ChatterDetection:
     peak_to_floor
         (w,) that line's power over the local noise floor.
     line_fraction
-        (w,) fraction of the window's vibration power within ``line_width_hz`` of the line.
+        (w,) fraction of the window's vibration power in the line's family (module docs).
     line_rms
-        (w,) RMS of the signal within ``line_width_hz`` of the line (signal units).
+        (w,) RMS of the signal in the line's family (signal units).
     threshold
         Peak-to-floor factor of the stated false-alarm rate.
     spindle_rpm, n_flutes
@@ -243,7 +250,10 @@ def detect_chatter(
     searched = (~harmonic) & (f >= lo) & (f <= hi)
     if searched.sum() < 3:
         raise ValueError("no off-harmonic frequencies to search: lower window_s/n_segments")
-    thr = peak_threshold(false_alarm_rate, int(searched.sum()), k)
+    half = tooth_hz * (np.round(f / tooth_hz - 0.5) + 0.5)
+    flip_bins = (np.abs(f - half) <= lw) & (f >= lo) & (f <= hi)
+    n_side = int(np.ceil(f[-1] / tooth_hz))
+    thr = peak_threshold(false_alarm_rate, int((searched | flip_bins).sum()), k)
     half_floor = max(round(floor_width_hz / df / 2), 8)
     taper = np.hanning(n_seg)
     t_seg = np.arange(n_seg)
@@ -266,13 +276,24 @@ def detect_chatter(
         idx = np.flatnonzero(~np.isnan(off))
         filled = np.interp(np.arange(f.size), idx, off[idx])
         floor = median_filter(filled, size=2 * half_floor + 1, mode="nearest")
-        # the strongest off-harmonic line (the chatter candidate) against its local floor; a
-        # significant ratio there implies the max-over-bins test of the stated false-alarm rate
-        j = int(np.argmax(np.where(searched, psd, -1.0)))
         ratio = psd / np.maximum(floor, 1e-300)
-        near = (np.abs(f - f[j]) <= lw) & ~harmonic
-        frac = float(psd[near].sum() / max(total, 1e-300))
-        rms = float(np.sqrt(psd[near].sum() * to_ms))
+        # two candidates: the strongest off-harmonic line (Hopf chatter, with its sidebands
+        # f_c + k f_tooth) and the strongest half-tooth line (flip chatter at (m + 1/2) f_tooth,
+        # which a 2-flute tool's runout mask would hide)
+        best = None
+        for j, family in (
+            (int(np.argmax(np.where(searched, psd, -1.0))), None),
+            (int(np.argmax(np.where(flip_bins, psd, -1.0))), flip_bins),
+        ):
+            if family is None:
+                fam_f = np.abs(f[j] + tooth_hz * np.arange(-n_side, n_side + 1))
+                family = (np.abs(f[:, None] - fam_f[None, :]) <= lw).any(axis=1) & ~harmonic
+            power = psd[family].sum()
+            if best is None or power > best[1]:
+                best = (j, power)
+        j, power = best
+        frac = float(power / max(total, 1e-300))
+        rms = float(np.sqrt(power * to_ms))
         out["hz"][w], out["ratio"][w], out["frac"][w], out["rms"][w] = f[j], ratio[j], frac, rms
         large = frac >= min_line_fraction and (min_line_rms is None or rms >= min_line_rms)
         chatter[w] = (ratio[j] > thr) and large
