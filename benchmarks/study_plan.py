@@ -12,8 +12,8 @@ virtual robot's truth:
 2. **MRR gain**: the plan's mean MRR over the best single fixed Rz and speed at the same
    P(stable) (depth per segment as allowed there; target >= 1.3x), and over one fixed Rz,
    speed and depth.
-3. **Test cuts**: the planner picks the 5 most informative cuts among the plans' segments
-   (``choose_test_cuts``); each is simulated on the truth, its record (displacement + 2 um
+3. **Test cuts**: the planner picks the 5 most informative cuts among the plans' segments x Rz
+   x speeds of its grids (``PathPlan.test_cut_candidates``, ``choose_test_cuts``); each is simulated on the truth, its record (displacement + 2 um
    tracker noise) labelled by ``detect_chatter``, and the labels update the forecast
    (``update_with_cuts``). The Brier score of P(stable) before and after on ``--configs`` x 5
    other cuts (random poses and speeds, depths 0.5, 0.8, 0.95, 1.1, 1.4 x the truth's simulated
@@ -217,10 +217,10 @@ def main(argv=None) -> None:
         return p
 
     # the 5 most informative test cuts among the plans' segments, labelled by detection
-    cand_pose = np.vstack([np.column_stack([p.midpoints_mm, p.rz_deg]) for p in plans])
-    cand_rpm = np.concatenate([p.spindle_rpm for p in plans])
-    cand_lim = np.stack([prior.limits(cand_pose[i : i + 1], [cand_rpm[i]], tool, cond, coef)[:, 0, 0]
-                         for i in range(cand_pose.shape[0])], axis=1)  # fmt: skip
+    cands = [p.test_cut_candidates() for p in plans]  # every segment x Rz x speed of the grids
+    cand_pose = np.vstack([c[0] for c in cands])
+    cand_rpm = np.concatenate([c[1] for c in cands])
+    cand_lim = np.hstack([c[2] for c in cands])
     idx, tdepth = choose_test_cuts(cand_lim, prior.weights, args.test_cuts)
     from robovib.io.cuts import MeasuredCuts
 

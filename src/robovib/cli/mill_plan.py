@@ -216,8 +216,7 @@ def plan(
     )  # fmt: skip
     suggested = None
     if suggest_cuts is not None:
-        suggested = _suggest(res, structures, tool, cond, coef, feed, n_suggest, suggest_cuts,
-                             [model_path, path_csv, cuts])  # fmt: skip
+        suggested = _suggest(res, structures, n_suggest, suggest_cuts, [model_path, path_csv, cuts])
     if output is not None:
         res.write_csv(output, inputs=[p for p in (model_path, path_csv, cuts) if p])
     if plot is not None:
@@ -270,23 +269,16 @@ def plan(
             typer.echo(f"wrote {p}")
 
 
-def _suggest(res, structures, tool, cond, coef, feed, n, path, inputs) -> list[dict]:
-    """The most informative test cuts among the plan's segments, written as a cuts CSV."""
-    import numpy as np
-
+def _suggest(res, structures, n, path, inputs) -> list[dict]:
+    """The most informative test cuts among the plan's segments, Rz and speeds, as a cuts CSV."""
     from ..io.safe_write import atomic_output
     from ..milling.cut_posterior import choose_test_cuts
 
-    poses = np.column_stack([res.midpoints_mm, res.rz_deg])
-    lim = np.stack([
-        structures.limits(poses[i : i + 1], [res.spindle_rpm[i]], tool, cond, coef,
-                          feed_direction=feed)[:, 0, 0]
-        for i in range(poses.shape[0])
-    ], axis=1)  # fmt: skip
+    poses, rpm, lim = res.test_cut_candidates()
     idx, depth = choose_test_cuts(lim, structures.weights, n)
     rows = [
         {"x_mm": float(poses[i, 0]), "y_mm": float(poses[i, 1]), "rz_deg": float(poses[i, 2]),
-         "spindle_rpm": float(res.spindle_rpm[i]), "depth_mm": float(d * 1e3), "result": ""}
+         "spindle_rpm": float(rpm[i]), "depth_mm": float(d * 1e3), "result": ""}
         for i, d in zip(idx, depth, strict=True)
     ]  # fmt: skip
     text = "x_mm,y_mm,rz_deg,spindle_rpm,depth_mm,result\n" + "".join(

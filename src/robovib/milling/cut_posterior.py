@@ -19,8 +19,8 @@ Kullback-Leibler divergence of the posterior from the prior weights, nats) and t
 the median limit at the cuts' own poses and speeds.
 
 **The most informative cuts** (:func:`choose_test_cuts`): among candidate poses and speeds (e.g.
-the segments of a plan), each at the depth of its weighted median limit (P(stable) = 0.5: a cut
-whose outcome is least predictable), cuts are chosen greedily to maximise the entropy of the
+the segments of a plan), each at the depth where P(stable) is nearest 0.5 (a cut whose outcome
+is least predictable), cuts are chosen greedily to maximise the entropy of the
 joint outcome over the structures: the expected information of the set, not of each cut alone
 (two cuts that would split the structures the same way are worth one).
 """
@@ -249,7 +249,8 @@ def choose_test_cuts(limits_m, weights, n_cuts: int = 5) -> tuple[np.ndarray, np
     index : numpy.ndarray
         (n_cuts,) chosen candidates, in the order chosen.
     depth_m : numpy.ndarray
-        (n_cuts,) their depths [m] (the weighted median limit there).
+        (n_cuts,) their depths [m]: the structure limit there at which P(chatter) is nearest
+        one half.
     """
     lim = np.asarray(limits_m, float)
     w = np.asarray(weights, float)
@@ -258,8 +259,12 @@ def choose_test_cuts(limits_m, weights, n_cuts: int = 5) -> tuple[np.ndarray, np
     n = int(n_cuts)
     if not 1 <= n <= lim.shape[1]:
         raise ValueError(f"n_cuts must be in 1..{lim.shape[1]} candidates, got {n_cuts}")
-    depth = weighted_quantile(lim, w, 0.5)
-    # a candidate whose median is inf (no lobe: stable at any depth) tells nothing
+    # each candidate's depth: the structure limit at which the weight predicting chatter
+    # (depth >= limit) is nearest one half
+    p_chat = np.einsum("s,sdc->dc", w, (lim[:, None, :] <= lim[None, :, :]).astype(float))
+    k = np.argmin(np.where(np.isfinite(lim), np.abs(p_chat - 0.5), np.inf), axis=0)
+    depth = lim[k, np.arange(lim.shape[1])]
+    # a candidate without a finite limit (no lobe: stable at any depth) tells nothing
     finite = np.isfinite(depth)
     outcome = lim <= depth[None, :]  # chatter under each structure
     if n > 62:

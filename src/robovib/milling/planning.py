@@ -148,6 +148,32 @@ class PathPlan:
     vibration: list = field(default_factory=list)
     fixed: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    #: (S, m, n_rz, n_speeds) limits [m] of every structure at every segment, Rz and speed of
+    #: the grids (``settings["rz_grid_deg"]``, ``settings["rpm_grid"]``): the candidates of
+    #: :func:`~robovib.milling.cut_posterior.choose_test_cuts`.
+    limits_m: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def test_cut_candidates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every (segment, Rz, speed) of the plan's grids as test-cut candidates.
+
+        Returns
+        -------
+        poses : numpy.ndarray
+            (C, 3) x_mm, y_mm, rz_deg.
+        spindle_rpm : numpy.ndarray
+            (C,) speeds [rpm].
+        limits_m : numpy.ndarray
+            (S, C) the structures' limits there [m].
+        """
+        if self.limits_m is None:
+            raise ValueError("this plan kept no limit table")
+        rz = np.asarray(self.settings["rz_grid_deg"])
+        rpm = np.asarray(self.settings["rpm_grid"])
+        m = self.midpoints_mm.shape[0]
+        seg, r, j = (a.ravel() for a in np.meshgrid(np.arange(m), np.arange(rz.size),
+                                                     np.arange(rpm.size), indexing="ij"))  # fmt: skip
+        poses = np.column_stack([self.midpoints_mm[seg], rz[r]])
+        return poses, rpm[j], self.limits_m.reshape(self.limits_m.shape[0], -1)
 
     @property
     def mean_mrr_m3_per_s(self) -> float:
@@ -273,7 +299,7 @@ def plan_path(
     max_depth_m: float = 0.02,
     vibration_samples: int = 24,
     check_sdm: bool = False,
-    n_frequencies: int = 200,
+    points_per_decade: float = 200.0,
 ) -> PathPlan:
     """Plan Rz and spindle speed along a tool path (module docs).
 
@@ -308,8 +334,8 @@ def plan_path(
     check_sdm : bool
         Also compute the semi-discretization limit of the mean structure at each chosen
         configuration (``settings["checks"]``).
-    n_frequencies : int
-        Chatter-frequency grid of the zero-order search.
+    points_per_decade : float
+        Chatter-frequency grid of the zero-order search (:func:`~robovib.milling.structures.zoa_limits`).
 
     Returns
     -------
@@ -330,7 +356,7 @@ def plan_path(
     m, r, j = mid.shape[0], rz.size, rpm.size
     poses = np.column_stack([np.repeat(mid, r, axis=0), np.tile(rz, m)])  # (m r, 3)
     lim = structures.limits(poses, rpm, tool, conditions, coefficients,
-                            feed_direction=feed_direction, n_frequencies=n_frequencies,
+                            feed_direction=feed_direction, points_per_decade=points_per_decade,
                             depth_cap_m=max_depth_m)  # fmt: skip
     lim = lim.reshape(structures.n_samples, m, r, j)
     w = structures.weights
@@ -406,7 +432,7 @@ def plan_path(
         "feed_per_tooth_m": float(conditions.feed_per_tooth_m),
         "n_flutes": int(tool.n_flutes),
         "method": "zero-order (batched) over sampled structures",
-        "n_frequencies": int(n_frequencies),
+        "points_per_decade": float(points_per_decade),
         "structures": dict(structures.settings),
         "effective_sample_size": structures.effective_sample_size,
         "checks": checks,
@@ -415,7 +441,7 @@ def plan_path(
     return PathPlan(
         mid, length, rz[path_r], rpm[jj], plan_allowed, plan_depth, p_plan,
         None if p_at is None else p_at[seg, path_r, jj],
-        feasible[seg, path_r, jj], mrr, vib, fixed, settings,
+        feasible[seg, path_r, jj], mrr, vib, fixed, settings, lim,
     )  # fmt: skip
 
 
