@@ -18,8 +18,9 @@ virtual robot's truth:
    (``update_with_cuts``). The Brier score of P(stable) before and after on ``--configs`` x 5
    other cuts (random poses and speeds, depths 0.5, 0.8, 0.95, 1.1, 1.4 x the truth's simulated
    limit there; target: >= 20 % better). Re-planned MRR and plan stability after the cuts.
-4. **Detection**: ``detect_chatter`` on the records of all those simulated cuts against the
-   simulation's own chatter indicator (accuracy, target >= 95 %; false chatter at <= 0.8x the
+4. **Detection**: ``detect_chatter`` (line RMS >= 7 % of the feed per tooth and >= 20 % of the
+   vibration power: the ``mill detect`` defaults for displacement records) on the records of all
+   those simulated cuts against the simulation's own chatter indicator (accuracy, target >= 95 %; false chatter at <= 0.8x the
    limit: target none).
 
     nice python benchmarks/study_plan.py --configs 8 --paths 1     # quick look (~3 min)
@@ -107,7 +108,8 @@ class Truth:
 
         x = cut.displacement_m[i] + self.rng.normal(0, 2e-6, cut.displacement_m[i].shape)
         fs = 1.0 / (cut.time_s[1] - cut.time_s[0])
-        return detect_chatter(x, fs, rpm, self.tool.n_flutes, min_line_rms=0.05 * fz)
+        return detect_chatter(x, fs, rpm, self.tool.n_flutes, min_line_rms=0.07 * fz,
+                              min_line_fraction=0.2)  # fmt: skip
 
 
 def brier(p, stable) -> float:
@@ -196,7 +198,11 @@ def main(argv=None) -> None:
     speeds = rng.uniform(1000, 3500, args.configs)
     rows = []  # (pose, rpm, depth, factor, chatter_sim, chatter_detected)
     for c, rpm in zip(configs, speeds, strict=True):
-        lim = truth.limit(c, rpm, cond)
+        try:
+            lim = truth.limit(c, rpm, cond)
+        except ValueError as exc:  # no chatter up to 60 mm at this speed: no limit to cut near
+            print(f"skipped pose {np.round(c)} at {rpm:.0f} rpm: {exc}")
+            continue
         depths = lim * np.asarray(FACTORS)
         cut = truth.simulate(c, rpm, depths, cond)
         for i, fac in enumerate(FACTORS):

@@ -39,16 +39,19 @@ def detect(
         typer.Option("--false-alarm", help="Per-window false-alarm rate of a line on noise."),
     ] = 1e-3,
     min_line_fraction: Annotated[
-        float,
-        typer.Option(help="Share of the window's vibration power the line must carry."),
-    ] = 0.5,
+        float | None,
+        typer.Option(
+            help="Share of the window's vibration power the line must carry (default: 0.2 for "
+            "displacement records, with --min-line-feed; 0.5 otherwise)."
+        ),
+    ] = None,
     min_line_feed: Annotated[
         float,
         typer.Option(
             help="Displacement records: and the RMS of the line (marks the surface), as a "
             "fraction of --fz."
         ),
-    ] = 0.05,
+    ] = 0.07,
     json_out: JsonFlag = False,
 ) -> None:
     """Label a milling record stable or chatter window by window; the chatter frequency."""
@@ -67,6 +70,8 @@ def detect(
             raise ValueError(f"{record}: displacement columns in several units: {cols}")
         signal = signal * si_factor(units.pop(), "displacement")[1]
         min_rms = min_line_feed * to_si(fz, "mm")
+    if min_line_fraction is None:
+        min_line_fraction = 0.2 if displacement else 0.5
     res = detect_chatter(
         signal, fs, rpm, teeth, window_s=window, false_alarm_rate=false_alarm,
         min_line_fraction=min_line_fraction, min_line_rms=min_rms,
