@@ -231,8 +231,8 @@ def plan(
         save_figure(plot_path_plan(res), plot)
     if report_html is not None:
         use_agg()
-        from ..milling.planning import plan_report
         from ..report import write_report
+        from ..report.plan import plan_report
 
         write_report(plan_report(res, update), report_html,
                      inputs=[p for p in (model_path, path_csv, cuts) if p])  # fmt: skip

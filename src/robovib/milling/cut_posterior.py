@@ -116,6 +116,8 @@ class CutUpdate:
         The label-noise rate used.
     chatter
         (n_cuts,) the observed results.
+    settings
+        The likelihood and the feed direction used.
     """
 
     structures: StructureSamples

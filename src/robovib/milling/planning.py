@@ -44,7 +44,6 @@ __all__ = [
     "PathPlan",
     "path_segments",
     "plan_path",
-    "plan_report",
     "plot_path_plan",
     "read_path_csv",
 ]
@@ -133,6 +132,8 @@ class PathPlan:
         The best single fixed Rz and speed (and at one depth), for comparison.
     settings
         Inputs and settings.
+    limits_m
+        (S, m, n_rz, n_speeds) the structures' limits [m] over the plan's grids, or None.
     """
 
     midpoints_mm: np.ndarray
@@ -181,7 +182,13 @@ class PathPlan:
         return _time_weighted_mrr(self.mrr_m3_per_s, self.length_mm, self.spindle_rpm)
 
     def rows(self) -> list[dict]:
-        """One dict per segment in the units of the CSV (mm, deg, rpm, mm³/s)."""
+        """One dict per segment in the units of the CSV (mm, deg, rpm, mm³/s).
+
+        Returns
+        -------
+        list of dict
+            The rows.
+        """
         out = []
         for i in range(self.rz_deg.size):
             row = {
@@ -212,7 +219,13 @@ class PathPlan:
         return out
 
     def to_frame(self):
-        """The per-segment table as a :class:`pandas.DataFrame` (units in the column names)."""
+        """The per-segment table (units in the column names).
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per segment.
+        """
         import pandas as pd
 
         return pd.DataFrame(self.rows())
@@ -582,48 +595,3 @@ def plot_path_plan(plan: PathPlan, *, color_by: str = "depth"):
     fig.tight_layout()
     fig.legend(loc="lower right", fontsize=8)
     return fig
-
-
-def plan_report(plan: PathPlan, update=None, provenance=None):
-    """An HTML report (:mod:`robovib.report`) of a plan: the table, the figure, the comparison.
-
-    Parameters
-    ----------
-    plan : PathPlan
-        The plan.
-    update : CutUpdate, optional
-        The test cuts that updated the forecast (how far they moved it).
-    provenance : dict, optional
-        Inputs and versions.
-
-    Returns
-    -------
-    robovib.report.Report
-    """
-    from ..report import result_report
-
-    fixed = plan.fixed
-    paras = [
-        f"Mean MRR along the path {plan.mean_mrr_m3_per_s * 1e9:.1f} mm³/s at P(stable) >= "
-        f"{plan.settings['p_required']:g}; best single fixed Rz {fixed['rz_deg']:g}° and speed "
-        f"{fixed['spindle_rpm']:g} rpm: {fixed['mean_mrr_mm3_per_s']:.1f} mm³/s ({fixed['rule']}).",
-    ]
-    if "one_depth" in fixed:
-        one = fixed["one_depth"]
-        paras.append(
-            f"One Rz, speed and depth for the whole path: {one['depth_mm']:.2f} mm at "
-            f"{one['rz_deg']:g}°, {one['spindle_rpm']:g} rpm: {one['mean_mrr_mm3_per_s']:.1f} mm³/s."
-        )
-    if update is not None:
-        d = update.to_dict()
-        paras.append(
-            f"{d['n_cuts']} test cuts (label noise {d['label_noise']:g}) moved the forecast: "
-            f"effective sample size {d['effective_sample_size_prior']:.0f} -> "
-            f"{d['effective_sample_size']:.1f}, information {d['information_nats']:.2f} nats, "
-            f"median limit at the cuts {100 * d['median_limit_shift_rel']:+.0f} %."
-        )
-    return result_report(
-        "Cut plan along the tool path", plan,
-        figures=[("Path coloured by the allowed depth; Rz and speed along it", plot_path_plan(plan))],
-        paragraphs=paras, settings=plan.settings, provenance=provenance,
-    )  # fmt: skip

@@ -69,6 +69,9 @@ class StructureSamples:
         (S,) factor on each structure's linear limit.
     correlation_length
         (x [mm], y [mm], Rz [deg]) of the fields.
+    frequencies, phases, amplitudes
+        The random Fourier features ``w`` (n_fields, K, 3), ``b`` (n_fields, K) and the
+        structures' coefficients ``a`` (S, n_fields, K).
     settings
         How they were drawn.
     """
