@@ -1,7 +1,7 @@
 """The README's walk-through runs as written, in order, in an empty folder.
 
-The main command (``robovib demo``), then the first ``bash`` block under "Using it" and the one
-under "Your own robot". Each command (a line, or a ``for ... done`` block) runs with bash; any
+The main command (``robovib demo``), then the first ``bash`` block under "Using it", the one
+under "Your own robot" and the one under "Plan the cut". Each command (a line, or a ``for ... done`` block) runs with bash; any
 non-zero exit fails the test and names the command. Lines ending in ``# slow`` (a full study)
 are skipped unless ``ROBOVIB_README_SLOW=1``; the ``slow``-marked test runs them all.
 ``robovib`` is this interpreter's ``python -m robovib.cli`` (the checkout under test), or with
@@ -28,7 +28,7 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 SLOW = re.compile(r"#\s*slow\b")
 
 
-SECTIONS = ("## Using it", "## Your own robot")
+SECTIONS = ("## Using it", "## Your own robot", "## Plan the cut")
 
 
 def _block(text: str, heading: str) -> str:

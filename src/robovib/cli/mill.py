@@ -401,3 +401,9 @@ def lobe_map(
     for path in (output, plot):
         if path is not None:
             typer.echo(f"wrote {path}")
+
+
+# issue 39: chatter detection and path planning live in their own module
+from .mill_plan import register as _register_plan  # noqa: E402
+
+_register_plan(app)

@@ -8,6 +8,12 @@ Format: a header row naming the columns with their units, then one cut per row::
 
 The depth column may be ``depth_mm`` or ``depth_m``; ``result`` is ``stable`` or ``chatter``
 (case-insensitive; ``1``/``0`` and ``true``/``false`` for chatter also accepted).
+
+Test cuts at poses (issue 39: updating the pose model's forecast) add the columns ``x_mm``,
+``y_mm`` and ``rz_deg`` (all three, or none)::
+
+    x_mm,y_mm,rz_deg,spindle_rpm,depth_mm,result
+    2400,0,45,1750,2.0,stable
 """
 
 from __future__ import annotations
@@ -34,18 +40,24 @@ class MeasuredCuts:
         Axial depths of cut [m].
     chatter
         Whether chatter was observed (bool).
+    pose_mm_deg
+        (n, 3) poses (x [mm], y [mm], Rz [deg]) of the cuts, or None when the file has none.
     """
 
     spindle_rpm: np.ndarray
     depth_m: np.ndarray
     chatter: np.ndarray
+    pose_mm_deg: np.ndarray | None = None
 
     def to_dict(self) -> dict:
-        return {
+        doc = {
             "spindle_rpm": [float(v) for v in self.spindle_rpm],
             "depth_m": [float(v) for v in self.depth_m],
             "chatter": [bool(v) for v in self.chatter],
         }
+        if self.pose_mm_deg is not None:
+            doc["pose_mm_deg"] = np.asarray(self.pose_mm_deg, float).tolist()
+        return doc
 
 
 _TRUE = {"chatter", "unstable", "1", "true", "yes"}
@@ -94,7 +106,12 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
     else:
         raise ValueError(f"{p}: no depth column with units (depth_mm or depth_m) in {header}")
     rcol, scol = header.index("result"), header.index("spindle_rpm")
-    rpm, depth, chat = [], [], []
+    pose_names = ("x_mm", "y_mm", "rz_deg")
+    given = [n for n in pose_names if n in header]
+    if given and len(given) != 3:
+        raise ValueError(f"{p}: give all of x_mm, y_mm, rz_deg for cuts at poses, got {given}")
+    pcols = [header.index(n) for n in given]
+    rpm, depth, chat, poses = [], [], [], []
     for i, row in enumerate(rows[1:], start=2):
         if len(row) != len(header):
             raise ValueError(
@@ -112,9 +129,21 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
             raise ValueError(
                 f"{p}, line {i}: result must be 'stable' or 'chatter', got {row[rcol]!r}"
             )
+        if pcols:
+            try:
+                pose = [float(row[c]) for c in pcols]
+            except (ValueError, IndexError) as exc:
+                raise ValueError(
+                    f"{p}, line {i}: cannot read x_mm, y_mm, rz_deg from {row}"
+                ) from exc
+            if not np.all(np.isfinite(pose)):
+                raise ValueError(f"{p}, line {i}: pose must be finite, got {row}")
+            poses.append(pose)
         rpm.append(s)
         depth.append(d)
         chat.append(r in _TRUE)
     if not rpm:
         raise ValueError(f"{p}: no cuts")
-    return MeasuredCuts(np.array(rpm), np.array(depth), np.array(chat, bool))
+    return MeasuredCuts(
+        np.array(rpm), np.array(depth), np.array(chat, bool), np.array(poses) if pcols else None
+    )

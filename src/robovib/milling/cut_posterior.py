@@ -1,0 +1,296 @@
+"""Test cuts update the stability forecast: a posterior over sampled structures (issue 39).
+
+The forecast is a set of structures (:func:`robovib.milling.structures.sample_structures`,
+each a draw of the pose model over the whole workspace with a process factor) with weights.
+A test cut ``i`` at pose, speed and depth ``d_i`` with the observed result ``y_i`` (chatter or
+stable) has, under structure ``s`` whose limit there is ``a_si``, the likelihood::
+
+    P(y_i = chatter | s) = 1 - eps   if d_i >= a_si,   eps   otherwise
+
+with ``eps`` the **label-noise rate** (a mislabelled cut, a cut at the limit that went either
+way). Bayes with the prior weights ``w_s`` gives the posterior weights (importance sampling)::
+
+    w_s' ∝ w_s prod_i P(y_i | s)
+
+and P(stable) anywhere is the weighted fraction of structures whose limit lies above the depth.
+How far the cuts moved the forecast is reported as the effective sample size ``1 / sum w'^2``
+(S before, smaller after: how many structures still carry it), the information gained (the
+Kullback-Leibler divergence of the posterior from the prior weights, nats) and the shift of
+the median limit at the cuts' own poses and speeds.
+
+**The most informative cuts** (:func:`choose_test_cuts`): among candidate poses and speeds (e.g.
+the segments of a plan), each at the depth where P(stable) is nearest 0.5 (a cut whose outcome
+is least predictable), cuts are chosen greedily to maximise the entropy of the
+joint outcome over the structures: the expected information of the set, not of each cut alone
+(two cuts that would split the structures the same way are worth one).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .forces import CuttingCoefficients, CuttingConditions, MillingTool
+from .structures import StructureSamples
+
+__all__ = [
+    "CutUpdate",
+    "choose_test_cuts",
+    "p_stable",
+    "update_with_cuts",
+    "weighted_quantile",
+]
+
+
+def p_stable(limits_m, weights, depth_m) -> np.ndarray:
+    """Weighted probability that the limit lies above the depth.
+
+    Parameters
+    ----------
+    limits_m : array_like
+        (S, ...) limits [m] of the structures.
+    weights : array_like
+        (S,) weights (normalised).
+    depth_m : array_like
+        Depths [m], broadcast against ``limits_m[0]``.
+
+    Returns
+    -------
+    numpy.ndarray
+        P(stable), the shape of ``limits_m[0]`` broadcast with ``depth_m``.
+    """
+    lim = np.asarray(limits_m, float)
+    w = np.asarray(weights, float)
+    stable = lim > np.asarray(depth_m, float)[None]
+    return np.tensordot(w, stable.astype(float), axes=(0, 0))
+
+
+def weighted_quantile(limits_m, weights, q: float) -> np.ndarray:
+    """Depth below which the weighted fraction ``q`` of the limits lies (lower quantile).
+
+    The depth allowed at ``P(stable) >= 1 - q`` is ``weighted_quantile(limits, w, q)`` (a cut
+    just below it is stable for a weight of at least ``1 - q``).
+
+    Parameters
+    ----------
+    limits_m : array_like
+        (S, ...) limits [m].
+    weights : array_like
+        (S,) weights.
+    q : float
+        Probability in [0, 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        The shape of ``limits_m[0]``.
+    """
+    lim = np.asarray(limits_m, float)
+    w = np.asarray(weights, float)
+    if not 0 <= q < 1:
+        raise ValueError(f"q must be in [0, 1), got {q!r}")
+    order = np.argsort(lim, axis=0)
+    srt = np.take_along_axis(lim, order, axis=0)
+    cw = np.cumsum(w[order], axis=0)
+    # first structure whose cumulative weight exceeds q: everything below it weighs <= q
+    idx = np.argmax(cw > q + 1e-12, axis=0)
+    return np.take_along_axis(srt, idx[None], axis=0)[0]
+
+
+@dataclass(frozen=True)
+class CutUpdate:
+    """Structures updated with test cuts, and how much the cuts moved the forecast.
+
+    Attributes
+    ----------
+    structures
+        The structures with posterior weights.
+    prior_weights
+        (S,) the weights before.
+    p_stable_prior, p_stable_posterior
+        (n_cuts,) P(stable) of each cut before and after.
+    median_limit_prior_m, median_limit_posterior_m
+        (n_cuts,) weighted median limits [m] at the cuts' poses and speeds.
+    label_noise
+        The label-noise rate used.
+    chatter
+        (n_cuts,) the observed results.
+    settings
+        The likelihood and the feed direction used.
+    """
+
+    structures: StructureSamples
+    prior_weights: np.ndarray
+    p_stable_prior: np.ndarray
+    p_stable_posterior: np.ndarray
+    median_limit_prior_m: np.ndarray
+    median_limit_posterior_m: np.ndarray
+    label_noise: float
+    chatter: np.ndarray
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def effective_sample_size(self) -> float:
+        return self.structures.effective_sample_size
+
+    @property
+    def information_nats(self) -> float:
+        """Kullback-Leibler divergence of the posterior from the prior weights [nats]."""
+        w, w0 = self.structures.weights, self.prior_weights
+        keep = w > 0
+        return float(np.sum(w[keep] * np.log(w[keep] / w0[keep])))
+
+    def to_dict(self) -> dict:
+        return {
+            "n_cuts": int(self.chatter.size),
+            "label_noise": self.label_noise,
+            "n_structures": self.structures.n_samples,
+            "effective_sample_size_prior": float(1.0 / np.sum(self.prior_weights**2)),
+            "effective_sample_size": self.effective_sample_size,
+            "information_nats": self.information_nats,
+            "median_limit_shift_rel": float(
+                np.median(self.median_limit_posterior_m / self.median_limit_prior_m - 1)
+            ),
+            "cuts": [
+                {"chatter": bool(c), "p_stable_prior": float(a), "p_stable_posterior": float(b),
+                 "median_limit_prior_m": float(m0), "median_limit_posterior_m": float(m1)}
+                for c, a, b, m0, m1 in zip(
+                    self.chatter, self.p_stable_prior, self.p_stable_posterior,
+                    self.median_limit_prior_m, self.median_limit_posterior_m, strict=True)
+            ],
+            "settings": dict(self.settings),
+        }  # fmt: skip
+
+
+def _cut_arrays(cuts):
+    pose = getattr(cuts, "pose_mm_deg", None)
+    if pose is None:
+        raise ValueError(
+            "the test cuts have no poses: a cuts file for updating needs x_mm, y_mm, rz_deg"
+        )
+    pose = np.atleast_2d(np.asarray(pose, float))
+    rpm = np.asarray(cuts.spindle_rpm, float)
+    depth = np.asarray(cuts.depth_m, float)
+    chatter = np.asarray(cuts.chatter, bool)
+    if not (pose.shape[0] == rpm.size == depth.size == chatter.size):
+        raise ValueError("the cuts' poses, speeds, depths and results differ in length")
+    return pose, rpm, depth, chatter
+
+
+def update_with_cuts(
+    structures: StructureSamples,
+    cuts,
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    *,
+    feed_direction: str = "x",
+    label_noise: float = 0.05,
+) -> CutUpdate:
+    """Posterior weights of the structures given test cuts (module docs).
+
+    Parameters
+    ----------
+    structures : StructureSamples
+        The prior (or an earlier posterior).
+    cuts : MeasuredCuts
+        Test cuts with poses (:func:`robovib.io.cuts.read_cuts_csv` of a file with ``x_mm,
+        y_mm, rz_deg``), speeds, depths and results.
+    tool, conditions, coefficients
+        The cutter, engagement (radial depth, up/down) and material of the cuts.
+    feed_direction : {"x", "y"}
+        Base-frame feed direction of the cuts.
+    label_noise : float
+        Probability that a cut's label disagrees with its structure's limit (0 < eps < 0.5).
+
+    Returns
+    -------
+    CutUpdate
+    """
+    if not 0 < label_noise < 0.5:
+        raise ValueError(f"label_noise must be in (0, 0.5), got {label_noise!r}")
+    pose, rpm, depth, chatter = _cut_arrays(cuts)
+    # one limit per cut: each at its own pose and speed (the diagonal of poses x speeds)
+    lim = np.empty((structures.n_samples, rpm.size))
+    for j, speed in enumerate(np.unique(rpm)):
+        at = np.flatnonzero(rpm == speed)
+        lim[:, at] = structures.limits(pose[at], [speed], tool, conditions, coefficients,
+                                       feed_direction=feed_direction)[:, :, 0]  # fmt: skip
+        del j
+    predicted_chatter = depth[None, :] >= lim
+    agree = predicted_chatter == chatter[None, :]
+    loglik = np.where(agree, np.log1p(-label_noise), np.log(label_noise)).sum(axis=1)
+    w0 = structures.weights
+    logw = np.log(np.maximum(w0, 1e-300)) + loglik
+    w = np.exp(logw - logw.max())
+    post = structures.with_weights(w)
+    return CutUpdate(
+        post, w0, p_stable(lim, w0, depth), p_stable(lim, post.weights, depth),
+        weighted_quantile(lim, w0, 0.5), weighted_quantile(lim, post.weights, 0.5),
+        float(label_noise), chatter,
+        {"likelihood": "label noise eps: P(observed = predicted) = 1 - eps",
+         "feed_direction": feed_direction},
+    )  # fmt: skip
+
+
+def choose_test_cuts(limits_m, weights, n_cuts: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """The most informative test cuts among candidates (module docs).
+
+    Parameters
+    ----------
+    limits_m : array_like
+        (S, C) limits [m] of the structures at the C candidate poses and speeds.
+    weights : array_like
+        (S,) current weights.
+    n_cuts : int
+        Cuts to choose.
+
+    Returns
+    -------
+    index : numpy.ndarray
+        (n_cuts,) chosen candidates, in the order chosen.
+    depth_m : numpy.ndarray
+        (n_cuts,) their depths [m]: the structure limit there at which P(chatter) is nearest
+        one half.
+    """
+    lim = np.asarray(limits_m, float)
+    w = np.asarray(weights, float)
+    if lim.ndim != 2 or lim.shape[0] != w.size:
+        raise ValueError(f"limits_m must be (S={w.size}, C), got {lim.shape}")
+    n = int(n_cuts)
+    if not 1 <= n <= lim.shape[1]:
+        raise ValueError(f"n_cuts must be in 1..{lim.shape[1]} candidates, got {n_cuts}")
+    # each candidate's depth: the structure limit at which the weight predicting chatter
+    # (depth >= limit) is nearest one half
+    p_chat = np.einsum("s,sdc->dc", w, (lim[:, None, :] <= lim[None, :, :]).astype(float))
+    k = np.argmin(np.where(np.isfinite(lim), np.abs(p_chat - 0.5), np.inf), axis=0)
+    depth = lim[k, np.arange(lim.shape[1])]
+    # a candidate without a finite limit (no lobe: stable at any depth) tells nothing
+    finite = np.isfinite(depth)
+    outcome = lim <= depth[None, :]  # chatter under each structure
+    if n > 62:
+        raise ValueError(f"at most 62 cuts are chosen at once, got {n_cuts}")
+    code = np.zeros(w.size, dtype=np.int64)
+    chosen: list[int] = []
+    for _ in range(n):
+        best, best_h = -1, -1.0
+        for c in np.flatnonzero(finite):
+            if c in chosen:
+                continue
+            h = _pattern_entropy(code * 2 + outcome[:, c].astype(int), w)
+            if h > best_h + 1e-12:
+                best, best_h = int(c), h
+        if best < 0:
+            raise ValueError("fewer informative candidates than n_cuts (no finite limits)")
+        chosen.append(best)
+        code = code * 2 + outcome[:, best].astype(int)
+    idx = np.array(chosen)
+    return idx, depth[idx]
+
+
+def _pattern_entropy(code: np.ndarray, w: np.ndarray) -> float:
+    _, inv = np.unique(code, return_inverse=True)
+    p = np.bincount(inv, weights=w)
+    p = p[p > 0]
+    return float(-np.sum(p * np.log(p)))

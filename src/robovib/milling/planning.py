@@ -1,0 +1,597 @@
+"""Plan the cut along a tool path: Rz and spindle speed per segment from the pose model (issue 39).
+
+A six-axis robot milling with a spindle has a free rotation about the tool axis, Rz, which is
+an input of the pose model: the stable depth changes with it several-fold. Along a tool path
+cut into segments (their midpoints are the poses), for every segment, every Rz of a grid over
+the allowed range and every spindle speed of a grid over the allowed range, the sampled
+structures (:mod:`robovib.milling.structures`: the pose model's calibrated predictive
+distribution over the workspace, prior or updated by test cuts) give the distribution of the
+stability limit, so
+
+* the axial depth allowed at the required P(stable) ``p`` is the weighted ``1 - p`` quantile of
+  the limits (:func:`robovib.milling.cut_posterior.weighted_quantile`);
+* P(stable) at the depth asked is the weighted fraction of limits above it.
+
+The value of a (segment, Rz, speed) is its material removal rate ``MRR = a_e a_p f_z N n``
+[m³/s] at the depth cut there: the allowed depth ("as deep as allowed"), or the depth asked
+where its P(stable) reaches ``p`` (elsewhere the configuration is infeasible; if no
+configuration of a segment is feasible, the one of highest P(stable) is taken and flagged).
+The speed may change from segment to segment; Rz may change by at most ``max_rz_rate_deg_per_mm``
+times the segment length (the robot reorients smoothly): dynamic programming over the Rz grid
+maximises the summed MRR x segment time share (the mean MRR over the path). The comparison is
+the best single fixed Rz and speed for the whole path under the same rule (depth per segment
+as allowed there at the same P(stable)), and the best fixed one at one depth for the whole path.
+
+Per segment the plan also predicts the vibration at the chosen configuration and depth (mean
+deflection and peak-to-valley per revolution with 95 % bands over the structures, as
+:func:`robovib.milling.workflow.predict_at_pose` does with independent draws), and, optionally,
+checks the
+chosen configuration with the semi-discretization of the mean structure (``check_sdm``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .cut_posterior import p_stable, weighted_quantile
+from .forces import CuttingCoefficients, CuttingConditions, MillingTool
+from .structures import StructureSamples
+
+__all__ = [
+    "PathPlan",
+    "path_segments",
+    "plan_path",
+    "plot_path_plan",
+    "read_path_csv",
+]
+
+
+def path_segments(points_mm, n_segments: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Segment midpoints and lengths of a polyline (or a straight start-end line cut in n).
+
+    Parameters
+    ----------
+    points_mm : array_like
+        (n, 2) base-frame X, Y points [mm] (n >= 2).
+    n_segments : int, optional
+        Cut a two-point path (start, end) into this many equal segments.
+
+    Returns
+    -------
+    midpoints_mm : numpy.ndarray
+        (m, 2) segment midpoints [mm].
+    length_mm : numpy.ndarray
+        (m,) segment lengths [mm].
+    """
+    p = np.asarray(points_mm, float)
+    if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] < 2:
+        raise ValueError(f"the path needs >= 2 points (n, 2) X, Y [mm]; got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("the path contains NaN or inf")
+    if n_segments is not None:
+        if p.shape[0] != 2 or int(n_segments) < 1:
+            raise ValueError("n_segments needs a start and an end point and >= 1 segment")
+        t = np.linspace(0, 1, int(n_segments) + 1)[:, None]
+        p = p[0] + t * (p[1] - p[0])
+    length = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    if np.any(length <= 0):
+        raise ValueError(f"the path repeats a point (segment {int(np.argmin(length))})")
+    return 0.5 * (p[1:] + p[:-1]), length
+
+
+def read_path_csv(path) -> np.ndarray:
+    """Tool-path points from a CSV with columns ``x_mm, y_mm`` (base frame; ``z_mm`` ignored).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 2) points [mm].
+    """
+    from ..io.csv_table import read_table
+
+    table = read_table(path, what="tool path", comment="#")
+    for name in ("x_mm", "y_mm"):
+        if name not in table.header:
+            raise ValueError(f"{path}: the tool path needs columns x_mm, y_mm; got {table.header}")
+    return table.matrix(["x_mm", "y_mm"])
+
+
+@dataclass(frozen=True)
+class PathPlan:
+    """Rz, spindle speed and depth per path segment, with P(stable), vibration and MRR.
+
+    Attributes
+    ----------
+    midpoints_mm, length_mm
+        (m, 2) segment midpoints [mm] and (m,) lengths [mm].
+    rz_deg, spindle_rpm
+        (m,) chosen Rz [deg] and speed [rpm].
+    depth_allowed_m
+        (m,) depth allowed at the required P(stable) there [m].
+    depth_m
+        (m,) depth planned [m] (allowed, or the depth asked).
+    p_stable
+        (m,) P(stable) at the planned depth.
+    p_stable_at_asked
+        (m,) P(stable) at the depth asked (None: "as deep as allowed").
+    feasible
+        (m,) the required P(stable) is met.
+    mrr_m3_per_s
+        (m,) material removal rate [m³/s].
+    vibration
+        Per segment dict of the predicted mean deflection and peak-to-valley [m] with bands.
+    fixed
+        The best single fixed Rz and speed (and at one depth), for comparison.
+    settings
+        Inputs and settings.
+    limits_m
+        (S, m, n_rz, n_speeds) the structures' limits [m] over the plan's grids, or None.
+    """
+
+    midpoints_mm: np.ndarray
+    length_mm: np.ndarray
+    rz_deg: np.ndarray
+    spindle_rpm: np.ndarray
+    depth_allowed_m: np.ndarray
+    depth_m: np.ndarray
+    p_stable: np.ndarray
+    p_stable_at_asked: np.ndarray | None
+    feasible: np.ndarray
+    mrr_m3_per_s: np.ndarray
+    vibration: list = field(default_factory=list)
+    fixed: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+    #: (S, m, n_rz, n_speeds) limits [m] of every structure at every segment, Rz and speed of
+    #: the grids (``settings["rz_grid_deg"]``, ``settings["rpm_grid"]``): the candidates of
+    #: :func:`~robovib.milling.cut_posterior.choose_test_cuts`.
+    limits_m: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def test_cut_candidates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every (segment, Rz, speed) of the plan's grids as test-cut candidates.
+
+        Returns
+        -------
+        poses : numpy.ndarray
+            (C, 3) x_mm, y_mm, rz_deg.
+        spindle_rpm : numpy.ndarray
+            (C,) speeds [rpm].
+        limits_m : numpy.ndarray
+            (S, C) the structures' limits there [m].
+        """
+        if self.limits_m is None:
+            raise ValueError("this plan kept no limit table")
+        rz = np.asarray(self.settings["rz_grid_deg"])
+        rpm = np.asarray(self.settings["rpm_grid"])
+        m = self.midpoints_mm.shape[0]
+        seg, r, j = (a.ravel() for a in np.meshgrid(np.arange(m), np.arange(rz.size),
+                                                     np.arange(rpm.size), indexing="ij"))  # fmt: skip
+        poses = np.column_stack([self.midpoints_mm[seg], rz[r]])
+        return poses, rpm[j], self.limits_m.reshape(self.limits_m.shape[0], -1)
+
+    @property
+    def mean_mrr_m3_per_s(self) -> float:
+        """Mean MRR over the path, each segment weighted by its machining time."""
+        return _time_weighted_mrr(self.mrr_m3_per_s, self.length_mm, self.spindle_rpm)
+
+    def rows(self) -> list[dict]:
+        """One dict per segment in the units of the CSV (mm, deg, rpm, mm³/s).
+
+        Returns
+        -------
+        list of dict
+            The rows.
+        """
+        out = []
+        for i in range(self.rz_deg.size):
+            row = {
+                "segment": i,
+                "x_mm": float(self.midpoints_mm[i, 0]),
+                "y_mm": float(self.midpoints_mm[i, 1]),
+                "length_mm": float(self.length_mm[i]),
+                "rz_deg": float(self.rz_deg[i]),
+                "spindle_rpm": float(self.spindle_rpm[i]),
+                "depth_allowed_mm": float(self.depth_allowed_m[i] * 1e3),
+                "depth_mm": float(self.depth_m[i] * 1e3),
+                "p_stable": float(self.p_stable[i]),
+                "p_stable_at_asked": None
+                if self.p_stable_at_asked is None
+                else float(self.p_stable_at_asked[i]),
+                "feasible": bool(self.feasible[i]),
+                "mrr_mm3_per_s": float(self.mrr_m3_per_s[i] * 1e9),
+            }
+            if self.vibration:
+                v = self.vibration[i]
+                for key in ("mean_deflection", "peak_to_valley"):
+                    row[f"{key}_mm"] = v[f"{key}_m"] * 1e3
+                    row[f"{key}_low_mm"] = v[f"{key}_band_m"][0] * 1e3
+                    row[f"{key}_high_mm"] = v[f"{key}_band_m"][1] * 1e3
+            if "sdm_mean_limit_m" in self.settings.get("checks", {}):
+                row["sdm_mean_limit_mm"] = self.settings["checks"]["sdm_mean_limit_m"][i] * 1e3
+            out.append(row)
+        return out
+
+    def to_frame(self):
+        """The per-segment table (units in the column names).
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per segment.
+        """
+        import pandas as pd
+
+        return pd.DataFrame(self.rows())
+
+    def to_dict(self) -> dict:
+        return {
+            "units": {"x_mm": "mm", "y_mm": "mm", "rz_deg": "deg", "spindle_rpm": "rpm",
+                      "depth_mm": "mm", "mrr_mm3_per_s": "mm^3/s",
+                      "mean_deflection_mm": "mm (vector norm X, Y)",
+                      "peak_to_valley_mm": "mm per revolution (largest of X, Y)"},
+            "segments": self.rows(),
+            "mean_mrr_mm3_per_s": self.mean_mrr_m3_per_s * 1e9,
+            "fixed": self.fixed,
+            "gain_over_fixed": self.mean_mrr_m3_per_s * 1e9 / self.fixed["mean_mrr_mm3_per_s"]
+            if self.fixed.get("mean_mrr_mm3_per_s") else None,
+            "settings": self.settings,
+        }  # fmt: skip
+
+    def write_csv(self, path, *, inputs=(), force: bool = False) -> None:
+        """The per-segment table as CSV (units in the column names).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file to write.
+        inputs : sequence of path
+            Files the plan was made from (never overwritten unless ``force``).
+        force : bool
+            Allow ``path`` to be one of ``inputs``.
+        """
+        import csv
+        import io
+
+        from ..io.safe_write import atomic_output
+
+        rows = self.rows()
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        writer.writeheader()
+        for r in rows:
+            writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+        with atomic_output(path, inputs=inputs, force=force) as tmp:
+            tmp.write_text(buf.getvalue())
+
+
+def _time_weighted_mrr(mrr, length_mm, rpm) -> float:
+    # machining time of a segment ∝ length / feed speed ∝ length / rpm (fz, N fixed)
+    t = np.asarray(length_mm, float) / np.asarray(rpm, float)
+    return float(np.sum(np.asarray(mrr) * t) / np.sum(t))
+
+
+def _grid(lo_hi, step_or_n, what: str, integer_count: bool) -> np.ndarray:
+    lo, hi = (float(v) for v in lo_hi)
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+        raise ValueError(f"{what} range must be low <= high, got {lo_hi}")
+    if integer_count:
+        n = int(step_or_n)
+        if n < 1:
+            raise ValueError(f"{what}: at least one grid point")
+        return np.linspace(lo, hi, n) if hi > lo else np.array([lo])
+    step = float(step_or_n)
+    if not step > 0:
+        raise ValueError(f"{what} step must be positive, got {step_or_n}")
+    n = int(np.floor((hi - lo) / step + 1e-9)) + 1
+    return lo + step * np.arange(n)
+
+
+def plan_path(
+    structures: StructureSamples,
+    points_mm,
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    *,
+    n_segments: int | None = None,
+    feed_direction: str = "x",
+    rz_range_deg: tuple[float, float] = (0.0, 180.0),
+    rz_step_deg: float = 20.0,
+    rpm_range: tuple[float, float] = (1000.0, 3500.0),
+    n_speeds: int = 12,
+    p_required: float = 0.95,
+    depth_m: float | None = None,
+    max_rz_rate_deg_per_mm: float = 1.0,
+    max_depth_m: float = 0.02,
+    vibration_samples: int = 24,
+    check_sdm: bool = False,
+    points_per_decade: float = 200.0,
+) -> PathPlan:
+    """Plan Rz and spindle speed along a tool path (module docs).
+
+    Parameters
+    ----------
+    structures : StructureSamples
+        Sampled structures of the pose model (prior, or updated by test cuts).
+    points_mm : array_like
+        (n, 2) base-frame X, Y points [mm] of the path (a polyline), or start and end with
+        ``n_segments``.
+    tool, conditions, coefficients
+        Cutter; feed per tooth, radial depth and up/down milling (speed and axial depth are
+        planned); cutting coefficients.
+    n_segments : int, optional
+        Cut a start-end path into this many segments.
+    feed_direction : {"x", "y"}
+        Base-frame feed direction of the stability analysis.
+    rz_range_deg, rz_step_deg
+        Allowed Rz [deg] and the grid step.
+    rpm_range, n_speeds
+        Allowed spindle speeds [rpm] and the number of grid speeds.
+    p_required : float
+        Required P(stable) (e.g. 0.95).
+    depth_m : float, optional
+        Axial depth wanted [m]; None: as deep as allowed.
+    max_rz_rate_deg_per_mm : float
+        Largest change of Rz per mm of path between segments [deg/mm].
+    max_depth_m : float
+        Deepest cut the tool allows [m] (caps "as deep as allowed").
+    vibration_samples : int
+        Structures (the heaviest) whose forced vibration gives the bands (0: none).
+    check_sdm : bool
+        Also compute the semi-discretization limit of the mean structure at each chosen
+        configuration (``settings["checks"]``).
+    points_per_decade : float
+        Chatter-frequency grid of the zero-order search (:func:`~robovib.milling.structures.zoa_limits`).
+
+    Returns
+    -------
+    PathPlan
+    """
+    t0 = time.perf_counter()
+    if not 0 < p_required < 1:
+        raise ValueError(f"p_required must be in (0, 1), got {p_required!r}")
+    if depth_m is not None and not (np.isfinite(depth_m) and depth_m > 0):
+        raise ValueError(f"depth_m must be a positive depth [m] or None, got {depth_m!r}")
+    if not (np.isfinite(max_rz_rate_deg_per_mm) and max_rz_rate_deg_per_mm >= 0):
+        raise ValueError(f"max_rz_rate_deg_per_mm must be >= 0, got {max_rz_rate_deg_per_mm!r}")
+    mid, length = path_segments(points_mm, n_segments)
+    rz = _grid(rz_range_deg, rz_step_deg, "Rz", False)
+    rpm = _grid(rpm_range, n_speeds, "spindle speed", True)
+    if rpm[0] <= 0:
+        raise ValueError(f"spindle speeds must be positive, got {rpm_range}")
+    m, r, j = mid.shape[0], rz.size, rpm.size
+    poses = np.column_stack([np.repeat(mid, r, axis=0), np.tile(rz, m)])  # (m r, 3)
+    lim = structures.limits(poses, rpm, tool, conditions, coefficients,
+                            feed_direction=feed_direction, points_per_decade=points_per_decade,
+                            depth_cap_m=max_depth_m)  # fmt: skip
+    lim = lim.reshape(structures.n_samples, m, r, j)
+    w = structures.weights
+    # the tool's usable flute length caps the depth (a structure without a lobe in reach is
+    # stable at any depth: inf)
+    # just below the quantile: a cut there is stable for a weight of at least p_required
+    allowed = np.minimum(
+        weighted_quantile(lim, w, 1.0 - p_required) * (1 - 1e-9), max_depth_m
+    )  # (m, r, j)
+    feed_speed = conditions.feed_per_tooth_m * tool.n_flutes * rpm / 60.0  # (j,) m/s
+    ae = conditions.radial_depth_m
+    if depth_m is None:
+        depth = allowed
+        p_at = None
+        value = ae * depth * feed_speed[None, None, :]
+        feasible = depth > 0
+    else:
+        p_at = p_stable(lim, w, depth_m)  # (m, r, j)
+        feasible = p_at >= p_required
+        depth = np.full(allowed.shape, float(depth_m))
+        value = np.where(feasible, ae * depth_m * feed_speed[None, None, :], 0.0)
+    # machining-time weights: segment time ∝ length / feed speed
+    tw = length[:, None, None] / feed_speed[None, None, :]
+    best_j = np.argmax(value + 1e-30 * (p_at if p_at is not None else 0), axis=2)  # (m, r)
+    if p_at is not None:  # an infeasible (segment, Rz): the speed of highest P(stable)
+        none = ~feasible.any(axis=2)
+        best_j = np.where(none, np.argmax(p_at, axis=2), best_j)
+    v_mr = np.take_along_axis(value, best_j[..., None], axis=2)[..., 0]
+    t_mr = np.take_along_axis(tw, best_j[..., None], axis=2)[..., 0]
+    # DP over Rz: maximise the removed volume rate integrated over time ~ sum(MRR * t)
+    gain = v_mr * t_mr
+    if p_at is not None:
+        p_best = np.take_along_axis(p_at, best_j[..., None], axis=2)[..., 0]
+        gain = gain + 1e-6 * gain.max(initial=1e-30) * p_best  # ties: the safer one
+    step_ok = np.abs(rz[:, None] - rz[None, :]) <= (
+        max_rz_rate_deg_per_mm * 0.5 * (length[:-1, None, None] + length[1:, None, None]) + 1e-9
+    )  # (m-1, r, r): from segment i at rz a to i+1 at rz b
+    score = gain[0].copy()
+    back = np.zeros((m, r), int)
+    for i in range(1, m):
+        cand = np.where(step_ok[i - 1], score[:, None], -np.inf)  # (from, to)
+        back[i] = np.argmax(cand, axis=0)
+        score = cand[back[i], np.arange(r)] + gain[i]
+    path_r = np.empty(m, int)
+    path_r[-1] = int(np.argmax(score))
+    for i in range(m - 1, 0, -1):
+        path_r[i - 1] = back[i, path_r[i]]
+    seg = np.arange(m)
+    jj = best_j[seg, path_r]
+    plan_depth = depth[seg, path_r, jj]
+    plan_allowed = allowed[seg, path_r, jj]
+    p_plan = p_stable(lim[:, seg, path_r, jj], w, plan_depth)
+    mrr = ae * plan_depth * feed_speed[jj]
+    fixed = _fixed_comparison(value, allowed, tw, feasible, rz, rpm, ae, feed_speed, length,
+                              depth_m, lim, w, p_required)  # fmt: skip
+    vib = []
+    if int(vibration_samples) > 0:
+        vib = _vibration(structures, mid, rz[path_r], rpm[jj], plan_depth, tool, conditions,
+                         coefficients, feed_direction, int(vibration_samples))  # fmt: skip
+    checks = {}
+    if check_sdm:
+        checks["sdm_mean_limit_m"] = _sdm_check(structures.model, mid, rz[path_r], rpm[jj], tool,
+                                                conditions, coefficients, feed_direction)  # fmt: skip
+    settings = {
+        "p_required": float(p_required),
+        "depth_asked_m": None if depth_m is None else float(depth_m),
+        "feed_direction": feed_direction,
+        "rz_grid_deg": rz.tolist(),
+        "rpm_grid": rpm.tolist(),
+        "max_rz_rate_deg_per_mm": float(max_rz_rate_deg_per_mm),
+        "max_depth_m": float(max_depth_m),
+        "radial_depth_m": float(ae),
+        "feed_per_tooth_m": float(conditions.feed_per_tooth_m),
+        "n_flutes": int(tool.n_flutes),
+        "method": "zero-order (batched) over sampled structures",
+        "points_per_decade": float(points_per_decade),
+        "structures": dict(structures.settings),
+        "effective_sample_size": structures.effective_sample_size,
+        "checks": checks,
+        "seconds": time.perf_counter() - t0,
+    }
+    return PathPlan(
+        mid, length, rz[path_r], rpm[jj], plan_allowed, plan_depth, p_plan,
+        None if p_at is None else p_at[seg, path_r, jj],
+        feasible[seg, path_r, jj], mrr, vib, fixed, settings, lim,
+    )  # fmt: skip
+
+
+def _fixed_comparison(value, allowed, tw, feasible, rz, rpm, ae, feed_speed, length, depth_m,
+                      lim, w, p_required) -> dict:  # fmt: skip
+    """Best single (Rz, speed) for the whole path: depth per segment, and one depth."""
+    # per-segment depth (as allowed there) at one Rz and speed
+    total = np.sum(value * tw, axis=0) / np.sum(tw, axis=0)  # (r, j) time-weighted mean MRR
+    if depth_m is not None:
+        total = np.where(feasible.all(axis=0), total, 0.0)
+    r0, j0 = np.unravel_index(int(np.argmax(total)), total.shape)
+    out = {
+        "rz_deg": float(rz[r0]),
+        "spindle_rpm": float(rpm[j0]),
+        "mean_mrr_mm3_per_s": float(total[r0, j0] * 1e9),
+        "rule": "one Rz and speed for the whole path, the depth per segment as allowed there "
+        "at the same P(stable)" if depth_m is None else
+        "one Rz and speed for the whole path at the depth asked, feasible on every segment",
+    }  # fmt: skip
+    if depth_m is None:
+        # and one depth for the whole path: the smallest allowed one at that Rz and speed
+        one = allowed.min(axis=0)  # (r, j)
+        mrr_one = ae * one * feed_speed[None, :]
+        r1, j1 = np.unravel_index(int(np.argmax(mrr_one)), mrr_one.shape)
+        out["one_depth"] = {
+            "rz_deg": float(rz[r1]),
+            "spindle_rpm": float(rpm[j1]),
+            "depth_mm": float(one[r1, j1] * 1e3),
+            "mean_mrr_mm3_per_s": float(mrr_one[r1, j1] * 1e9),
+        }
+    return out
+
+
+def _vibration(structures, mid, rz, rpm, depth, tool, conditions, coefficients, feed, n_draws):
+    """Mean deflection and peak-to-valley per revolution at each chosen configuration.
+
+    The structures' modes at the segment (their weights: prior or posterior) filter the
+    mechanistic cutting force (:func:`robovib.milling.forces.milling_forces` rotated into the
+    base frame) by the sum of modal receptances from rest, exactly as
+    :func:`robovib.milling.prediction.convolve_force` (FFT of the zero-padded force); the
+    summaries are :func:`robovib.milling.prediction.summarise_vibration`'s. Reported: the
+    weighted median and the weighted 2.5-97.5 % band over ``n_draws`` structures of the larger
+    horizontal deflection (norm of X, Y) and the larger peak-to-valley of X and Y.
+    """
+    from .forces import milling_forces
+    from .prediction import summarise_vibration
+    from .workflow import base_frame_forces
+
+    fs, duration, skip = 1000.0, 1.5, 0.5
+    t = np.arange(round(duration * fs)) / fs
+    fn, k, zeta, in_feed = structures.modes(np.column_stack([mid, rz]), feed)
+    w = structures.weights
+    take = np.argsort(-w, kind="stable")[: max(int(n_draws), 1)]  # the heaviest structures
+    wt = w[take] / w[take].sum()
+    n_pad = 2 * t.size
+    f = np.fft.rfftfreq(n_pad, 1.0 / fs)
+    axis = {"x": 0, "y": 1}
+    normal = "y" if feed == "x" else "x"
+    out = []
+    for i in range(mid.shape[0]):
+        cond = replace(conditions, spindle_rpm=float(rpm[i]), axial_depth_m=float(depth[i]))
+        force = base_frame_forces(milling_forces(t, tool, cond, coefficients), feed)
+        mean_d, pv = np.zeros((take.size, 2)), np.zeros((take.size, 2))
+        for d, sel in ((feed, in_feed), (normal, ~in_feed)):
+            r = f[None, None, :] / fn[take, i][:, sel, None]
+            g = (
+                1.0 / (k[take, i][:, sel, None] * (1 - r**2 + 2j * zeta[take, i][:, sel, None] * r))
+            ).sum(1)
+            spec = np.fft.rfft(force[:, axis[d]], n_pad)
+            disp = np.fft.irfft(spec[None, :] * g, n_pad)[:, : t.size]
+            for s in range(take.size):
+                summ = summarise_vibration(disp[s], fs, float(rpm[i]), skip)
+                mean_d[s, axis[d]], pv[s, axis[d]] = summ.mean_deflection_m, summ.peak_to_valley_m
+        md, p2v = np.linalg.norm(mean_d, axis=1), pv.max(axis=1)
+        q = (0.025, 0.5, 0.975)
+        a, b = (np.array([weighted_quantile(v[:, None], wt, qq)[0] for qq in q]) for v in (md, p2v))
+        out.append({
+            "mean_deflection_m": float(a[1]), "mean_deflection_band_m": [float(a[0]), float(a[2])],
+            "peak_to_valley_m": float(b[1]), "peak_to_valley_band_m": [float(b[0]), float(b[2])],
+        })  # fmt: skip
+    return out
+
+
+def _sdm_check(model, mid, rz, rpm, tool, conditions, coefficients, feed) -> list[float]:
+    """Semi-discretization limit [m] of the mean structure at each chosen configuration."""
+    from .sdm import sdm_lobes
+
+    rows = model.modes(np.column_stack([mid, rz]))
+    normal = "y" if feed == "x" else "x"
+    out = []
+    for i, row in enumerate(rows):
+        by_dir: dict[str, list] = {feed: [], normal: []}
+        for d, pm in row.items():
+            base = d.rstrip("0123456789") or d
+            if base in by_dir:
+                by_dir[base].append(pm.parameters)
+        env = sdm_lobes(by_dir[feed], by_dir[normal], tool, conditions, coefficients,
+                        [float(rpm[i])], steps_per_period=20)  # fmt: skip
+        out.append(float(env.a_lim_m[0]))
+    return out
+
+
+def plot_path_plan(plan: PathPlan, *, color_by: str = "depth"):
+    """Path coloured by allowed depth or P(stable), and Rz and speed along it.
+
+    Parameters
+    ----------
+    plan : PathPlan
+        The plan.
+    color_by : {"depth", "p_stable"}
+        What colours the path.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    if color_by not in ("depth", "p_stable"):
+        raise ValueError(f"color_by must be 'depth' or 'p_stable', got {color_by!r}")
+    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4.5))
+    c = plan.depth_allowed_m * 1e3 if color_by == "depth" else plan.p_stable
+    c = np.where(np.isfinite(c), c, np.nan)
+    sc = ax0.scatter(plan.midpoints_mm[:, 0], plan.midpoints_mm[:, 1], c=c, cmap="viridis", s=40)
+    ax0.plot(plan.midpoints_mm[:, 0], plan.midpoints_mm[:, 1], color="0.6", lw=0.8, zorder=0)
+    fig.colorbar(sc, ax=ax0, label="allowed depth [mm]" if color_by == "depth" else "P(stable)")
+    ax0.set(xlabel="X [mm]", ylabel="Y [mm]", title="tool path")
+    ax0.set_aspect("equal", adjustable="datalim")
+    s = np.concatenate([[0], np.cumsum(plan.length_mm)[:-1]]) + 0.5 * plan.length_mm
+    ax1.step(s, plan.rz_deg, where="mid", color="C0", label="Rz [deg]")
+    grid = plan.settings.get("rz_grid_deg") or [float(plan.rz_deg.min()), float(plan.rz_deg.max())]
+    pad = max(5.0, 0.05 * (grid[-1] - grid[0]))
+    ax1.set(xlabel="path length [mm]", ylabel="Rz [deg]", ylim=(grid[0] - pad, grid[-1] + pad))
+    ax2 = ax1.twinx()
+    ax2.step(s, plan.spindle_rpm, where="mid", color="C1", label="speed [rpm]")
+    ax2.set_ylabel("spindle speed [rpm]")
+    ax1.set_title(f"Rz and speed along the path (P(stable) >= {plan.settings['p_required']:g})")
+    fig.tight_layout()
+    fig.legend(loc="lower right", fontsize=8)
+    return fig
