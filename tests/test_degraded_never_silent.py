@@ -43,9 +43,13 @@ def uncalibrated(tmp_path_factory):
     folder = tmp_path_factory.mktemp("models")
     full = load_chapter3_model().save(folder / "full.h5")
     bare = load_chapter3_model().save(folder / "bare.h5")
+    from robovib.io.h5safe import seal, seal_file
+
     with h5py.File(bare, "a") as h5:
         assert "calibration" in h5
         del h5["calibration"]
+        seal(h5)  # a file written without calibration, not a damaged one
+    seal_file(bare)
     return full, bare
 
 
@@ -103,10 +107,23 @@ def test_real_valued_hdf5_and_uff_frfs_are_refused(tmp_path):
     h5 = tmp_path / "frf.h5"
     write_frfs(h5, [FRF(f, h, direction="x")])
     assert np.allclose(read_frfs(h5)[0].values, h)  # the complex file reads
+    from robovib.io.h5safe import seal, seal_file
+
     with h5py.File(h5, "a") as fh:
         (name,) = list(fh["frf"])
         del fh["frf"][name]["values"]
         fh["frf"][name]["values"] = np.abs(h)  # magnitude only, real dtype
+        seal(fh)  # written so by another tool, not damaged
+    seal_file(h5)
+    with pytest.raises(
+        ValueError, match=rf"frf\.h5: '?/?frf/{name}/values'?: .*(no phase|complex)"
+    ):
+        read_frfs(h5)
+    with h5py.File(h5, "a") as fh:
+        del fh["frf"][name]["values"]
+        fh["frf"][name]["values"] = np.abs(h) + 0j  # magnitude only, complex dtype
+        seal(fh)
+    seal_file(h5)
     with pytest.raises(ValueError, match=rf"frf\.h5: /frf/{name}/values: FRF x has no phase"):
         read_frfs(h5)
     uff = tmp_path / "frf.uff"

@@ -11,6 +11,7 @@ file's size on disk: :func:`robovib.io.h5safe.scan`.)
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 
@@ -24,7 +25,6 @@ __all__ = ["MAX_INPUTS", "MAX_TRAINING_POINTS", "TreeChecker", "check_pose_tree"
 MAX_TRAINING_POINTS = 20_000
 #: Most pose inputs (columns of X) a pose model may have.
 MAX_INPUTS = 64
-_DIRECTIONS = ("x", "y", "z")
 _KINDS = ("BatchedGPRegressor", "ModeSwitchingGPRegressor")
 _SWITCH_ATTRS = ("direction", "found", "assumed", "threshold_hz", "delta_bic", "ashman_d",
                  "gap_sigma", "n_low", "n_high", "reason")  # fmt: skip
@@ -261,8 +261,16 @@ def check_pose_tree(tree: H5Tree, path) -> None:
     names, dirs = params.get("input_names"), params.get("directions")
     if not (isinstance(names, list) and names and all(isinstance(n, str) for n in names)):
         c.fail("/", "attribute 'params_json' has no list of input_names")
-    if not (isinstance(dirs, list) and dirs and all(d in _DIRECTIONS for d in dirs)):
-        c.fail("/", "attribute 'params_json' has no list of directions among x, y, z")
+    if not (
+        isinstance(dirs, list)
+        and dirs
+        and all(isinstance(d, str) and re.fullmatch(r"[xyz]\d*", d) for d in dirs)
+    ):
+        c.fail(
+            "/",
+            "attribute 'params_json' has no list of directions among x, y, z (or mode ids "
+            "x1, x2, ...)",
+        )
     if len(set(dirs)) != len(dirs) or len(set(names)) != len(names):
         c.fail("/", "attribute 'params_json' repeats an input name or a direction")
     for key in ("robovib_version", "created_utc"):
