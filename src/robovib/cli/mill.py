@@ -159,9 +159,14 @@ def lobes(
     from ..milling.workflow import pose_extrapolation
 
     outside = list(pose_extrapolation(model, pose)) if model is not None else []
+    overridden = [n for n, v in (("Kt", kt), ("Kn", kn)) if v is not None]
+    used_material = (material_name if not overridden else None if len(overridden) == 2
+                     else f"{material_name} ({overridden[0]} given)")  # fmt: skip
     if json_out:
-        emit_json({"pose_mm_deg": pose, "material": material_name,
-                   "extrapolation": outside, **doc})  # fmt: skip
+        emit_json({"pose_mm_deg": pose, "material": used_material,
+                   "extrapolation": outside, **doc},
+                  settings={"ae": float(f"{from_si(cond.radial_depth_m, 'mm'):.12g}"),
+                            "material_name": used_material})  # fmt: skip
         return
     env = chart.envelope
     typer.echo(f"{chart.title.splitlines()[0]}")
@@ -189,8 +194,14 @@ def lobes(
         state = {True: "stable", False: "CHATTER", None: "outside the speed range"}[
             chart.operating_point_stable
         ]
+        p_op = chart.operating_point_p_stable
         typer.echo(
             f"operating point {chart.operating_point[0]:.0f} rpm, {from_si(chart.operating_point[1], 'mm'):.2f} mm: {state}"
+            + (
+                ""
+                if p_op is None
+                else f", P(stable) = {p_op:.2f} ({chart.probability.settings['n_samples']} samples)"
+            )
         )
     if plot is not None:
         typer.echo(f"wrote {plot}")

@@ -264,6 +264,8 @@ class LobesChart:
     probability: object | None = None
     #: Which mode the deterministic envelope assumed where the pose model is unsure (mixtures).
     notes: tuple[str, ...] = ()
+    #: P(stable) of the operating point from the sampled envelopes (with ``probability``).
+    operating_point_p_stable: float | None = None
 
     @property
     def n_flip_limited(self) -> int:
@@ -315,6 +317,8 @@ class LobesChart:
                 "depth_m": self.operating_point[1],
                 "stable": self.operating_point_stable,
             }
+            if self.operating_point_p_stable is not None:
+                doc["operating_point"]["p_stable"] = self.operating_point_p_stable
         if self.cuts is not None:
             doc["cuts"] = self.cuts.to_dict()
         if self.probability is not None:
@@ -322,6 +326,7 @@ class LobesChart:
             doc["probability"] = {
                 "n_samples": p.settings["n_samples"],
                 "a_lim_p05_m": p.depth_quantile_m(0.05),
+                "a_lim_p50_m": p.depth_quantile_m(0.5),
                 "a_lim_p95_m": p.depth_quantile_m(0.95),
                 "sampling": p.settings["sampling"],
                 "time_domain_ratio": p.settings.get("time_domain_ratio"),
@@ -491,7 +496,7 @@ def lobes_chart(
         from ..io.cuts import read_cuts_csv
 
         cuts = read_cuts_csv(cuts_file)
-    op_stable = None
+    op_stable = op_p = None
     if operating_point is not None:
         op_rpm, op_depth = (float(v) for v in operating_point)
         if not (op_rpm > 0 and op_depth > 0):
@@ -500,6 +505,8 @@ def lobes_chart(
             )
         if rpm.min() <= op_rpm <= rpm.max():
             op_stable = bool(env.is_stable(op_rpm, op_depth)[0])
+            if probability is not None:
+                op_p = probability.p_stable_at(op_rpm, op_depth)
         operating_point = (op_rpm, op_depth)
     ae_mm = conditions.radial_depth_m * 1e3
     tool_txt = (f"Ø{tool.diameter_m * 1e3:g} mm, {tool.n_flutes} teeth, ae {ae_mm:g} mm "
@@ -508,7 +515,8 @@ def lobes_chart(
                         extra=f"{method.upper()}" + (f", FRF {Path(frf_file).name}" if frf_file else ""))  # fmt: skip
     return LobesChart(env, modes_x, modes_y, tool, conditions, coefficients, title, cuts,
                       operating_point, op_stable, None if frf_file is None else str(frf_file),
-                      probability=probability, notes=notes)  # fmt: skip
+                      probability=probability, notes=notes,
+                      operating_point_p_stable=op_p)  # fmt: skip
 
 
 def _assumed_mode_notes(model, pose, directions) -> tuple[str, ...]:

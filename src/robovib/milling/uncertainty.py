@@ -296,6 +296,42 @@ class StabilityProbability:
         d = np.atleast_1d(np.asarray(depth_m, float))
         return np.mean(self.minimum_depth_samples_m[:, None] > d[None, :], axis=0)
 
+    def p_stable_at(self, spindle_rpm: float, depth_m: float) -> float:
+        """Probability that one cut (speed [rpm], depth [m]) is stable.
+
+        The fraction of samples whose envelope, interpolated linearly between the chart's
+        speeds, lies above the depth.
+
+        Parameters
+        ----------
+        spindle_rpm : float
+            Speed [rpm], inside the chart's speed range.
+        depth_m : float
+            Axial depth [m].
+
+        Returns
+        -------
+        float
+            P(stable) in [0, 1].
+
+        Raises
+        ------
+        ValueError
+            The speed lies outside the chart's range, or the depth is negative or not finite.
+        """
+        rpm = np.asarray(self.spindle_rpm, float)
+        s, d = float(spindle_rpm), float(depth_m)
+        if not rpm.min() <= s <= rpm.max():
+            raise ValueError(f"{s:g} rpm is outside the chart's {rpm.min():g}-{rpm.max():g} rpm")
+        if not (np.isfinite(d) and d >= 0):
+            raise ValueError(f"depth_m must be finite and >= 0, got {depth_m!r}")
+        j = int(np.clip(np.searchsorted(rpm, s), 1, rpm.size - 1))
+        w = (s - rpm[j - 1]) / (rpm[j] - rpm[j - 1])
+        lo, hi = self.a_lim_samples_m[:, j - 1], self.a_lim_samples_m[:, j]
+        with np.errstate(invalid="ignore"):
+            a = np.where(np.isinf(lo) | np.isinf(hi), np.minimum(lo, hi), (1 - w) * lo + w * hi)
+        return float(np.mean(a > d))
+
     def depth_quantile_m(self, q: float) -> np.ndarray:
         """Depth [m] at each speed that is stable with probability ``1 - q`` (e.g. q = 0.05).
 
