@@ -143,7 +143,16 @@ def lobes(
             raise ValueError("give --x --y --rz (pose model), --mode ... or --frf FILE")
         model, pose = workspace_model(model_path, seed), (x, y, rz)
         pose_label = f"X {x:g} mm, Y {y:g} mm, Rz {rz:g}°, feed {feed}"
-    chart = lobes_chart(
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    err_console = Console(stderr=True)
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                   TimeRemainingColumn(), console=err_console, transient=True,
+                   disable=samples == 0 or not err_console.is_terminal)  # fmt: skip
+    task = bar.add_task("P(stable): sampled envelopes", total=max(samples, 1))
+    with bar:
+        chart = lobes_chart(
         tool=tool, conditions=cond, coefficients=coef, spindle_rpm=parse_rpm_range(rpm_range),
         method=method, modes_x=modes_x, modes_y=modes_y, frf_file=frf, cuts_file=cuts,
         operating_point=None if operating_point is None else parse_operating_point(operating_point),
@@ -151,7 +160,8 @@ def lobes(
         f"Kt {coef.ktc:.3g}, Kn {coef.krc:.3g} N/m²", pose_model=model, pose=pose,
         feed_direction=feed, n_samples=samples, rng=seed, steps_per_period=steps,
         time_domain_margin=time_domain_margin,
-    )  # fmt: skip
+        progress=lambda done, total: bar.update(task, completed=done, total=total),
+        )  # fmt: skip
     if plot is not None:
         use_agg()
         save_figure(plot_lobes_chart(chart), plot)

@@ -355,6 +355,7 @@ def lobes_chart(
     n_samples: int = 0,
     rng=0,
     time_domain_margin: bool = False,
+    progress=None,
 ) -> LobesChart:
     """Stability envelope from modes or a measured FRF file, with cuts and an operating point.
 
@@ -392,6 +393,8 @@ def lobes_chart(
     time_domain_margin : bool
         With ``n_samples``: scale the sampled envelopes by the time-domain limit / linear limit
         of the mean modes at each speed (a cut entering at full depth; ~1 s per speed).
+    progress : callable, optional
+        ``progress(done, total)`` while the samples are computed (never printed here).
 
     Returns
     -------
@@ -456,7 +459,7 @@ def lobes_chart(
             probability = stability_probability(
                 dist, tool, conditions, coefficients, rpm, n_samples=int(n_samples),
                 method=method, feed_direction=feed_direction, rng=rng,
-                time_domain_margin=bool(time_domain_margin),
+                time_domain_margin=bool(time_domain_margin), progress=progress,
                 **({"steps_per_period": steps_per_period} if method == "sdm" else {}),
             )  # fmt: skip
             if time_domain_margin:
