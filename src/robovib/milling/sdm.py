@@ -500,6 +500,7 @@ def critical_depths(
     warm_start: bool = True,
     scan_ratio: float = 1.2,
     first_stride: int = 8,
+    scan_from_m=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Lowest unstable depth [m] at each delay [s] of the semi-discretized DDE, and its multiplier.
 
@@ -532,6 +533,11 @@ def critical_depths(
         ``rtol / 4``. ``False``: every speed from the bottom, brackets closed to ``rtol``.
     first_stride : int
         Speeds between two full scans (``warm_start``).
+    scan_from_m : array_like (b,), optional
+        Depth [m] per delay from which the scan starts instead (e.g. a little below the limits
+        of a nearby structure, when many similar ones are solved); a speed already unstable
+        there is scanned from the bottom of the range, so the result is still the lowest
+        unstable depth above that start. NaN or non-positive: from the bottom.
 
     Returns
     -------
@@ -657,6 +663,11 @@ def critical_depths(
         return a_out, mu_out
 
     nb = delay.size
+    if scan_from_m is not None:
+        start = np.broadcast_to(np.asarray(scan_from_m, float), (nb,))
+        ok = np.isfinite(start) & (start > 0)
+        k_start = np.where(ok, np.searchsorted(grid, np.where(ok, start, 0.0)) - 1, 0)
+        return scan(np.arange(nb), np.clip(k_start, 0, grid.size - 1))
     stride0 = int(first_stride)
     if stride0 < 1:
         raise ValueError(f"first_stride must be >= 1, got {first_stride!r}")
@@ -699,6 +710,7 @@ def sdm_lobes(
     warm_start: bool = True,
     scan_ratio: float = 1.2,
     first_stride: int = 8,
+    scan_from_m=None,
 ) -> LobeEnvelope:
     """Stability envelope (critical axial depth at every speed) by semi-discretization.
 
@@ -730,6 +742,8 @@ def sdm_lobes(
         unstable window is wider than one step (:func:`critical_depths`).
     first_stride : int
         Speeds between two scans from the bottom of the range (``warm_start``).
+    scan_from_m : array_like (n,), optional
+        Depth [m] per speed where the scan starts (:func:`critical_depths`).
     rtol : float
         Relative tolerance on the critical depth.
     max_iter : int
@@ -786,6 +800,8 @@ def sdm_lobes(
             modes_x, modes_y, hmat, frac, delay[idx], depth_range_m=depth_range_m,
             n_scan=n_scan, rtol=rtol, max_iter=max_iter, eigensolver=eigensolver,
             warm_start=warm_start, scan_ratio=scan_ratio, first_stride=first_stride,
+            scan_from_m=None if scan_from_m is None else np.broadcast_to(
+                np.asarray(scan_from_m, float), rpm.shape)[idx],
         )  # fmt: skip
     nb = rpm.size
     active = np.flatnonzero(np.isfinite(a_lim))

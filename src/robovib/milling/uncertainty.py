@@ -364,6 +364,13 @@ def _envelope(mx, my, tool, cond, coef, rpm, method, **kw):
 FIT_STIFFNESS_BIAS = 0.018
 
 
+def _scan_start(rpm: np.ndarray, a_mean: np.ndarray) -> np.ndarray:
+    """Per speed: 0.7 x the mean's lowest limit within +-15 % of the speed (NaN: scan all)."""
+    near = np.abs(np.log(rpm[:, None] / rpm[None, :])) <= np.log(1.15)
+    low = np.min(np.where(near, a_mean[None, :], np.inf), axis=1)
+    return np.where(np.isfinite(low), 0.7 * low, np.nan)
+
+
 def _method_error(mean_env, mean_f, mean_n, tool, cond, coef, rpm, method, options) -> np.ndarray:
     """Relative numerical error of the envelope per speed, estimated on the mean modes."""
     steps = int(options.get("steps_per_period", 40))
@@ -402,6 +409,7 @@ def stability_probability(
     method_error: bool = True,
     fit_bias: float = FIT_STIFFNESS_BIAS,
     progress=None,
+    warm_from_mean: bool = True,
     **lobe_options,
 ) -> StabilityProbability:
     """Probability of a stable cut over speeds × depths from sampled modes (module docs).
@@ -462,6 +470,13 @@ def stability_probability(
     progress : callable, optional
         ``progress(done, total)`` after each sampled envelope (the library never prints; the
         CLI renders it).
+    warm_from_mean : bool
+        ``"sdm"``: each sample's depth search starts at 0.7 times the lowest limit of the mean
+        modes within ±15 % of the speed (where a sample's lobes can lie), not at the bottom of
+        the range; a sample already unstable there is scanned from the bottom, so its result
+        is still its lowest unstable depth unless a window of the sample lies wholly below the
+        start while the sample is stable at the start. ``False``: every sample scanned like
+        the mean (:func:`robovib.milling.sdm.critical_depths`).
 
     Returns
     -------
@@ -496,9 +511,12 @@ def stability_probability(
         raise ValueError(f"fit_bias must be a relative error in [0, 0.5), got {fit_bias!r}")
     a_s = np.empty((n, rpm.size))
     mins = np.empty(n)
+    sample_options = dict(lobe_options)
+    if method == "sdm" and warm_from_mean and "scan_from_m" not in lobe_options:
+        sample_options["scan_from_m"] = _scan_start(rpm, mean_env.a_lim_m)
     for i, (mf, mn) in enumerate(zip(feed_s, norm_s, strict=True)):
         env, mins[i] = _envelope(
-            mf, mn, tool, conditions, coefficients, rpm, method, **lobe_options
+            mf, mn, tool, conditions, coefficients, rpm, method, **sample_options
         )
         a_s[i] = env.a_lim_m
         if progress is not None:
