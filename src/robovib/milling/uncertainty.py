@@ -378,6 +378,7 @@ def _method_error(mean_env, mean_f, mean_n, tool, cond, coef, rpm, method, optio
     coarse_opts = {k: v for k, v in options.items() if k != "n_lobes"}
     if method == "sdm":
         coarse_opts["steps_per_period"] = max(steps // 2, 2)
+        coarse_opts.setdefault("scan_from_m", _scan_start(rpm, mean_env.a_lim_m))
         coarse = sdm_lobes(mean_f, mean_n, tool, cond, coef, rpm, **coarse_opts).a_lim_m
         fine = mean_env.a_lim_m
         with np.errstate(invalid="ignore", divide="ignore"):
