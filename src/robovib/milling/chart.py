@@ -247,6 +247,8 @@ class LobesChart:
         :class:`~robovib.milling.uncertainty.StabilityProbability`, if computed.
     notes
         Which mode the deterministic envelope assumed where the pose model is unsure.
+    operating_point_p_stable
+        P(stable) of the operating point from the sampled envelopes, if both are given.
     """
 
     envelope: LobeEnvelope
