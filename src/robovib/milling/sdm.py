@@ -536,8 +536,9 @@ def critical_depths(
     scan_from_m : array_like (b,), optional
         Depth [m] per delay from which the scan starts instead (e.g. a little below the limits
         of a nearby structure, when many similar ones are solved); a speed already unstable
-        there is scanned from the bottom of the range, so the result is still the lowest
-        unstable depth above that start. NaN or non-positive: from the bottom.
+        there is scanned again from about 3x lower (down to the bottom of the range), so the
+        result is its lowest unstable depth unless a window lies wholly below a stable start.
+        NaN or non-positive: from the bottom.
 
     Returns
     -------
@@ -624,8 +625,8 @@ def critical_depths(
         """Lowest critical depths at delay[idx]: geometric scan upwards, then refinement.
 
         ``k0`` (per speed) is the first grid index scanned (a speed already unstable there is
-        scanned again from the bottom of the grid); ``stop`` (per speed) ends a speed's scan
-        below that depth with ``inf`` (no unstable depth below it).
+        scanned again from six grid steps lower, down to the bottom of the grid); ``stop`` (per
+        speed) ends a speed's scan below that depth with ``inf`` (no unstable depth below it).
         """
         k0 = np.zeros(idx.size, int) if k0 is None else np.asarray(k0, int)
         stop = np.full(idx.size, np.inf) if stop is None else np.asarray(stop, float)
@@ -645,8 +646,8 @@ def critical_depths(
         again = np.flatnonzero((first >= 0) & (first == k0) & (k0 > 0))
         a_out = np.full(idx.size, np.inf)
         mu_out = np.full(idx.size, np.nan + 0j)
-        if again.size:  # unstable at the scan's first depth: the whole range
-            a_out[again], mu_out[again] = scan(idx[again])
+        if again.size:  # unstable at the scan's first depth: start 1.2^6 ~ 3x lower, again
+            a_out[again], mu_out[again] = scan(idx[again], np.maximum(k0[again] - 6, 0))
             first[again] = -1
         act = np.flatnonzero(first >= 0)
         if act.size:
@@ -674,9 +675,9 @@ def critical_depths(
     if not warm_start or nb < 2 * stride0 or stride0 == 1:
         return scan(np.arange(nb))
     # Warm start: every first_stride-th speed (in order of delay) is scanned from the bottom of
-    # the range; no speed can chatter below the lowest critical depth over all speeds, so the
-    # others are scanned from just below the lowest of those (a speed unstable already there
-    # is scanned from the bottom). Every speed is scanned at the same ratio, so an unstable
+    # the range; no speed chatters below the lowest critical depth over all speeds, so the others
+    # are scanned from just below the lowest limit of those (a speed unstable already there is
+    # scanned again from lower down). Every speed is scanned at the same ratio, so an unstable
     # window below a stable pocket is found wherever it is wider than one scan step.
     order = np.argsort(delay, kind="stable")
     first_pass = order[np.unique(np.r_[np.arange(0, nb, stride0), nb - 1])]

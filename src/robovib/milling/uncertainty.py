@@ -474,9 +474,9 @@ def stability_probability(
     warm_from_mean : bool
         ``"sdm"``: each sample's depth search starts at 0.7 times the lowest limit of the mean
         modes within ±15 % of the speed (where a sample's lobes can lie), not at the bottom of
-        the range; a sample already unstable there is scanned from the bottom, so its result
-        is still its lowest unstable depth unless a window of the sample lies wholly below the
-        start while the sample is stable at the start. ``False``: every sample scanned like
+        the range; a sample already unstable there is scanned again from lower down, so its
+        result is still its lowest unstable depth unless a window of the sample lies wholly
+        below the start while the sample is stable at the start. ``False``: every sample scanned like
         the mean (:func:`robovib.milling.sdm.critical_depths`).
 
     Returns
