@@ -33,7 +33,8 @@ def test_probability_of_unconditional_stability_matches_normal_cdf():
         "y": ModeDistribution(fn, k, c_mean, 0.0, 0.0, c_std),
     }
     res = stability_probability(dist, TOOL, SLOT, ALUMINIUM_7075, np.linspace(500, 5000, 30),
-                                n_samples=300, method="zoa", rng=1)  # fmt: skip
+                                n_samples=300, method="zoa", rng=1, method_error=False,
+                                fit_bias=0.0)  # fmt: skip
     ayy = directional_coefficients(0.0, math.pi, ALUMINIUM_7075.krc / ALUMINIUM_7075.ktc)[3]
     big_b = 8 * math.pi * k / (TOOL.n_flutes * ALUMINIUM_7075.ktc * abs(ayy))  # a_min = B z (1 + z)
     zeta_mu, zeta_sd = 0.05, 0.01
@@ -52,9 +53,37 @@ def test_probability_of_unconditional_stability_matches_normal_cdf():
 def test_zero_spread_gives_the_deterministic_envelope():
     dist = {"x": ModeDistribution(600.0, 5e6, 1131.0), "y": ModeDistribution(660.0, 6e6, 1500.0)}
     rpm = np.linspace(4000, 12000, 12)
-    res = stability_probability(dist, TOOL, SLOT, ALUMINIUM_7075, rpm, n_samples=3, method="sdm")
+    res = stability_probability(dist, TOOL, SLOT, ALUMINIUM_7075, rpm, n_samples=3, method="sdm",
+                                method_error=False, fit_bias=0.0)  # fmt: skip
     expected = res.mean.a_lim_m[:, None] > res.depth_m[None, :]
     np.testing.assert_array_equal(res.p_stable, expected.astype(float))
+
+
+def test_band_of_a_sharp_distribution_holds_the_converged_limit_and_the_fit_bias():
+    # Zero spread: the band is the method's own error and the fit's bias floor alone. The
+    # method error estimated from half the steps must cover the distance of the 40-step chart
+    # from an independently converged one (320 steps, tolerance 1e-6), speed by speed.
+    from robovib.milling.sdm import sdm_lobes
+
+    dist = {"x": ModeDistribution(600.0, 5e6, 1131.0), "y": ModeDistribution(660.0, 6e6, 1500.0)}
+    cond = CuttingConditions(3000, 1e-4, 1e-3, 0.004)  # a/D = 0.2: the SDM error is visible
+    rpm = np.linspace(4000, 12000, 12)
+    res = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=40,
+                                method="sdm", fit_bias=0.0)  # fmt: skip
+    conv = sdm_lobes([dist["x"].mean], [dist["y"].mean], TOOL, cond, ALUMINIUM_7075, rpm,
+                     steps_per_period=320, rtol=1e-6).a_lim_m  # fmt: skip
+    lo, hi = res.a_lim_samples_m.min(axis=0), res.a_lim_samples_m.max(axis=0)
+    assert np.all((lo <= conv) & (conv <= hi)), np.c_[lo / conv, hi / conv]
+    err = np.asarray(res.settings["method_error"])
+    assert np.all(err < 0.05) and np.all(err >= 1e-3)  # rtol is the floor
+    # The fit bias alone: every sample within +-fit_bias of the mean, both ends reached.
+    res = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=40,
+                                method="sdm", method_error=False, fit_bias=0.02)  # fmt: skip
+    ratio = res.a_lim_samples_m / res.mean.a_lim_m[None, :]
+    assert np.all(np.abs(ratio - 1) <= 0.02 + 1e-12)
+    assert ratio.min() < 0.985 and ratio.max() > 1.015
+    with pytest.raises(ValueError, match="fit_bias"):
+        stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=3, fit_bias=-1)
 
 
 class _PoseModel:

@@ -150,3 +150,40 @@ def test_mode_specs_split_and_flip_count():
     assert chart.n_flip_limited == 3
     assert ch.LobesChart(SimpleNamespace(kind=np.array(["hopf"])), mx, my, None, None, None,
                          "t").n_flip_limited == 0  # fmt: skip
+
+
+def test_operating_point_p_stable_median_and_settings_actually_used():
+    # P(stable) of the operating point is the fraction of sampled envelopes above it (counted
+    # here from the samples themselves), the JSON has the median of the limit, and the settings
+    # echo the radial depth and coefficients that were used, not the overridden defaults.
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    args = ["mill", "lobes", "--x", "2400", "--y", "0", "--rz", "45", "--samples", "6",
+            "--rpm-range", "1500:2500:11", "--radial-immersion", "0.3", "--kt", "7e8",
+            "--operating-point", "2000,0.9"]  # fmt: skip
+    res = CliRunner().invoke(app, [*args, "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    prob = doc["probability"]
+    assert "a_lim_p50_m" in prob
+    assert prob["a_lim_p05_m"] <= prob["a_lim_p50_m"] <= prob["a_lim_p95_m"]
+    assert doc["settings"]["ae"] == pytest.approx(0.3 * 25.4)
+    assert doc["material"] != "al7075" and "Kt" in doc["material"]
+    assert doc["settings"]["material_name"] == doc["material"]
+    from robovib.gp.chapter3_model import load_chapter3_predictor
+    from robovib.milling.chart import cutting_setup
+    from robovib.milling.uncertainty import mode_distribution_at_pose, stability_probability
+
+    tool, cond, coef = cutting_setup(ALUMINIUM_7075, diameter_m=0.0254, n_flutes=2,
+                                     helix_deg=30.0, radial_immersion=0.3, ktc_n_per_m2=7e8)  # fmt: skip
+    dist = mode_distribution_at_pose(load_chapter3_predictor(), (2400, 0, 45))
+    p = stability_probability(dist, tool, cond, coef, np.linspace(1500, 2500, 11), n_samples=6)
+    expected = float(np.mean(p.a_lim_samples_m[:, 5] > 0.9e-3))  # 2000 rpm is a chart speed
+    assert doc["operating_point"]["p_stable"] == pytest.approx(expected)
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert f"P(stable) = {expected:.2f} (6 samples)" in res.output

@@ -257,7 +257,8 @@ def test_margin_of_a_sharp_distribution_is_that_of_its_mean():
     cond = CuttingConditions(RPM, 0.058e-3, 3e-3, 6e-3)
     rpm = [1750.0]
     prob = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=6,
-                                 method="zoa", time_domain_margin=True, margin_samples=2)  # fmt: skip
+                                 method="zoa", time_domain_margin=True, margin_samples=2,
+                                 method_error=False, fit_bias=0.0)  # fmt: skip
     low, high = time_domain_limit_ratio(mx[:1], my[:1], TOOL, cond, ALUMINIUM_7075, rpm,
                                         prob.mean.a_lim_m, return_bracket=True)  # fmt: skip
     r = prob.a_lim_samples_m[:, 0] / prob.mean.a_lim_m[0]
@@ -265,7 +266,8 @@ def test_margin_of_a_sharp_distribution_is_that_of_its_mean():
     assert prob.settings["margin_samples"] == 2
     # margin_samples=0: the mean modes' bracket for every sample.
     mean_only = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, n_samples=6,
-                                      method="zoa", time_domain_margin=True, margin_samples=0)  # fmt: skip
+                                      method="zoa", time_domain_margin=True, margin_samples=0,
+                                      method_error=False, fit_bias=0.0)  # fmt: skip
     r0 = mean_only.a_lim_samples_m[:, 0] / mean_only.mean.a_lim_m[0]
     assert np.all((r0 >= low[0] - 1e-12) & (r0 <= high[0] + 1e-12))
     with pytest.raises(ValueError, match="margin_samples"):

@@ -228,3 +228,82 @@ def test_sdm_multi_mode_and_bad_input():
         )
     with pytest.raises(ValueError, match="fraction"):
         semi_discretization_multipliers(modes, [], np.zeros((4, 2, 2)), np.full(4, 0.3), 0.01, 1e-3)
+
+
+def _growth_rates(mode, tool, phi_st, phi_ex, coef, rpm, depths, *, n_step=480, periods=70):
+    """Independent reference: growth rate per tooth period of the linear regenerative DDE.
+
+    ``m x'' + c x' + k x = -a h(t) (x(t) - x(t - tau))`` (feed direction only, ``h`` the
+    instantaneous specific force of the engaged flutes) integrated by classical RK4 with
+    ``n_step`` steps per delay (delayed values at half steps by linear interpolation), for all
+    depths at once, from a generic initial history; the rate is log(peak late / peak early)
+    per period: > 0 where the cut chatters. Nothing of the semi-discretization is used.
+    """
+    tau = 60.0 / (tool.n_flutes * rpm)
+    dt = tau / n_step
+    wn, z, m = mode.omega_n, mode.damping_ratio, mode.mass_kg
+    kt, kn = coef.ktc, coef.krc
+    pitch = 2 * math.pi / tool.n_flutes
+
+    def h_of(t):
+        out = 0.0
+        for j in range(tool.n_flutes):
+            phi = (2 * math.pi * rpm / 60 * t + j * pitch) % (2 * math.pi)
+            if phi_st <= phi <= phi_ex:
+                s, c = math.sin(phi), math.cos(phi)
+                out += s * (kt * c + kn * s)
+        return out
+
+    a = np.asarray(depths, float)
+    hist = [np.cos(0.37 * i) * 1e-6 + np.zeros_like(a) for i in range(n_step + 1)]
+    x, v = hist[-1].copy(), np.zeros_like(a)
+    peaks = []
+    for p in range(periods):
+        peak = np.zeros_like(a)
+        new = [x.copy()]
+        for i in range(n_step):
+            t = (p * n_step + i) * dt
+            d0, d1 = hist[i], hist[i + 1]
+            dh = 0.5 * (d0 + d1)
+
+            def f(xx, vv, tt, dd):
+                acc = -(wn**2) * xx - 2 * z * wn * vv - a * h_of(tt) / m * (xx - dd)
+                return vv, acc
+
+            k1 = f(x, v, t, d0)
+            k2 = f(x + 0.5 * dt * k1[0], v + 0.5 * dt * k1[1], t + 0.5 * dt, dh)
+            k3 = f(x + 0.5 * dt * k2[0], v + 0.5 * dt * k2[1], t + 0.5 * dt, dh)
+            k4 = f(x + dt * k3[0], v + dt * k3[1], t + dt, d1)
+            x = x + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+            v = v + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+            new.append(x.copy())
+            peak = np.maximum(peak, np.abs(x))
+        hist = new
+        peaks.append(peak)
+    late = np.max(peaks[-10:], axis=0)
+    early = np.max(peaks[-40:-30], axis=0)
+    return np.log(late / early) / 30
+
+
+def test_lowest_unstable_depth_below_a_stable_pocket_against_a_time_domain_growth_rate():
+    # Up-milling at a/D = 0.05: flip lenses lie below the Hopf lobe, so at 11,390 rpm the cut
+    # chatters from ~1.9 mm, is stable again in a pocket, and chatters above ~5.3 mm. The
+    # depth search must report the lower edge (issue 36 item 4: it reported the upper one).
+    from robovib.milling.forces import engagement_angles
+
+    cond = CuttingConditions(10000, 1e-4, 1e-3, 0.05 * 0.02, down_milling=False)
+    phi_st, phi_ex = engagement_angles(BENCH_TOOL, cond)
+    rpm = np.linspace(5000, 25000, 120)[[38, 39]]  # 11387, 11555 rpm: windows at both
+    env = sdm_lobes([BENCH_MODE], [], BENCH_TOOL, cond, BENCH_COEF, rpm)
+    depths = np.geomspace(1.2e-3, 8e-3, 48)
+    for speed, a_lim in zip(rpm, env.a_lim_m, strict=True):
+        rate = _growth_rates(BENCH_MODE, BENCH_TOOL, phi_st, phi_ex, BENCH_COEF, speed, depths)
+        unstable = rate > 0
+        lowest = depths[np.argmax(unstable)]
+        # The case has a window: unstable, then stable again, then unstable (reference only).
+        runs = np.flatnonzero(np.diff(unstable.astype(int)))
+        assert unstable.any() and runs.size >= 2, (speed, unstable.astype(int))
+        step = depths[1] / depths[0]
+        assert lowest / step**1.5 <= a_lim <= lowest * step**0.5, (speed, a_lim, lowest)
+        # The envelope and the growth rate agree on both sides of the reported limit.
+        assert np.all(rate[depths < a_lim / step] < 0)

@@ -251,20 +251,23 @@ def run_info() -> dict:
     return {"command": ["robovib", *_STATE["argv"]], **command_settings(params)}
 
 
-def emit_json(doc: dict, *, units: dict[str, str] | None = None) -> None:
+def emit_json(
+    doc: dict, *, units: dict[str, str] | None = None, settings: dict | None = None
+) -> None:
     """Print ``doc`` as one self-describing JSON document (strict: NaN and inf become null,
     the reason listed under ``null_reasons``; see :func:`robovib.io.json_dumps`).
 
     Added to ``doc``: ``robovib_version``, ``command`` (argv as run), ``settings`` (every option
     and argument, defaults included), ``settings_units`` (setting -> unit), ``input_files`` (path
     and SHA-256 of each input file) and ``units`` (unit of every key of ``doc`` whose name has
-    no unit suffix: from :data:`robovib.io.json_units.KEY_UNITS` and ``units``).
+    no unit suffix: from :data:`robovib.io.json_units.KEY_UNITS` and ``units``). ``settings``
+    replaces echoed options by the values actually used (e.g. a default another option overrode).
     """
     from ..io import json_dumps
     from ..io.json_units import self_describing_document
     from ..io.provenance import run_provenance
 
-    out = self_describing_document(doc, run_provenance(), units=units)
+    out = self_describing_document(doc, run_provenance(settings=settings), units=units)
     typer.echo(json_dumps(out, indent=2))
 
 

@@ -201,7 +201,16 @@ def lobes(
             raise ValueError("give --x --y --rz (pose model), --mode ... or --frf FILE")
         model, pose = workspace_model(model_path, seed), (x, y, rz)
         pose_label = f"X {x:g} mm, Y {y:g} mm, Rz {rz:g}°, feed {feed}"
-    chart = lobes_chart(
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    err_console = Console(stderr=True)
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                   TimeRemainingColumn(), console=err_console, transient=True,
+                   disable=samples == 0 or not err_console.is_terminal)  # fmt: skip
+    task = bar.add_task("P(stable): sampled envelopes", total=max(samples, 1))
+    with bar:
+        chart = lobes_chart(
         tool=tool, conditions=cond, coefficients=coef, spindle_rpm=parse_rpm_range(rpm_range),
         method=method, modes_x=modes_x, modes_y=modes_y, frf_file=frf, cuts_file=cuts,
         operating_point=None if operating_point is None else parse_operating_point(operating_point),
@@ -209,7 +218,8 @@ def lobes(
         f"Kt {coef.ktc:.3g}, Kn {coef.krc:.3g} N/m²", pose_model=model, pose=pose,
         feed_direction=feed, n_samples=samples, rng=seed, steps_per_period=steps,
         time_domain_margin=time_domain_margin,
-    )  # fmt: skip
+        progress=lambda done, total: bar.update(task, completed=done, total=total),
+        )  # fmt: skip
     if plot is not None:
         use_agg()
         save_figure(plot_lobes_chart(chart), plot)
@@ -218,9 +228,14 @@ def lobes(
 
     outside = list(pose_extrapolation(model, pose)) if model is not None else []
     checks = _lobes_checks(model, samples)
+    overridden = [n for n, v in (("Kt", kt), ("Kn", kn)) if v is not None]
+    used_material = (material_name if not overridden else None if len(overridden) == 2
+                     else f"{material_name} ({overridden[0]} given)")  # fmt: skip
     if json_out:
-        emit_json({"pose_mm_deg": pose, "material": material_name,
-                   "extrapolation": outside, **doc, **checks})  # fmt: skip
+        emit_json({"pose_mm_deg": pose, "material": used_material,
+                   "extrapolation": outside, **doc, **checks},
+                  settings={"ae": float(f"{from_si(cond.radial_depth_m, 'mm'):.12g}"),
+                            "material_name": used_material})  # fmt: skip
         return
     env = chart.envelope
     typer.echo(f"{chart.title.splitlines()[0]}")
@@ -250,8 +265,14 @@ def lobes(
         state = {True: "stable", False: "CHATTER", None: "outside the speed range"}[
             chart.operating_point_stable
         ]
+        p_op = chart.operating_point_p_stable
         typer.echo(
             f"operating point {chart.operating_point[0]:.0f} rpm, {from_si(chart.operating_point[1], 'mm'):.2f} mm: {state}"
+            + (
+                ""
+                if p_op is None
+                else f", P(stable) = {p_op:.2f} ({chart.probability.settings['n_samples']} samples)"
+            )
         )
     if plot is not None:
         typer.echo(f"wrote {plot}")

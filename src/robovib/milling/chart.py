@@ -250,6 +250,8 @@ class LobesChart:
         :class:`~robovib.milling.uncertainty.StabilityProbability`, if computed.
     notes
         Which mode the deterministic envelope assumed where the pose model is unsure.
+    operating_point_p_stable
+        P(stable) of the operating point from the sampled envelopes, if both are given.
     """
 
     envelope: LobeEnvelope
@@ -267,6 +269,8 @@ class LobesChart:
     probability: object | None = None
     #: Which mode the deterministic envelope assumed where the pose model is unsure (mixtures).
     notes: tuple[str, ...] = ()
+    #: P(stable) of the operating point from the sampled envelopes (with ``probability``).
+    operating_point_p_stable: float | None = None
 
     @property
     def n_flip_limited(self) -> int:
@@ -318,6 +322,8 @@ class LobesChart:
                 "depth_m": self.operating_point[1],
                 "stable": self.operating_point_stable,
             }
+            if self.operating_point_p_stable is not None:
+                doc["operating_point"]["p_stable"] = self.operating_point_p_stable
         if self.cuts is not None:
             doc["cuts"] = self.cuts.to_dict()
         if self.probability is not None:
@@ -325,6 +331,7 @@ class LobesChart:
             doc["probability"] = {
                 "n_samples": p.settings["n_samples"],
                 "a_lim_p05_m": p.depth_quantile_m(0.05),
+                "a_lim_p50_m": p.depth_quantile_m(0.5),
                 "a_lim_p95_m": p.depth_quantile_m(0.95),
                 "sampling": p.settings["sampling"],
                 "time_domain_ratio": p.settings.get("time_domain_ratio"),
@@ -353,6 +360,7 @@ def lobes_chart(
     n_samples: int = 0,
     rng=0,
     time_domain_margin: bool = False,
+    progress=None,
 ) -> LobesChart:
     """Stability envelope from modes or a measured FRF file, with cuts and an operating point.
 
@@ -390,6 +398,8 @@ def lobes_chart(
     time_domain_margin : bool
         With ``n_samples``: scale the sampled envelopes by the time-domain limit / linear limit
         of the mean modes at each speed (a cut entering at full depth; ~1 s per speed).
+    progress : callable, optional
+        ``progress(done, total)`` while the samples are computed (never printed here).
 
     Returns
     -------
@@ -462,7 +472,7 @@ def lobes_chart(
             probability = stability_probability(
                 dist, tool, conditions, coefficients, rpm, n_samples=int(n_samples),
                 method=method, feed_direction=feed_direction, rng=rng,
-                time_domain_margin=bool(time_domain_margin),
+                time_domain_margin=bool(time_domain_margin), progress=progress,
                 **({"steps_per_period": steps_per_period} if method == "sdm" else {}),
             )  # fmt: skip
             if time_domain_margin:
@@ -502,7 +512,7 @@ def lobes_chart(
         from ..io.cuts import read_cuts_csv
 
         cuts = read_cuts_csv(cuts_file)
-    op_stable = None
+    op_stable = op_p = None
     if operating_point is not None:
         op_rpm, op_depth = (float(v) for v in operating_point)
         if not (op_rpm > 0 and op_depth > 0):
@@ -511,6 +521,8 @@ def lobes_chart(
             )
         if rpm.min() <= op_rpm <= rpm.max():
             op_stable = bool(env.is_stable(op_rpm, op_depth)[0])
+            if probability is not None:
+                op_p = probability.p_stable_at(op_rpm, op_depth)
         operating_point = (op_rpm, op_depth)
     ae_mm = conditions.radial_depth_m * 1e3
     tool_txt = (f"Ø{tool.diameter_m * 1e3:g} mm, {tool.n_flutes} teeth, ae {ae_mm:g} mm "
@@ -519,7 +531,8 @@ def lobes_chart(
                         extra=f"{method.upper()}" + (f", FRF {Path(frf_file).name}" if frf_file else ""))  # fmt: skip
     return LobesChart(env, modes_x, modes_y, tool, conditions, coefficients, title, cuts,
                       operating_point, op_stable, None if frf_file is None else str(frf_file),
-                      probability=probability, notes=notes)  # fmt: skip
+                      probability=probability, notes=notes,
+                      operating_point_p_stable=op_p)  # fmt: skip
 
 
 def _assumed_mode_notes(model, pose, directions) -> tuple[str, ...]:

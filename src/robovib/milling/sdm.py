@@ -44,10 +44,12 @@ asymptotically stable iff all eigenvalues (Floquet multipliers) satisfy ``|mu| <
 multiplier leaving the unit circle as a complex pair is a Hopf (secondary Hopf) bifurcation, at
 ``-1`` a flip (period doubling) — the lobes the zero-order method cannot see at low immersion.
 
-The critical depth at every speed is found by a coarse geometric scan in depth (the lowest
-unstable depth, so stable islands above a lobe do not hide it) refined by the Illinois
-(regula-falsi) method on ``log |mu|_max``, all speeds in one batch (batched matrix exponentials,
-products and eigenvalues in NumPy).
+The critical depth at every speed is found by a geometric scan upwards in depth (ratio 1.2
+between depths) that stops at the first unstable depth, refined by the Illinois (regula-falsi)
+method on ``log |mu|_max``, all speeds in one batch (batched matrix exponentials, products and
+eigenvalues in NumPy). It is the *lowest* unstable depth: where a speed has an unstable window
+(e.g. a flip lens at low immersion), then a stable pocket, then the Hopf lobe, the window's
+lower edge is the limit (a window narrower than one scan step can be missed).
 
 Only the largest multiplier is needed. It is found by a few Arnoldi iterations on the monodromy
 matrix (:func:`dominant_eigenvalues`: 12 batched matrix-vector products instead of a dense
@@ -491,11 +493,14 @@ def critical_depths(
     delay_s,
     *,
     depth_range_m: tuple[float, float] | None = None,
-    n_scan: int = 10,
+    n_scan: int | None = None,
     rtol: float = 1e-3,
     max_iter: int = 40,
     eigensolver: str = "arnoldi",
     warm_start: bool = True,
+    scan_ratio: float = 1.2,
+    first_stride: int = 8,
+    scan_from_m=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Lowest unstable depth [m] at each delay [s] of the semi-discretized DDE, and its multiplier.
 
@@ -506,19 +511,34 @@ def critical_depths(
     delay_s : array_like (b,)
         Delays [s].
     depth_range_m : (float, float), optional
-        Geometric scan range [m]; default ``/30`` to ``x300`` of the smallest 1-DOF turning limit
-        (:func:`turning_minimum_depth`) with the largest averaged force coefficient.
-        Speeds leave the scan at their first unstable depth, which is then refined.
-    n_scan, rtol, max_iter
-        Scan points; relative tolerance and iteration cap of the Illinois refinement.
+        Geometric scan range [m]; default ``/10`` to ``x1000`` of the smallest 1-DOF turning
+        limit (:func:`turning_minimum_depth`) with the largest averaged force coefficient.
+    n_scan : int, optional
+        Scan points over the whole range (overrides ``scan_ratio``; the old default was 10, a
+        factor 2.8 between points, which stepped over unstable windows).
+    scan_ratio : float
+        Ratio of neighbouring scan depths (default 1.2). Each speed is scanned upwards and
+        leaves the scan at its first unstable depth, which is then refined, so the result is
+        the *lowest* unstable depth: an unstable window below a stable pocket (flip lenses at
+        low immersion, several modes) is found wherever it is wider than one scan step.
+    rtol, max_iter
+        Relative tolerance and iteration cap of the Illinois refinement.
     eigensolver : {"arnoldi", "dense"}
         How the largest multiplier is found (:func:`semi_discretization_multipliers`).
     warm_start : bool
-        Scan only every 8th delay (in order); bracket the others around the geometric mean of
-        their known neighbours' depths (halving the gaps level by level), scanning where such
-        a bracket does not hold, and end each search when the linearised step in log(depth)
-        falls below ``rtol / 4`` (not only when the bracket has closed to ``rtol``). About a
-        third of the depth evaluations; ``False``: scan every delay, brackets to ``rtol``.
+        Scan every ``first_stride``-th speed from the bottom of the range, and the others from
+        just below the lowest limit found among those (no speed chatters below the lowest
+        critical depth over all speeds; a speed unstable already there is scanned from the
+        bottom), and end each refinement when the linearised step in log(depth) falls below
+        ``rtol / 4``. ``False``: every speed from the bottom, brackets closed to ``rtol``.
+    first_stride : int
+        Speeds between two full scans (``warm_start``).
+    scan_from_m : array_like (b,), optional
+        Depth [m] per delay from which the scan starts instead (e.g. a little below the limits
+        of a nearby structure, when many similar ones are solved); a speed already unstable
+        there is scanned again from about 3x lower (down to the bottom of the range), so the
+        result is its lowest unstable depth unless a window lies wholly below a stable start.
+        NaN or non-positive: from the bottom.
 
     Returns
     -------
@@ -550,7 +570,10 @@ def critical_depths(
         )
         return np.abs(mu[:, 0]), mu[:, 0]
 
-    grid = np.geomspace(lo, hi, int(n_scan))
+    if not scan_ratio > 1:
+        raise ValueError(f"scan_ratio must be > 1, got {scan_ratio!r}")
+    n_grid = math.ceil(math.log(hi / lo) / math.log(scan_ratio)) + 1
+    grid = np.geomspace(lo, hi, max(n_grid, 2) if n_scan is None else int(n_scan))
 
     def refine(idx, a_lo, f_lo, a_hi, f_hi):
         """Illinois iterations on log|mu| over brackets [a_lo, a_hi] at delay[idx] (in place)."""
@@ -598,19 +621,34 @@ def critical_depths(
             mu_hi[missing] = radius(a_hi[missing], idx[missing])[1]
         return 0.5 * (a_lo + a_hi), mu_hi
 
-    def scan(idx):
-        """Critical depths at delay[idx]: geometric scan upwards, then refinement."""
+    def scan(idx, k0=None, stop=None):
+        """Lowest critical depths at delay[idx]: geometric scan upwards, then refinement.
+
+        ``k0`` (per speed) is the first grid index scanned (a speed already unstable there is
+        scanned again from six grid steps lower, down to the bottom of the grid); ``stop`` (per
+        speed) ends a speed's scan below that depth with ``inf`` (no unstable depth below it).
+        """
+        k0 = np.zeros(idx.size, int) if k0 is None else np.asarray(k0, int)
+        stop = np.full(idx.size, np.inf) if stop is None else np.asarray(stop, float)
         rho = np.full((idx.size, grid.size), np.nan)
         # Scan upwards; a speed leaves the scan at its first unstable depth.
         first = np.full(idx.size, -1)
-        for k, a in enumerate(grid):
-            todo = np.flatnonzero(first < 0)
-            if todo.size == 0:
+        done = np.zeros(idx.size, bool)
+        for k in range(int(k0.min()), grid.size):
+            done |= grid[k] >= stop
+            todo = np.flatnonzero((first < 0) & ~done & (k >= k0))
+            if not np.any((first < 0) & ~done):
                 break
-            rho[todo, k] = radius(np.full(todo.size, a), idx[todo])[0]
+            if todo.size == 0:
+                continue
+            rho[todo, k] = radius(np.full(todo.size, grid[k]), idx[todo])[0]
             first[todo[rho[todo, k] >= 1]] = k
+        again = np.flatnonzero((first >= 0) & (first == k0) & (k0 > 0))
         a_out = np.full(idx.size, np.inf)
         mu_out = np.full(idx.size, np.nan + 0j)
+        if again.size:  # unstable at the scan's first depth: start 1.2^6 ~ 3x lower, again
+            a_out[again], mu_out[again] = scan(idx[again], np.maximum(k0[again] - 6, 0))
+            first[again] = -1
         act = np.flatnonzero(first >= 0)
         if act.size:
             k = first[act]
@@ -626,47 +664,31 @@ def critical_depths(
         return a_out, mu_out
 
     nb = delay.size
-    if not warm_start or nb < 8:
+    if scan_from_m is not None:
+        start = np.broadcast_to(np.asarray(scan_from_m, float), (nb,))
+        ok = np.isfinite(start) & (start > 0)
+        k_start = np.where(ok, np.searchsorted(grid, np.where(ok, start, 0.0)) - 1, 0)
+        return scan(np.arange(nb), np.clip(k_start, 0, grid.size - 1))
+    stride0 = int(first_stride)
+    if stride0 < 1:
+        raise ValueError(f"first_stride must be >= 1, got {first_stride!r}")
+    if not warm_start or nb < 2 * stride0 or stride0 == 1:
         return scan(np.arange(nb))
-    # Warm start: scan every 8th speed (in order of delay); then, level by level, bracket each
-    # speed halfway between two known ones around the geometric mean of their depths (width:
-    # their spread, at least 4 %) and refine. A bracket that does not hold (stable above or
-    # unstable below: a lobe's cusp or tip between the neighbours) falls back to the scan.
+    # Warm start: every first_stride-th speed (in order of delay) is scanned from the bottom of
+    # the range; no speed chatters below the lowest critical depth over all speeds, so the others
+    # are scanned from just below the lowest limit of those (a speed unstable already there is
+    # scanned again from lower down). Every speed is scanned at the same ratio, so an unstable
+    # window below a stable pocket is found wherever it is wider than one scan step.
     order = np.argsort(delay, kind="stable")
+    first_pass = order[np.unique(np.r_[np.arange(0, nb, stride0), nb - 1])]
     a_lim = np.full(nb, np.inf)
     mu_crit = np.full(nb, np.nan + 0j)
-    known = np.zeros(nb, bool)
-    first_pass = np.unique(np.r_[np.arange(0, nb, 8), nb - 1])
-    a_lim[order[first_pass]], mu_crit[order[first_pass]] = scan(order[first_pass])
-    known[first_pass] = True
-    for stride in (4, 2, 1):
-        pos = np.flatnonzero(~known & (np.arange(nb) % stride == 0))
-        if pos.size == 0:
-            continue
-        kpos = np.flatnonzero(known)
-        left = kpos[np.searchsorted(kpos, pos) - 1]
-        right = kpos[np.minimum(np.searchsorted(kpos, pos), kpos.size - 1)]
-        al, ar = a_lim[order[left]], a_lim[order[right]]
-        warm = np.isfinite(al) & np.isfinite(ar)
-        idx = order[pos]
-        guess = np.sqrt(np.where(warm, al * ar, 1.0))
-        width = np.maximum(0.04, np.abs(np.log(np.where(warm, al / ar, 1.0))))
-        w = np.flatnonzero(warm)
-        if w.size:
-            b_lo, b_hi = guess[w] * np.exp(-width[w]), guess[w] * np.exp(width[w])
-            r2, _ = radius(np.r_[b_lo, b_hi], np.r_[idx[w], idx[w]])
-            r_lo, r_hi = r2[: w.size], r2[w.size :]
-            held = (r_lo < 1) & (r_hi >= 1)
-            h = w[held]
-            if h.size:
-                a_lim[idx[h]], mu_crit[idx[h]] = refine(
-                    idx[h], b_lo[held], np.log(r_lo[held]), b_hi[held], np.log(r_hi[held])
-                )
-            warm[w[~held]] = False
-        cold = np.flatnonzero(~warm)
-        if cold.size:
-            a_lim[idx[cold]], mu_crit[idx[cold]] = scan(idx[cold])
-        known[pos] = True
+    a_lim[first_pass], mu_crit[first_pass] = scan(first_pass)
+    rest = np.setdiff1d(np.arange(nb), first_pass)
+    floor = np.min(a_lim[first_pass])
+    k_floor = 0 if not np.isfinite(floor) else max(int(np.searchsorted(grid, floor)) - 2, 0)
+    if rest.size:
+        a_lim[rest], mu_crit[rest] = scan(rest, np.full(rest.size, k_floor))
     return a_lim, mu_crit
 
 
@@ -682,11 +704,14 @@ def sdm_lobes(
     steps_per_vibration: float = 12.0,
     max_steps: int = 200,
     depth_range_m: tuple[float, float] | None = None,
-    n_scan: int = 10,
+    n_scan: int | None = None,
     rtol: float = 1e-3,
     max_iter: int = 40,
     eigensolver: str = "arnoldi",
     warm_start: bool = True,
+    scan_ratio: float = 1.2,
+    first_stride: int = 8,
+    scan_from_m=None,
 ) -> LobeEnvelope:
     """Stability envelope (critical axial depth at every speed) by semi-discretization.
 
@@ -711,8 +736,15 @@ def sdm_lobes(
     depth_range_m : (float, float), optional
         Depth scan [m]; default from the 1-DOF turning limit of the most flexible mode
         (``/10`` to ``x1000``). Speeds still stable at its top get ``inf``.
-    n_scan : int
-        Geometric scan points before refinement.
+    n_scan : int, optional
+        Geometric scan points over the whole range (default: ``scan_ratio`` between points).
+    scan_ratio : float
+        Ratio of neighbouring scan depths; the lowest unstable depth is found wherever the
+        unstable window is wider than one step (:func:`critical_depths`).
+    first_stride : int
+        Speeds between two scans from the bottom of the range (``warm_start``).
+    scan_from_m : array_like (n,), optional
+        Depth [m] per speed where the scan starts (:func:`critical_depths`).
     rtol : float
         Relative tolerance on the critical depth.
     max_iter : int
@@ -721,8 +753,9 @@ def sdm_lobes(
         Largest Floquet multiplier by Arnoldi iterations (default; residual-checked, dense
         fallback) or by every eigenvalue of the monodromy matrix (the slower reference).
     warm_start : bool
-        Depth search warm-started from neighbouring speeds (:func:`critical_depths`); ``False``
-        scans every speed (the reference).
+        Every ``first_stride``-th speed scanned from the bottom of the range, the others from
+        just below the lowest limit found (:func:`critical_depths`); ``False`` scans every
+        speed from the bottom (the reference).
 
     Returns
     -------
@@ -767,7 +800,9 @@ def sdm_lobes(
         a_lim[idx], mu_crit[idx] = critical_depths(
             modes_x, modes_y, hmat, frac, delay[idx], depth_range_m=depth_range_m,
             n_scan=n_scan, rtol=rtol, max_iter=max_iter, eigensolver=eigensolver,
-            warm_start=warm_start,
+            warm_start=warm_start, scan_ratio=scan_ratio, first_stride=first_stride,
+            scan_from_m=None if scan_from_m is None else np.broadcast_to(
+                np.asarray(scan_from_m, float), rpm.shape)[idx],
         )  # fmt: skip
     nb = rpm.size
     active = np.flatnonzero(np.isfinite(a_lim))
@@ -796,5 +831,6 @@ def sdm_lobes(
             "rtol": rtol,
             "eigensolver": eigensolver,
             "warm_start": bool(warm_start),
+            "scan_ratio": float(scan_ratio) if n_scan is None else None,
         },
     )

@@ -296,6 +296,42 @@ class StabilityProbability:
         d = np.atleast_1d(np.asarray(depth_m, float))
         return np.mean(self.minimum_depth_samples_m[:, None] > d[None, :], axis=0)
 
+    def p_stable_at(self, spindle_rpm: float, depth_m: float) -> float:
+        """Probability that one cut (speed [rpm], depth [m]) is stable.
+
+        The fraction of samples whose envelope, interpolated linearly between the chart's
+        speeds, lies above the depth.
+
+        Parameters
+        ----------
+        spindle_rpm : float
+            Speed [rpm], inside the chart's speed range.
+        depth_m : float
+            Axial depth [m].
+
+        Returns
+        -------
+        float
+            P(stable) in [0, 1].
+
+        Raises
+        ------
+        ValueError
+            The speed lies outside the chart's range, or the depth is negative or not finite.
+        """
+        rpm = np.asarray(self.spindle_rpm, float)
+        s, d = float(spindle_rpm), float(depth_m)
+        if not rpm.min() <= s <= rpm.max():
+            raise ValueError(f"{s:g} rpm is outside the chart's {rpm.min():g}-{rpm.max():g} rpm")
+        if not (np.isfinite(d) and d >= 0):
+            raise ValueError(f"depth_m must be finite and >= 0, got {depth_m!r}")
+        j = int(np.clip(np.searchsorted(rpm, s), 1, rpm.size - 1))
+        w = (s - rpm[j - 1]) / (rpm[j] - rpm[j - 1])
+        lo, hi = self.a_lim_samples_m[:, j - 1], self.a_lim_samples_m[:, j]
+        with np.errstate(invalid="ignore"):
+            a = np.where(np.isinf(lo) | np.isinf(hi), np.minimum(lo, hi), (1 - w) * lo + w * hi)
+        return float(np.mean(a > d))
+
     def depth_quantile_m(self, q: float) -> np.ndarray:
         """Depth [m] at each speed that is stable with probability ``1 - q`` (e.g. q = 0.05).
 
@@ -322,6 +358,40 @@ def _envelope(mx, my, tool, cond, coef, rpm, method, **kw):
     raise ValueError(f"method must be 'sdm' or 'zoa', got {method!r}")
 
 
+#: Documented relative bias floor of the dominant-mode fit's stiffness (closing notes of stops
+#: 32-33: k +0.8 to +1.8 % before the upper-residual term, +0.2 % after on a clean campaign;
+#: the larger figure is kept as the floor while multi-mode fits are not measured).
+FIT_STIFFNESS_BIAS = 0.018
+
+
+def _scan_start(rpm: np.ndarray, a_mean: np.ndarray) -> np.ndarray:
+    """Per speed: 0.7 x the mean's lowest limit within +-15 % of the speed (NaN: scan all)."""
+    near = np.abs(np.log(rpm[:, None] / rpm[None, :])) <= np.log(1.15)
+    low = np.min(np.where(near, a_mean[None, :], np.inf), axis=1)
+    return np.where(np.isfinite(low), 0.7 * low, np.nan)
+
+
+def _method_error(mean_env, mean_f, mean_n, tool, cond, coef, rpm, method, options) -> np.ndarray:
+    """Relative numerical error of the envelope per speed, estimated on the mean modes."""
+    steps = int(options.get("steps_per_period", 40))
+    rtol = float(options.get("rtol", 1e-3))
+    coarse_opts = {k: v for k, v in options.items() if k != "n_lobes"}
+    if method == "sdm":
+        coarse_opts["steps_per_period"] = max(steps // 2, 2)
+        coarse_opts.setdefault("scan_from_m", _scan_start(rpm, mean_env.a_lim_m))
+        coarse = sdm_lobes(mean_f, mean_n, tool, cond, coef, rpm, **coarse_opts).a_lim_m
+        fine = mean_env.a_lim_m
+        with np.errstate(invalid="ignore", divide="ignore"):
+            err = np.abs(coarse - fine) / 3 / fine + rtol
+    else:
+        coarse_opts.update(steps_per_period=20)
+        ref = sdm_lobes(mean_f, mean_n, tool, cond, coef, rpm, **coarse_opts).a_lim_m
+        with np.errstate(invalid="ignore", divide="ignore"):
+            err = np.abs(mean_env.a_lim_m - ref) / ref
+    # Where either chart is stable to the top of its range the error is unknown: none added.
+    return np.where(np.isfinite(err), np.minimum(err, 0.9), 0.0)
+
+
 def stability_probability(
     distribution: dict[str, ModeDistribution],
     tool: MillingTool,
@@ -337,6 +407,10 @@ def stability_probability(
     time_domain_margin: bool = False,
     entry_tooth_periods: int = 0,
     margin_samples: int = 20,
+    method_error: bool = True,
+    fit_bias: float = FIT_STIFFNESS_BIAS,
+    progress=None,
+    warm_from_mean: bool = True,
     **lobe_options,
 ) -> StabilityProbability:
     """Probability of a stable cut over speeds × depths from sampled modes (module docs).
@@ -377,6 +451,33 @@ def stability_probability(
         modes' margin for every sample (the form before per-sample margins).
     entry_tooth_periods : int
         Entry ramp of that simulation (0: the cut starts at full depth, the conservative case).
+    method_error : bool
+        Put the numerical error of the method into the band (issue 36 item 5). Per speed, its
+        size ``e(n)`` is estimated on the mean modes: for ``"sdm"`` from a second chart at half
+        the steps (first-order SDM converges at second order in the step, so the error of the
+        chart is ``|a(h) - a(2h)| / 3``), plus the depth search's ``rtol``; for ``"zoa"`` the
+        zero-order truncation, ``|a_zoa - a_sdm| / a_sdm`` against a semi-discretization of the
+        mean modes at 20 steps. Every sample's limit is then multiplied by ``1 + u e(n)`` with
+        one ``u`` uniform in [-1, 1] per sample (the error is systematic along the speeds).
+    fit_bias : float
+        Documented relative bias floor of the modal fit on the stiffness (and so on the limit,
+        which scales with it): the dominant-mode fit returned k up to 1.8 % high (closing notes
+        of stops 32-33; 0.2 % with the upper-residual fit on a clean campaign, more where a
+        secondary mode is close). Every sample's limit is multiplied by ``1 + v fit_bias`` with
+        ``v`` uniform in [-1, 1] per sample (the sign is unknown for a user's robot). 0: none.
+        Both factors widen the band by these floors where the pose model's own spread is
+        smaller (a clean campaign); where it is larger they add in quadrature and barely
+        show. The mean envelope is not changed.
+    progress : callable, optional
+        ``progress(done, total)`` after each sampled envelope (the library never prints; the
+        CLI renders it).
+    warm_from_mean : bool
+        ``"sdm"``: each sample's depth search starts at 0.7 times the lowest limit of the mean
+        modes within ±15 % of the speed (where a sample's lobes can lie), not at the bottom of
+        the range; a sample already unstable there is scanned again from lower down, so its
+        result is still its lowest unstable depth unless a window of the sample lies wholly
+        below the start while the sample is stable at the start. ``False``: every sample scanned like
+        the mean (:func:`robovib.milling.sdm.critical_depths`).
 
     Returns
     -------
@@ -407,13 +508,30 @@ def stability_probability(
     mean_env, _ = _envelope(
         mean_f, mean_n, tool, conditions, coefficients, rpm, method, **lobe_options
     )
+    if not (np.isfinite(fit_bias) and 0 <= fit_bias < 0.5):
+        raise ValueError(f"fit_bias must be a relative error in [0, 0.5), got {fit_bias!r}")
     a_s = np.empty((n, rpm.size))
     mins = np.empty(n)
+    sample_options = dict(lobe_options)
+    if method == "sdm" and warm_from_mean and "scan_from_m" not in lobe_options:
+        sample_options["scan_from_m"] = _scan_start(rpm, mean_env.a_lim_m)
     for i, (mf, mn) in enumerate(zip(feed_s, norm_s, strict=True)):
         env, mins[i] = _envelope(
-            mf, mn, tool, conditions, coefficients, rpm, method, **lobe_options
+            mf, mn, tool, conditions, coefficients, rpm, method, **sample_options
         )
         a_s[i] = env.a_lim_m
+        if progress is not None:
+            progress(i + 1, n)
+    err = np.zeros(rpm.size)
+    if method_error:
+        err = _method_error(mean_env, mean_f, mean_n, tool, conditions, coefficients, rpm,
+                            method, lobe_options)  # fmt: skip
+    floor = np.ones((n, rpm.size))
+    if method_error or fit_bias > 0:
+        u, v = gen.uniform(-1, 1, n), gen.uniform(-1, 1, n)
+        floor = (1 + u[:, None] * err[None, :]) * (1 + v[:, None] * float(fit_bias))
+        a_s = a_s * floor
+        mins = mins * floor.min(axis=1)
     ratio = np.ones(rpm.size)
     if time_domain_margin:
         from .time_domain import time_domain_limit_ratios
@@ -458,6 +576,8 @@ def stability_probability(
          "time_domain_ratio": ratio.tolist() if time_domain_margin else None,
          "entry_tooth_periods": int(entry_tooth_periods) if time_domain_margin else None,
          "margin_samples": int(sim.size) if time_domain_margin else None,
+         "method_error": err.tolist() if method_error else None,
+         "fit_bias": float(fit_bias),
          "sampling": (
              "joint draws of the pose model's calibrated latent predictive distribution "
              "(Student-t bands, mode mixture)"
