@@ -260,3 +260,53 @@ def test_gains_lead_with_a_design_stable_with_the_delay():
     line = res.stdout.splitlines()[0]
     assert "m/m" in line and " s " in line and "stable with 32 ms delay: yes" in line
     assert "0.00001" not in res.stdout
+
+
+def test_replay_of_a_cut_logged_without_the_controller_feeds_it_the_corrections_effect(tmp_path):
+    """record_made="without": the controller sees the logged tracker plus the SDOF response of
+    the file's mode to its own corrections, 32 ms late and held for a 4 ms cycle (checked
+    against SciPy's ZOH discretisation and dlsim, not robovib's)."""
+    from scipy import signal
+
+    from robovib.control.runtime import replay
+    from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
+    from robovib.sim.disturbances import REALISTIC_LEVELS
+
+    path, _ = _path_file(tmp_path)
+    ctl = load_controller(path)
+    tool, cond = MillingTool(), CuttingConditions(250.0, 0.3e-3, 3e-3, 6e-3)
+    t = np.arange(1500) / 1000.0
+    local = REALISTIC_LEVELS.cutting_force(t, tool, cond, ACETAL, rng=np.random.default_rng(3))
+    force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
+    pose = np.tile([2.35, 0.28, 47.0], (t.size, 1))
+    logged = np.zeros((t.size, 3))  # a tooth-passing vibration the controller can act on
+    logged[:, [0, 2]] = 20e-6 * np.sin(2 * np.pi * (250.0 * 2 / 60) * t)[:, None]
+    record = {"time_s": t, "force_n": force, "displacement_m": logged, "pose": pose}
+    res = replay(ctl, record, spindle_rpm=250.0, record_made="without")
+    assert np.max(np.abs(res.commands_mm)) > 1e-5  # it corrected
+    s_mid = float(np.median(res.path_s_m))
+    delay, every = 32, 4
+    applied = np.zeros((t.size, 3))
+    held = np.repeat(res.commands_mm * 1e-3, every, axis=0)[: t.size]
+    applied[delay:] = held[: t.size - delay]
+    for a in ctl.tables.axes:
+        fn, zeta = ctl.tables.fz(a).at(np.array([s_mid]))[0]
+        wn = 2 * np.pi * fn
+        # x'' + 2 zeta wn x' + wn^2 x = wn^2 u: a correction u [m] moves the tool by u statically
+        sys_d = signal.cont2discrete(
+            tuple(
+                np.array(m, float)
+                for m in ([[0, 1], [-(wn**2), -2 * zeta * wn]], [[0], [wn**2]], [[1, 0]], [[0]])
+            ),
+            1e-3,
+            "zoh",
+        )
+        _, y, _ = signal.dlsim((*sys_d[:4], 1e-3), applied[:, a])
+        seen = (t.size - 1) // every * every + 1  # samples up to the last command
+        np.testing.assert_allclose(
+            res.tracker_fed_m[:seen, a] - logged[:seen, a], y[:seen, 0], rtol=1e-6, atol=1e-12
+        )
+    with_it = replay(load_controller(path), record, spindle_rpm=250.0, record_made="with")
+    np.testing.assert_array_equal(with_it.tracker_fed_m, logged)
+    with pytest.raises(ValueError, match="record_made"):
+        replay(load_controller(path), record, spindle_rpm=250.0, record_made="maybe")

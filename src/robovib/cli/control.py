@@ -460,6 +460,15 @@ def replay_cmd(
             help="CSV of the commands: time_s, path_s_m, correction_{x,y,z}_mm, guard_scale.",
         ),
     ] = None,
+    record_made: Annotated[
+        str,
+        typer.Option(
+            help="The cut was logged 'without' this controller (its corrections are added to the "
+            "tracker through the model, so the guard and learners see their effect) or 'with' it "
+            "running (the record is fed as it is).",
+            metavar="without|with",
+        ),
+    ] = "without",
     force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
@@ -471,7 +480,8 @@ def replay_cmd(
     check_output(output, [controller_file, record], force)
     try:
         runtime = load_controller(controller_file)
-        result = replay(runtime, read_milling_record_csv(record), spindle_rpm=rpm, teeth=teeth)
+        result = replay(runtime, read_milling_record_csv(record), spindle_rpm=rpm, teeth=teeth,
+                        record_made=record_made)  # fmt: skip
     except ValueError as exc:
         fail(str(exc))
     if output is not None:
@@ -486,7 +496,7 @@ def replay_cmd(
     peak = np.max(np.abs(result.commands_mm), axis=0)
     doc = {"controller": runtime.name, "commands": int(result.commands_mm.shape[0]),
            "peak_correction_mm": {d: float(peak[a]) for d, a in zip("xyz", range(3), strict=True)},
-           "guard_events": events, "rms_mm": result.rms_mm,
+           "record_made": record_made, "guard_events": events, "rms_mm": result.rms_mm,
            "output": None if output is None else str(output)}  # fmt: skip
     if json_out:
         emit_json(doc, units={"target": "1 (guard fade target)", "commands": "count"})
