@@ -316,6 +316,14 @@ bad_options("control-design", DESIGN + " -o {out:.json}", {
 bad_inputs("control-replay-file", "control replay {IN} --record {cut} --rpm 250", ".json")
 case("control-replay-not-a-controller", "control replay {sched} --record {cut} --rpm 250")
 case("control-table9-unknown-option", "control table9 --bogus")
+bad_inputs("mill-detect", "mill detect {IN} --rpm 1750", ".csv")
+bad_inputs("mill-plan-path", "mill plan --path {IN} -o {out:.csv}", ".csv")
+bad_inputs(
+    "mill-plan-cuts", "mill plan --start 2150,-250 --end 2650,500 --segments 5 --cuts {IN}", ".csv"
+)
+case("mill-plan-no-path", "mill plan -o {out:.csv}")
+case("mill-plan-p-stable-1", "mill plan --start 2150,-250 --end 2650,500 --p-stable 1.5")
+case("mill-plan-rz-range", "mill plan --start 2150,-250 --end 2650,500 --rz-range 90:0:5")
 case("control-simulate-unknown", "control simulate bogus-experiment")
 
 # hybrid

@@ -205,6 +205,17 @@ def test_mill_commands(tmp_path):
     assert np.shape(doc["critical_depth_m"]) == (2, 3) and (tmp_path / "map.png").stat().st_size
 
 
+def test_mill_plan_and_detect(tmp_path):
+    """A short planned path and a simulated record's chatter labels, each self-describing."""
+    doc = run_json("mill", "plan", "--start", "2150,-250", "--end", "2650,500", "--segments", "5",
+                   "-o", str(tmp_path / "plan.csv"))  # fmt: skip
+    assert (tmp_path / "plan.csv").stat().st_size > 0 and doc
+    run_json("sim", "mill", "--x0", "2300", "--x1", "2400", "--ap", "2", "--ae", "6",
+             "-o", str(tmp_path / "rec.csv"))  # fmt: skip
+    doc = run_json("mill", "detect", str(tmp_path / "rec.csv"), "--rpm", "1750")
+    assert doc
+
+
 def test_control_gains_table9_and_schedule_file(tmp_path):
     from robovib.io import write_path_modes_csv
     from robovib.modal import ModalParameters

@@ -5,10 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 
 from . import _mill_options as opt
 from ._common import (
+    ForceOpt,
     JsonFlag,
     ModelOpt,
     SeedOpt,
@@ -52,12 +54,37 @@ def detect(
             "fraction of --fz."
         ),
     ] = 0.07,
+    cuts_out: Annotated[
+        Path | None,
+        typer.Option(
+            "--cuts-out",
+            help="Write the record as one labelled test cut (x_mm,y_mm,rz_deg,spindle_rpm,"
+            "depth_mm,result) for --cuts; needs --pose and --depth.",
+        ),
+    ] = None,
+    pose: Annotated[
+        str | None, typer.Option(help="Pose of the cut X,Y,RZ [mm, mm, deg] (for --cuts-out).")
+    ] = None,
+    depth: Annotated[
+        float | None, typer.Option(help="Axial depth of the cut [mm] (for --cuts-out).")
+    ] = None,
+    force: ForceOpt = False,
     json_out: JsonFlag = False,
 ) -> None:
     """Label a milling record stable or chatter window by window; the chatter frequency."""
     from ..io.units import to_si
     from ..milling.detection import detect_chatter, read_detection_record
 
+    cut_pose = None
+    if cuts_out is not None:
+        if pose is None or depth is None:
+            raise ValueError("--cuts-out needs the cut's --pose X,Y,RZ and --depth [mm]")
+        cut_pose = [float(v) for v in pose.split(",")] if pose.count(",") == 2 else None
+        if cut_pose is None or not all(np.isfinite(cut_pose)):
+            raise ValueError(f"--pose must be X,Y,RZ (three numbers), got {pose!r}")
+        if not (np.isfinite(depth) and depth > 0):
+            raise ValueError(f"--depth must be a positive depth [mm], got {depth!r}")
+        check_output(cuts_out, [record], force)
     signal, fs, cols = read_detection_record(record, channel)
     displacement = all(c.startswith("displacement_") for c in cols)
     min_rms = None
@@ -77,8 +104,21 @@ def detect(
         min_line_fraction=min_line_fraction, min_line_rms=min_rms,
     )  # fmt: skip
     doc = {"record": str(record), "columns": cols, "sample_rate_hz": fs, **res.to_dict()}
+    if cuts_out is not None:
+        from ..io.safe_write import atomic_output
+
+        row = [*cut_pose, rpm, depth]
+        with atomic_output(cuts_out, inputs=[record], force=force) as tmp:
+            tmp.write_text("x_mm,y_mm,rz_deg,spindle_rpm,depth_mm,result\n"
+                           + ",".join(f"{v:.10g}" for v in row) + f",{res.result}\n")  # fmt: skip
+        doc["cuts_out"] = str(cuts_out)
     if json_out:
-        emit_json(doc)
+        record_unit = "the record's unit (N, m/s^2 or m, as its columns)"
+        emit_json(doc, units={
+            "channels": "column names", "false_alarm_rate": "1 (per window)",
+            "line_rms": record_unit, "min_line_rms": record_unit, "off_harmonic_bins": "count",
+            "peak_to_floor": "1 (spectral power over the noise floor)",
+            "threshold_peak_to_floor": "1 (spectral power over the noise floor)"})  # fmt: skip
         return
     n_ch = int(res.chatter.sum())
     typer.echo(
@@ -94,6 +134,8 @@ def detect(
         )
     if res.chatter_frequency_hz is not None:
         typer.echo(f"chatter frequency: {res.chatter_frequency_hz:.2f} Hz")
+    if cuts_out is not None:
+        typer.echo(f"wrote {cuts_out}: one {res.result} cut (for --cuts)")
 
 
 def _pair(spec: str, what: str) -> tuple[float, float]:
