@@ -252,6 +252,9 @@ class LobesChart:
         Which mode the deterministic envelope assumed where the pose model is unsure.
     operating_point_p_stable
         P(stable) of the operating point from the sampled envelopes, if both are given.
+    cut_forecast
+        The test cuts' update of the forecast (:class:`~robovib.milling.cut_forecast.
+        CutForecast`), with a pose model, samples and cuts.
     """
 
     envelope: LobeEnvelope

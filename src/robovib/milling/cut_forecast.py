@@ -95,25 +95,75 @@ class CutForecast:
     cuts: object = field(repr=False)
 
     def weights(self, posterior: bool = True) -> np.ndarray:
-        """(S,) the weights after (``posterior``) or before the cuts."""
+        """The structures' weights after or before the cuts.
+
+        Parameters
+        ----------
+        posterior : bool
+            After (True) or before the cuts.
+
+        Returns
+        -------
+        numpy.ndarray
+            (S,) normalised weights.
+        """
         return self.update.structures.weights if posterior else self.update.prior_weights
 
     def p_stable(self, depth_m, posterior: bool = True) -> np.ndarray:
-        """(P, J) weighted P(stable) at the depth [m] (module docs)."""
+        """Weighted P(stable) at the depth (module docs).
+
+        Parameters
+        ----------
+        depth_m : float or array_like
+            Depth [m], broadcast against (P, J).
+        posterior : bool
+            After (True) or before the cuts.
+
+        Returns
+        -------
+        numpy.ndarray
+            (P, J) probabilities.
+        """
         return p_stable(self.limits_m, self.weights(posterior), depth_m)
 
     def quantile_m(self, q: float, posterior: bool = True) -> np.ndarray:
-        """(P, J) weighted ``q``-quantile of the limit [m] (module docs)."""
+        """Weighted ``q``-quantile of the limit (module docs).
+
+        Parameters
+        ----------
+        q : float
+            Probability in [0, 1).
+        posterior : bool
+            After (True) or before the cuts.
+
+        Returns
+        -------
+        numpy.ndarray
+            (P, J) depths [m] (inf: no lobe).
+        """
         return weighted_quantile(self.limits_m, self.weights(posterior), q)
 
     def median_shift_rel(self) -> float:
-        """Median over the forecast's poses and speeds of posterior / prior median limit - 1."""
+        """How far the cuts moved the median limit at the forecast's poses and speeds.
+
+        Returns
+        -------
+        float
+            Median over poses and speeds of posterior / prior median limit - 1 (NaN: no
+            finite limit).
+        """
         a0, a1 = self.quantile_m(0.5, False), self.quantile_m(0.5, True)
         ok = np.isfinite(a0) & np.isfinite(a1) & (a0 > 0)
         return float(np.median(a1[ok] / a0[ok] - 1)) if np.any(ok) else float("nan")
 
     def to_dict(self) -> dict:
-        """JSON: the update (:meth:`CutUpdate.to_dict`) and the shift at the forecast's poses."""
+        """The update (:meth:`CutUpdate.to_dict`) and the shift at the forecast's poses.
+
+        Returns
+        -------
+        dict
+            Plain JSON types, units in the keys.
+        """
         doc = self.update.to_dict()
         doc["effective_sample_size_prior"] = float(1.0 / np.sum(self.update.prior_weights**2))
         doc["median_limit_shift_rel_at_forecast"] = self.median_shift_rel()
@@ -167,6 +217,18 @@ class WeightedStabilityProbability(StabilityProbability):
 
     Attributes
     ----------
+    spindle_rpm, depth_m
+        The grid [rpm], [m].
+    p_stable
+        (n_speeds, n_depths) weighted probability of a stable cut.
+    a_lim_samples_m
+        (n_samples, n_speeds) sampled envelopes [m].
+    minimum_depth_samples_m
+        (n_samples,) their minima [m].
+    mean
+        Envelope of the mean modes.
+    settings
+        Settings of the computation.
     weights
         (n_samples,) normalised weights of ``a_lim_samples_m``.
     """
@@ -174,12 +236,36 @@ class WeightedStabilityProbability(StabilityProbability):
     weights: np.ndarray | None = None
 
     def p_unconditionally_stable(self, depth_m) -> np.ndarray:
-        """Weighted probability that the depth [m] is stable at every speed."""
+        """Weighted probability that the depth is stable at every speed.
+
+        Parameters
+        ----------
+        depth_m : array_like
+            Depths [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            Probabilities.
+        """
         d = np.atleast_1d(np.asarray(depth_m, float))
         return p_stable(self.minimum_depth_samples_m[:, None], self.weights, d)
 
     def p_stable_at(self, spindle_rpm: float, depth_m: float) -> float:
-        """Weighted probability that one cut (speed [rpm], depth [m]) is stable."""
+        """Weighted probability that one cut is stable (speeds interpolated linearly).
+
+        Parameters
+        ----------
+        spindle_rpm : float
+            Speed [rpm], inside the chart's speed range.
+        depth_m : float
+            Axial depth [m].
+
+        Returns
+        -------
+        float
+            P(stable) in [0, 1].
+        """
         rpm = np.asarray(self.spindle_rpm, float)
         s, d = float(spindle_rpm), float(depth_m)
         if not rpm.min() <= s <= rpm.max():
@@ -194,7 +280,18 @@ class WeightedStabilityProbability(StabilityProbability):
         return float(p_stable(a, self.weights, d))
 
     def depth_quantile_m(self, q: float) -> np.ndarray:
-        """Weighted ``q``-quantile of the limit [m] at each speed."""
+        """Weighted ``q``-quantile of the limit at each speed.
+
+        Parameters
+        ----------
+        q : float
+            Probability of chatter allowed.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_speeds,) depths [m].
+        """
         return weighted_quantile(self.a_lim_samples_m, self.weights, q)
 
 
