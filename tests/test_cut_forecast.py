@@ -125,6 +125,19 @@ def test_lobes_and_map_use_one_posterior(model, tmp_path):
     np.testing.assert_allclose(ds["p_stable_before_cuts"].sel(at).values,
                                fc.p_stable(4e-3, posterior=False)[0])  # fmt: skip
     assert json.loads(ds.attrs["test_cuts"])["n_cuts"] == 2
+    # the chart draws only the cuts made at its own pose
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from robovib.milling.chart import plot_lobes_chart
+
+    elsewhere = tmp_path / "elsewhere.csv"
+    elsewhere.write_text("x_mm,y_mm,rz_deg,spindle_rpm,depth_mm,result\n"
+                         "2400,100,45,1700,5.0,chatter\n2300,300,45,2100,4.0,stable\n")  # fmt: skip
+    other = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=rpm,
+                        method="zoa", pose_model=model, pose=pose, n_samples=8, cuts_file=elsewhere)  # fmt: skip
+    drawn = {ln.get_label(): ln.get_xdata().size for ln in plot_lobes_chart(other).axes[0].lines}
+    assert drawn["cut: chatter"] == 1 and drawn["cut: stable"] == 0
     with pytest.raises(ValueError, match="poses"):
         add_cut_forecast(ds, model, chart.cuts, TOOL, COND, ALUMINIUM_7075)
     with pytest.raises(ValueError, match="time-domain margin"):

@@ -603,10 +603,18 @@ def plot_lobes_chart(chart: LobesChart, ax=None):
     -------
     matplotlib.figure.Figure
     """
+    cuts = chart.cuts
+    if chart.cut_forecast is not None and cuts is not None:  # only the cuts at this pose
+        from dataclasses import replace
+
+        at = np.all(np.isclose(chart.cut_forecast.cuts.pose_mm_deg,
+                               chart.cut_forecast.poses_mm_deg[0]), axis=1)  # fmt: skip
+        cuts = replace(cuts, spindle_rpm=cuts.spindle_rpm[at], depth_m=cuts.depth_m[at],
+                       chatter=cuts.chatter[at], pose_mm_deg=None)  # fmt: skip
     if chart.probability is not None:
         from .uncertainty import plot_stability_probability
 
         return plot_stability_probability(chart.probability, ax=ax, title=chart.title,
-                                          operating_point=chart.operating_point, cuts=chart.cuts)  # fmt: skip
+                                          operating_point=chart.operating_point, cuts=cuts)  # fmt: skip
     return plot_lobes(chart.envelope, ax=ax, operating_point=chart.operating_point,
-                      cuts=chart.cuts, title=chart.title)  # fmt: skip
+                      cuts=cuts, title=chart.title)  # fmt: skip
