@@ -97,3 +97,21 @@ TimeDomainMarginOpt = Annotated[
         "(a cut entering at full depth chatters 5-15 % below linear theory; ~1 s per speed).",
     ),
 ]
+LabelNoiseOpt = Annotated[
+    float,
+    typer.Option(
+        help="With --cuts and --samples (pose model): probability that a test cut's label is "
+        "wrong; the cuts then update P(stable) (a posterior over the sampled structures)."
+    ),
+]
+
+
+def echo_cut_update(u: dict, where: str) -> None:
+    """Print how much the test cuts moved the forecast (``CutForecast.to_dict()``)."""
+    typer.echo(
+        f"test cuts: {u['n_cuts']} (label noise {u['label_noise']:g}): effective sample size "
+        f"{u['effective_sample_size_prior']:.0f} -> {u['effective_sample_size']:.1f}, "
+        f"information {u['information_nats']:.2f} nats; median limit "
+        f"{100 * u['median_limit_shift_rel']:+.0f} % at the cuts, "
+        f"{100 * u['median_limit_shift_rel_at_forecast']:+.0f} % {where}"
+    )

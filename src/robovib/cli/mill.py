@@ -176,6 +176,7 @@ def lobes(
     operating_point: opt.OperatingPointOpt = None,
     samples: opt.LobeSamplesOpt = 0,
     time_domain_margin: opt.TimeDomainMarginOpt = False,
+    label_noise: opt.LabelNoiseOpt = 0.05,
     steps: opt.StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
@@ -217,7 +218,7 @@ def lobes(
         pose_label=pose_label, material_label=material_name if kt is None and kn is None else
         f"Kt {coef.ktc:.3g}, Kn {coef.krc:.3g} N/m²", pose_model=model, pose=pose,
         feed_direction=feed, n_samples=samples, rng=seed, steps_per_period=steps,
-        time_domain_margin=time_domain_margin,
+        time_domain_margin=time_domain_margin, label_noise=label_noise,
         progress=lambda done, total: bar.update(task, completed=done, total=total),
         )  # fmt: skip
     if plot is not None:
@@ -261,6 +262,8 @@ def lobes(
     n_flip = chart.n_flip_limited
     if n_flip:
         typer.echo(f"{n_flip} of {env.kind.size} speeds limited by flip (period-doubling) lobes")
+    if "test_cuts" in doc:
+        opt.echo_cut_update(doc["test_cuts"], "at this pose")
     if chart.operating_point is not None:
         state = {True: "stable", False: "CHATTER", None: "outside the speed range"}[
             chart.operating_point_stable
@@ -272,6 +275,11 @@ def lobes(
                 ""
                 if p_op is None
                 else f", P(stable) = {p_op:.2f} ({chart.probability.settings['n_samples']} samples)"
+            )
+            + (
+                f"; {doc['operating_point']['p_stable_before_cuts']:.2f} before the test cuts"
+                if "p_stable_before_cuts" in doc.get("operating_point", {})
+                else ""
             )
         )
     if plot is not None:
@@ -323,6 +331,15 @@ def lobe_map(
             help="With --samples: map the probability of a stable cut at this depth [mm]."
         ),
     ] = None,
+    cuts: Annotated[
+        Path | None,
+        typer.Option(
+            "--cuts",
+            help="With --samples: test cuts CSV x_mm,y_mm,rz_deg,spindle_rpm,depth_mm,result "
+            "update the 5/50/95 % depths and P(stable) (a posterior over the sampled structures).",
+        ),
+    ] = None,
+    label_noise: opt.LabelNoiseOpt = 0.05,
     output: Annotated[
         Path | None, typer.Option("-o", "--output", help="NetCDF (.nc) of the map.")
     ] = None,
@@ -348,7 +365,17 @@ def lobe_map(
         workspace_lobe_map,
     )
 
-    check_output(plot, [model_path])
+    check_output(plot, [model_path, cuts])
+    measured_cuts = None
+    if cuts is not None:
+        check_output(output, [model_path, cuts])
+        from ..io.cuts import read_cuts_csv
+
+        if samples < 2:
+            fail("--cuts updates the sampled forecast: give --samples N (N >= 2)")
+        measured_cuts = read_cuts_csv(cuts)
+        if measured_cuts.pose_mm_deg is None:
+            fail(f"{cuts}: a map's test cuts need their poses: add columns x_mm, y_mm, rz_deg")
     for name, n in (("--nx", nx), ("--ny", ny)):
         if n < 2:
             fail(f"{name} must be at least 2 grid points, got {n}")
@@ -367,7 +394,15 @@ def lobe_map(
             scheduler=scheduler, n_workers=workers, poses_per_chunk=chunk,
             **({"steps_per_period": steps} if method == "sdm" else {}),
             progress=lambda done, total: bar.update(task, completed=done, total=total),
-            n_samples=samples, depth_m=None if depth is None else to_si(depth, "mm"), rng=seed,
+            n_samples=0 if cuts else samples, rng=seed,
+            depth_m=None if depth is None or cuts else to_si(depth, "mm"),
+        )  # fmt: skip
+    if measured_cuts is not None:  # the weighted structures replace the per-pose samples
+        from ..milling.cut_forecast import add_cut_forecast
+
+        ds, _ = add_cut_forecast(
+            ds, model, measured_cuts, tool, cond, coef, n_samples=samples, rng=seed,
+            depth_m=None if depth is None else to_si(depth, "mm"), label_noise=label_noise,
         )  # fmt: skip
     if output is not None:
         save_lobe_map(ds, output)
@@ -391,6 +426,10 @@ def lobe_map(
         "settings": ds.attrs["settings"],
         "robovib_version": ds.attrs["robovib_version"],
     }
+    if "test_cuts" in ds.attrs:
+        import json
+
+        doc["test_cuts"] = json.loads(ds.attrs["test_cuts"])
     if json_out:
         emit_json(doc)
         return
@@ -401,6 +440,8 @@ def lobe_map(
     )
     if samples:
         lo, hi = (from_si(v, "mm") for v in best["best_sure_depth_band_m"])
+        if "test_cuts" in doc:
+            opt.echo_cut_update(doc["test_cuts"], "over the map")
         typer.echo(
             f"deepest cut stable with 95 % ({samples} samples of the model): "
             f"X={best['best_sure_pose_mm'][0]:.0f}, Y={best['best_sure_pose_mm'][1]:.0f} mm: "

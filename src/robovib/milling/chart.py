@@ -252,6 +252,9 @@ class LobesChart:
         Which mode the deterministic envelope assumed where the pose model is unsure.
     operating_point_p_stable
         P(stable) of the operating point from the sampled envelopes, if both are given.
+    cut_forecast
+        The test cuts' update of the forecast (:class:`~robovib.milling.cut_forecast.
+        CutForecast`), with a pose model, samples and cuts.
     """
 
     envelope: LobeEnvelope
@@ -271,6 +274,8 @@ class LobesChart:
     notes: tuple[str, ...] = ()
     #: P(stable) of the operating point from the sampled envelopes (with ``probability``).
     operating_point_p_stable: float | None = None
+    #: Test cuts' update of the forecast (:class:`~robovib.milling.cut_forecast.CutForecast`).
+    cut_forecast: object | None = None
 
     @property
     def n_flip_limited(self) -> int:
@@ -324,8 +329,15 @@ class LobesChart:
             }
             if self.operating_point_p_stable is not None:
                 doc["operating_point"]["p_stable"] = self.operating_point_p_stable
+            if self.operating_point_p_stable is not None and self.cut_forecast is not None:
+                before = self.cut_forecast.stability_probability(self.envelope, posterior=False)
+                doc["operating_point"]["p_stable_before_cuts"] = before.p_stable_at(
+                    *self.operating_point
+                )
         if self.cuts is not None:
             doc["cuts"] = self.cuts.to_dict()
+        if self.cut_forecast is not None:
+            doc["test_cuts"] = self.cut_forecast.to_dict()
         if self.probability is not None:
             p = self.probability
             doc["probability"] = {
@@ -361,6 +373,7 @@ def lobes_chart(
     rng=0,
     time_domain_margin: bool = False,
     progress=None,
+    label_noise: float = 0.05,
 ) -> LobesChart:
     """Stability envelope from modes or a measured FRF file, with cuts and an operating point.
 
@@ -400,6 +413,11 @@ def lobes_chart(
         of the mean modes at each speed (a cut entering at full depth; ~1 s per speed).
     progress : callable, optional
         ``progress(done, total)`` while the samples are computed (never printed here).
+    label_noise : float
+        With a pose model, ``n_samples`` and ``cuts_file``: the probability that a test cut's
+        label is wrong. The cuts then update the forecast (a posterior over the pose model's
+        sampled structures, :mod:`robovib.milling.cut_forecast`): P(stable) and the limit
+        quantiles come from the weighted structures; cuts without poses are taken at ``pose``.
 
     Returns
     -------
@@ -413,6 +431,13 @@ def lobes_chart(
     n_samples = check_int("n_samples", n_samples, lo=0, hi=100_000)
     if time_domain_margin and n_samples == 0:
         raise ValueError("the time-domain margin applies to P(stable): give n_samples > 0")
+    update_cuts = (cuts_file is not None and pose_model is not None and n_samples > 0
+                   and not tuple(modes_x) and not tuple(modes_y) and frf_file is None)  # fmt: skip
+    if update_cuts and time_domain_margin:
+        raise ValueError(
+            "test cuts update the sampled structures, whose process factor already spans the "
+            "time-domain margin: give the cuts or the time-domain margin, not both"
+        )
     rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
     modes_x, modes_y = tuple(modes_x), tuple(modes_y)
     frfs = {}
@@ -441,7 +466,8 @@ def lobes_chart(
         modes_x, modes_y = fitted.get("x", ()), fitted.get("y", ())
     probability = None
     notes: tuple[str, ...] = ()
-    if not modes_x and not modes_y and not frfs and pose_model is not None:
+    from_model = not modes_x and not modes_y and not frfs and pose_model is not None
+    if from_model:
         from .uncertainty import mode_distribution_at_pose, stability_probability
 
         if pose is None or len(pose) != 3:
@@ -468,7 +494,7 @@ def lobes_chart(
                 "every modelled mode used: "
                 + ", ".join(m.name for d in (feed_direction, normal) for m in dist[d]),
             )
-        if int(n_samples) > 0:
+        if int(n_samples) > 0 and not update_cuts:
             probability = stability_probability(
                 dist, tool, conditions, coefficients, rpm, n_samples=int(n_samples),
                 method=method, feed_direction=feed_direction, rng=rng,
@@ -512,6 +538,18 @@ def lobes_chart(
         from ..io.cuts import read_cuts_csv
 
         cuts = read_cuts_csv(cuts_file)
+    forecast = None
+    if update_cuts and from_model:
+        from .cut_forecast import cuts_at_pose, forecast_with_cuts
+
+        forecast = forecast_with_cuts(
+            pose_model, [pose], rpm, cuts_at_pose(cuts, pose), tool, conditions, coefficients,
+            feed_direction=feed_direction, n_samples=n_samples, label_noise=label_noise, rng=rng,
+        )  # fmt: skip
+        probability = forecast.stability_probability(env)
+        notes = (*notes, (
+            f"P(stable) after {cuts.chatter.size} test cuts: {n_samples} sampled structures "
+            "(zero-order limits, process factor) weighted by the cuts' likelihood"))  # fmt: skip
     op_stable = op_p = None
     if operating_point is not None:
         op_rpm, op_depth = (float(v) for v in operating_point)
@@ -532,7 +570,7 @@ def lobes_chart(
     return LobesChart(env, modes_x, modes_y, tool, conditions, coefficients, title, cuts,
                       operating_point, op_stable, None if frf_file is None else str(frf_file),
                       probability=probability, notes=notes,
-                      operating_point_p_stable=op_p)  # fmt: skip
+                      operating_point_p_stable=op_p, cut_forecast=forecast)  # fmt: skip
 
 
 def _assumed_mode_notes(model, pose, directions) -> tuple[str, ...]:
@@ -565,10 +603,18 @@ def plot_lobes_chart(chart: LobesChart, ax=None):
     -------
     matplotlib.figure.Figure
     """
+    cuts = chart.cuts
+    if chart.cut_forecast is not None and cuts is not None:  # only the cuts at this pose
+        from dataclasses import replace
+
+        at = np.all(np.isclose(chart.cut_forecast.cuts.pose_mm_deg,
+                               chart.cut_forecast.poses_mm_deg[0]), axis=1)  # fmt: skip
+        cuts = replace(cuts, spindle_rpm=cuts.spindle_rpm[at], depth_m=cuts.depth_m[at],
+                       chatter=cuts.chatter[at], pose_mm_deg=None)  # fmt: skip
     if chart.probability is not None:
         from .uncertainty import plot_stability_probability
 
         return plot_stability_probability(chart.probability, ax=ax, title=chart.title,
-                                          operating_point=chart.operating_point, cuts=chart.cuts)  # fmt: skip
+                                          operating_point=chart.operating_point, cuts=cuts)  # fmt: skip
     return plot_lobes(chart.envelope, ax=ax, operating_point=chart.operating_point,
-                      cuts=chart.cuts, title=chart.title)  # fmt: skip
+                      cuts=cuts, title=chart.title)  # fmt: skip

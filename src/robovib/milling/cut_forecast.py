@@ -1,0 +1,434 @@
+"""Test cuts move the forecast of a stability chart or map (issue 39: ``--cuts`` of ``mill lobes``
+and ``mill map``).
+
+The posterior is the one of :mod:`robovib.milling.cut_posterior` (the same functions, no second
+one): the pose model's sampled structures (:func:`robovib.milling.structures.sample_structures`)
+are weighted by each test cut's likelihood with a label-noise rate ``eps``::
+
+    w_s' ∝ w_s prod_i P(y_i | s)
+
+Here the structures' zero-order limits ``a_s(pose, n)`` are computed at the chart's pose (or
+the map's poses) and speeds, and the forecast there is, before (uniform ``w``) and after
+(``w'``) the cuts::
+
+    P(stable | depth d) = sum_s w_s [a_s > d],   q-quantile: min { a : sum_s w_s [a_s <= a] > q }
+
+(:func:`~robovib.milling.cut_posterior.p_stable`, :func:`~robovib.milling.cut_posterior.
+weighted_quantile`). How far the cuts moved it is reported as the effective sample size, the
+information gained, the shift of the median limit at the cuts and at the forecast's own poses.
+Cuts from a file without pose columns are taken at the chart's pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .cut_posterior import CutUpdate, p_stable, update_with_cuts, weighted_quantile
+from .forces import CuttingCoefficients, CuttingConditions, MillingTool
+from .uncertainty import StabilityProbability
+
+__all__ = [
+    "CutForecast",
+    "WeightedStabilityProbability",
+    "add_cut_forecast",
+    "cuts_at_pose",
+    "forecast_with_cuts",
+]
+
+
+def cuts_at_pose(cuts, pose=None):
+    """Test cuts with poses: a file without pose columns is taken at ``pose``.
+
+    Parameters
+    ----------
+    cuts : MeasuredCuts
+        The cuts (:func:`robovib.io.cuts.read_cuts_csv`).
+    pose : (x_mm, y_mm, rz_deg), optional
+        The chart's pose, for cuts without pose columns.
+
+    Returns
+    -------
+    MeasuredCuts
+        The cuts, each with a pose.
+
+    Raises
+    ------
+    ValueError
+        The cuts have no poses and no pose is given.
+    """
+    if cuts.pose_mm_deg is not None:
+        return cuts
+    if pose is None:
+        raise ValueError(
+            "the test cuts have no poses: give the columns x_mm, y_mm, rz_deg in the cuts file"
+        )
+    p = np.asarray(pose, float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f"pose must be finite (x_mm, y_mm, rz_deg), got {pose!r}")
+    return replace(cuts, pose_mm_deg=np.tile(p, (np.asarray(cuts.spindle_rpm).size, 1)))
+
+
+@dataclass(frozen=True)
+class CutForecast:
+    """The structures' limits at poses and speeds, with prior and posterior weights.
+
+    Attributes
+    ----------
+    poses_mm_deg
+        (P, 3) poses of the forecast (x [mm], y [mm], Rz [deg]).
+    spindle_rpm
+        (J,) speeds [rpm].
+    limits_m
+        (S, P, J) zero-order limits [m] of the structures (inf: no lobe).
+    update
+        The posterior (:class:`~robovib.milling.cut_posterior.CutUpdate`).
+    cuts
+        The cuts used, each with its pose.
+    """
+
+    poses_mm_deg: np.ndarray
+    spindle_rpm: np.ndarray
+    limits_m: np.ndarray = field(repr=False)
+    update: CutUpdate = field(repr=False)
+    cuts: object = field(repr=False)
+
+    def weights(self, posterior: bool = True) -> np.ndarray:
+        """The structures' weights after or before the cuts.
+
+        Parameters
+        ----------
+        posterior : bool
+            After (True) or before the cuts.
+
+        Returns
+        -------
+        numpy.ndarray
+            (S,) normalised weights.
+        """
+        return self.update.structures.weights if posterior else self.update.prior_weights
+
+    def p_stable(self, depth_m, posterior: bool = True) -> np.ndarray:
+        """Weighted P(stable) at the depth (module docs).
+
+        Parameters
+        ----------
+        depth_m : float or array_like
+            Depth [m], broadcast against (P, J).
+        posterior : bool
+            After (True) or before the cuts.
+
+        Returns
+        -------
+        numpy.ndarray
+            (P, J) probabilities.
+        """
+        return p_stable(self.limits_m, self.weights(posterior), depth_m)
+
+    def quantile_m(self, q: float, posterior: bool = True) -> np.ndarray:
+        """Weighted ``q``-quantile of the limit (module docs).
+
+        Parameters
+        ----------
+        q : float
+            Probability in [0, 1).
+        posterior : bool
+            After (True) or before the cuts.
+
+        Returns
+        -------
+        numpy.ndarray
+            (P, J) depths [m] (inf: no lobe).
+        """
+        return weighted_quantile(self.limits_m, self.weights(posterior), q)
+
+    def median_shift_rel(self) -> float:
+        """How far the cuts moved the median limit at the forecast's poses and speeds.
+
+        Returns
+        -------
+        float
+            Median over poses and speeds of posterior / prior median limit - 1 (NaN: no
+            finite limit).
+        """
+        a0, a1 = self.quantile_m(0.5, False), self.quantile_m(0.5, True)
+        ok = np.isfinite(a0) & np.isfinite(a1) & (a0 > 0)
+        return float(np.median(a1[ok] / a0[ok] - 1)) if np.any(ok) else float("nan")
+
+    def to_dict(self) -> dict:
+        """The update (:meth:`CutUpdate.to_dict`) and the shift at the forecast's poses.
+
+        Returns
+        -------
+        dict
+            Plain JSON types, units in the keys.
+        """
+        doc = self.update.to_dict()
+        doc["effective_sample_size_prior"] = float(1.0 / np.sum(self.update.prior_weights**2))
+        doc["median_limit_shift_rel_at_forecast"] = self.median_shift_rel()
+        doc["cut_poses_mm_deg"] = np.asarray(self.cuts.pose_mm_deg, float).tolist()
+        doc["limits"] = ("zero-order limits of the pose model's sampled structures "
+                         "(robovib.milling.structures), process factor included")  # fmt: skip
+        return doc
+
+    def stability_probability(
+        self, mean_envelope, *, pose_index: int = 0, posterior: bool = True, n_depths: int = 120
+    ) -> WeightedStabilityProbability:
+        """The forecast at one pose as a chart's P(stable) (speeds × depths), weights kept.
+
+        Parameters
+        ----------
+        mean_envelope : LobeEnvelope
+            The envelope of the mean modes drawn with it (over the same speeds).
+        pose_index : int
+            Which of the forecast's poses.
+        posterior : bool
+            The weights after (True) or before the cuts.
+        n_depths : int
+            Depths of the grid, from 0 to 1.5 x the largest finite 95 % quantile.
+
+        Returns
+        -------
+        WeightedStabilityProbability
+        """
+        lim = self.limits_m[:, pose_index, :]
+        w = self.weights(posterior)
+        top = weighted_quantile(lim, w, 0.95)
+        top = top[np.isfinite(top)]
+        d_max = 1.5 * float(top.max()) if top.size else 0.02
+        depth = np.linspace(0.0, d_max, int(n_depths))
+        grid = p_stable(lim[:, :, None], w, depth[None, :])  # (J, D)
+        finite = np.where(np.isfinite(lim), lim, np.inf)
+        return WeightedStabilityProbability(
+            self.spindle_rpm, depth, grid, finite, finite.min(axis=1), mean_envelope,
+            {"n_samples": int(w.size), "method": "zoa",
+             "sampling": ("weighted structures of the pose model "
+                          + ("after" if posterior else "before") + " the test cuts "
+                          "(robovib.milling.cut_forecast)"),
+             "effective_sample_size": float(1.0 / np.sum(w**2))},
+            weights=w,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class WeightedStabilityProbability(StabilityProbability):
+    """:class:`~robovib.milling.uncertainty.StabilityProbability` of weighted samples.
+
+    Attributes
+    ----------
+    spindle_rpm, depth_m
+        The grid [rpm], [m].
+    p_stable
+        (n_speeds, n_depths) weighted probability of a stable cut.
+    a_lim_samples_m
+        (n_samples, n_speeds) sampled envelopes [m].
+    minimum_depth_samples_m
+        (n_samples,) their minima [m].
+    mean
+        Envelope of the mean modes.
+    settings
+        Settings of the computation.
+    weights
+        (n_samples,) normalised weights of ``a_lim_samples_m``.
+    """
+
+    weights: np.ndarray | None = None
+
+    def p_unconditionally_stable(self, depth_m) -> np.ndarray:
+        """Weighted probability that the depth is stable at every speed.
+
+        Parameters
+        ----------
+        depth_m : array_like
+            Depths [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            Probabilities.
+        """
+        d = np.atleast_1d(np.asarray(depth_m, float))
+        return p_stable(self.minimum_depth_samples_m[:, None], self.weights, d)
+
+    def p_stable_at(self, spindle_rpm: float, depth_m: float) -> float:
+        """Weighted probability that one cut is stable (speeds interpolated linearly).
+
+        Parameters
+        ----------
+        spindle_rpm : float
+            Speed [rpm], inside the chart's speed range.
+        depth_m : float
+            Axial depth [m].
+
+        Returns
+        -------
+        float
+            P(stable) in [0, 1].
+        """
+        rpm = np.asarray(self.spindle_rpm, float)
+        s, d = float(spindle_rpm), float(depth_m)
+        if not rpm.min() <= s <= rpm.max():
+            raise ValueError(f"{s:g} rpm is outside the chart's {rpm.min():g}-{rpm.max():g} rpm")
+        if not (np.isfinite(d) and d >= 0):
+            raise ValueError(f"depth_m must be finite and >= 0, got {depth_m!r}")
+        j = int(np.clip(np.searchsorted(rpm, s), 1, rpm.size - 1))
+        f = (s - rpm[j - 1]) / (rpm[j] - rpm[j - 1])
+        lo, hi = self.a_lim_samples_m[:, j - 1], self.a_lim_samples_m[:, j]
+        with np.errstate(invalid="ignore"):
+            a = np.where(np.isinf(lo) | np.isinf(hi), np.minimum(lo, hi), (1 - f) * lo + f * hi)
+        return float(p_stable(a, self.weights, d))
+
+    def depth_quantile_m(self, q: float) -> np.ndarray:
+        """Weighted ``q``-quantile of the limit at each speed.
+
+        Parameters
+        ----------
+        q : float
+            Probability of chatter allowed.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_speeds,) depths [m].
+        """
+        return weighted_quantile(self.a_lim_samples_m, self.weights, q)
+
+
+def forecast_with_cuts(
+    model,
+    poses,
+    spindle_rpm,
+    cuts,
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    *,
+    feed_direction: str = "x",
+    n_samples: int = 64,
+    label_noise: float = 0.05,
+    rng=0,
+    structures=None,
+) -> CutForecast:
+    """Forecast at poses and speeds before and after test cuts (module docs).
+
+    Parameters
+    ----------
+    model
+        The pose model (inputs x_mm, y_mm, rz_deg); unused when ``structures`` is given.
+    poses : array_like
+        (P, 3) poses of the forecast.
+    spindle_rpm : array_like
+        (J,) speeds [rpm].
+    cuts : MeasuredCuts
+        Test cuts with poses (:func:`cuts_at_pose`).
+    tool, conditions, coefficients
+        Cutter, engagement and material of the cuts and the forecast.
+    feed_direction : {"x", "y"}
+        Base-frame feed direction.
+    n_samples : int
+        Structures drawn (:func:`~robovib.milling.structures.sample_structures`).
+    label_noise : float
+        Probability that a cut's label is wrong (0 < eps < 0.5).
+    rng : int or numpy.random.Generator
+        Seed of the structures.
+    structures : StructureSamples, optional
+        Structures to use instead of drawing them (the prior: their weights).
+
+    Returns
+    -------
+    CutForecast
+    """
+    x = np.atleast_2d(np.asarray(poses, float))
+    if x.ndim != 2 or x.shape[1] != 3 or not np.all(np.isfinite(x)):
+        raise ValueError(f"poses must be finite (n, 3) x_mm, y_mm, rz_deg; got {x.shape}")
+    rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
+    if structures is None:
+        from .structures import sample_structures
+
+        structures = sample_structures(model, n_samples, rng=rng)
+    update = update_with_cuts(structures, cuts, tool, conditions, coefficients,
+                              feed_direction=feed_direction, label_noise=label_noise)  # fmt: skip
+    lim = structures.limits(x, rpm, tool, conditions, coefficients, feed_direction=feed_direction)
+    return CutForecast(x, rpm, np.asarray(lim, float), update, cuts)
+
+
+def add_cut_forecast(
+    ds,
+    model,
+    cuts,
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    *,
+    n_samples: int = 64,
+    depth_m: float | None = None,
+    label_noise: float = 0.05,
+    rng=0,
+):
+    """A workspace map with the forecast after test cuts (``mill map --cuts``).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Map of :func:`robovib.milling.maps.workspace_lobe_map` (its grid, speeds and feed
+        direction are used).
+    model
+        The pose model of the map.
+    cuts : MeasuredCuts
+        Test cuts with poses.
+    tool, conditions, coefficients
+        Cutter, engagement and material of the map.
+    n_samples : int
+        Structures drawn.
+    depth_m : float, optional
+        Depth [m] whose P(stable) is mapped.
+    label_noise : float
+        Probability that a cut's label is wrong.
+    rng : int
+        Seed of the structures.
+
+    Returns
+    -------
+    ds : xarray.Dataset
+        A copy with ``a_lim_p05_m``, ``a_lim_p50_m``, ``a_lim_p95_m`` (and ``p_stable``) after
+        the cuts, ``a_lim_p50_before_cuts_m`` (and ``p_stable_before_cuts``), and the
+        attribute ``test_cuts`` (JSON of :meth:`CutForecast.to_dict`).
+    forecast : CutForecast
+    """
+    import json
+
+    if cuts.pose_mm_deg is None:
+        raise ValueError("a map's test cuts need their poses: give the columns x_mm, y_mm, rz_deg")
+    if depth_m is not None and not (np.isfinite(depth_m) and depth_m > 0):
+        raise ValueError(f"depth_m must be a finite depth > 0 m, got {depth_m!r}")
+    settings = json.loads(ds.attrs["settings"])
+    xs, ys, rzs = (ds[k].values for k in ("x_mm", "y_mm", "rz_deg"))
+    rpm = ds["spindle_rpm"].values
+    grid = np.stack(np.meshgrid(xs, ys, rzs, indexing="ij"), axis=-1).reshape(-1, 3)
+    fc = forecast_with_cuts(
+        model, grid, rpm, cuts, tool, conditions, coefficients,
+        feed_direction=settings["feed_direction"], n_samples=n_samples,
+        label_noise=label_noise, rng=rng,
+    )  # fmt: skip
+    dims = ("x_mm", "y_mm", "rz_deg", "spindle_rpm")
+    shape = (xs.size, ys.size, rzs.size, rpm.size)
+    out = ds.copy()
+    n = fc.limits_m.shape[0]
+    for q in (5, 50, 95):
+        out[f"a_lim_p{q:02d}_m"] = (dims, fc.quantile_m(q / 100).reshape(shape), {
+            "units": "m", "long_name": f"{q} % quantile of the critical depth over {n} sampled "
+            "structures weighted by the test cuts"})  # fmt: skip
+    out["a_lim_p50_before_cuts_m"] = (dims, fc.quantile_m(0.5, False).reshape(shape), {
+        "units": "m", "long_name": "median critical depth before the test cuts"})  # fmt: skip
+    if depth_m is not None:
+        for name, post in (("p_stable", True), ("p_stable_before_cuts", False)):
+            out[name] = (dims, fc.p_stable(depth_m, post).reshape(shape), {
+                "units": "1", "depth_m": float(depth_m),
+                "long_name": f"probability of a stable cut at {depth_m * 1e3:g} mm "
+                + ("after" if post else "before") + " the test cuts"})  # fmt: skip
+    settings.update(n_samples=int(n), seed=int(rng), label_noise=float(label_noise),
+                    **({} if depth_m is None else {"depth_m": float(depth_m)}))  # fmt: skip
+    out.attrs["settings"] = json.dumps(settings)
+    out.attrs["test_cuts"] = json.dumps(fc.to_dict())
+    return out, fc
