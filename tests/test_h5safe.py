@@ -347,11 +347,21 @@ def test_files_without_a_checksum_still_load(pose_file):
         del h5.attrs[CHECKSUM_ATTR]
     _strip_file_seal(pose_file)
     from robovib.gp.pose_file import read_pose_file
+    from robovib.io.h5safe import UnverifiedFileWarning
 
-    assert read_pose_file(pose_file)[0].checksum == "none stored"
-    assert PoseModalModel.load(pose_file).file_attrs_["content_sha256"] == "none stored"
-    assert PoseModalModel.load(chapter3_model_path()).file_attrs_["content_sha256"] == "verified"
-    np.testing.assert_array_equal(PosePredictor.load(pose_file).predict([[2000.0, 0.0, 0.0]]), ref)
+    with pytest.warns(UnverifiedFileWarning, match="no checksum stored"):  # loud, not silent
+        assert read_pose_file(pose_file)[0].checksum == "none stored"
+    with pytest.warns(UnverifiedFileWarning):
+        assert PoseModalModel.load(pose_file).file_attrs_["content_sha256"] == "none stored"
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnverifiedFileWarning)  # a sealed file does not warn
+        loaded = PoseModalModel.load(chapter3_model_path())
+    assert loaded.file_attrs_["content_sha256"] == "verified"
+    with pytest.warns(UnverifiedFileWarning):
+        again = PosePredictor.load(pose_file).predict([[2000.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(again, ref)
 
 
 def test_input_files_record_every_hdf5_file_read_named_or_not(tmp_path):

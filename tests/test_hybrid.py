@@ -156,6 +156,9 @@ def test_hybrid_file_workflow_cli(tmp_path):
     )
     res = run(app, ["hybrid", "fit", str(oma).replace("oma", "missing"), "-o", str(model)])
     assert res.exit_code == 1
+    # OMA FRFs are no start for the model (they were counted as "2 EMA FRFs" before)
+    res = run(app, ["hybrid", "fit", str(oma), "-o", str(tmp_path / "m3.h5")])
+    assert res.exit_code == 1 and "not hammer-test (EMA) ones" in res.output
 
 
 def _ema_oma(rng, n_oma=10, noise=0.02):

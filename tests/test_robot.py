@@ -124,6 +124,9 @@ def test_identification_recovers_table_4_from_table_3_tests():
     np.testing.assert_allclose(k, TABLE_4_JOINT_STIFFNESS, rtol=0.02)
     with pytest.raises(ValueError, match="need"):
         identify_joint_stiffness(robot, joints, wrenches, np.array(disp)[:, :2])
+    # One test with translations only: 3 equations for 6 compliances (it printed A6 = 0 before).
+    with pytest.raises(ValueError, match="rank 3 for the 6 joint compliances"):
+        identify_joint_stiffness(robot, joints[:1], wrenches[:1], np.array(disp)[:1, :3])
 
 
 def test_hybrid_learning_curve_runs_and_scores_both_models():

@@ -142,7 +142,16 @@ def fit(
     from ..io import read_frfs
 
     check_output(output, ema, force)
-    frfs = [f for path in ema for f in read_frfs(path)]
+    frfs = []
+    for path in ema:
+        read = read_frfs(path)
+        other = sorted({f.source for f in read if f.source != "EMA"})
+        if other:
+            raise ValueError(
+                f"{path}: holds {', '.join(other)} FRFs, not hammer-test (EMA) ones: 'hybrid fit' "
+                "starts the model from EMA FRFs; add OMA FRFs with 'hybrid update'"
+            )
+        frfs += read
     with about_file(ema[0] if len(ema) == 1 else None):  # "FRF 0: no path coordinate" names it
         model = fit_frf_model(frfs, inputs, fmin, fmax, df_hz)
     model.save(output, provenance={"ema_files": ",".join(str(p) for p in ema)}, inputs=ema,

@@ -41,6 +41,7 @@ __all__ = [
     "USERBLOCK_SIZE",
     "FileContentError",
     "Scan",
+    "UnverifiedFileWarning",
     "check_file_seal",
     "check_self_contained",
     "content_sha256",
@@ -57,6 +58,12 @@ CHECKSUM_ATTR = "content_sha256"
 #: Bytes reserved at the start of every robovib HDF5 file (HDF5's user block, which the HDF5
 #: library skips) for the SHA-256 of the rest of the file (:func:`seal_file`).
 USERBLOCK_SIZE = 512
+
+
+class UnverifiedFileWarning(UserWarning):
+    """An HDF5 file without robovib's checksums: read, but damage cannot be detected."""
+
+
 _FILE_SEAL_MAGIC = b"robovib file sha256 "
 #: Most groups and datasets a robovib file may hold (a pose model holds about 100).
 MAX_OBJECTS = 100_000
@@ -287,7 +294,15 @@ def open_file(path: Path):
     # read_provenance): a regular file within the size limits, before any byte is read (a FIFO
     # would block the checksum's read).
     path = check_input_file(path, "HDF5 file", MAX_BINARY_BYTES)
-    check_file_seal(path)
+    if check_file_seal(path) == "none stored":
+        import warnings
+
+        warnings.warn(
+            f"{path}: no checksum stored (written by an older robovib or another program): "
+            "damage to its content cannot be detected",
+            UnverifiedFileWarning,
+            stacklevel=3,
+        )
     try:
         return h5py.File(path, "r")
     except FileNotFoundError:

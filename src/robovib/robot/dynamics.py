@@ -243,6 +243,13 @@ def identify_joint_stiffness(robot: KR500, joints_deg, wrenches, displacements) 
         raise ValueError(
             f"joints {np.flatnonzero(scale == 0) + 1} carry no torque in any test: not identifiable"
         )
+    rank = int(np.linalg.matrix_rank(a / scale, tol=1e-9 * np.sqrt(a.shape[0])))
+    if rank < a.shape[1]:
+        raise ValueError(
+            f"{q.shape[0]} compliance test(s) give {a.shape[0]} equations of rank {rank} for the "
+            f"{a.shape[1]} joint compliances: not identifiable (add tests in other poses or "
+            "load directions)"
+        )
     sol = optimize.lsq_linear(a / scale, b, bounds=(0, np.inf))
     comp = sol.x / scale
     if np.any(comp <= 0):
