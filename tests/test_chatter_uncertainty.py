@@ -135,12 +135,18 @@ def test_quantile_targeted_route_matches_per_sample_sdm(radial_m):
     kw = dict(n_samples=12, rng=3, method_error=False, fit_bias=0.0, steps_per_period=20)
     ref = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, warm_start=False,
                                 warm_from_mean=False, **kw)  # fmt: skip
-    fast = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, exact=False, **kw)
-    assert ref.settings["route"] == "exact" and fast.settings["route"] == "fast"
-    for q in (0.05, 0.5, 0.95):
-        np.testing.assert_allclose(fast.depth_quantile_m(q), ref.depth_quantile_m(q), rtol=0.01)
+    assert ref.settings["route"] == "exact"
+    for estimator in ("coarse-sdm", "zoa"):
+        fast = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, exact=False,
+                                     fast_estimator=estimator, **kw)  # fmt: skip
+        assert fast.settings["route"] == "fast"
+        for q in (0.05, 0.5, 0.95):
+            np.testing.assert_allclose(fast.depth_quantile_m(q), ref.depth_quantile_m(q), rtol=0.01)
     # The mean envelope is the SDM one (to the depth search's rtol; the reference scans densely).
     np.testing.assert_allclose(fast.mean.a_lim_m, ref.mean.a_lim_m, rtol=2e-3)
     with pytest.raises(ValueError, match="quantile_band"):
         stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, exact=False,
                               quantile_band=0.0, **kw)  # fmt: skip
+    with pytest.raises(ValueError, match="estimator"):
+        stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, exact=False,
+                              fast_estimator="fft", **kw)  # fmt: skip
