@@ -401,7 +401,8 @@ def _fast_sdm_samples(
        natural frequency of the most flexible mode (the lobes move with fn); poor where the
        zero-order method is (heavily damped modes at low speed: everything re-solved there).
     3. At every speed, the samples whose value (estimate, or exact once solved) lies within
-       ``band`` of the 5/50/95 % order statistics (``quantiles``) are solved exactly by :func:`~robovib.milling.sdm.sdm_lobes` at those speeds (the scan
+       ``band`` of the 5/50/95 % order statistics (``quantiles``), and all beyond a tail one
+       (below the 5 %, above the 95 %), are solved exactly by :func:`~robovib.milling.sdm.sdm_lobes` at those speeds (the scan
        starts 10 % below the estimate; a sample unstable there is scanned again from lower
        down); repeated until no new sample enters the band (``max_rounds`` at most). The order
        statistics are then those of exact values unless an estimate is off by more than
@@ -464,6 +465,7 @@ def _refine_at_ranks(est, feed_s, norm_s, tool, cond, coef, rpm, quantiles, band
     ``solve_all`` (n_speeds,) marks speeds where every sample is solved from the start.
     """
     n, nj = est.shape
+    mean_start = np.broadcast_to(np.asarray(lobe_options.get("scan_from_m", np.nan), float), (nj,))
     a = est.copy()
     exact = np.zeros((n, nj), bool)
     ranks = sorted({int(np.clip(np.round(q * (n - 1)), 0, n - 1)) for q in quantiles})
@@ -477,14 +479,20 @@ def _refine_at_ranks(est, feed_s, norm_s, tool, cond, coef, rpm, quantiles, band
         want = ~np.isfinite(est) | (solve_all | (seen_err > 0.5 * band))[None]
         width = band
         for r in ranks:
-            lo_v = hi_v = order[r]
+            # A tail rank: every sample beyond it too (a gross error, e.g. an unstable window
+            # the coarse chart missed, moves a sample across it from the tail's side).
+            lo_v = np.full(nj, -np.inf) if r < 0.25 * (n - 1) else order[r]
+            hi_v = np.full(nj, np.inf) if r > 0.75 * (n - 1) else order[r]
             want |= (a >= lo_v[None] * (1 - width)) & (a <= hi_v[None] * (1 + width))
         want &= ~exact
         if not want.any():
             break
         for i in np.flatnonzero(want.any(axis=1)):
             js = np.flatnonzero(want[i])
-            start = np.where(np.isfinite(est[i, js]), 0.9 * est[i, js], np.nan)
+            # From 10 % below the estimate, or lower where the mean's nearby lobes start lower
+            # (an unstable window the estimate missed lies below a stable pocket).
+            start = np.fmin(0.9 * est[i, js], mean_start[js])
+            start = np.where(np.isfinite(start), start, np.nan)
             opts = {**lobe_options, "scan_from_m": start}
             a_ex = sdm_lobes(feed_s[i], norm_s[i], tool, cond, coef, rpm[js], **opts).a_lim_m
             with np.errstate(invalid="ignore", divide="ignore"):
