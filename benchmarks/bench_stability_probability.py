@@ -23,7 +23,11 @@ pinned to one CPU where the OS allows), on the same samples (same seed):
 
 Options ``--pose X,Y,RZ`` (2-DOF model) and ``--radial-mm`` (e.g. 2.5 for flip lobes).
 
-Target of issue 37 (not met by either route, see the closing note): <= 1.0 s (2-DOF) and <= 3 s
+Measured 2026-11-27 (2-DOF, defaults, 2-core machine at load ~5, CPU s): reference 136.6,
+warm 40.0, fast 26.1 (5.2x the reference, 1.5x the warm route); the 5/50/95 % quantiles of
+the fast route within 3.5e-4 / 3.5e-4 / 4.9e-4 of the reference at every speed (63 % of the
+sample-speed pairs solved exactly, at 34 % of the speeds every sample: the 10-step chart is
+poor there). Target of issue 37 (not met by either route, see the closing note): <= 1.0 s (2-DOF) and <= 3 s
 (5 modes) for 200 speeds and 100 samples, quantiles within 1 %.
 """
 
