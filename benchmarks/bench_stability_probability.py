@@ -27,7 +27,11 @@ Measured 2026-11-27 (2-DOF, defaults, 2-core machine at load ~5, CPU s): referen
 warm 40.0, fast 26.1 (5.2x the reference, 1.5x the warm route); the 5/50/95 % quantiles of
 the fast route within 3.5e-4 / 3.5e-4 / 4.9e-4 of the reference at every speed (63 % of the
 sample-speed pairs solved exactly, at 34 % of the speeds every sample: the 10-step chart is
-poor there). Target of issue 37 (not met by either route, see the closing note): <= 1.0 s (2-DOF) and <= 3 s
+poor there). Same day, ``--no-warm``, CPU s reference / fast, largest quantile error:
+``--five-mode --speeds 100 --samples 30`` 134.3 / 23.4 (5.8x), 9.6e-4;
+``--radial-mm 2.5 --speeds 100 --samples 40`` 16.6 / 5.1 (3.3x), 4.4e-4;
+``--pose 1800,600,0 --speeds 100 --samples 40`` 18.3 / 4.0 (4.6x), 4.0e-4.
+Target of issue 37 (not met by either route, see the closing note): <= 1.0 s (2-DOF) and <= 3 s
 (5 modes) for 200 speeds and 100 samples, quantiles within 1 %.
 """
 
