@@ -632,7 +632,7 @@ def stability_probability(
     exact : bool
         ``"sdm"``: every sample's whole envelope by its own semi-discretization (default, the
         reference, about 0.3 s per 2-DOF sample at 200 speeds). ``False``: the quantile-targeted
-        route (issue 37, opt-in: on the chapter-3 model it saves only ~15 %, see
+        route (issue 37, opt-in: on the chapter-3 model 1.5x faster than the default, see
         ``benchmarks/bench_stability_probability.py``): every sample's zero-order limit (one batch), corrected by the mean modes'
         SDM / zero-order ratio shifted with the sample's natural frequency, and at every speed
         the samples within ``quantile_band`` of the 5, 50 and 95 % order statistics re-solved
