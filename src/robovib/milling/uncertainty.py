@@ -632,14 +632,15 @@ def stability_probability(
     exact : bool
         ``"sdm"``: every sample's whole envelope by its own semi-discretization (default, the
         reference, about 0.3 s per 2-DOF sample at 200 speeds). ``False``: the quantile-targeted
-        route (issue 37, opt-in: on the chapter-3 model 1.5x faster than the default, see
-        ``benchmarks/bench_stability_probability.py``): every sample's zero-order limit (one batch), corrected by the mean modes'
-        SDM / zero-order ratio shifted with the sample's natural frequency, and at every speed
-        the samples within ``quantile_band`` of the 5, 50 and 95 % order statistics re-solved
-        exactly by SDM until no new sample enters the band; those quantiles are then exact
-        SDM values wherever the corrected estimates err by less than ``quantile_band``.
-        Samples far from those ranks keep their corrected estimates (P(stable) away from
-        them carries the estimate's error: ``settings["route"]``, ``settings["estimate_error"]``).
+        route (issue 37, opt-in; on the chapter-3 model 1.5x faster than the default and 5x
+        faster than the dense scan, see ``benchmarks/bench_stability_probability.py``): a cheap
+        estimate of every sample's envelope (``fast_estimator``), then at every speed the
+        samples within ``quantile_band`` of the 5, 50 and 95 % order statistics (and all beyond
+        the 5 and 95 % ones) re-solved exactly by SDM until no new sample enters the band, and
+        every sample at speeds where a solved estimate erred by over half the band; those
+        quantiles are then exact SDM values wherever the estimates err by less than the band.
+        Samples far from those ranks keep their estimates (P(stable) away from them carries
+        the estimate's error: ``settings["route"]``, ``settings["estimate_error"]``).
     quantile_band : float
         Relative band of the fast route (above).
     fast_estimator : {"coarse-sdm", "zoa"}
