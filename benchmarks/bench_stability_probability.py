@@ -12,12 +12,26 @@ pinned to one CPU where the OS allows), on the same samples (same seed):
 
 * reference: every sample's envelope by the dense depth scan of every speed from the bottom of
   the range (``warm_start=False``, ``warm_from_mean=False``);
-* fast: the defaults (every sample's search starts just below the mean's nearby limits);
+* warm: the default per-sample route (every sample's search starts just below the mean's
+  nearby limits; ``exact=True``, skipped with ``--no-warm``);
+* fast: the quantile-targeted route (``exact=False``: zero-order limits of all samples in one
+  batch, corrected by the mean's SDM/zero-order ratio, the samples near the 5/50/95 % ranks
+  re-solved by SDM, every sample at speeds where the estimate errs by over half the band);
 * their wall/CPU times and ratio, and the largest relative difference of the 5, 50 and 95 %
   limit quantiles over the speeds (the band floors ``method_error``/``fit_bias`` are off in
   both, so only the solver is compared).
 
-Target of issue 37 (not met by this path, see the closing note): <= 1.0 s (2-DOF) and <= 3 s
+Options ``--pose X,Y,RZ`` (2-DOF model) and ``--radial-mm`` (e.g. 2.5 for flip lobes).
+
+Measured 2026-11-27 (2-DOF, defaults, 2-core machine at load ~5, CPU s): reference 136.6,
+warm 40.0, fast 26.1 (5.2x the reference, 1.5x the warm route); the 5/50/95 % quantiles of
+the fast route within 3.5e-4 / 3.5e-4 / 4.9e-4 of the reference at every speed (63 % of the
+sample-speed pairs solved exactly, at 34 % of the speeds every sample: the 10-step chart is
+poor there). Same day, ``--no-warm``, CPU s reference / fast, largest quantile error:
+``--five-mode --speeds 100 --samples 30`` 134.3 / 23.4 (5.8x), 9.6e-4;
+``--radial-mm 2.5 --speeds 100 --samples 40`` 16.6 / 5.1 (3.3x), 4.4e-4;
+``--pose 1800,600,0 --speeds 100 --samples 40`` 18.3 / 4.0 (4.6x), 4.0e-4.
+Target of issue 37 (not met by either route, see the closing note): <= 1.0 s (2-DOF) and <= 3 s
 (5 modes) for 200 speeds and 100 samples, quantiles within 1 %.
 """
 
@@ -62,32 +76,46 @@ def main(argv=None) -> None:
     ap.add_argument("--speeds", type=int, default=200)
     ap.add_argument("--samples", type=int, default=100)
     ap.add_argument("--five-mode", action="store_true", help="the stand-in 5-mode structure")
+    ap.add_argument("--pose", default="2400,0,45", help="X, Y [mm], Rz [deg] (2-DOF model)")
+    ap.add_argument("--radial-mm", type=float, default=6.0, help="radial depth [mm] (25.4 tool)")
+    ap.add_argument("--no-warm", action="store_true", help="skip the warm per-sample route")
     opts = ap.parse_args(argv)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     tool, cond, coef = cutting_setup(
-        ALUMINIUM_7075, diameter_m=0.0254, n_flutes=2, helix_deg=30.0, radial_depth_m=6e-3
+        ALUMINIUM_7075,
+        diameter_m=0.0254,
+        n_flutes=2,
+        helix_deg=30.0,
+        radial_depth_m=opts.radial_mm * 1e-3,
     )
     rpm = np.linspace(100.0, 3000.0, opts.speeds)
+    pose = tuple(float(v) for v in opts.pose.split(","))
     if opts.five_mode:
         dist, label = _five_mode(), "5-mode stand-in"
     else:
-        dist, label = mode_distribution_at_pose(load_chapter3_predictor(), (2400, 0, 45)), "2-DOF"
+        dist, label = (
+            mode_distribution_at_pose(load_chapter3_predictor(), pose),
+            f"2-DOF at {opts.pose}",
+        )
     common = dict(n_samples=opts.samples, rng=0, method_error=False, fit_bias=0.0)
     load = os.getloadavg()[0]
     runs = {}
-    for name, kw in (("reference", {"warm_start": False, "warm_from_mean": False}),
-                     ("fast", {})):  # fmt: skip
+    routes = [("reference", {"warm_start": False, "warm_from_mean": False, "exact": True}),
+              ("warm", {"exact": True}), ("fast", {"exact": False})]  # fmt: skip
+    if opts.no_warm:
+        del routes[1]
+    for name, kw in routes:
         t0, c0 = time.perf_counter(), time.process_time()
         res = stability_probability(dist, tool, cond, coef, rpm, **common, **kw)
         runs[name] = (time.perf_counter() - t0, time.process_time() - c0, res)
-    (w_ref, c_ref, ref), (w_fast, c_fast, fast) = runs["reference"], runs["fast"]
-    print(f"{label}: {opts.speeds} speeds x {opts.samples} samples, one core, load before "
-          f"{load:.2f}")  # fmt: skip
-    print(f"{'path':>10s} {'wall s':>8s} {'cpu s':>8s}")
-    print(f"{'reference':>10s} {w_ref:8.2f} {c_ref:8.2f}")
-    print(f"{'fast':>10s} {w_fast:8.2f} {c_fast:8.2f}")
-    print(f"ratio reference/fast: wall {w_ref / w_fast:.2f}x, cpu {c_ref / c_fast:.2f}x")
+    (_, c_ref, ref), fast = runs["reference"], runs["fast"][2]
+    print(f"{label}: {opts.speeds} speeds x {opts.samples} samples, radial {opts.radial_mm} mm, "
+          f"one core, load before {load:.2f}")  # fmt: skip
+    print(f"{'route':>10s} {'wall s':>8s} {'cpu s':>8s} {'ref/route cpu':>14s}")
+    for name, (w, c, _) in runs.items():
+        print(f"{name:>10s} {w:8.2f} {c:8.2f} {c_ref / c:13.2f}x")
+    print(f"fast route settings: {fast.settings['estimate_error']}")
     for q in (0.05, 0.5, 0.95):
         a, b = fast.depth_quantile_m(q), ref.depth_quantile_m(q)
         both = np.isfinite(a) & np.isfinite(b)

@@ -120,3 +120,33 @@ def test_distribution_from_a_pose_model_and_errors():
         stability_probability(d, TOOL, SLOT, ALUMINIUM_7075, [3000.0], method="fdm")
     with pytest.raises(ValueError, match="std"):
         ModeDistribution(1.0, 1.0, 1.0, -1.0)
+
+
+@pytest.mark.parametrize("radial_m", [0.02, 0.002])  # slotting, and 10 % immersion (flip lobes)
+def test_quantile_targeted_route_matches_per_sample_sdm(radial_m):
+    # Reference: every sample's envelope by its own dense SDM scan from the bottom of the range.
+    def md(fn, k, zeta):
+        c = 2 * zeta * k / (2 * math.pi * fn)
+        return ModeDistribution(fn, k, c, 0.04 * fn, 0.06 * k, 0.1 * c)
+
+    dist = {"x": md(600.0, 5e6, 0.03), "y": md(660.0, 6e6, 0.04)}
+    cond = CuttingConditions(3000, 1e-4, 1e-3, radial_m)
+    rpm = np.linspace(6000, 16000, 14)
+    kw = dict(n_samples=12, rng=3, method_error=False, fit_bias=0.0, steps_per_period=20)
+    ref = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, warm_start=False,
+                                warm_from_mean=False, **kw)  # fmt: skip
+    assert ref.settings["route"] == "exact"
+    for estimator in ("coarse-sdm", "zoa"):
+        fast = stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, exact=False,
+                                     fast_estimator=estimator, **kw)  # fmt: skip
+        assert fast.settings["route"] == "fast"
+        for q in (0.05, 0.5, 0.95):
+            np.testing.assert_allclose(fast.depth_quantile_m(q), ref.depth_quantile_m(q), rtol=0.01)
+    # The mean envelope is the SDM one (to the depth search's rtol; the reference scans densely).
+    np.testing.assert_allclose(fast.mean.a_lim_m, ref.mean.a_lim_m, rtol=2e-3)
+    with pytest.raises(ValueError, match="quantile_band"):
+        stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, exact=False,
+                              quantile_band=0.0, **kw)  # fmt: skip
+    with pytest.raises(ValueError, match="estimator"):
+        stability_probability(dist, TOOL, cond, ALUMINIUM_7075, rpm, exact=False,
+                              fast_estimator="fft", **kw)  # fmt: skip
