@@ -48,3 +48,24 @@ def parse_disturbances(items: list[str] | None):
         return CutDisturbances.parse(items or [])
     except ValueError as exc:
         fail(str(exc))
+
+
+def pose_option(text: str, option: str) -> list[float]:
+    """Comma-separated numbers of a pose option (``--start``, ``--end``); a one-line error else.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+    option : str
+        The option's name, for the message.
+
+    Returns
+    -------
+    list of float
+        The numbers.
+    """
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        fail(f"{option} must be comma-separated numbers, got {text!r}")
