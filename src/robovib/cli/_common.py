@@ -15,6 +15,8 @@ from rich.markup import escape
 from typer.core import TyperGroup
 
 from ._coerce import install_light_coercion
+from ._contexts import current_context as _current_context
+from ._contexts import track_contexts as _track_contexts
 from ._table import Table
 
 __all__ = [
@@ -119,38 +121,6 @@ def workspace_model(path: Path | None, seed: int = 0, require_inputs=("x_mm", "y
     from ..gp.chapter3_model import workspace_predictor
 
     return workspace_predictor(path, seed=seed, require_inputs=require_inputs)
-
-
-class _TrackedContext(typer.Context):
-    """Typer's public context class, keeping a stack of the contexts entered, so that
-    :func:`run_info` finds the running command's parameters without Typer's private globals."""
-
-    def __enter__(self):
-        _CONTEXTS.append(self)
-        return super().__enter__()
-
-    def __exit__(self, *exc_info):
-        if _CONTEXTS and _CONTEXTS[-1] is self:
-            _CONTEXTS.pop()
-        return super().__exit__(*exc_info)
-
-
-_CONTEXTS: list[typer.Context] = []
-
-
-def _track_contexts(command: Any) -> None:
-    """Every command under ``command`` makes :class:`_TrackedContext` contexts (click's public
-    ``context_class`` attribute)."""
-    stack = [command]
-    while stack:
-        cmd = stack.pop()
-        cmd.context_class = _TrackedContext
-        stack.extend(getattr(cmd, "commands", {}).values())
-
-
-def _current_context():
-    """The innermost context entered (the running command's), or None."""
-    return _CONTEXTS[-1] if _CONTEXTS else None
 
 
 #: Library errors reported as one line ``error: ...`` with exit code 1.
