@@ -195,3 +195,42 @@ def test_the_checker_sees_relative_and_absolute_imports():
     }
     for code, violates in cases.items():
         assert bool(_violations(code, ["robovib", "gp"])) is violates, code
+
+
+#: The floors of the house, ground floor first: a package imports only from floors below its
+#: own. The plumbing (``files``) is at the bottom and imports no other robovib package.
+FLOORS = (
+    ("files",),
+    ("frf", "datasets", "robot"),
+    ("modal",),
+    ("io", "gp"),
+    ("control", "milling", "campaign"),
+    ("hybrid",),
+    ("report", "sim"),
+    ("studies",),
+    ("cli",),
+)
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[tuple[str, str]]:
+    """Edges (a, b) where package ``a`` imports ``b`` on its own floor or a higher one."""
+    floor = {pkg: level for level, pkgs in enumerate(FLOORS) for pkg in pkgs}
+    return sorted((a, b) for a, nbrs in graph.items() for b in nbrs if floor[b] >= floor[a])
+
+
+def test_every_package_has_a_floor():
+    packages = {p.name for p in SRC.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    assert packages == {pkg for pkgs in FLOORS for pkg in pkgs}
+
+
+def test_no_import_from_a_lower_floor_to_a_higher_one():
+    assert upward_imports(package_graph()) == []
+
+
+def test_the_plumbing_imports_no_other_package():
+    assert package_graph().get("files", set()) == set()
+
+
+def test_the_floor_check_fails_on_a_planted_upward_import():
+    assert upward_imports({"files": {"io"}, "gp": {"files"}}) == [("files", "io")]
+    assert upward_imports({"io": {"gp"}}) == [("io", "gp")]  # same floor is not allowed

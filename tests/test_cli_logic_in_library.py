@@ -108,7 +108,7 @@ def test_cutting_setup_units_and_overrides():
 def test_command_settings_units_from_help_and_input_files(tmp_path):
     from pathlib import Path
 
-    from robovib.io.provenance import command_settings
+    from robovib.files.provenance import command_settings
 
     src, out = tmp_path / "in.csv", tmp_path / "out.h5"
     src.write_text("a\n1\n")

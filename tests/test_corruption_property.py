@@ -29,7 +29,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from robovib.io.h5safe import CHECKSUM_ATTR, USERBLOCK_SIZE, seal, seal_file
+from robovib.files.h5safe import CHECKSUM_ATTR, USERBLOCK_SIZE, seal, seal_file
 
 QUERY = np.array([[2000.0, -300.0, 30.0], [2600.0, 400.0, -60.0]])
 

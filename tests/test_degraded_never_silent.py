@@ -43,7 +43,7 @@ def uncalibrated(tmp_path_factory):
     folder = tmp_path_factory.mktemp("models")
     full = load_chapter3_model().save(folder / "full.h5")
     bare = load_chapter3_model().save(folder / "bare.h5")
-    from robovib.io.h5safe import seal, seal_file
+    from robovib.files.h5safe import seal, seal_file
 
     with h5py.File(bare, "a") as h5:
         assert "calibration" in h5
@@ -107,7 +107,7 @@ def test_real_valued_hdf5_and_uff_frfs_are_refused(tmp_path):
     h5 = tmp_path / "frf.h5"
     write_frfs(h5, [FRF(f, h, direction="x")])
     assert np.allclose(read_frfs(h5)[0].values, h)  # the complex file reads
-    from robovib.io.h5safe import seal, seal_file
+    from robovib.files.h5safe import seal, seal_file
 
     with h5py.File(h5, "a") as fh:
         (name,) = list(fh["frf"])

@@ -19,14 +19,14 @@ import pytest
 from typer.testing import CliRunner
 
 from robovib.cli import app
-from robovib.io.safe_read import (
+from robovib.files.safe_read import (
     InputFileError,
     check_input_file,
     inputs_read,
     read_bytes_checked,
     recording_inputs,
 )
-from robovib.io.safe_write import (
+from robovib.files.safe_write import (
     OutputPathError,
     atomic_output,
     check_output_path,
@@ -120,6 +120,7 @@ def test_readers_stop_at_the_size_limit(tmp_path, monkeypatch):
 def _readers():
     """(name, suffix, call) of every file reader of robovib."""
     from robovib.campaign.manifest import read_manifest
+    from robovib.files.h5format import open_checked
     from robovib.gp.pose_file import read_pose_file
     from robovib.io import (
         read_compliance_tests_csv,
@@ -136,7 +137,6 @@ def _readers():
         read_recording_channels,
         read_table,
     )
-    from robovib.io.h5format import open_checked
 
     return [
         ("read_table", ".csv", read_table),

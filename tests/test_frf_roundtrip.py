@@ -142,7 +142,7 @@ def _as_legacy(path, version=1):
 
 def _unseal(path):
     """Blank the byte checksum robovib writes in the user block (older files have none)."""
-    from robovib.io.h5safe import USERBLOCK_SIZE
+    from robovib.files.h5safe import USERBLOCK_SIZE
 
     data = bytearray(path.read_bytes())
     data[:USERBLOCK_SIZE] = bytes(USERBLOCK_SIZE)

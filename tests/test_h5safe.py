@@ -19,11 +19,7 @@ import pytest
 from typer.testing import CliRunner
 
 from robovib.cli import app
-from robovib.gp import PoseModalModel
-from robovib.gp.chapter3_model import chapter3_model_path
-from robovib.gp.predictor import PosePredictor
-from robovib.io import read_frfs, write_frfs
-from robovib.io.h5safe import (
+from robovib.files.h5safe import (
     CHECKSUM_ATTR,
     USERBLOCK_SIZE,
     FileContentError,
@@ -32,7 +28,11 @@ from robovib.io.h5safe import (
     seal,
     seal_file,
 )
-from robovib.io.provenance import read_provenance
+from robovib.files.provenance import read_provenance
+from robovib.gp import PoseModalModel
+from robovib.gp.chapter3_model import chapter3_model_path
+from robovib.gp.predictor import PosePredictor
+from robovib.io import read_frfs, write_frfs
 
 SECRET = b"root:x:0:0:root:/root:/bin/bash\n" * 200  # stands in for /etc/passwd
 
@@ -346,8 +346,8 @@ def test_files_without_a_checksum_still_load(pose_file):
     with h5py.File(pose_file, "a") as h5:
         del h5.attrs[CHECKSUM_ATTR]
     _strip_file_seal(pose_file)
+    from robovib.files.h5safe import UnverifiedFileWarning
     from robovib.gp.pose_file import read_pose_file
-    from robovib.io.h5safe import UnverifiedFileWarning
 
     with pytest.warns(UnverifiedFileWarning, match="no checksum stored"):  # loud, not silent
         assert read_pose_file(pose_file)[0].checksum == "none stored"

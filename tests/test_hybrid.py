@@ -73,7 +73,7 @@ def test_frf_pose_model_interpolates_and_round_trips(tmp_path):
 
 def _unseal(path):
     """Blank the byte checksum robovib writes in the user block (older files have none)."""
-    from robovib.io.h5safe import USERBLOCK_SIZE
+    from robovib.files.h5safe import USERBLOCK_SIZE
 
     data = bytearray(path.read_bytes())
     data[:USERBLOCK_SIZE] = bytes(USERBLOCK_SIZE)

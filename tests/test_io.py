@@ -338,7 +338,7 @@ def test_read_tree_returns_what_h5py_returns(tmp_path):
     """The in-memory tree of a file answers ``[()]``, ``attrs``, ``in`` and ``len`` as h5py."""
     import h5py
 
-    from robovib.io.h5format import read_tree
+    from robovib.files.h5format import read_tree
 
     path = tmp_path / "t.h5"
     with h5py.File(path, "w") as h5:

@@ -18,7 +18,7 @@ def test_library_never_saves_figures():
     import robovib
 
     root = pathlib.Path(robovib.__file__).parent
-    allowed = {root / "io" / "safe_write.py", root / "report" / "html.py"}
+    allowed = {root / "files" / "safe_write.py", root / "report" / "html.py"}
     offenders = [
         str(f.relative_to(root))
         for f in root.rglob("*.py")

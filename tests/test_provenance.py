@@ -12,9 +12,9 @@ from typer.testing import CliRunner
 from robovib import __version__
 from robovib.cli import app
 from robovib.datasets import example_path
+from robovib.files.provenance import read_provenance, unit_of_key
 from robovib.frf import FRF
 from robovib.io import read_frfs, write_frfs
-from robovib.io.provenance import read_provenance, unit_of_key
 
 
 def _datasets(h5):

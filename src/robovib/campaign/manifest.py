@@ -12,7 +12,7 @@ Layout (header names exact, order free)::
 * sensitivities for voltage channels: hammer [mV/N], response [mV per ``response_unit``].
 
 The file may come from a spreadsheet (BOM, ``;`` with decimal commas, tabs, ``x [mm]`` headers:
-read by :func:`robovib.io.csv_table.read_table`). Rows that would count the same data twice are
+read by :func:`robovib.files.csv_table.read_table`). Rows that would count the same data twice are
 errors (:func:`check_manifest_integrity`). Empty optional cells mean "not given". Unknown
 columns are an error (a typo such as ``x_m``
 would otherwise silently drop a pose coordinate).
@@ -126,8 +126,8 @@ def read_manifest(path: str | Path) -> list[CampaignRow]:
         count the same data twice (:func:`check_manifest_integrity`); the message names the
         manifest line.
     """
-    from ..io.csv_table import read_table
-    from ..io.safe_read import check_input_file
+    from ..files.csv_table import read_table
+    from ..files.safe_read import check_input_file
 
     path = check_input_file(path, "manifest file")  # a regular file below the size limit
     try:

@@ -203,7 +203,7 @@ def fit_pose_model_from_table(
     """
     import pandas as pd
 
-    from ..io.csv_table import read_table
+    from ..files.csv_table import read_table
     from .table_checks import check_modal_table
 
     raw = None

@@ -218,7 +218,7 @@ def fit_multimode_pose_model(
 
     import pandas as pd
 
-    from ..io.csv_table import read_table
+    from ..files.csv_table import read_table
     from .model import fit_pose_model_from_table
     from .quality import ModelQualityWarning
     from .table_checks import check_modes_table
@@ -290,7 +290,7 @@ def fit_campaign_table(
     Parameters
     ----------
     path : str or pathlib.Path
-        The table (read by :func:`robovib.io.csv_table.read_table`).
+        The table (read by :func:`robovib.files.csv_table.read_table`).
     inputs : sequence of str
         Pose columns, with their units (``x_mm``, ``rz_deg`` ...).
     kernel : {"ard", "isotropic"}
@@ -305,7 +305,7 @@ def fit_campaign_table(
     PoseModelFit
         The fitted model with its cross-validation table.
     """
-    from ..io.csv_table import read_table
+    from ..files.csv_table import read_table
     from .model import fit_pose_model_from_table
 
     if "mode_id" in read_table(path, what="modal table").header:

@@ -20,7 +20,7 @@ succeeded, or with ``skip_bad=True``):
 
 The four names belong to this function: a run removes the ones it does not write (a
 ``modes.csv`` of an earlier run with ``modes_band_hz``), and refuses, before any work, an output
-that is the manifest or one of its recordings (:mod:`robovib.io.safe_write`).
+that is the manifest or one of its recordings (:mod:`robovib.files.safe_write`).
 """
 
 from __future__ import annotations
@@ -332,9 +332,9 @@ def _write_outputs(out_dir: Path, results, settings, manifest: Path, skipped, in
     import pandas as pd
 
     from .. import __version__
+    from ..files.h5safe import seal, seal_file
+    from ..files.safe_write import remove_stale_outputs
     from ..io import atomic_output, json_dumps, write_frfs_hdf5
-    from ..io.h5safe import seal, seal_file
-    from ..io.safe_write import remove_stale_outputs
 
     good = [r for r in results if r.modal is not None]
     table = pd.DataFrame([r.modal for r in good])
@@ -507,7 +507,7 @@ def process_campaign(
         raise ValueError(f"{out_dir}: exists and is not a folder")
     inputs = [manifest, *(r.file for r in rows)]
     if out_dir.is_dir():  # refuse before any work: an output onto the manifest or a recording
-        from ..io.safe_write import check_output_path
+        from ..files.safe_write import check_output_path
 
         for name in OUTPUT_FILES:
             check_output_path(out_dir / name, inputs=inputs)

@@ -191,7 +191,7 @@ def check_modes_table(
     source : str
         The file's name, used in every message.
     lines : sequence of int, optional
-        File line of each row of ``table`` (:attr:`robovib.io.csv_table.CsvTable.lines`);
+        File line of each row of ``table`` (:attr:`robovib.files.csv_table.CsvTable.lines`);
         default: row numbers counted from 2 (a header on line 1).
     inputs : sequence of str
         Pose columns the fit will use.

@@ -157,8 +157,8 @@ class ErrorHandlingGroup(TyperGroup):
         return super().main(args, prog_name, *a, **kw)
 
     def invoke(self, ctx: click.Context) -> Any:
-        from ..io.provenance import forget_files_read, set_run_info_provider
-        from ..io.safe_read import recording_inputs
+        from ..files.provenance import forget_files_read, set_run_info_provider
+        from ..files.safe_read import recording_inputs
 
         set_run_info_provider(run_info)
         try:
@@ -209,9 +209,9 @@ def run_info() -> dict:
     """Command (argv as run), settings and their units, and input files of the running command.
 
     Settings are every parameter of the command (options and arguments) after parsing, defaults
-    included (:func:`robovib.io.provenance.command_settings`).
+    included (:func:`robovib.files.provenance.command_settings`).
     """
-    from ..io.provenance import command_settings
+    from ..files.provenance import command_settings
 
     ctx = _current_context()
     params = [] if ctx is None else [
@@ -230,12 +230,12 @@ def emit_json(
     Added to ``doc``: ``robovib_version``, ``command`` (argv as run), ``settings`` (every option
     and argument, defaults included), ``settings_units`` (setting -> unit), ``input_files`` (path
     and SHA-256 of each input file) and ``units`` (unit of every key of ``doc`` whose name has
-    no unit suffix: from :data:`robovib.io.json_units.KEY_UNITS` and ``units``). ``settings``
+    no unit suffix: from :data:`robovib.files.json_units.KEY_UNITS` and ``units``). ``settings``
     replaces echoed options by the values actually used (e.g. a default another option overrode).
     """
+    from ..files.json_units import self_describing_document
+    from ..files.provenance import run_provenance
     from ..io import json_dumps
-    from ..io.json_units import self_describing_document
-    from ..io.provenance import run_provenance
 
     out = self_describing_document(doc, run_provenance(settings=settings), units=units)
     typer.echo(json_dumps(out, indent=2))
@@ -244,7 +244,7 @@ def emit_json(
 @contextlib.contextmanager
 def about_file(path: Path | None) -> Iterator[None]:
     """Errors of the work on one input file name it: ``FILE: message`` (unless they do)."""
-    from ..io.safe_write import OutputPathError
+    from ..files.safe_write import OutputPathError
 
     try:
         yield

@@ -56,7 +56,7 @@ MethodOpt = Annotated[
 
 def cutting(coefficients, kt, kn, diameter, teeth, helix, ae, radial_immersion, milling):
     """Tool, conditions and coefficients from the shared options (mm -> SI at the edge)."""
-    from ..io.units import to_si
+    from ..files.units import to_si
     from ..milling.chart import cutting_setup
 
     return cutting_setup(coefficients, diameter_m=to_si(diameter, "mm"), n_flutes=teeth,

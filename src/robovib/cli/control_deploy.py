@@ -230,7 +230,7 @@ def replay_cmd(
     except ValueError as exc:
         fail(str(exc))
     if output is not None:
-        from ..io.safe_write import atomic_output
+        from ..files.safe_write import atomic_output
 
         lines = ["time_s,path_s_m,correction_x_mm,correction_y_mm,correction_z_mm,guard_scale"]
         lines += [",".join(f"{v:.17g}" for v in (t, s, *u, g)) for t, s, u, g in zip(

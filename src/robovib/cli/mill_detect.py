@@ -62,7 +62,7 @@ def detect(
     json_out: JsonFlag = False,
 ) -> None:
     """Label a milling record stable or chatter window by window; the chatter frequency."""
-    from ..io.units import to_si
+    from ..files.units import to_si
     from ..milling.detection import detect_chatter, read_detection_record
 
     cut_pose = None
@@ -79,7 +79,7 @@ def detect(
     displacement = all(c.startswith("displacement_") for c in cols)
     min_rms = None
     if displacement:
-        from ..io.units import si_factor
+        from ..files.units import si_factor
 
         # the columns' unit -> m, then the line's RMS against the feed per tooth [m]
         units = {c.split("_")[-1] for c in cols}
@@ -95,7 +95,7 @@ def detect(
     )  # fmt: skip
     doc = {"record": str(record), "columns": cols, "sample_rate_hz": fs, **res.to_dict()}
     if cuts_out is not None:
-        from ..io.safe_write import atomic_output
+        from ..files.safe_write import atomic_output
 
         row = [*cut_pose, rpm, depth]
         with atomic_output(cuts_out, inputs=[record], force=force) as tmp:

@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ..io.units import from_si, to_si
+from ..files.units import from_si, to_si
 from . import _mill_options as opt
 from ._common import (
     JsonFlag,

@@ -103,7 +103,7 @@ def plan(
 ) -> None:
     """Plan Rz and spindle speed along a tool path at a required P(stable); optional test cuts."""
 
-    from ..io.units import to_si
+    from ..files.units import to_si
     from ..milling.chart import parse_rpm_range
     from ..milling.planning import plan_path, read_path_csv
     from ..milling.structures import sample_structures
@@ -202,7 +202,7 @@ def plan(
 
 def _suggest(res, structures, n, path, inputs) -> list[dict]:
     """The most informative test cuts among the plan's segments, Rz and speeds, as a cuts CSV."""
-    from ..io.safe_write import atomic_output
+    from ..files.safe_write import atomic_output
     from ..milling.cut_posterior import choose_test_cuts
 
     poses, rpm, lim = res.test_cut_candidates()

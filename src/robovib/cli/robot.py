@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from ..io.units import from_si
+from ..files.units import from_si
 from ._common import (
     JsonFlag,
     ModelOpt,

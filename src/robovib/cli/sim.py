@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ..io.units import from_si, to_si
+from ..files.units import from_si, to_si
 from ._common import (
     JsonFlag,
     OutOpt,

@@ -316,8 +316,8 @@ def write_controller_file(path, doc: dict, *, inputs=(), force: bool = False) ->
     -------
     Path
     """
-    from ..io.provenance import plain_json
-    from ..io.safe_write import atomic_output
+    from ..files.provenance import plain_json
+    from ..files.safe_write import atomic_output
 
     path = Path(path)
     with atomic_output(path, inputs=inputs, force=force) as tmp:

@@ -327,7 +327,7 @@ def copy_examples(folder, names=None) -> list:
     import shutil
     from pathlib import Path
 
-    from ..io.safe_write import atomic_output
+    from ..files.safe_write import atomic_output
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

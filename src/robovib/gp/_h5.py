@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..io.h5format import as_text, write_header
-from ..io.h5safe import USERBLOCK_SIZE, seal, seal_file
+from ..files.h5format import as_text, write_header
+from ..files.h5safe import USERBLOCK_SIZE, seal, seal_file
 from .calibration import read_calibration, write_calibration
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, symmetric_rz_features
 from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2, read_pose_file

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..io.h5format import as_text
+from ..files.h5format import as_text
 from .predictive import ModalPredictive, _t_logpdf
 
 __all__ = [

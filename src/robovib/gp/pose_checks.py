@@ -5,7 +5,7 @@ model's own inputs and outputs, finiteness, and the size a model can have
 (:data:`MAX_TRAINING_POINTS`, :data:`MAX_INPUTS`) — before anything is fitted or factorised, so
 a damaged or hand-made file ends in one line naming the file and the member, never in a NumPy
 error from deep inside a reader or a GP of 10⁹ points. (What is read at all is bounded by the
-file's size on disk: :func:`robovib.io.h5safe.scan`.)
+file's size on disk: :func:`robovib.files.h5safe.scan`.)
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import re
 
 import numpy as np
 
-from ..io.h5format import H5Tree, as_text
-from ..io.h5safe import FileContentError
+from ..files.h5format import H5Tree, as_text
+from ..files.h5safe import FileContentError
 
 __all__ = ["MAX_INPUTS", "MAX_TRAINING_POINTS", "TreeChecker", "check_pose_tree"]
 
@@ -31,8 +31,8 @@ _SWITCH_ATTRS = ("direction", "found", "assumed", "threshold_hz", "delta_bic", "
 
 
 class TreeChecker:
-    """Checks of the members of an :class:`~robovib.io.h5format.H5Tree`, each failing with a
-    :class:`~robovib.io.h5safe.FileContentError` that names the file and the member.
+    """Checks of the members of an :class:`~robovib.files.h5format.H5Tree`, each failing with a
+    :class:`~robovib.files.h5safe.FileContentError` that names the file and the member.
 
     The methods share their parameters: ``tree`` (the group read into memory), ``name`` (the
     member or attribute in it) and ``member`` (the group's path in the file, for the message).
@@ -241,7 +241,7 @@ def check_pose_tree(tree: H5Tree, path) -> None:
 
     Parameters
     ----------
-    tree : robovib.io.h5format.H5Tree
+    tree : robovib.files.h5format.H5Tree
         The file read by :func:`robovib.gp.pose_file.read_pose_file`.
     path : str or pathlib.Path
         The file (for the message).

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io.h5format import (
+from ..files.h5format import (
     POSE_MODEL_FORMAT,
     POSE_MODEL_FORMAT_VERSION,
     H5Tree,
@@ -23,7 +23,7 @@ from ..io.h5format import (
 __all__ = ["FORMAT", "FORMAT_VERSION", "read_pose_file", "require_pose_inputs"]
 
 #: Format tag and version of pose-model files (:meth:`PoseModalModel.save` writes them); owned by
-#: :mod:`robovib.io.h5format` beside the other tags, kept here under their former names.
+#: :mod:`robovib.files.h5format` beside the other tags, kept here under their former names.
 FORMAT = POSE_MODEL_FORMAT
 FORMAT_VERSION = POSE_MODEL_FORMAT_VERSION
 
@@ -42,7 +42,7 @@ def read_pose_file(path) -> tuple[H5Tree, int]:
 
     Returns
     -------
-    tree : robovib.io.h5format.H5Tree
+    tree : robovib.files.h5format.H5Tree
         Root attributes and every group and dataset, as plain dicts and arrays.
     format_version : int
         The file's layout version.
@@ -51,7 +51,7 @@ def read_pose_file(path) -> tuple[H5Tree, int]:
     ------
     ValueError
         Not a readable HDF5 file, not a pose model, or a newer format version.
-    robovib.io.h5safe.FileContentError
+    robovib.files.h5safe.FileContentError
         The file reaches outside itself, does not match its checksum, or a member is missing,
         of the wrong type or shape, or not finite (:mod:`robovib.gp.pose_checks`).
     """

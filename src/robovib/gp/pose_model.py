@@ -633,7 +633,7 @@ class PoseModalModel(PosePredictionSide, BaseEstimator):
         self._require_fitted()
         cv = getattr(self, "cv_", None) if cv is None else cv
         provenance = getattr(self, "provenance_", None) if provenance is None else provenance
-        from ..io.safe_write import atomic_output
+        from ..files.safe_write import atomic_output
 
         path = Path(path)
         with atomic_output(path) as tmp:  # OutputPathError (a ValueError) names a bad folder

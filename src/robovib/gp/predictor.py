@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .._threads import single_blas_thread
-from ..io.h5format import as_text
+from ..files.h5format import as_text
 from ._likelihood import collapse_replicates
 from .contract import PosePredictionSide
 from .extrapolation import TrainingRegion

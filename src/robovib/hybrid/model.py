@@ -71,8 +71,8 @@ from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
 from ..campaign.selection import NextPoses, next_poses
+from ..files.h5format import FRF_POSE_MODEL_FORMAT
 from ..gp.regressor import BatchedGPRegressor, GPHyperparameters
-from ..io.h5format import FRF_POSE_MODEL_FORMAT
 from .frfs import frfs_on_grid
 
 __all__ = ["FRFPoseModel", "UpdateReport", "frequency_grid"]
@@ -1055,7 +1055,7 @@ class FRFPoseModel(BaseEstimator):
         """HDF5 (atomic): training data, hyperparameters, scalers, units and provenance.
 
         Attributes: ``format``, ``format_version``, ``robovib_version``, ``created_utc``,
-        ``units`` (the header of :mod:`robovib.io.h5format`; files of older robovib say
+        ``units`` (the header of :mod:`robovib.files.h5format`; files of older robovib say
         ``version``), ``kernel``,
         ``input_names`` (units in the names), ``direction`` (x, y, z or empty),
         ``compliance_unit = "um/N"`` (training targets and noise), ``frequency_unit = "Hz"``,
@@ -1076,10 +1076,10 @@ class FRFPoseModel(BaseEstimator):
         """
         import h5py
 
-        from ..io.h5format import write_header
-        from ..io.h5safe import USERBLOCK_SIZE, seal, seal_file
-        from ..io.provenance import set_units, write_provenance
-        from ..io.safe_write import atomic_output
+        from ..files.h5format import write_header
+        from ..files.h5safe import USERBLOCK_SIZE, seal, seal_file
+        from ..files.provenance import set_units, write_provenance
+        from ..files.safe_write import atomic_output
 
         self._require_fitted()
         gp = self.gp_
@@ -1131,7 +1131,7 @@ class FRFPoseModel(BaseEstimator):
         ValueError
             Not HDF5, or not a robovib FRF pose model.
         """
-        from ..io.h5format import open_verified, read_tree
+        from ..files.h5format import open_verified, read_tree
 
         path = Path(path)
         h5, _, _, _ = open_verified(
@@ -1155,7 +1155,7 @@ class FRFPoseModel(BaseEstimator):
         try:
             gp._set_training_data(d["X_train"], d["Y_train"], d["mask"].astype(bool))
         except (ValueError, np.linalg.LinAlgError):
-            from ..io.h5safe import FileContentError
+            from ..files.h5safe import FileContentError
 
             raise FileContentError(
                 path,
@@ -1173,8 +1173,8 @@ class FRFPoseModel(BaseEstimator):
 def _checked_model_tree(tree, path):
     """The datasets and attributes of a hybrid model file, each checked for type, shape and
     finiteness (one-line errors naming the file and the member)."""
+    from ..files.h5format import as_text
     from ..gp.pose_checks import MAX_TRAINING_POINTS, TreeChecker
-    from ..io.h5format import as_text
 
     c = TreeChecker(path)
     kernel = c.text(tree, "kernel", "")

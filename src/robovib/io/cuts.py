@@ -77,7 +77,7 @@ def read_cuts_csv(path: str | Path) -> MeasuredCuts:
     MeasuredCuts
         The cuts, depths in metres.
     """
-    from .safe_read import read_bytes_checked
+    from ..files.safe_read import read_bytes_checked
 
     p = Path(path)
     raw = read_bytes_checked(p, "cuts file")  # a regular file below the size limit

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files.safe_write import atomic_output
 from ..frf.core import FRF
-from .safe_write import atomic_output
 
 __all__ = ["FRF_CSV_UNITS", "check_frf_has_phase", "read_frf_csv", "write_frf_csv"]
 
@@ -151,7 +151,7 @@ def read_frf_csv(
     >>> frf.direction, frf.quantity, frf.df_hz
     ('x', 'compliance', 0.25)
     """
-    from .csv_table import read_table
+    from ..files.csv_table import read_table
 
     p = Path(path)
     where = str(p)

@@ -1,7 +1,7 @@
 """FRF collections on disk: HDF5 (many poses x directions) and UFF dataset 58 (function type 4).
 
 HDF5 layout (h5py), format tag ``robovib-frf`` version 1 (the header of
-:mod:`robovib.io.h5format`; files written before it say ``version`` instead of ``format_version``)::
+:mod:`robovib.files.h5format`; files written before it say ``version`` instead of ``format_version``)::
 
     /                      attrs: format="robovib-frf", format_version=1, robovib_version,
                                   created_utc, units
@@ -26,12 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files.h5format import FRF_FORMAT, as_text, open_checked, write_header
+from ..files.h5safe import USERBLOCK_SIZE, FileContentError, read_array, seal, seal_file
+from ..files.provenance import set_units, unit_of_key, write_provenance
+from ..files.safe_write import atomic_output
 from ..frf.core import FRF
 from .frf_csv import check_frf_has_phase
-from .h5format import FRF_FORMAT, as_text, open_checked, write_header
-from .h5safe import USERBLOCK_SIZE, FileContentError, read_array, seal, seal_file
-from .provenance import set_units, unit_of_key, write_provenance
-from .safe_write import atomic_output
 
 __all__ = [
     "read_frfs",
@@ -119,7 +119,7 @@ def write_frfs_hdf5(
 def read_frfs_hdf5(path: str | Path) -> list[FRF]:
     """Read a robovib FRF file (:func:`write_frfs_hdf5`), checked member by member.
 
-    The file must touch only itself and match its checksum (:mod:`robovib.io.h5safe`); each
+    The file must touch only itself and match its checksum (:mod:`robovib.files.h5safe`); each
     FRF's datasets must be 1-D arrays of the same length (frequency real, values complex,
     coherence real) and its attributes of the written types.
 
@@ -137,7 +137,7 @@ def read_frfs_hdf5(path: str | Path) -> list[FRF]:
     ------
     ValueError
         Not a robovib FRF file, or a member missing or of the wrong type or shape (a
-        :class:`robovib.io.h5safe.FileContentError` naming the file and the member).
+        :class:`robovib.files.h5safe.FileContentError` naming the file and the member).
     """
     path = Path(path)
     h5, _, _ = open_checked(path, {_FORMAT: 1}, what=f"robovib FRF ({_FORMAT})")
@@ -399,8 +399,8 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
     """
     import pyuff
 
-    from .safe_read import check_input_file
-    from .units import si_factor
+    from ..files.safe_read import check_input_file
+    from ..files.units import si_factor
 
     path = check_input_file(path, "UFF file")  # regular file, below the size limit
     try:
@@ -612,7 +612,7 @@ def read_frfs(path: str | Path) -> list[FRF]:
     list of FRF
         Every FRF of the file, in SI.
     """
-    from .safe_read import MAX_BINARY_BYTES, check_input_file
+    from ..files.safe_read import MAX_BINARY_BYTES, check_input_file
 
     suffix = Path(path).suffix.lower()
     if suffix in (".h5", ".hdf5", ".uff", ".unv", ".csv") or os.path.lexists(path):

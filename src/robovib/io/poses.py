@@ -19,8 +19,8 @@ def _float(text: str) -> float:
 
 def _read_checked(path: str | Path, columns: Sequence[str]):
     """The table as read and the required columns as checked finite floats."""
-    from .csv_table import read_table
-    from .safe_read import check_input_file
+    from ..files.csv_table import read_table
+    from ..files.safe_read import check_input_file
 
     path = check_input_file(path, "pose table")  # a regular file below the size limit
     try:
@@ -55,7 +55,7 @@ def read_pose_table(path: str | Path, columns: Sequence[str]):
     Parameters
     ----------
     path
-        CSV with a header row (any layout :func:`robovib.io.csv_table.read_table` reads:
+        CSV with a header row (any layout :func:`robovib.files.csv_table.read_table` reads:
         spreadsheet exports, ``x [mm]`` headers); other columns are kept.
     columns
         Required columns, units in the names (``x_mm``, ``rz_deg``, ``a1_deg``...).

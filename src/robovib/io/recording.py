@@ -32,7 +32,7 @@ paired into hits by load-case id when every channel numbers its records uniquely
 several ids, otherwise by order within each channel (the i-th force record and the i-th record
 of every response channel form hit i), so files that give every record load-case 0 keep all
 hits. A file with one record per channel is continuous and is cut into hits at the impacts.
-Units come from the ordinate unit labels (see :mod:`robovib.io.units`).
+Units come from the ordinate unit labels (see :mod:`robovib.files.units`).
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .units import si_factor
+from ..files.units import si_factor
 
 __all__ = [
     "HammerRecording",
@@ -442,7 +442,7 @@ def _csv_channels(
     force_sensitivity: Sensitivity | None,
     response_sensitivity: Sensitivity | None,
 ) -> _Channels:
-    from .csv_table import read_table
+    from ..files.csv_table import read_table
 
     table = read_table(path, what="recording")
     header = list(table.header)
@@ -713,7 +713,7 @@ def read_recording_channels(
     ValueError
         Unreadable file, unknown units, mismatched sampling rates, time gaps, no complete hit.
     """
-    from .safe_read import check_input_file
+    from ..files.safe_read import check_input_file
 
     path = check_input_file(path, "file")  # a regular file below the size limit ("no such file")
     suffix = path.suffix.lower()

@@ -44,18 +44,18 @@ _RESPONSE_UNIT = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displaceme
 
 def _atomic_write_text(path: Path, text: str, *, inputs=(), force: bool = False) -> None:
     """Atomic text output (:func:`robovib.io.atomic_output`): never output = input unless forced."""
-    from .safe_write import atomic_output
+    from ..files.safe_write import atomic_output
 
     with atomic_output(path, inputs=inputs, force=force) as tmp:
         tmp.write_text(text)
 
 
 def _read_table(path, columns: Sequence[str], *, time_first: bool = False):
-    """(DataFrame, (n, len(columns)) floats) of a CSV (:func:`robovib.io.csv_table.read_table`).
+    """(DataFrame, (n, len(columns)) floats) of a CSV (:func:`robovib.files.csv_table.read_table`).
 
     ``time_first``: the first column is a time that must rise from line to line (2 rows or more).
     """
-    from .csv_table import read_table
+    from ..files.csv_table import read_table
 
     path = Path(path)
     table = read_table(path)
@@ -81,7 +81,7 @@ def _read_table(path, columns: Sequence[str], *, time_first: bool = False):
 
 
 def _header(path) -> tuple[str, ...]:
-    from .csv_table import read_table
+    from ..files.csv_table import read_table
 
     return read_table(path).header
 

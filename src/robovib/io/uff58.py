@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .safe_write import atomic_output
+from ..files.safe_write import atomic_output
 
 __all__ = ["Record58", "format_58", "write_uff58"]
 

@@ -335,7 +335,7 @@ def read_detection_record(path, channel: str | None = None) -> tuple[np.ndarray,
     columns : list of str
         The columns used.
     """
-    from ..io.csv_table import read_table
+    from ..files.csv_table import read_table
     from ..io.recording import sample_rate_from_time
 
     table = read_table(path, what="milling record")

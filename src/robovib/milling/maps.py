@@ -369,7 +369,7 @@ def workspace_lobe_map(
     import xarray as xr
 
     from .. import __version__
-    from ..io.h5format import LOBE_MAP_FORMAT, LOBE_MAP_FORMAT_VERSION
+    from ..files.h5format import LOBE_MAP_FORMAT, LOBE_MAP_FORMAT_VERSION
 
     if method not in ("sdm", "zoa"):
         raise ValueError(f"method must be 'sdm' or 'zoa', got {method!r}")
@@ -646,7 +646,7 @@ def save_lobe_map(ds, path: str | Path) -> Path:
     target = Path(path)
     if target.suffix.lower() not in (".nc", ".netcdf", ".nc4"):
         raise ValueError(f"lobe maps are written as NetCDF (.nc), got {target.name!r}")
-    from ..io.safe_write import atomic_output
+    from ..files.safe_write import atomic_output
 
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_output(target) as tmp:

@@ -95,7 +95,7 @@ def read_path_csv(path) -> np.ndarray:
     numpy.ndarray
         (n, 2) points [mm].
     """
-    from ..io.csv_table import read_table
+    from ..files.csv_table import read_table
 
     table = read_table(path, what="tool path", comment="#")
     for name in ("x_mm", "y_mm"):
@@ -259,7 +259,7 @@ class PathPlan:
         import csv
         import io
 
-        from ..io.safe_write import atomic_output
+        from ..files.safe_write import atomic_output
 
         rows = self.rows()
         buf = io.StringIO()

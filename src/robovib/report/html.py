@@ -210,7 +210,7 @@ def write_report(report: Report, path: str | Path, *, inputs=(), force: bool = F
     pathlib.Path
         The file written.
     """
-    from ..io.safe_write import atomic_output
+    from ..files.safe_write import atomic_output
 
     path = Path(path)
     text = render_html(report)

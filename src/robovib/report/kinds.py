@@ -125,7 +125,7 @@ def report_provenance(provenance=None, inputs=()) -> dict:
     """
     if provenance is not None:
         return dict(provenance)
-    from ..io.provenance import run_provenance
+    from ..files.provenance import run_provenance
 
     prov = run_provenance(inputs=inputs)
     return {
@@ -179,8 +179,8 @@ def chapter3_report(study, provenance: Mapping[str, Any] | None = None) -> Repor
 def _load_model(path):
     """A saved pose model (:class:`robovib.gp.PoseModalModel`: the chapter-3 model, a campaign's
     or a user's) or a hybrid FRF model, by the file's format tag."""
-    from ..io.h5format import FRF_POSE_MODEL_FORMAT, POSE_MODEL_FORMAT, file_format
-    from ..io.safe_read import MAX_BINARY_BYTES, check_input_file
+    from ..files.h5format import FRF_POSE_MODEL_FORMAT, POSE_MODEL_FORMAT, file_format
+    from ..files.safe_read import MAX_BINARY_BYTES, check_input_file
 
     fmt, _ = file_format(check_input_file(path, "model file", MAX_BINARY_BYTES))
     if fmt == FRF_POSE_MODEL_FORMAT:
@@ -198,7 +198,7 @@ def _load_model(path):
 
 
 def _file_provenance(path) -> dict:
-    from ..io.provenance import read_provenance
+    from ..files.provenance import read_provenance
 
     try:
         prov = read_provenance(path)

@@ -17,7 +17,7 @@ the bounding box of the campaign poses.
 
 These files belong to :func:`simulate_campaign`: a rerun into the same folder removes the
 recordings of the earlier run it does not write again, and refuses, before writing anything, to
-write onto the poses file it reads (:mod:`robovib.io.safe_write`).
+write onto the poses file it reads (:mod:`robovib.files.safe_write`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.safe_write import atomic_output, check_output_path, remove_stale_outputs
+from ..files.safe_write import atomic_output, check_output_path, remove_stale_outputs
 from ..io.uff58 import Record58, write_uff58
 from .dynamics import modal_response
 from .experiments import _rng, simulate_hammer_test

@@ -166,7 +166,7 @@ class MotionRecord:
             cols["path_s_m"] = self.coords
         else:
             cols["x_m"], cols["y_m"], cols["rz_deg"] = self.coords.T
-        from ..io.safe_write import atomic_output
+        from ..files.safe_write import atomic_output
 
         with atomic_output(path, inputs=inputs, force=force) as tmp:
             pd.DataFrame(cols).to_csv(tmp, index=False, float_format=f"%.{int(digits)}g")

@@ -1,7 +1,7 @@
 """Units of the keys of robovib's JSON documents, and the self-describing document itself.
 
 Every number in a ``--json`` document has a unit: from its key's suffix (``_hz``,
-``_n_per_m``, ...; :func:`robovib.io.provenance.unit_of_key`), from ``n_*`` (a count), from the
+``_n_per_m``, ...; :func:`robovib.files.provenance.unit_of_key`), from ``n_*`` (a count), from the
 key of a ``*_std`` stem, or from :data:`KEY_UNITS` for keys whose names carry none.
 """
 
@@ -158,7 +158,7 @@ def self_describing_document(
     doc: Mapping[str, Any], provenance: Mapping[str, Any], units: Mapping[str, str] | None = None
 ) -> dict:
     """``doc`` with ``robovib_version``, ``command``, ``settings``, ``settings_units``,
-    ``input_files`` (from ``provenance``, see :func:`robovib.io.provenance.run_provenance`) and
+    ``input_files`` (from ``provenance``, see :func:`robovib.files.provenance.run_provenance`) and
     ``units`` (unit of every numeric key whose name has no unit suffix) added.
 
     Keys of ``doc`` that collide with the added ones are kept as ``result_<key>``; keys with no
@@ -169,7 +169,7 @@ def self_describing_document(
     doc : mapping
         The command's result document.
     provenance : mapping
-        The run's provenance (:func:`robovib.io.provenance.run_provenance`).
+        The run's provenance (:func:`robovib.files.provenance.run_provenance`).
     units : mapping, optional
         Units of keys whose names carry none.
 

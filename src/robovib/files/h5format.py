@@ -162,10 +162,10 @@ def open_checked(path, formats: Mapping[str, int], what: str | None = None):
     ------
     ValueError
         Not a readable HDF5 file, another format, or a version newer than supported.
-    robovib.io.h5safe.FileContentError
+    robovib.files.h5safe.FileContentError
         The file reaches outside itself (external storage or links, virtual datasets, soft
         links), declares more data than it stores, or its content does not match its checksum
-        (see :mod:`robovib.io.h5safe`).
+        (see :mod:`robovib.files.h5safe`).
     """
     h5, fmt, version, _ = open_verified(path, formats, what)
     return h5, fmt, version
@@ -177,8 +177,8 @@ def open_verified(
     """:func:`open_checked` that also says whether the file's checksum was verified.
 
     Before any data is read the file is checked to touch only itself
-    (:func:`robovib.io.h5safe.check_self_contained`), then its content is checked against the
-    checksum robovib's writers store (:func:`robovib.io.h5safe.verify_seal`).
+    (:func:`robovib.files.h5safe.check_self_contained`), then its content is checked against the
+    checksum robovib's writers store (:func:`robovib.files.h5safe.verify_seal`).
 
     Parameters
     ----------
@@ -255,7 +255,7 @@ def read_tree(group, path=None) -> H5Tree:
     """Read an ``h5py`` group (or file) and everything below it into an :class:`H5Tree`.
 
     Only what the file itself stores is read: links, external storage, virtual datasets and
-    datasets not stored in full are refused first (:func:`robovib.io.h5safe.scan`),
+    datasets not stored in full are refused first (:func:`robovib.files.h5safe.scan`),
     so what is read is bounded by the file's size on disk.
 
     Parameters
@@ -273,14 +273,14 @@ def read_tree(group, path=None) -> H5Tree:
 
     Raises
     ------
-    robovib.io.h5safe.FileContentError
+    robovib.files.h5safe.FileContentError
         A member that reaches outside the file or cannot be read, or (``group`` a file's root)
         content that does not match the file's checksum; named with the file.
 
     Examples
     --------
     >>> import io, h5py, numpy as np
-    >>> from robovib.io.h5format import read_tree
+    >>> from robovib.files.h5format import read_tree
     >>> with h5py.File(io.BytesIO(), "w") as h5:
     ...     h5.attrs["kind"] = "demo"
     ...     _ = h5.create_group("g").create_dataset("x", data=np.arange(3.0))

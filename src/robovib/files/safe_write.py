@@ -16,7 +16,7 @@ or folder.
 One rule for every output (``docs/files.md``):
 
 * an output is never a file the command reads: the ``inputs`` given, and inside a command of the
-  command line every file read so far (:func:`robovib.io.safe_read.recording_inputs`), such as
+  command line every file read so far (:func:`robovib.files.safe_read.recording_inputs`), such as
   a manifest or poses file inside an output folder. Only ``force=True`` (``--force`` where a
   command offers it) lets the new file replace an input, after the input was read;
 * an existing output that is not a regular file (a symbolic link, FIFO, device, socket or
