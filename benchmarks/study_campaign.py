@@ -4,7 +4,7 @@ Run from the repository root::
 
     python benchmarks/study_campaign.py [--poses 30] [--seed 7]
 
-Same campaign as ``tests/test_campaign.py``: poses x 3 directions on the virtual robot
+Same campaign as ``tests/campaign/test_campaign.py``: poses x 3 directions on the virtual robot
 (X 2100-2550 mm, Y -300-600 mm, Rz 0-180°), four file layouts, 2 hits of 2 s at 1280 Hz;
 processed (``process_campaign``), the pose model fitted on ``modal.csv``
 (``fit_pose_model_from_table``) and compared with the virtual robot's dominant modes at 25

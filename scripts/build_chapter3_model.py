@@ -3,7 +3,7 @@
 Fits :func:`robovib.gp.fit_chapter3_model` with its defaults (ARD kernel, mode switch detected,
 corrected stiffness reading, seed 0) on Table A1, cross-validates it grouped by pose (5 folds,
 all replicates of a pose held out together) and writes the model with the CV figures and
-provenance. ``tests/test_chapter3_model.py`` checks the file against a fresh fit.
+provenance. ``tests/gp/test_chapter3_model.py`` checks the file against a fresh fit.
 
     python scripts/build_chapter3_model.py [--no-cv]
 """

@@ -5,7 +5,7 @@ means 393 Python-level optimisation loops. Here the BFGS update of the thesis (E
 on a batch of problems in lock-step, with one inverse-Hessian approximation, one step length and
 one convergence flag per problem, so every linear-algebra call is vectorised across the batch.
 The result for each problem is the same kind of local optimum that :func:`scipy.optimize.minimize`
-with ``method="BFGS"`` finds (tested in ``tests/test_optimize.py``).
+with ``method="BFGS"`` finds (tested in ``tests/gp/test_optimize.py``).
 
 Box bounds are handled by projection (variables at a bound with the gradient pointing outward
 are frozen for that step), which is enough for the log-hyperparameter boxes used here.

@@ -12,7 +12,7 @@
 * **LSFD**: residues of the chosen poles (plus lower and upper residuals) by linear least
   squares; modal mass ``m = -1 / (2 wd Im(A))`` (real modes), modal stiffness ``k = m wn^2``.
 
-Tested against sdypy-EMA (``tests/test_modal.py``), which implements the same LSCF.
+Tested against sdypy-EMA (``tests/modal/test_modal.py``), which implements the same LSCF.
 """
 
 from __future__ import annotations

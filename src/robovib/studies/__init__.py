@@ -10,5 +10,5 @@
   settings, the whole-workspace FRF model, next hammer poses.
 
 Studies may import every package; no core package (``frf, modal, gp, robot, milling, control,
-hybrid, io``) may import ``studies`` (checked by ``tests/test_architecture.py``).
+hybrid, io``) may import ``studies`` (checked by ``tests/project/test_architecture.py``).
 """

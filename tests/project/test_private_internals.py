@@ -2,7 +2,7 @@
 
 One documented exception is left: ``cli/_coerce.py`` gives Typer 0.2x's parameters a light
 converter (Pydantic costs ~0.13 s of CPU per command, which puts the pose commands above 2x
-``robovib --help``); Typer is pinned below 0.30 and ``tests/test_cli_coerce.py`` checks the
+``robovib --help``); Typer is pinned below 0.30 and ``tests/cli/test_cli_coerce.py`` checks the
 converter against Typer's own, failing (never skipping) when Typer moves.
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-SRC = Path(__file__).resolve().parents[1] / "src" / "robovib"
+SRC = Path(__file__).resolve().parents[2] / "src" / "robovib"
 #: ``typer._x`` / ``rich._x`` modules, Typer's vendored click, rich's private table cells.
 _PRIVATE = re.compile(r"\b(?:typer|rich)(?:\.\w+)*\._\w+|\b_click\b|\._cells\b|_runtime_param\b")
 ALLOWED = {"cli/_coerce.py"}

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-SRC = Path(__file__).resolve().parents[1] / "src" / "robovib"
+SRC = Path(__file__).resolve().parents[2] / "src" / "robovib"
 #: The application layers: everything else is core and may not import them.
 APPLICATION = ("cli", "studies", "sim", "report")
 CORE = tuple(

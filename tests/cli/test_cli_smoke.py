@@ -288,7 +288,7 @@ def test_slow_studies():
 
 #: Slow commands: their --json documents are checked in test_slow_studies (``-m slow``).
 SLOW_COMMANDS = {"demo", "control simulate", "hybrid study"}
-#: Checked with assert_self_describing in tests/test_report_kinds.py, test_cli_campaign.py
+#: Checked with assert_self_describing in tests/report/test_report_kinds.py, test_cli_campaign.py
 #: and test_control_runtime.py.
 ELSEWHERE = {"report chapter3", "report model", "report lobes", "report control",
              "sim campaign", "campaign process", "model fit", "model next-poses",

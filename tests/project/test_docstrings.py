@@ -216,7 +216,7 @@ def test_examples_run(name):
         assert runner.failures == 0, f"{name}: {runner.failures} failing example(s)"
 
 
-README = pathlib.Path(__file__).resolve().parents[1] / "README.md"
+README = pathlib.Path(__file__).resolve().parents[2] / "README.md"
 
 
 def readme_imports(text: str) -> set[str]:

@@ -9,7 +9,7 @@ are skipped unless ``ROBOVIB_README_SLOW=1``; the ``slow``-marked test runs them
 virtual environment made with the README's install command alone, so the test extras cannot
 hide a missing dependency).
 
-Standalone: ``python tests/test_readme.py [--slow]`` prints the time of each command.
+Standalone: ``python tests/project/test_readme.py [--slow]`` prints the time of each command.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+README = Path(__file__).resolve().parents[2] / "README.md"
 SLOW = re.compile(r"#\s*slow\b")
 
 
@@ -76,7 +76,7 @@ def _shim(folder: Path) -> dict:
     env = dict(os.environ)
     env["PATH"] = f"{bindir}{os.pathsep}{env.get('PATH', '')}"
     if not os.environ.get("ROBOVIB_README_PYTHON"):
-        src = str(Path(__file__).resolve().parents[1] / "src")
+        src = str(Path(__file__).resolve().parents[2] / "src")
         env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     else:
         env.pop("PYTHONPATH", None)

@@ -87,7 +87,7 @@ def _version(text: str) -> tuple[int, ...]:
 def test_typer_is_inside_the_pinned_range():
     """pyproject bounds Typer from above: a Typer release can change how every option converts,
     so a Typer outside the range fails here (it is never skipped)."""
-    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    pyproject = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())
     spec = next(d for d in pyproject["project"]["dependencies"] if d.startswith("typer"))
     bounds = dict(re.findall(r"(>=|<)\s*([\d.]+)", spec))
     assert set(bounds) == {">=", "<"}, f"typer needs a lower and an upper bound, got {spec!r}"
