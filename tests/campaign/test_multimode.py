@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import synthetic_modes_table
 
 from robovib.campaign import ProcessingSettings, fit_multimode_pose_model, track_modes
 from robovib.campaign.multimode import fit_row_modes, mode_direction
@@ -34,35 +35,8 @@ def test_two_mode_frf_recovered_by_row_fit():
         assert g["damping_ratio"] == pytest.approx(m.damping_ratio, rel=2e-2)
 
 
-def _synthetic_table(n=14, seed=0):
-    """Smooth fields: x has 2 modes, y has 1; pose 3 misses x2, pose 5 has a spurious x mode."""
-    rng = np.random.default_rng(seed)
-    X = np.column_stack([rng.uniform(2100, 2600, n), rng.uniform(-300, 600, n),
-                         rng.uniform(0, 180, n)])  # fmt: skip
-    s = (X[:, 0] - 2100) / 500
-    fields = {
-        "x1": (15 + 6 * s, 3e6 * (1 + 0.3 * s), 0.1),
-        "x2": (40 + 15 * s, 3e7 * (1 + 0.2 * s), 0.05),
-        "y1": (8 + 0.5 * np.cos(np.radians(X[:, 2])), 1e6 * (1 + 0.2 * s), 0.18),
-    }
-    rows = []
-    for i in range(n):
-        for k, (fn, kk, z) in fields.items():
-            if i == 3 and k == "x2":
-                continue
-            fi, ki = float(np.atleast_1d(fn)[i]), float(np.atleast_1d(kk)[i])
-            m = ModalParameters(fi, ki, z)
-            rows.append({"row": 2 * i + (k[0] == "y"), "direction": k[0], "x_mm": X[i, 0],
-                         "y_mm": X[i, 1], "rz_deg": X[i, 2], "fn_hz": fi,
-                         "stiffness_n_per_m": ki, "damping_ns_per_m": m.damping_ns_per_m,
-                         "damping_ratio": z, "true_id": k})  # fmt: skip
-        if i == 5:  # a spurious mode far from every tracked one
-            rows.append({**rows[-2], "fn_hz": 95.0, "true_id": ""})
-    return pd.DataFrame(rows), X, fields
-
-
 def test_tracking_labels_missing_and_spurious_modes():
-    table, _, _ = _synthetic_table()
+    table, _, _ = synthetic_modes_table()
     tracked, presence = track_modes(table)
     assert (tracked["mode_id"] == tracked["true_id"]).all()
     assert presence["x2"]["n_seen"] == 13 and presence["x2"]["presence"] == pytest.approx(13 / 14)
@@ -75,7 +49,7 @@ def test_tracking_labels_missing_and_spurious_modes():
 
 
 def test_multimode_pose_model_predicts_every_mode(tmp_path):
-    table, _, _ = _synthetic_table(n=16)
+    table, _, _ = synthetic_modes_table(n=16)
     tracked, _ = track_modes(table)
     fit = fit_multimode_pose_model(tracked, n_folds=3, covariance="se")
     model = fit.model

@@ -11,7 +11,7 @@ from robovib.cli import app
 
 
 def run(*args):
-    from test_cli_smoke import assert_self_describing
+    from helpers import assert_self_describing
 
     argv = [str(a) for a in args]
     res = CliRunner().invoke(app, argv)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import assert_self_describing
 from typer.testing import CliRunner
 
 from robovib.cli import app
@@ -27,29 +28,6 @@ def _memoised_chapter3(chapter3_factory, chapter3_regressor_factory):
     mp.setattr("robovib.studies.chapter3.fit_chapter3_regressor", chapter3_regressor_factory)
     yield
     mp.undo()
-
-
-def assert_self_describing(doc: dict, args: list[str]) -> None:
-    """Provenance and units keys every --json document must carry."""
-    import hashlib
-    import re
-
-    from robovib import __version__
-
-    assert doc["robovib_version"] == __version__
-    assert doc["command"] == ["robovib", *args]
-    settings, units = doc["settings"], doc["settings_units"]
-    assert isinstance(settings, dict) and "json_out" not in settings
-    for name, value in settings.items():
-        values = value if isinstance(value, list) else [value]
-        if any(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
-            assert units.get(name), f"setting {name} = {value} has no unit"
-    for item in doc["input_files"]:
-        with open(item["path"], "rb") as fh:
-            assert item["sha256"] == hashlib.sha256(fh.read()).hexdigest()
-    assert re.fullmatch(r"\d+\.\d+\.\d+.*", doc["robovib_version"])
-    unknown = [k for k, u in doc["units"].items() if not u or u == "unknown"]
-    assert not unknown, f"numbers without a unit: {unknown}"
 
 
 def run_json(*args: str) -> dict:

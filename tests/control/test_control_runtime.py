@@ -204,13 +204,13 @@ def test_live_lookup_matches_the_planned_lookup_of_the_same_controller(tmp_path)
 
 
 def test_cli_design_and_replay_on_a_logged_cut(tmp_path):
+    from helpers import assert_self_describing
     from typer.testing import CliRunner
 
     from robovib.cli import app
     from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
     from robovib.sim import LinearMove, VirtualRobot, run_closed_loop
     from robovib.sim.disturbances import REALISTIC_LEVELS
-    from tests.test_cli_smoke import assert_self_describing
 
     runner = CliRunner()
     ctl = tmp_path / "ctl.json"

@@ -10,7 +10,7 @@ import json
 
 import numpy as np
 import pytest
-from test_multimode import _synthetic_table
+from helpers import synthetic_modes_table
 from typer.testing import CliRunner
 
 from robovib.cli import app
@@ -27,7 +27,7 @@ def models(tmp_path_factory):
     from robovib.campaign import fit_multimode_pose_model, track_modes
 
     folder = tmp_path_factory.mktemp("models")
-    table, _, fields = _synthetic_table(n=16)
+    table, _, fields = synthetic_modes_table(n=16)
     tracked, _ = track_modes(table)
     multi = fit_multimode_pose_model(tracked, n_folds=3, covariance="se").model
     paths = {"multi": multi.save(folder / "modes.h5"),
@@ -65,7 +65,7 @@ def test_mode_set_gives_every_mode_with_presence(models):
     model = load_pose_model(paths["multi"], predict_only=True)
     row = model.mode_set(np.array([POSE]))[0]
     assert [m.mode_id for m in row["x"]] == ["x1", "x2"] and [m.mode_id for m in row["y"]] == ["y1"]
-    s = (POSE[0] - 2100) / 500  # the fields of _synthetic_table
+    s = (POSE[0] - 2100) / 500  # the fields of synthetic_modes_table
     assert row["x"][0].parameters.natural_frequency_hz == pytest.approx(15 + 6 * s, rel=0.03)
     assert row["x"][1].parameters.natural_frequency_hz == pytest.approx(40 + 15 * s, rel=0.03)
     n_rec = table[table["direction"] == "x"]["row"].nunique()

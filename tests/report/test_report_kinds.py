@@ -9,7 +9,7 @@ import matplotlib
 import numpy as np
 import pytest
 from browser import assert_page_ok
-from test_cli_smoke import assert_self_describing
+from helpers import assert_self_describing
 from typer.testing import CliRunner
 
 from robovib.cli import app
