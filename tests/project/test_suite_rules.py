@@ -49,3 +49,26 @@ def test_markers_are_strict_and_registered():
     assert "--strict-markers" in options["addopts"]
     registered = {m.split(":")[0] for m in options["markers"]}
     assert {"slow", "browser", "oracle"} <= registered
+
+
+_TEST_IMPORT = re.compile(r"^\s*(?:from|import)\s+(?:tests\.)?(test_\w+)", re.MULTILINE)
+
+
+def imported_test_modules(source: str) -> list[str]:
+    """Test modules that ``source`` imports (shared code belongs in ``tests/helpers.py``)."""
+    return _TEST_IMPORT.findall(source)
+
+
+def test_no_test_module_imports_another():
+    """A test folder must run alone: importing a test module of another folder works only when
+    that folder happened to be collected first."""
+    assert imported_test_modules("from test_cli_smoke import x\nimport helpers\n") == [
+        "test_cli_smoke"
+    ]
+    assert imported_test_modules("    from tests.test_multimode import t\n") == ["test_multimode"]
+    found = {
+        path.name: bad
+        for path in sorted((ROOT / "tests").rglob("*.py"))
+        if (bad := imported_test_modules(path.read_text()))
+    }
+    assert not found, f"move shared code to tests/helpers.py: {found}"
