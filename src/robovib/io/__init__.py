@@ -58,8 +58,8 @@ _WHERE = {
     "write_frfs_hdf5": (".frf_files", "write_frfs_hdf5"),
     "write_frfs_uff": (".frf_files", "write_frfs_uff"),
     "write_path_modes_csv": (".tables", "write_path_modes_csv"),
-    "write_recording": (".tables", "write_recording"),
-    "write_recording_csv": (".tables", "write_recording_csv"),
+    "write_recording": (".recording", "write_recording"),
+    "write_recording_csv": (".recording", "write_recording_csv"),
     "write_recording_uff": (".recording", "write_recording_uff"),
     "write_uff58": (".uff58", "write_uff58"),
 }

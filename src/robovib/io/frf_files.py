@@ -408,7 +408,7 @@ def read_frfs_uff(path: str | Path) -> list[FRF]:
     except Exception as exc:  # pyuff raises bare Exceptions on corrupt files
         raise ValueError(f"{path}: not a readable UFF file ({exc})") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
-    from .recording import _check_uff_complete
+    from .recording.uff_layout import _check_uff_complete
 
     _check_uff_complete(path, sum(s.get("type") == 58 for s in sets))
     try:

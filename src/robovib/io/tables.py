@@ -1,4 +1,4 @@
-"""CSV tables read and written by the command line: recordings, forces, path modes, milling
+"""CSV tables read and written by the command line: forces, path modes, milling
 records and compliance tests. Column names carry their SI unit; everything returned is SI.
 
 Writers go through a temporary file in the target folder renamed at the end (atomic).
@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 
 from ..modal.parameters import ModalParameters
-from .recording import HammerRecording, write_recording_uff
 
 __all__ = [
     "FORCE_COLUMNS",
@@ -23,8 +22,6 @@ __all__ = [
     "read_milling_record_csv",
     "read_path_modes_csv",
     "write_path_modes_csv",
-    "write_recording",
-    "write_recording_csv",
 ]
 
 FORCE_COLUMNS = ("time_s", "force_x_n", "force_y_n", "force_z_n")
@@ -39,7 +36,6 @@ MILLING_RECORD_COLUMNS = (
     "displacement_z_m",
     "path_s_m",
 )
-_RESPONSE_UNIT = {"acceleration": "m_per_s2", "velocity": "m_per_s", "displacement": "m"}
 
 
 def _atomic_write_text(path: Path, text: str, *, inputs=(), force: bool = False) -> None:
@@ -84,72 +80,6 @@ def _header(path) -> tuple[str, ...]:
     from ..files.csv_table import read_table
 
     return read_table(path).header
-
-
-def write_recording_csv(
-    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
-) -> None:
-    """Write a hammer recording as CSV (``hit, time_s, force_n, <quantity>_<SI unit>``).
-
-    The layout is the one :func:`robovib.io.read_recording_csv` reads.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The ``.csv`` file to write.
-    recording : HammerRecording
-        The hits.
-    inputs : sequence of path
-        Files the output was made from (never overwritten unless ``force``).
-    force : bool
-        Allow ``path`` to be one of ``inputs``.
-
-    Raises
-    ------
-    ValueError
-        Unknown response quantity.
-    """
-    rec = recording
-    if rec.response_quantity not in _RESPONSE_UNIT:
-        raise ValueError(f"unknown response quantity {rec.response_quantity!r}")
-    n = rec.forces.shape[1]
-    t = np.arange(n) / rec.sample_rate_hz
-    lines = [f"hit,time_s,force_n,{rec.response_quantity}_{_RESPONSE_UNIT[rec.response_quantity]}"]
-    for h in range(rec.n_hits):
-        lines.extend(
-            f"{h},{t[i]:.15g},{rec.forces[h, i]:.9g},{rec.responses[h, i]:.9g}" for i in range(n)
-        )
-    _atomic_write_text(Path(path), "\n".join(lines) + "\n", inputs=inputs, force=force)
-
-
-def write_recording(
-    path: str | Path, recording: HammerRecording, *, inputs=(), force: bool = False
-) -> None:
-    """Write a hammer recording as UFF 58 (``.uff``/``.unv``) or CSV (``.csv``).
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The file to write; its suffix picks the format.
-    recording : HammerRecording
-        The hits.
-    inputs : sequence of path
-        Files the output was made from (never overwritten unless ``force``).
-    force : bool
-        Allow ``path`` to be one of ``inputs``.
-
-    Raises
-    ------
-    ValueError
-        Unknown file suffix.
-    """
-    suffix = Path(path).suffix.lower()
-    if suffix in (".uff", ".unv"):
-        write_recording_uff(path, recording, inputs=inputs, force=force)
-    elif suffix == ".csv":
-        write_recording_csv(path, recording, inputs=inputs, force=force)
-    else:
-        raise ValueError(f"{path}: unknown output format {suffix!r}; use .uff or .csv")
 
 
 def read_force_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
