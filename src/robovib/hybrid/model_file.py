@@ -34,20 +34,14 @@ _VERSION = 2
 def save_frf_pose_model(
     model, path, *, provenance: dict | None = None, inputs=(), force: bool = False
 ) -> None:
-    """Write a fitted :class:`~robovib.hybrid.FRFPoseModel` (see its :meth:`save`).
+    """Write a fitted model in this module's layout, atomically (:meth:`FRFPoseModel.save`).
 
     Parameters
     ----------
     model
-        The fitted model.
-    path
-        Output ``.h5`` file (written atomically).
-    provenance
-        Extra ``provenance/<key>`` attributes (strings or numbers).
-    inputs
-        Files the model was made from (recorded with their hashes; ``path`` may not be one).
-    force
-        Allow ``path`` to be one of ``inputs``.
+        The fitted :class:`~robovib.hybrid.FRFPoseModel`.
+    path, provenance, inputs, force
+        As :meth:`FRFPoseModel.save <robovib.hybrid.FRFPoseModel.save>`.
     """
     import h5py
 
@@ -90,24 +84,24 @@ def save_frf_pose_model(
 
 
 def load_frf_pose_model(model_class, path):
-    """Read a model written by :func:`save_frf_pose_model` (versions 1 and 2).
+    """The model in ``path`` (versions 1 and 2), each member checked before use.
 
     Parameters
     ----------
     model_class
-        The model class (:class:`~robovib.hybrid.FRFPoseModel` or a subclass).
+        The class to build (:class:`~robovib.hybrid.FRFPoseModel` or a subclass).
     path
-        A ``.h5`` file.
+        A file written by :func:`save_frf_pose_model`.
 
     Returns
     -------
     FRFPoseModel
-        The fitted model (training data, hyperparameters and scalers as saved).
+        Fitted: the GP re-created exactly from its stored state (no optimisation).
 
     Raises
     ------
     ValueError
-        Not HDF5, or not a robovib FRF pose model.
+        As :meth:`FRFPoseModel.load <robovib.hybrid.FRFPoseModel.load>`.
     """
     from ..io.h5format import open_verified, read_tree
 
