@@ -548,7 +548,7 @@ def test_robust_update_finds_a_source_gain_in_noisy_oma():
 
 
 def test_frf_pose_model_extrapolation_is_the_pose_models_rule():
-    """FRFPoseModel.extrapolating is gp.extrapolation's box rule (as milling.workflow sees it):
+    """FRFPoseModel.extrapolating is gp.extrapolation's box rule (as milling.at_pose sees it):
     outside a coordinate's training range by more than 1e-9 of that range."""
     from robovib.gp.extrapolation import extrapolating
 

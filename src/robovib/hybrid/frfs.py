@@ -1,6 +1,6 @@
 """FRFs with their poses onto a model's frequency grid: the data side of
 :class:`robovib.hybrid.FRFPoseModel` (its ``fit_frfs`` / ``update_frfs``) and of the file
-workflow (:mod:`robovib.hybrid.workflow`, which re-exports these names)."""
+workflow (:mod:`robovib.hybrid.frf_prediction`, which re-exports these names)."""
 
 from __future__ import annotations
 
