@@ -14,52 +14,19 @@ future work, §5.5); use ``kernel="ard"`` for several inputs of different units.
 Sources: EMA (hammer, group 0) and OMA (milling, group 1) have separate noise
 hyperparameters (§5.2.4: different sensors). Updating with OMA FRFs (:meth:`FRFPoseModel.update`):
 
-* ``"robust"`` (default) — *bias-aware* update, beyond the thesis. The OMA FRFs are checked
-  against the current (EMA) model's predictive distribution before they are used:
-
-  0. the window bias at the EMA dominant peak: a Hann-windowed Welch estimate is the FRF
-     averaged over the window's spectral weight, which flattens a sharp peak; the expected
-     ratio E[H1]/H per bin and segment comes from a one-mode fit to the EMA prediction at
-     the segment's pose (resolution = grid step) and the OMA FRFs are divided by it;
-  1. a complex scale of the OMA source (sensor-to-tool transfer, force-sensor gain, the
-     Bussgang gain of a displacement quantised coarser than the vibration): per bin by
-     weighted least squares on the predictive check, pooled by a weighted median; applied
-     when it is off 1 by > 10 % and by more than its spread over the bins (std of the pooled
-     estimate), if that spread is < 25 % of it; off 1 but less precise, the source gain is
-     ambiguous and the direction is held back (neither 1 nor the estimate is established);
-  2. per bin: the mean standardised residual over the OMA segments (a systematic offset in
-     that bin: leakage at a sharp peak, a sensor resonance, a harmonic); bins whose bias
-     test exceeds ``chi2_reject`` are rejected for OMA;
-  3. per observation: bins of single segments whose standardised residual exceeds
-     ``chi2_reject`` are rejected (outliers);
-  4. the OMA noise of every bin (Re and Im) by maximising the marginal likelihood (Eq. 33)
-     of all kept data with the EMA kernel hyperparameters fixed, floored by the H1 random
-     error when ``noise_std`` is given (Bendat & Piersol ``sqrt((1 - γ²) / (2 n_d γ²))``
-     with the coherence debiased for few averages, :func:`robovib.hybrid.h1_random_error`);
-  5. the dominant peak of the EMA model: where the window bias exceeds 5 % (about
-     (1/3)(1.5 df / B_r)^2 for Hann, B_r the half-power bandwidth) the OMA noise of the
-     peak band is at least that bias x the peak |H|, and the dominant peak bin itself is
-     kept from the EMA model (the OMA data there are held back);
-  6. evidence: two folds of alternate OMA segments along the pose; each fold is predicted by
-     the EMA model plus the other fold and by the EMA model alone; the whole direction is
-     held back unless the held-out log predictive density summed over the bins gains
-     > ln(number of bins tested) (one bin in many passes 1 nat by chance); then each bin
-     keeps its posterior (weighted by its OMA noise) unless its held-out segments are
-     predicted > 1 nat *worse* with OMA (evidence against OMA there: that bin is held
-     back); the report says so in words (:meth:`UpdateReport.describe`);
-  7. the posterior (Eq. 9-10) with those hyperparameters.
-
-  The kernel hyperparameters stay those of the EMA fit, so OMA data can sharpen the
-  prediction between EMA poses but cannot reshape the prior (the failure of ``"warm"`` on
-  the Y direction of the study). What was rejected is in the :class:`UpdateReport`.
+* ``"robust"`` (default) — *bias-aware* update, beyond the thesis: the OMA FRFs are checked
+  against the current (EMA) model's predictive distribution before they are used (window bias,
+  source gain, biased bins, outliers, OMA noise by marginal likelihood, held-out evidence); the
+  kernel hyperparameters stay those of the EMA fit. The steps:
+  :mod:`robovib.hybrid.robust_update`; what was rejected is in the :class:`UpdateReport`.
 * ``"posterior"`` — hyperparameters kept, Eq. 9-10 with the enlarged data (OMA noise = EMA's);
 * ``"warm"`` — hyperparameters re-optimised starting from the EMA optimum (the thesis' method);
 * full retraining = a new :meth:`FRFPoseModel.fit` on all data from the default start.
 
 Flagged OMA bins (harmonics, low coherence) enter as missing targets of those bins only.
 
-The robust update itself is :func:`robovib.hybrid.robust_update.robust_update` (a function of
-the GP and the arrays); the file layout is :mod:`robovib.hybrid.model_file`.
+The file layout is :mod:`robovib.hybrid.model_file`; the model's frequency grid is
+:func:`robovib.hybrid.frfs.frequency_grid`.
 """
 
 from __future__ import annotations
@@ -75,49 +42,11 @@ from sklearn.exceptions import NotFittedError
 from ..campaign.selection import NextPoses, next_poses
 from ..gp._state import start_noise_group_like
 from ..gp.regressor import BatchedGPRegressor
-from .frfs import frfs_on_grid
+from .frfs import frequency_grid, frfs_on_grid
 from .model_file import load_frf_pose_model, save_frf_pose_model
 from .robust_update import UpdateReport, robust_update
 
 __all__ = ["FRFPoseModel", "UpdateReport", "frequency_grid"]
-
-
-def frequency_grid(f_min_hz: float, f_max_hz: float, df_hz: float) -> np.ndarray:
-    """The model's frequency grid ``f_min_hz, f_min_hz + df_hz, ... <= f_max_hz`` [Hz], checked.
-
-    Parameters
-    ----------
-    f_min_hz
-        First bin [Hz], >= 0.
-    f_max_hz
-        Upper end [Hz]; the last bin is the largest ``f_min_hz + i df_hz`` not above it.
-    df_hz
-        Bin spacing [Hz], > 0.
-
-    Returns
-    -------
-    ndarray (n_f,)
-        The bin frequencies [Hz], 2 <= n_f <= 100000.
-
-    Raises
-    ------
-    ValueError
-        Non-finite values, ``f_min_hz`` < 0 Hz, ``f_min_hz >= f_max_hz``, ``df_hz <= 0`` Hz, or a
-        grid of fewer than 2 or more than 100000 bins.
-    """
-    from .._checks import check_number
-
-    lo = check_number("f_min_hz", f_min_hz, "Hz", lo=0.0)
-    hi = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
-    df = check_number("df_hz", df_hz, "Hz", lo=0.0, lo_open=True)
-    if lo >= hi:
-        raise ValueError(f"f_min_hz={lo:g} Hz must be below f_max_hz={hi:g} Hz")
-    n = int(np.floor((hi - lo) / df + 1e-9)) + 1
-    if not 2 <= n <= 100_000:
-        raise ValueError(
-            f"grid {lo:g}-{hi:g} Hz in steps of {df:g} Hz has {n} bins; need 2 to 100000"
-        )
-    return lo + df * np.arange(n)
 
 
 _SCALE = 1e6  # m/N -> um/N: O(1) numbers inside the GPs
@@ -374,8 +303,8 @@ class FRFPoseModel(BaseEstimator):
         sources
             Deprecated name of ``groups``.
         mode
-            ``"robust"`` (bias check, rejection, OMA noise by marginal likelihood, see the
-            module docs), ``"posterior"`` or ``"warm"``.
+            ``"robust"`` (bias check, rejection, OMA noise by marginal likelihood, see
+            :mod:`robovib.hybrid.robust_update`), ``"posterior"`` or ``"warm"``.
         noise_std
             Optional (n, n_f) random-error std of each new FRF bin [m/N] (e.g.
             :attr:`robovib.hybrid.OMASegment.random_error_m_per_n`): a floor for the OMA
@@ -386,7 +315,7 @@ class FRFPoseModel(BaseEstimator):
             cleaned data).
         oma_resolution_hz
             Robust mode: frequency resolution of the (Hann-windowed Welch) OMA estimates [Hz],
-            which sets their window bias at a sharp peak (steps 0 and 5 of the module docs);
+            which sets their window bias at a sharp peak (steps 0 and 5 of :mod:`robovib.hybrid.robust_update`);
             default the model's grid step; 0 for FRFs without window bias (e.g. synthetic).
 
         Returns

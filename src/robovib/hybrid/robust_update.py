@@ -1,10 +1,44 @@
 """The robust (bias-aware) Bayesian update of an FRF pose model with OMA FRFs, and its report.
 
-:func:`robust_update` is steps 0-7 of :mod:`robovib.hybrid.model`'s docs, a function of the
-model's GP and the new arrays: the OMA FRFs are checked against the EMA model's predictive
-distribution (window bias, source gain, biased bins, outliers), their noise is estimated by
-marginal likelihood, held-out segments must be predicted better with them, and the posterior
-is computed with the EMA kernel hyperparameters. :class:`UpdateReport` says what any update did.
+:func:`robust_update` (the ``"robust"`` mode of :meth:`robovib.hybrid.FRFPoseModel.update`,
+beyond the thesis) is a function of the model's GP and the new arrays. The OMA FRFs are checked
+against the current (EMA) model's predictive distribution before they are used:
+
+0. the window bias at the EMA dominant peak: a Hann-windowed Welch estimate is the FRF
+   averaged over the window's spectral weight, which flattens a sharp peak; the expected
+   ratio E[H1]/H per bin and segment comes from a one-mode fit to the EMA prediction at
+   the segment's pose (resolution = grid step) and the OMA FRFs are divided by it;
+1. a complex scale of the OMA source (sensor-to-tool transfer, force-sensor gain, the
+   Bussgang gain of a displacement quantised coarser than the vibration): per bin by
+   weighted least squares on the predictive check, pooled by a weighted median; applied
+   when it is off 1 by > 10 % and by more than its spread over the bins (std of the pooled
+   estimate), if that spread is < 25 % of it; off 1 but less precise, the source gain is
+   ambiguous and the direction is held back (neither 1 nor the estimate is established);
+2. per bin: the mean standardised residual over the OMA segments (a systematic offset in
+   that bin: leakage at a sharp peak, a sensor resonance, a harmonic); bins whose bias
+   test exceeds ``chi2_reject`` are rejected for OMA;
+3. per observation: bins of single segments whose standardised residual exceeds
+   ``chi2_reject`` are rejected (outliers);
+4. the OMA noise of every bin (Re and Im) by maximising the marginal likelihood (Eq. 33)
+   of all kept data with the EMA kernel hyperparameters fixed, floored by the H1 random
+   error when ``noise_std`` is given (Bendat & Piersol ``sqrt((1 - γ²) / (2 n_d γ²))``
+   with the coherence debiased for few averages, :func:`robovib.hybrid.h1_random_error`);
+5. the dominant peak of the EMA model: where the window bias exceeds 5 % (about
+   (1/3)(1.5 df / B_r)^2 for Hann, B_r the half-power bandwidth) the OMA noise of the
+   peak band is at least that bias x the peak |H|, and the dominant peak bin itself is
+   kept from the EMA model (the OMA data there are held back);
+6. evidence: two folds of alternate OMA segments along the pose; each fold is predicted by
+   the EMA model plus the other fold and by the EMA model alone; the whole direction is
+   held back unless the held-out log predictive density summed over the bins gains
+   > ln(number of bins tested) (one bin in many passes 1 nat by chance); then each bin
+   keeps its posterior (weighted by its OMA noise) unless its held-out segments are
+   predicted > 1 nat *worse* with OMA (evidence against OMA there: that bin is held
+   back); the report says so in words (:meth:`UpdateReport.describe`);
+7. the posterior (Eq. 9-10) with those hyperparameters.
+
+The kernel hyperparameters stay those of the EMA fit, so OMA data can sharpen the
+prediction between EMA poses but cannot reshape the prior (the failure of ``"warm"`` on
+the Y direction of the study). What was rejected is in the :class:`UpdateReport` (the report of every update).
 """
 
 from __future__ import annotations
@@ -173,7 +207,7 @@ def robust_update(
     resolution_hz: float | None = None,
     rng=0,
 ) -> tuple[BatchedGPRegressor, UpdateReport]:
-    """The robust update of an EMA model's GP with OMA data (steps 0-7 of :mod:`robovib.hybrid.model`).
+    """The robust update of an EMA model's GP with OMA data (steps 0-7 of this module's docs).
 
     Parameters
     ----------
