@@ -20,20 +20,27 @@ import sys
 import numpy as np
 import pandas as pd
 
-from robovib.sim import POSITION_1_S_M, POSITION_2_S_M, PURE_DELAY, CommandChannel, VirtualRobot
-from robovib.studies.control_closed_loop import (
-    CONTROLLERS,
+from robovib.control.band_stability import stability_over_band
+from robovib.control.channel import (
     THESIS_OFFSET_MASS_MODE,
-    build_controllers,
+    operating_mode,
+    required_channel_gain,
+    sensitivity_bound,
+)
+from robovib.control.design import CONTROLLERS, build_controllers
+from robovib.sim import (
+    POSITION_1_S_M,
+    POSITION_2_S_M,
+    PURE_DELAY,
+    CommandChannel,
+    VirtualRobot,
+    path_modal_model,
+)
+from robovib.studies.control import (
     calibrate_channel,
     fixed_pose_offset_mass,
     milling_study,
     offset_mass_study,
-    operating_mode,
-    path_modal_model,
-    required_channel_gain,
-    sensitivity_bound,
-    stability_over_band,
 )
 
 THESIS_432 = {480.0: (0.93, 0.39), 960.0: (0.36, 0.15), 1440.0: (np.nan, np.nan)}

@@ -15,7 +15,7 @@ import time
 
 import pandas as pd
 
-from robovib.studies.control_closed_loop import TABLE_10_CONDITIONS
+from robovib.studies.control import TABLE_10_CONDITIONS
 from robovib.studies.control_robustness import (
     ROBUSTNESS_CONTROLLERS,
     robustness_study,

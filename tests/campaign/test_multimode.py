@@ -81,8 +81,8 @@ def test_multimode_pose_model_predicts_every_mode(tmp_path):
     np.testing.assert_allclose(chart.envelope.a_lim_m, direct.a_lim_m, rtol=1e-9)
     assert any("x1, x2, y1" in n for n in chart.notes)
     # milling vibration with every mode: the sum of the modal receptances filters the force
+    from robovib.milling.at_pose import base_frame_forces, predict_at_pose
     from robovib.milling.forces import milling_forces
-    from robovib.milling.workflow import base_frame_forces, predict_at_pose
 
     res = predict_at_pose(back, 2350.0, 100.0, 60.0, COND, coefficients=ALUMINIUM_7075,
                           duration_s=1.0, n_samples=3)  # fmt: skip

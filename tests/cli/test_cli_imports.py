@@ -50,7 +50,7 @@ def _next_poses_args() -> list[str]:
 @pytest.mark.parametrize(
     ("args", "used", "unneeded"),
     [
-        (["mill", "predict", *POSE], "robovib.milling.workflow", UNNEEDED | {"scipy", "pandas"}),
+        (["mill", "predict", *POSE], "robovib.milling.at_pose", UNNEEDED | {"scipy", "pandas"}),
         (["mill", "lobes", "--method", "zoa", *POSE], "robovib.milling.lobes",
          UNNEEDED | {"scipy", "pandas"}),
         (["mill", "lobes", "--method", "sdm", "--rpm-range", "1000:3000:4", *POSE],

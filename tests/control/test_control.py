@@ -126,15 +126,14 @@ def test_bad_input():
 
 @pytest.fixture(scope="module")
 def path_model():
-    from robovib.sim import VirtualRobot
-    from robovib.studies.control_closed_loop import path_modal_model
+    from robovib.sim import VirtualRobot, path_modal_model
 
     robot = VirtualRobot()
     return robot, path_modal_model(robot, n_points=8, n_hits=2)
 
 
 def test_offset_mass_study_short_path(path_model):
-    from robovib.studies.control_closed_loop import offset_mass_study
+    from robovib.studies.control import offset_mass_study
 
     robot, model = path_model
     rows = offset_mass_study(
@@ -275,7 +274,8 @@ def test_force_feedforward_cancels_a_periodic_force_and_checks_its_horizon():
 
 def test_thesis_gains_sensitivity_bound_and_fixed_pose_run():
     """§4.3.2: what any non-amplifying channel allows the thesis' gains, and the pure delay."""
-    from robovib.studies.control_closed_loop import fixed_pose_offset_mass, sensitivity_bound
+    from robovib.control.channel import sensitivity_bound
+    from robovib.studies.control import fixed_pose_offset_mass
 
     bound = sensitivity_bound([8.0, 16.0])
     rows = fixed_pose_offset_mass(speeds_rpm=(480.0, 960.0), duration_s=1.5, settle_s=0.8)
@@ -289,7 +289,8 @@ def test_thesis_gains_sensitivity_bound_and_fixed_pose_run():
 
 def test_operating_mode_recovers_a_mode_from_simulated_open_loop_amplitudes():
     """Open-loop offset-mass runs of a known mode on the virtual robot give that mode back."""
-    from robovib.studies.control_closed_loop import fixed_pose_offset_mass, operating_mode
+    from robovib.control.channel import operating_mode
+    from robovib.studies.control import fixed_pose_offset_mass
 
     truth = ModalParameters(8.5, 1.3e6, 0.12)
     rows = fixed_pose_offset_mass(speeds_rpm=(480.0, 960.0, 1440.0), mode=truth,
@@ -311,7 +312,7 @@ def test_required_channel_gain_ties_to_the_simulated_sensitivity():
     """The gain a channel needs is 1 exactly at the non-amplifying floor, whose loop
     (P, C) the time-domain simulator confirms (``test_simulated_closed_loop_ratio_...``), and
     0 for no reduction; §4.3.2's ratios need more than unit gain at 8 and 16 Hz."""
-    from robovib.studies.control_closed_loop import required_channel_gain, sensitivity_bound
+    from robovib.control.channel import required_channel_gain, sensitivity_bound
 
     f = [8.0, 16.0, 24.0]
     floor = sensitivity_bound(f)
@@ -335,8 +336,9 @@ def test_required_channel_gain_ties_to_the_simulated_sensitivity():
 )
 def test_simulated_closed_loop_ratio_matches_the_loop_frequency_response(channel_kw):
     """Steady-state closed/open ratio of the sampled loop vs 1 / |1 + P G_a C| (frequency domain)."""
+    from robovib.control.channel import sensitivity_bound
     from robovib.sim import CommandChannel
-    from robovib.studies.control_closed_loop import fixed_pose_offset_mass, sensitivity_bound
+    from robovib.studies.control import fixed_pose_offset_mass
 
     ch = CommandChannel(**channel_kw)
     rows = fixed_pose_offset_mass(ch, duration_s=5.0, settle_s=3.5)
@@ -351,14 +353,10 @@ def test_short_milling_study_and_plots(path_model):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from robovib.control.band_stability import stability_over_band
+    from robovib.control.design import build_controllers
     from robovib.sim import POSITION_2_S_M
-    from robovib.studies.control_closed_loop import (
-        TABLE_10_CONDITIONS,
-        build_controllers,
-        milling_study,
-        plot_milling,
-        stability_over_band,
-    )
+    from robovib.studies.control import TABLE_10_CONDITIONS, milling_study, plot_milling
 
     robot, model = path_model
     rows = milling_study(robot, model, TABLE_10_CONDITIONS[4:5], (("Position 2", POSITION_2_S_M),),
@@ -372,7 +370,7 @@ def test_short_milling_study_and_plots(path_model):
     plt.close(fig)
     import json
 
-    from robovib.studies.control_closed_loop import ControlSimulation, simulate_control
+    from robovib.studies.control import ControlSimulation, simulate_control
 
     doc = json.loads(json.dumps(ControlSimulation("milling", tuple(rows), {"seed": 0}).to_dict()))
     assert doc["rows"][0]["controller"] == "feedforward+robust" and "x_rms_mm" in doc["units"]
@@ -491,7 +489,7 @@ def test_plot_offset_mass_envelopes():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from robovib.studies.control_closed_loop import plot_offset_mass
+    from robovib.studies.control import plot_offset_mass
 
     t = np.arange(2000) / 1000.0
     rows = [{"speed_rpm": 480.0, "controller": c, "trace_x_m": a * 1e-4 * np.sin(2 * np.pi * 8 * t)}
@@ -599,17 +597,21 @@ def test_schedule_along_line_on_a_path_model_uses_its_path_coordinate():
 
 def test_the_study_composes_the_library_design_and_path_model():
     """Issue 23: controller design lives in ``robovib.control.design`` and the virtual EMA's path
-    model in ``robovib.sim``; the closed-loop study re-exports them, it holds no copy."""
+    model in ``robovib.sim``; the closed-loop studies use them and hold no copy. Issue 41: the
+    study package re-exports no library name (import those from the library)."""
     import robovib.control as control
     import robovib.sim as sim
+    import robovib.studies.control as study
     from robovib.control import design
-    from robovib.studies import control_closed_loop as study
+    from robovib.studies.control import offset_mass, simulate
 
     for name in ("CONTROLLERS", "DEFAULT_CONTROLLER", "build_controllers"):
-        assert getattr(study, name) is getattr(design, name) is getattr(control, name)
-    for name in ("path_modal_model", "virtual_path_modes"):
-        assert getattr(study, name) is getattr(sim, name)
-    assert study.sensitivity_bound is control.sensitivity_bound
+        assert getattr(design, name) is getattr(control, name)
+    assert simulate.CONTROLLERS is design.CONTROLLERS
+    assert offset_mass.build_controllers is design.build_controllers
+    assert simulate.path_modal_model is sim.path_modal_model
+    library = set(control.__all__) | set(sim.__all__)
+    assert not library & set(study.__all__), library & set(study.__all__)
     assert design.DEFAULT_CONTROLLER in design.CONTROLLERS
     with pytest.raises(ValueError, match="unknown controllers"):
         design.build_controllers(None, {}, [0.0, 1.0], names=("no-such-controller",))

@@ -213,12 +213,8 @@ def test_cli_rejects_unknown_disturbance_and_the_withdrawn_calibrated_channel():
 def test_adaptive_controller_survives_an_off_speed_cut_where_the_feedforward_degrades():
     """A short Table 10 cut with the spindle 4 % fast and 8 ms of unknown delay: the adaptive
     controller keeps most of its reduction; both controllers are compared on the same cut."""
-    from robovib.sim import POSITION_2_S_M, VirtualRobot
-    from robovib.studies.control_closed_loop import (
-        TABLE_10_CONDITIONS,
-        milling_study,
-        path_modal_model,
-    )
+    from robovib.sim import POSITION_2_S_M, VirtualRobot, path_modal_model
+    from robovib.studies.control import TABLE_10_CONDITIONS, milling_study
 
     robot = VirtualRobot()
     model = path_modal_model(robot, n_points=8, n_hits=2)

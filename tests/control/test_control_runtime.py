@@ -16,7 +16,7 @@ from robovib.control.runtime import (
     replay,
     write_controller_file,
 )
-from robovib.gp.pose_mode import PoseMode
+from robovib.gp.dominant_modes import PoseMode
 from robovib.modal.parameters import ModalParameters
 
 

@@ -120,8 +120,8 @@ def test_mill_predict_bands_draw_both_modes_where_the_dominant_one_is_uncertain(
     the peak-to-valley must hold the low mode's value too (it held the high mode's only)."""
     from robovib.gp.chapter3_model import load_chapter3_predictor
     from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool, milling_forces
+    from robovib.milling.at_pose import base_frame_forces, predict_at_pose
     from robovib.milling.prediction import convolve_force, summarise_vibration
-    from robovib.milling.workflow import base_frame_forces, predict_at_pose
     from robovib.modal.parameters import ModalParameters
 
     model = load_chapter3_predictor()

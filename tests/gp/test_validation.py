@@ -52,11 +52,14 @@ def test_grouped_cv_keeps_groups_together():
     groups = np.repeat(np.arange(20), 3)
     X = rng.normal(size=(60, 2))
     y = X[:, 0] + rng.normal(size=60) * 0.1
-    res = cross_validate(PolynomialRegression(1), X, y, groups=groups, rng=0)
+    res = cross_validate(PolynomialRegression(1), X, y, pose_groups=groups, rng=0)
     assert res.grouped
     for g in range(20):
         assert np.unique(res.folds[groups == g]).size == 1
     assert np.unique(res.folds).size == 5
+    with pytest.warns(DeprecationWarning, match="pose_groups"):  # the old keyword still works
+        old = cross_validate(PolynomialRegression(1), X, y, groups=groups, rng=0)
+    np.testing.assert_array_equal(old.folds, res.folds)
 
 
 def test_cv_bad_input():
@@ -68,7 +71,7 @@ def test_cv_bad_input():
             PolynomialRegression(1),
             np.ones((10, 2)),
             np.arange(10.0),
-            groups=np.repeat([0, 1], 5),
+            pose_groups=np.repeat([0, 1], 5),
         )
     with pytest.raises(ValueError, match="NaN"):
         cross_validate(PolynomialRegression(1), np.ones((10, 2)), np.full(10, np.nan))

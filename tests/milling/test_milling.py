@@ -113,8 +113,8 @@ def test_virtual_robot_peak_to_valley_near_the_63_hz_mode():
     """Thesis §3.5 cut at a pose where the ~63 Hz X mode meets the 58.3 Hz tooth passing:
     the GP-based prediction (dominant mode only) vs the virtual robot's tracker record."""
     from robovib.gp import load_chapter3_model
+    from robovib.milling.at_pose import predict_at_pose
     from robovib.milling.prediction import summarise_vibration
-    from robovib.milling.workflow import predict_at_pose
     from robovib.sim import LinearMove, VirtualRobot, simulate_milling
 
     cond = CuttingConditions(1750, 0.058e-3, 3e-3, 25.4e-3)

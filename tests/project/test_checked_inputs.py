@@ -92,8 +92,8 @@ def test_fmin_inside_the_measured_band():
 
 
 def test_feed_samples_and_grid_checked():
+    from robovib.milling.at_pose import base_frame_forces, predict_at_pose
     from robovib.milling.maps import workspace_lobe_map
-    from robovib.milling.workflow import base_frame_forces, predict_at_pose
 
     with pytest.raises(ValueError, match="unknown feed_direction 'z'"):
         base_frame_forces(np.ones((4, 3)), "z")
@@ -261,7 +261,7 @@ def _ConstantModel():
 def test_every_pose_prediction_says_when_it_extrapolates():
     from robovib.gp.extrapolation import extrapolating
     from robovib.milling import CuttingConditions
-    from robovib.milling.workflow import pose_extrapolation, predict_at_pose
+    from robovib.milling.at_pose import pose_extrapolation, predict_at_pose
 
     model = _ConstantModel()
     forces = np.random.default_rng(1).normal(size=(1500, 3))
@@ -294,7 +294,7 @@ def test_json_never_contains_nan_or_infinity():
 
 def test_lobes_at_pose_checked_and_flagged():
     from robovib.milling import ALUMINIUM_7075 as coef
-    from robovib.milling.workflow import lobes_at_pose
+    from robovib.milling.at_pose import lobes_at_pose
 
     model = _ConstantModel()
     with pytest.raises(ValueError, match="unknown feed_direction 'z'"):

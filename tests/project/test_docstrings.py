@@ -50,7 +50,7 @@ ENTRY_POINTS = [
     "robovib.campaign.process_campaign",
     "robovib.campaign.fit_pose_model_from_table",
     "robovib.campaign.next_poses",
-    "robovib.milling.workflow.predict_at_pose",
+    "robovib.milling.at_pose.predict_at_pose",
     "robovib.milling.stability.stability_lobes",
     "robovib.milling.sdm.sdm_lobes",
     "robovib.milling.maps.workspace_lobe_map",

@@ -156,7 +156,7 @@ def test_robot_compare_figure():
 
 def test_control_figures():
     from robovib.control.schedule import schedule_gains
-    from robovib.studies.control_closed_loop import plot_offset_mass
+    from robovib.studies.control import plot_offset_mass
 
     s = np.linspace(0.335, 1.235, 6)
     sched = schedule_gains(s, [ModalParameters(f, 2e6, 0.05) for f in 14 + 4 * s])

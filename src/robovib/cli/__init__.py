@@ -24,7 +24,7 @@ from . import (
     robot,
     sim,
 )
-from ._common import ErrorHandlingGroup, set_debug
+from ._root_group import ErrorHandlingGroup, set_debug
 
 __all__ = ["app", "main"]
 

@@ -11,7 +11,8 @@ import typer
 
 class TrackedContext(typer.Context):
     """Typer's public context class, keeping a stack of the contexts entered, so that
-    :func:`run_info` finds the running command's parameters without Typer's private globals."""
+    :func:`~robovib.cli._root_group.run_info` finds the running command's parameters without
+    Typer's private globals."""
 
     def __enter__(self):
         CONTEXTS.append(self)

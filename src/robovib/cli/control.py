@@ -50,7 +50,7 @@ def gains(
     )
     from ..gp.contract import pick_mode
     from ..io import from_si, to_si
-    from ..milling.workflow import pose_extrapolation, pose_modes
+    from ..milling.at_pose import pose_extrapolation, pose_modes
 
     if direction not in ("x", "y", "z"):
         fail(f"unknown direction {direction!r}: give x, y or z")

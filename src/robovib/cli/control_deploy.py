@@ -60,7 +60,7 @@ def simulate(
     check_output(plot, [controller_file] if controller_file is not None else [])
     from rich.progress import Progress
 
-    from ..studies.control_closed_loop import simulate_control
+    from ..studies.control import simulate_control
 
     dist = parse_disturbances(disturbance)
     with Progress(transient=True, disable=json_out) as bar:

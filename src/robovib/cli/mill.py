@@ -54,7 +54,7 @@ def predict(
 ) -> None:
     """Mean deflection and peak-to-valley per revolution at a pose, with 95 % bands."""
     from ..milling import CuttingConditions
-    from ..milling.workflow import predict_at_pose
+    from ..milling.at_pose import predict_at_pose
 
     cond = CuttingConditions(rpm, to_si(fz, "mm"), to_si(ap, "mm"), to_si(ae, "mm"))
     f = None
@@ -223,7 +223,7 @@ def lobes(
         use_agg()
         save_figure(plot_lobes_chart(chart), plot)
     doc = chart.to_dict()
-    from ..milling.workflow import pose_extrapolation
+    from ..milling.at_pose import pose_extrapolation
 
     outside = list(pose_extrapolation(model, pose)) if model is not None else []
     checks = _lobes_checks(model, samples)

@@ -182,12 +182,8 @@ def open_verified(
 
     Parameters
     ----------
-    path
-        The file.
-    formats
-        Accepted format tags -> the newest version this robovib reads of each.
-    what
-        Words for the error message (default: the accepted tags).
+    path, formats, what
+        As :func:`open_checked`.
     read_whole
         The caller reads the whole file with :func:`read_tree`, which makes the same checks
         in the same pass: they are not made here (the checksum is returned as

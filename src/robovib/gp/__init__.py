@@ -17,7 +17,7 @@ _WHERE = {
     "ModeSwitchDetection": "mode_switch",
     "ModeSwitchingGPRegressor": "mode_switch",
     "PoseModalModel": "pose_model",
-    "PoseMode": "pose_mode",
+    "PoseMode": "dominant_modes",
     "PosePredictor": "predictor",
     "detect_mode_switch": "mode_switch",
     "fit_chapter3_model": "chapter3_model",

@@ -42,7 +42,7 @@ import numpy as np
 
 from .._threads import single_blas_thread
 from ..modal.parameters import ModalParameters
-from .pose_mode import PoseMode, modes_at
+from .dominant_modes import PoseMode, modes_at
 from .predictive import ModalPredictive, assemble, calibrated_mode_probability
 
 __all__ = [

@@ -108,12 +108,8 @@ class TreeChecker:
 
         Parameters
         ----------
-        tree : H5Tree
-            The group holding it.
-        name : str
-            The attribute.
-        member : str
-            The group's path in the file.
+        tree, name, member
+            As :meth:`attr`: the group, the attribute and the group's path in the file.
 
         Returns
         -------
@@ -130,12 +126,8 @@ class TreeChecker:
 
         Parameters
         ----------
-        tree : H5Tree
-            The group holding it.
-        name : str
-            The attribute.
-        member : str
-            The group's path in the file.
+        tree, name, member
+            As :meth:`attr`: the group, the attribute and the group's path in the file.
         integer : bool
             Require an integer.
 
@@ -156,12 +148,8 @@ class TreeChecker:
 
         Parameters
         ----------
-        tree : H5Tree
-            The group holding it.
-        name : str
-            The attribute.
-        member : str
-            The group's path in the file.
+        tree, name, member
+            As :meth:`attr`: the group, the attribute and the group's path in the file.
 
         Returns
         -------

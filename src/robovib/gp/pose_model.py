@@ -43,11 +43,11 @@ from sklearn.exceptions import NotFittedError
 
 from . import _h5
 from .contract import PosePredictionSide
+from .dominant_modes import PoseMode
 from .extrapolation import TrainingRegion
 from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
 from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2
-from .pose_mode import PoseMode
 from .predictive import ModalPredictive, noise_std_of
 from .regressor import BatchedGPRegressor
 

@@ -16,6 +16,7 @@ reported beside it.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,10 +149,11 @@ def cross_validate(
     Y,
     *,
     n_splits: int = 5,
-    groups=None,
+    pose_groups=None,
     mask=None,
     rng: int | np.random.Generator | None = 0,
     warm_start=False,
+    groups=None,
 ) -> CVResult:
     """Shuffled k-fold cross-validation of a multi-output model.
 
@@ -165,8 +167,9 @@ def cross_validate(
         (n, d) inputs and (n, B) targets.
     n_splits
         Number of folds (5 in the thesis).
-    groups
-        Optional (n,) labels; samples of one group never sit on both sides (grouped CV).
+    pose_groups
+        Optional (n,) labels (e.g. one per pose of repeated measurements); samples of one group
+        never sit on both sides (grouped CV).
     mask
         Optional (n, B) observed-target mask (NaN targets must be masked explicitly).
     rng
@@ -179,6 +182,9 @@ def cross_validate(
         (:class:`~robovib.gp.BatchedGPRegressor`). The held-out fold then influenced the
         starting point (not the fit), so the scores can be slightly optimistic; ``False``
         (default) keeps the folds fully independent.
+    groups
+        Deprecated name of ``pose_groups`` (``groups`` of the estimators' ``fit`` are noise
+        groups).
 
     Returns
     -------
@@ -197,6 +203,14 @@ def cross_validate(
             f"estimator must be an unfitted scikit-learn-style estimator (with fit and "
             f"get_params), got {type(estimator).__name__}; pass the model, not a factory"
         )
+    if groups is not None:
+        warnings.warn(
+            "cross_validate(groups=) is deprecated; pass the pose groups as pose_groups=",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        pose_groups = groups if pose_groups is None else pose_groups
+    groups = pose_groups
     X, Y, mask = _check_validation_inputs(X, Y, mask)
     n = X.shape[0]
     if n_splits < 2:
@@ -211,7 +225,7 @@ def cross_validate(
     else:
         groups = np.asarray(groups)
         if groups.shape != (n,):
-            raise ValueError(f"groups must have shape ({n},), got {groups.shape}")
+            raise ValueError(f"pose_groups must have shape ({n},), got {groups.shape}")
         n_groups = np.unique(groups).size
         if n_groups < n_splits:
             raise ValueError(

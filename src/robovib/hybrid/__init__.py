@@ -1,8 +1,6 @@
 """Hybrid EMA + OMA statistical model of the robot FRF with Bayesian updating (thesis ch. 5)."""
 
-from .model import UPDATE_MODES, FRFPoseModel, UpdateReport, frequency_grid
-from .oma import OMAQualityWarning, OMASegment, debiased_coherence, h1_random_error, oma_frfs
-from .workflow import (
+from .frf_prediction import (
     INPUT_SETS,
     FRFPrediction,
     fit_frf_model,
@@ -14,6 +12,8 @@ from .workflow import (
     plot_frf_prediction,
     predict_frf_at,
 )
+from .model import UPDATE_MODES, FRFPoseModel, UpdateReport, frequency_grid
+from .oma import OMAQualityWarning, OMASegment, debiased_coherence, h1_random_error, oma_frfs
 
 __all__ = [
     "INPUT_SETS",

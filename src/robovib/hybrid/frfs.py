@@ -1,6 +1,6 @@
 """FRFs with their poses onto a model's frequency grid: the data side of
 :class:`robovib.hybrid.FRFPoseModel` (its ``fit_frfs`` / ``update_frfs``) and of the file
-workflow (:mod:`robovib.hybrid.workflow`, which re-exports these names)."""
+workflow (:mod:`robovib.hybrid.frf_prediction`, which re-exports these names)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,48 @@ import numpy as np
 from ..frf.core import FRF
 from .oma import h1_random_error
 
-__all__ = ["INPUT_SETS", "frf_pose", "frfs_on_grid", "frfs_on_path_grid"]
+__all__ = ["INPUT_SETS", "frequency_grid", "frf_pose", "frfs_on_grid", "frfs_on_path_grid"]
 
 #: Pose inputs the file workflow understands: the path coordinate or the workspace pose.
 INPUT_SETS = {"path": ("s_m",), "workspace": ("x_m", "y_m", "rz_deg")}
+
+
+def frequency_grid(f_min_hz: float, f_max_hz: float, df_hz: float) -> np.ndarray:
+    """The model's frequency grid ``f_min_hz, f_min_hz + df_hz, ... <= f_max_hz`` [Hz], checked.
+
+    Parameters
+    ----------
+    f_min_hz
+        First bin [Hz], >= 0.
+    f_max_hz
+        Upper end [Hz]; the last bin is the largest ``f_min_hz + i df_hz`` not above it.
+    df_hz
+        Bin spacing [Hz], > 0.
+
+    Returns
+    -------
+    ndarray (n_f,)
+        The bin frequencies [Hz], 2 <= n_f <= 100000.
+
+    Raises
+    ------
+    ValueError
+        Non-finite values, ``f_min_hz`` < 0 Hz, ``f_min_hz >= f_max_hz``, ``df_hz <= 0`` Hz, or a
+        grid of fewer than 2 or more than 100000 bins.
+    """
+    from .._checks import check_number
+
+    lo = check_number("f_min_hz", f_min_hz, "Hz", lo=0.0)
+    hi = check_number("f_max_hz", f_max_hz, "Hz", lo=0.0, lo_open=True)
+    df = check_number("df_hz", df_hz, "Hz", lo=0.0, lo_open=True)
+    if lo >= hi:
+        raise ValueError(f"f_min_hz={lo:g} Hz must be below f_max_hz={hi:g} Hz")
+    n = int(np.floor((hi - lo) / df + 1e-9)) + 1
+    if not 2 <= n <= 100_000:
+        raise ValueError(
+            f"grid {lo:g}-{hi:g} Hz in steps of {df:g} Hz has {n} bins; need 2 to 100000"
+        )
+    return lo + df * np.arange(n)
 
 
 def frf_pose(frf: FRF, input_names=("s_m",)) -> tuple[float, ...]:

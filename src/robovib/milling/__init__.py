@@ -1,5 +1,5 @@
 """Milling: mechanistic cutting forces (shared with the virtual robot), vibration prediction at a
-pose (:mod:`~robovib.milling.prediction`, :mod:`~robovib.milling.workflow`) and chatter
+pose (:mod:`~robovib.milling.prediction`, :mod:`~robovib.milling.at_pose`) and chatter
 stability (:mod:`~robovib.milling.stability`)."""
 
 from .forces import (

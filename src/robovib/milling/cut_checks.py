@@ -115,7 +115,7 @@ def cut_stability(
     coefficients : CuttingCoefficients
         Cutting coefficients [N/m²].
     tool : MillingTool, optional
-        The cutter (default: ``MillingTool()``, as :func:`~robovib.milling.workflow.predict_at_pose`).
+        The cutter (default: ``MillingTool()``, as :func:`~robovib.milling.at_pose.predict_at_pose`).
     feed_direction : {"x", "y"}
         Feed direction in the base frame.
     method : {"sdm", "zoa"}

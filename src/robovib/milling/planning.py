@@ -24,7 +24,7 @@ as allowed there at the same P(stable)), and the best fixed one at one depth for
 
 Per segment the plan also predicts the vibration at the chosen configuration and depth (mean
 deflection and peak-to-valley per revolution with 95 % bands over the structures, as
-:func:`robovib.milling.workflow.predict_at_pose` does with independent draws), and, optionally,
+:func:`robovib.milling.at_pose.predict_at_pose` does with independent draws), and, optionally,
 checks the
 chosen configuration with the semi-discretization of the mean structure (``check_sdm``).
 """
@@ -499,9 +499,9 @@ def _vibration(structures, mid, rz, rpm, depth, tool, conditions, coefficients, 
     weighted median and the weighted 2.5-97.5 % band over ``n_draws`` structures of the larger
     horizontal deflection (norm of X, Y) and the larger peak-to-valley of X and Y.
     """
+    from .at_pose import base_frame_forces
     from .forces import milling_forces
     from .prediction import summarise_vibration
-    from .workflow import base_frame_forces
 
     fs, duration, skip = 1000.0, 1.5, 0.5
     t = np.arange(round(duration * fs)) / fs

@@ -4,7 +4,7 @@
 * :mod:`.analytical` — analytical KR500 model vs Table A1 (Fig. 11), GP inputs (§3.4);
 * :mod:`.hybrid_learning_curve` — pure GP vs analytical-mean hybrid vs training poses;
 * :mod:`.table9` — LQR gains vs Table 9 (§4.3);
-* :mod:`.control_closed_loop` — chapter 4 on the virtual robot: §4.3.2, Table 7 and Table 10
+* :mod:`.control` — chapter 4 on the virtual robot: §4.3.2, Table 7 and Table 10
   analogues, command-channel calibration, controller comparison (:func:`simulate_control`).
 * :mod:`.hybrid` — chapter 5: Table 12 / 13 analogues over simulator seeds, OMA estimator
   settings, the whole-workspace FRF model, next hammer poses.

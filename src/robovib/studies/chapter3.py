@@ -233,7 +233,7 @@ def chapter3_study(
     gp = make_chapter3_regressor(kernel, mode_switch, rng)
     plain = cross_validate(gp, X, Y, n_splits=n_splits, mask=mask, rng=rng)
     grouped = cross_validate(
-        gp, X, Y, n_splits=n_splits, mask=mask, groups=a1["test"].to_numpy(), rng=rng
+        gp, X, Y, n_splits=n_splits, mask=mask, pose_groups=a1["test"].to_numpy(), rng=rng
     )
     mlr = PolynomialRegression(degree=2).fit(X, Y, mask=mask)
     mlr_in_r2, _, mlr_in_rmse = regression_scores(np.where(mask, Y, np.nan), mlr.predict(X), mask)

@@ -3,7 +3,7 @@
 Every controller x every disturbance of :class:`~robovib.sim.disturbances.CutDisturbances`
 at its realistic level (:data:`~robovib.sim.disturbances.REALISTIC_LEVELS`) and at 2x, plus all
 of them combined at the realistic levels, on the Table 10 cuts at both positions
-(:func:`~robovib.studies.control_closed_loop.milling_study`). :func:`summarize_robustness`
+(:func:`~robovib.studies.control.milling_study`). :func:`summarize_robustness`
 reduces the per-cut rows to mean and worst RMS reduction, unstable runs and amplified cuts.
 """
 
@@ -13,9 +13,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..sim import REALISTIC_LEVELS, CutDisturbances, VirtualRobot
+from ..sim import REALISTIC_LEVELS, CutDisturbances, VirtualRobot, path_modal_model
 from ..sim.disturbances import DISTURBANCE_UNITS
-from .control_closed_loop import TABLE_10_CONDITIONS, milling_study, path_modal_model
+from .control import TABLE_10_CONDITIONS, milling_study
 
 __all__ = [
     "ROBUSTNESS_CONTROLLERS",

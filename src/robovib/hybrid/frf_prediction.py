@@ -1,5 +1,5 @@
-"""File-based hybrid workflow steps: FRFs with path coordinates onto the model grid, predictions
-compared with a measurement, and their figures (thesis ch. 5)."""
+"""The hybrid model on FRF objects: fitted from EMA FRFs, OMA FRFs of a milling record with
+their poses, and predictions compared with a measured FRF, with their figures (thesis ch. 5)."""
 
 from __future__ import annotations
 

@@ -239,7 +239,7 @@ def predict_at_pose(
     --------
     >>> from robovib.gp import load_chapter3_model
     >>> from robovib.milling import ALUMINIUM_7075, CuttingConditions
-    >>> from robovib.milling.workflow import predict_at_pose
+    >>> from robovib.milling.at_pose import predict_at_pose
     >>> cond = CuttingConditions(1750.0, 58e-6, 3e-3, 25.4e-3)
     >>> res = predict_at_pose(load_chapter3_model(), 2400.0, 0.0, 45.0, cond,
     ...                       coefficients=ALUMINIUM_7075, n_samples=5)
