@@ -157,6 +157,14 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=40, help="time steps per tooth period")
     ap.add_argument("--seconds", type=float, default=6.0, help="simulated cut length [s]")
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument(
+        "--shared-fraction",
+        type=float,
+        default=0.0,
+        help="workspace-wide share of the structures' fields (sample_structures)",
+    )
+    ap.add_argument("--shared-fractions", default="",
+                    help="also: the Brier before/after 5 test cuts with these shares, e.g. 0.5")  # fmt: skip
     args = ap.parse_args(argv)
 
     from robovib.milling import CuttingConditions
@@ -174,7 +182,8 @@ def main(argv=None) -> None:
           f"{args.truth}, {args.samples} structures")  # fmt: skip
     model = fit_campaign_model(args.campaign_poses, args.seed)
     print(f"model fitted ({time.perf_counter() - t_start:.0f} s)")
-    prior = sample_structures(model, args.samples, rng=args.seed)
+    prior = sample_structures(model, args.samples, rng=args.seed,
+                              shared_fraction=args.shared_fraction)  # fmt: skip
     paths = [
         np.array([[rng.uniform(*X_MM), rng.uniform(*Y_MM)], [rng.uniform(*X_MM), rng.uniform(*Y_MM)]])
         for _ in range(args.paths)
@@ -299,6 +308,33 @@ def main(argv=None) -> None:
         f"Brier improvement: {100 * (1 - b1 / b0):.0f} % (detected labels), "
         f"{100 * (1 - b2 / b0):.0f} % (simulated labels)"
     )
+
+    if args.shared_fractions:
+        # the same truth and evaluation cuts; structures whose fields share a workspace-wide
+        # part (sample_structures(shared_fraction=rho)): their own 5 test cuts, chosen the same way
+        print("\n## workspace-wide share of the structures' fields (same evaluation cuts)")
+        print("| shared fraction | Brier prior | after, detected labels | improvement | "
+              "after, simulated labels | improvement |")  # fmt: skip
+        print("|---|---|---|---|---|---|")
+        print(f"| {args.shared_fraction:g} (above) | {b0:.3f} | {b1:.3f} | {100 * (1 - b1 / b0):.0f} % | "
+              f"{b2:.3f} | {100 * (1 - b2 / b0):.0f} % |")  # fmt: skip
+        for rho in (float(v) for v in args.shared_fractions.split(",")):
+            pr = sample_structures(model, args.samples, rng=args.seed, shared_fraction=rho)
+            cv = [p.test_cut_candidates() for p in plan_all(pr)]
+            c_pose, c_rpm = np.vstack([c[0] for c in cv]), np.concatenate([c[1] for c in cv])
+            ix, dd = choose_test_cuts(np.hstack([c[2] for c in cv]), pr.weights, args.test_cuts)
+            lab, slab = [], []
+            for i, dep in zip(ix, dd, strict=True):
+                cut = truth.simulate(c_pose[i], c_rpm[i], [dep], cond)
+                lab.append(truth.detect(cut, 0, c_rpm[i], fz, c_pose[i]).result == "chatter")
+                slab.append(bool(cut.chatter[0]))
+            bb = [brier(forecast(pr), ev_stable)]
+            for labels_v, noise in ((lab, args.label_noise), (slab, 0.05)):
+                mc = MeasuredCuts(c_rpm[ix], dd, np.array(labels_v), c_pose[ix])
+                u = update_with_cuts(pr, mc, tool, cond, coef, label_noise=noise)
+                bb.append(brier(forecast(u.structures), ev_stable))
+            print(f"| {rho:g} | {bb[0]:.3f} | {bb[1]:.3f} | {100 * (1 - bb[1] / bb[0]):.0f} % | "
+                  f"{bb[2]:.3f} | {100 * (1 - bb[2] / bb[0]):.0f} % |")  # fmt: skip
 
     plans1 = plan_all(upd.structures)
     _, det_plan1 = check(plans1, "after test cuts (re-planned)")
