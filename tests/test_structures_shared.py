@@ -33,3 +33,18 @@ def test_shared_share_sets_the_far_correlation_and_keeps_the_marginal(rho):
     assert z.var(axis=0) == pytest.approx(np.ones(3), abs=0.08)  # standard-normal marginal
     kept = s.with_weights(np.arange(1, s.n_samples + 1))
     np.testing.assert_array_equal(kept.fields(poses), s.fields(poses))
+
+
+def test_sample_structures_shared_fraction_keeps_the_other_draws_and_checks_input():
+    from robovib.gp.chapter3_model import workspace_predictor
+    from robovib.milling.structures import sample_structures
+
+    model = workspace_predictor(None, seed=0, require_inputs=("x_mm", "y_mm", "rz_deg"))
+    plain = sample_structures(model, 8, rng=3)
+    shared = sample_structures(model, 8, rng=3, shared_fraction=0.5)
+    assert plain.shared is None and shared.shared.shape == (8, plain.amplitudes.shape[1])
+    np.testing.assert_array_equal(plain.amplitudes, shared.amplitudes)
+    np.testing.assert_array_equal(plain.process_factor, shared.process_factor)
+    assert shared.settings["shared_fraction"] == 0.5
+    with pytest.raises(ValueError, match="shared_fraction"):
+        sample_structures(model, 8, shared_fraction=1.0)
