@@ -311,6 +311,14 @@ def main(argv=None) -> None:
         f"| after {args.test_cuts} test cuts, simulated labels (label noise 0.05) | {b2:.3f} | "
         f"{ev_stable.mean():.2f} | {p2.mean():.2f} |"
     )
+    ev_fac = np.array([r[3] for r in rows])
+    print("| depth / truth's limit | cuts | stable | mean P(stable) prior | after (detected) | "
+          "after (simulated) |")  # fmt: skip
+    print("|---|---|---|---|---|---|")
+    for f_ in FACTORS:
+        s_ = ev_fac == f_
+        print(f"| {f_:g} | {s_.sum()} | {ev_stable[s_].mean():.2f} | {p0[s_].mean():.2f} | "
+              f"{p1[s_].mean():.2f} | {p2[s_].mean():.2f} |")  # fmt: skip
     print(
         f"Brier improvement: {100 * (1 - b1 / b0):.0f} % (detected labels), "
         f"{100 * (1 - b2 / b0):.0f} % (simulated labels)"
