@@ -136,3 +136,86 @@ def test_reader_and_cli_on_a_simulated_record(tmp_path):
     assert doc["result"] == "chatter" and doc["chatter_frequency_hz"] == pytest.approx(21, abs=0.6)
     with pytest.raises(ValueError, match="no column 'pressure'"):
         read_detection_record(path, "pressure")
+
+
+def _resonance(force: np.ndarray, fn_hz: float, zeta: float) -> np.ndarray:
+    """Displacement of a mode (fn, zeta) driven by the force: the discrete twin of
+    m x'' + c x' + k x = f (SciPy's bilinear transform of the continuous FRF)."""
+    from scipy.signal import bilinear, lfilter
+
+    wn = 2 * np.pi * fn_hz
+    b, a = bilinear([1.0], [1.0, 2 * zeta * wn, wn**2], FS)
+    return lfilter(b, a, force)
+
+
+def test_forced_resonance_is_not_chatter_when_the_force_is_recorded():
+    rng = np.random.default_rng(5)
+    n_windows, alpha = 150, 0.05
+    t = np.arange(int(2.0 * FS * n_windows)) / FS
+    # white broadband force on a lightly damped 21.4 Hz mode: a steady off-harmonic line
+    force = rng.normal(size=t.size)
+    x = _resonance(force, 21.4, 0.01)
+    x = x / x.std() * 1e-5 + _forced(t, 1e-6)
+    kw = {"false_alarm_rate": alpha, "min_line_fraction": 1e-9}
+    blind = detect_chatter(x, FS, RPM, TEETH, **kw)
+    assert blind.chatter.mean() > 0.9  # without the force it looks like chatter
+    assert np.all(np.abs(blind.chatter_hz[blind.chatter] - 21.4) <= 2.0)  # within the line width
+    checked = detect_chatter(x, FS, RPM, TEETH, force=force, **kw)
+    rate = checked.chatter.mean()
+    # condition 3 on a smooth force: crossed with the stated probability per window
+    assert rate < alpha + 3 * np.sqrt(alpha * (1 - alpha) / n_windows) + 0.02, rate
+    assert checked.force_line_to_floor is not None
+    assert checked.to_dict()["windows"][0]["force_line_to_floor"] is not None
+
+
+def test_chatter_has_its_line_in_the_force_too():
+    rng = np.random.default_rng(6)
+    t = np.arange(int(8 * FS)) / FS
+    background = rng.normal(size=t.size)
+    grow = np.minimum(np.exp(t / 1.5) * 1e-6, 4e-5)
+    line = grow * np.sin(2 * np.pi * 17.3 * t)
+    # regenerative: the dynamic chip thickness puts the line into the cutting force
+    force = 50 * np.sin(2 * np.pi * RPM * TEETH / 60 * t) + background + 2e5 * line
+    x = _resonance(background, 21.4, 0.02) * 1e-6 + _forced(t) + line
+    res = detect_chatter(x, FS, RPM, TEETH, force=force)
+    assert res.result == "chatter"
+    assert res.chatter_frequency_hz == pytest.approx(17.3, abs=0.6)
+    with pytest.raises(ValueError, match="samples"):
+        detect_chatter(x, FS, RPM, TEETH, force=force[:-5])
+    with pytest.raises(ValueError, match="constant"):
+        detect_chatter(x, FS, RPM, TEETH, force=np.ones_like(force))
+
+
+def test_aliased_tooth_harmonic_is_not_chatter():
+    rng = np.random.default_rng(7)
+    t = np.arange(int(8 * FS)) / FS
+    # the 17th tooth harmonic (991.7 Hz) sampled at 1 kHz without an anti-alias filter: 8.3 Hz
+    alias = FS - 17 * RPM * TEETH / 60
+    x = (
+        _forced(t)
+        + 4e-5 * np.sin(2 * np.pi * 17 * RPM * TEETH / 60 * t)
+        + rng.normal(0, 2e-6, t.size)
+    )
+    assert detect_chatter(x, FS, RPM, TEETH).result == "stable"
+    raw = detect_chatter(x, FS, RPM, TEETH, aliased=False)
+    assert raw.result == "chatter" and raw.chatter_frequency_hz == pytest.approx(alias, abs=1.0)
+
+
+def test_readme_test_cut_record_is_stable():
+    """The README's ``sim mill --x0 2300 --x1 2400 --ap 2 --ae 6`` (not regenerative: no
+    chatter in it): the 17th tooth harmonic folds to fs - 17 f_tooth = 8.3 Hz, beside the
+    virtual robot's ~8 Hz Y mode; masked, and the forced response is not chatter."""
+    from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    from robovib.sim import LinearMove, VirtualRobot, simulate_milling
+
+    cond = CuttingConditions(RPM, 0.058e-3, 2e-3, 6e-3)
+    move = LinearMove("workspace", (2.3, 0.0, 0.0), (2.4, 0.0, 0.0))
+    run = simulate_milling(VirtualRobot(), move, MillingTool(), cond, ALUMINIUM_7075, rng=0)
+    fs = 1.0 / (run.time_s[1] - run.time_s[0])
+    kw = {"min_line_rms": 0.07 * 0.058e-3, "min_line_fraction": 0.2}
+    res = detect_chatter(run.displacement_m[:, :2], fs, RPM, TEETH, force=run.force_n, **kw)
+    assert not res.chatter.any()
+    raw = detect_chatter(run.displacement_m[:, :2], fs, RPM, TEETH, aliased=False, **kw)
+    assert raw.chatter.any()
+    alias = fs - 17 * RPM * TEETH / 60
+    assert np.all(np.abs(raw.chatter_hz[raw.chatter] - alias) <= 1.0)

@@ -44,6 +44,14 @@ def detect(
             "fraction of --fz."
         ),
     ] = 0.07,
+    force_check: Annotated[
+        bool,
+        typer.Option(
+            "--force-check/--no-force-check",
+            help="When the record has force columns: a line is chatter only if the force has "
+            "it too (a forced resonance of a mode driven by the broadband force is not).",
+        ),
+    ] = True,
     cuts_out: Annotated[
         Path | None,
         typer.Option(
@@ -89,11 +97,18 @@ def detect(
         min_rms = min_line_feed * to_si(fz, "mm")
     if min_line_fraction is None:
         min_line_fraction = 0.2 if displacement else 0.5
+    force_signal, force_cols = None, []
+    if force_check and not all(c.startswith("force_") for c in cols):
+        try:
+            force_signal, _, force_cols = read_detection_record(record, "force")
+        except ValueError:  # no (non-constant) force column: the check cannot be made
+            force_signal, force_cols = None, []
     res = detect_chatter(
         signal, fs, rpm, teeth, window_s=window, false_alarm_rate=false_alarm,
-        min_line_fraction=min_line_fraction, min_line_rms=min_rms,
+        min_line_fraction=min_line_fraction, min_line_rms=min_rms, force=force_signal,
     )  # fmt: skip
-    doc = {"record": str(record), "columns": cols, "sample_rate_hz": fs, **res.to_dict()}
+    doc = {"record": str(record), "columns": cols, "force_columns": force_cols,
+           "sample_rate_hz": fs, **res.to_dict()}  # fmt: skip
     if cuts_out is not None:
         from ..files.safe_write import atomic_output
 
@@ -108,7 +123,9 @@ def detect(
             "channels": "column names", "false_alarm_rate": "1 (per window)",
             "line_rms": record_unit, "min_line_rms": record_unit, "off_harmonic_bins": "count",
             "peak_to_floor": "1 (spectral power over the noise floor)",
-            "threshold_peak_to_floor": "1 (spectral power over the noise floor)"})  # fmt: skip
+            "threshold_peak_to_floor": "1 (spectral power over the noise floor)",
+            "force_line_to_floor": "1 (the force's power at the line over its floor)",
+            "force_threshold": "1 (the force's power at the line over its floor)"})  # fmt: skip
         return
     n_ch = int(res.chatter.sum())
     typer.echo(
@@ -116,11 +133,21 @@ def detect(
         f"{', '.join(cols)}, {fs:g} Hz, tooth passing {res.tooth_passing_hz:.2f} Hz, "
         f"false-alarm rate {false_alarm:g} per window)"
     )
+    if force_cols:
+        typer.echo(
+            f"force check ({', '.join(force_cols)}): a line is chatter only if the force has it "
+            f"(force/floor > {res.settings['force_threshold']:.1f})"
+        )
     for w in doc["windows"]:
         typer.echo(
             f"  {w['start_s']:7.2f}-{w['end_s']:7.2f} s  {'chatter' if w['chatter'] else 'stable ':7s}"
             f"  line {w['chatter_hz']:7.2f} Hz  peak/floor {w['peak_to_floor']:9.1f}"
             f" (threshold {res.threshold:.1f})  share {w['line_fraction']:.2f}"
+            + (
+                ""
+                if w["force_line_to_floor"] is None
+                else f"  force/floor {w['force_line_to_floor']:.1f}"
+            )
         )
     if res.chatter_frequency_hz is not None:
         typer.echo(f"chatter frequency: {res.chatter_frequency_hz:.2f} Hz")

@@ -7,7 +7,8 @@ Regenerative chatter adds a narrow line at a frequency that is *not* such a harm
 mode of the structure). Each window of the record is cut into ``K`` non-overlapping segments;
 their Hann-windowed periodograms are averaged (Welch, no overlap, so that each bin of white
 Gaussian noise is ``Gamma(K, 1/K)`` times its expected value). The bins within
-``harmonic_width_hz`` of a spindle (runout) or tooth-passing harmonic are masked; the remaining
+``harmonic_width_hz`` of a spindle (runout) or tooth-passing harmonic (or of its alias, below)
+are masked; the remaining
 *off-harmonic* bins are compared with a robust local noise floor (the running median over
 ``floor_width_hz``, which follows the smooth, coloured noise of a structure driven by broadband
 force). A window chatters when
@@ -19,7 +20,9 @@ force). A window chatters when
 2. **it is large**: the vibration within ``line_width_hz`` of that line and of its sidebands
    ``f_c + k N n / 60`` (the regenerative chatter's family, off the harmonics) carries at least
    ``min_line_fraction`` of the window's vibration (mean and linear trend removed) and, where
-   given, an RMS of at least ``min_line_rms`` (for a displacement: a fraction of the feed). A
+   given, an RMS of at least ``min_line_rms`` (for a displacement: a fraction of the feed;
+   with a force reference and ``min_line_rms``, the RMS alone: the share's job, rejecting a
+   noise-driven resonance, is condition 3's, and such a resonance dilutes the share). A
    significant but tiny line (a noise-driven resonance of a stable cut, a grazing flute) does not
    mark the surface: the same rule as the time-domain indicator of
    :mod:`robovib.milling.time_domain` (chatter is the vibration that is not tooth-periodic, when
@@ -31,8 +34,40 @@ strongest half-tooth line is a second candidate, tested the same way (significan
 floor, size); a runout that carries half of the vibration and 5 % of the feed would be called
 flip chatter (a limitation: runout of that size is a fault of its own).
 
+**Aliased harmonics are not chatter.** A record sampled without an anti-alias filter (a laser
+tracker samples position; a simulation holds the cutting force over each step) folds the
+harmonics ``h`` between Nyquist and the sampling rate ``fs`` to ``fs - h``: steady periodic
+lines that are not harmonics of the spindle in the sampled band, and that drive a nearby mode
+hard (``robovib sim mill`` at 1 kHz and 1750 rpm: the 17th tooth harmonic, 991.7 Hz, folds to
+8.3 Hz, beside the virtual robot's ~8 Hz Y mode). They are masked like the harmonics
+(``aliased=True``), with the same speed-error allowance (0.5 % of ``h``).
+
+**Forced resonance is not chatter.** The broadband (non-periodic) part of the cutting force
+drives the structure's modes: a lightly damped mode then stands out of a displacement or
+acceleration spectrum as a steady off-harmonic line at the mode's frequency, present from the
+first window, that conditions 1 and 2 take for chatter (the virtual robot's ~8 Hz Y mode under
+``robovib sim mill``). What tells them apart is the force (the field's force-based detection):
+a forced resonance is the structure's FRF times a *smooth* force spectrum, ``X(f) = H(f) F(f)``,
+so the force has no line there; regenerative chatter is self-excited, the dynamic chip
+thickness ``x(t) - x(t - T)`` modulates the cutting force, and the force carries the same line.
+So when the cutting force is recorded (``force=``, the dynamometer of the record), a window
+chatters only if also
+
+3. **the force has the line**: the force's periodogram within ``line_width_hz`` of the line
+   exceeds its own local floor (running median, as above) by the factor that noise exceeds in
+   any of those bins with probability ``false_alarm_rate / c``. With a force, the ``c - 1 =``
+   :data:`N_FORCE_CANDIDATES` strongest separate off-harmonic peaks of the response and the
+   half-tooth line are the ``c`` candidates (a forced resonance can outgrow a young chatter
+   line in a displacement record); the strongest that meets conditions 1-3 is the chatter
+   line. A resonance driven by a smooth (white or coloured) force passes condition 3 with
+   probability at most ``false_alarm_rate`` per window (Bonferroni over the candidates): the
+   stated false-alarm rate on a forced resonance (checked in the tests on a lightly damped
+   mode driven by white force). A record without a force channel cannot make
+   this check: a chatter label on a steady line at a known mode frequency is then suspect.
+
 The stated false-alarm rate is that of condition 1 on white or smooth coloured Gaussian noise
-(checked on synthetic noise in the tests); condition 2 can only lower it. The frequency of the
+(checked on synthetic noise in the tests), and of condition 3 on a forced resonance; condition
+2 can only lower them. The frequency of the
 strongest off-harmonic line is the chatter frequency, so a detected cut goes straight into a
 test-cuts file (``result = chatter``).
 """
@@ -45,6 +80,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["ChatterDetection", "detect_chatter", "read_detection_record"]
+
+#: Separate off-harmonic peaks tested against the force (module docs, condition 3).
+N_FORCE_CANDIDATES = 5
 
 
 @dataclass(frozen=True)
@@ -65,6 +103,8 @@ class ChatterDetection:
         (w,) fraction of the window's vibration power in the line's family (module docs).
     line_rms
         (w,) RMS of the signal in the line's family (signal units).
+    force_line_to_floor
+        (w,) the force's power at the line over its local floor (condition 3; None: no force).
     threshold
         Peak-to-floor factor of the stated false-alarm rate.
     spindle_rpm, n_flutes
@@ -84,6 +124,7 @@ class ChatterDetection:
     spindle_rpm: float
     n_flutes: int
     settings: dict = field(default_factory=dict)
+    force_line_to_floor: np.ndarray | None = None
 
     @property
     def tooth_passing_hz(self) -> float:
@@ -101,6 +142,11 @@ class ChatterDetection:
         return None if idx.size == 0 else float(self.chatter_hz[idx[-1]])
 
     def to_dict(self) -> dict:
+        force = (
+            [None] * self.chatter.size
+            if self.force_line_to_floor is None
+            else [float(v) for v in self.force_line_to_floor]
+        )
         return {
             "result": self.result,
             "chatter_frequency_hz": self.chatter_frequency_hz,
@@ -111,10 +157,10 @@ class ChatterDetection:
             "windows": [
                 {"start_s": float(a), "end_s": float(b), "chatter": bool(c),
                  "chatter_hz": float(f), "peak_to_floor": float(r), "line_fraction": float(q),
-                 "line_rms": float(a_rms)}
-                for a, b, c, f, r, q, a_rms in zip(
+                 "line_rms": float(a_rms), "force_line_to_floor": fr}
+                for a, b, c, f, r, q, a_rms, fr in zip(
                     self.window_start_s, self.window_end_s, self.chatter, self.chatter_hz,
-                    self.peak_to_floor, self.line_fraction, self.line_rms, strict=True)
+                    self.peak_to_floor, self.line_fraction, self.line_rms, force, strict=True)
             ],
             "settings": dict(self.settings),
         }  # fmt: skip
@@ -146,9 +192,24 @@ def peak_threshold(false_alarm_rate: float, n_bins: int, n_segments: int) -> flo
     return float(gamma.isf(p_bin, k, scale=1.0 / k) / gamma.median(k, scale=1.0 / k))
 
 
-def _harmonic_mask(f: np.ndarray, spindle_hz: float, tooth_hz: float, width: float, runout):
+def _harmonic_mask(
+    f: np.ndarray, spindle_hz: float, tooth_hz: float, width: float, runout, fs=None, rel=0.005
+):
+    """Bins within ``width + rel * harmonic`` of a harmonic; with ``fs``, also of the aliases
+    ``fs - k base`` of the harmonics between Nyquist and ``fs`` (sampled without an anti-alias
+    filter)."""
     base = spindle_hz if runout else tooth_hz
-    return np.abs(f - base * np.round(f / base)) <= width
+    mask = np.abs(f - base * np.round(f / base)) <= width + rel * f
+    if fs is not None:
+        orders = np.arange(np.floor(fs / 2 / base) + 1, np.floor(fs / base) + 1)
+        harmonics = orders * base
+        harmonics = harmonics[(harmonics > fs / 2) & (harmonics <= fs)]
+        for h in harmonics:
+            alias = fs - h
+            # at a rate that is a multiple of the base, aliases fall on harmonics: nothing new
+            if abs(alias - base * round(alias / base)) > width + rel * alias:
+                mask |= np.abs(f - alias) <= width + rel * h
+    return mask
 
 
 def detect_chatter(
@@ -167,6 +228,8 @@ def detect_chatter(
     floor_width_hz: float = 20.0,
     band_hz: tuple[float, float] | None = None,
     runout: bool = True,
+    force=None,
+    aliased: bool = True,
 ) -> ChatterDetection:
     """Label each window of a milling record stable or chatter (module docs).
 
@@ -204,6 +267,15 @@ def detect_chatter(
         Frequencies searched (default: 2 bins to Nyquist).
     runout : bool
         Mask every spindle harmonic (runout lines), not only the tooth-passing ones.
+    force : array_like (n,) or (n, c), optional
+        The cutting force on the same samples (a dynamometer): a line is chatter only if the
+        force has it too (condition 3, module docs), which tells a forced resonance from
+        chatter. Channels are scaled by their RMS and summed in power.
+    aliased : bool
+        Also mask the aliases ``fs - h`` of the harmonics ``h`` between Nyquist and the
+        sampling rate (module docs): a sensor without an anti-alias filter (a laser tracker
+        samples position; a simulation holds the force over each step) folds them into the
+        band, where they drive the structure like any periodic force.
 
     Returns
     -------
@@ -226,6 +298,20 @@ def detect_chatter(
         raise ValueError("n_flutes and n_segments must be >= 1")
     if not 0 < min_line_fraction < 1:
         raise ValueError(f"min_line_fraction must be in (0, 1), got {min_line_fraction!r}")
+    frc = None
+    if force is not None:
+        frc = np.asarray(force, float)
+        frc = frc[:, None] if frc.ndim == 1 else frc
+        if frc.ndim != 2 or frc.shape[0] != x.shape[0]:
+            raise ValueError(
+                f"force must be (n,) or (n, channels) with the signal's {x.shape[0]} samples, "
+                f"got {np.shape(force)}"
+            )
+        if not np.all(np.isfinite(frc)):
+            raise ValueError("force contains NaN or inf samples")
+        frc = frc[:, np.ptp(frc, axis=0) > 0]
+        if frc.shape[1] == 0:
+            raise ValueError("force: every channel is constant")
     fs = float(sample_rate_hz)
     n_win = round(window_s * fs)
     k = int(n_segments)
@@ -246,7 +332,7 @@ def detect_chatter(
         raise ValueError(f"band_hz must be 0 <= low < high, got {band_hz}")
     hw = 2 * df if harmonic_width_hz is None else float(harmonic_width_hz)
     lw = 2 * df if line_width_hz is None else float(line_width_hz)
-    harmonic = _harmonic_mask(f, spindle_hz, tooth_hz, hw + 0.005 * f, runout)
+    harmonic = _harmonic_mask(f, spindle_hz, tooth_hz, hw, runout, fs if aliased else None)
     searched = (~harmonic) & (f >= lo) & (f <= hi)
     if searched.sum() < 3:
         raise ValueError("no off-harmonic frequencies to search: lower window_s/n_segments")
@@ -257,46 +343,82 @@ def detect_chatter(
     half_floor = max(round(floor_width_hz / df / 2), 8)
     taper = np.hanning(n_seg)
     t_seg = np.arange(n_seg)
-    out = {key: np.empty(n_windows) for key in ("hz", "ratio", "frac", "rms")}
+    out = {key: np.empty(n_windows) for key in ("hz", "ratio", "frac", "rms", "force")}
     chatter = np.zeros(n_windows, bool)
     # periodogram bins -> mean square of the signal (one-sided, Hann taper)
     to_ms = 2.0 / (n_seg * np.sum(taper**2))
-    for w in range(n_windows):
-        seg = x[w * n_win : w * n_win + k * n_seg].reshape(k, n_seg, -1)
+
+    def periodogram(samples: np.ndarray, w: int, scaled: bool) -> np.ndarray:
+        seg = samples[w * n_win : w * n_win + k * n_seg].reshape(k, n_seg, -1)
         # mean and linear trend of each segment out (quasi-static deflection along the path)
         coef = np.polynomial.polynomial.polyfit(t_seg, seg.transpose(1, 0, 2).reshape(n_seg, -1), 1)
         trend = (coef[0][None, :] + coef[1][None, :] * t_seg[:, None]).reshape(n_seg, k, -1)
         seg = seg - trend.transpose(1, 0, 2)
-        psd = np.mean(
+        if scaled:
+            seg = seg / np.maximum(seg.std(axis=(0, 1), keepdims=True), 1e-300)
+        return np.mean(
             np.sum(np.abs(np.fft.rfft(seg * taper[None, :, None], axis=1)) ** 2, axis=2), axis=0
         )
-        total = psd[1:].sum()
-        # local floor: running median of the off-harmonic bins (harmonics replaced by neighbours)
+
+    def local_floor(psd: np.ndarray) -> np.ndarray:
+        # running median of the off-harmonic bins (harmonics replaced by neighbours)
         off = np.where(searched, psd, np.nan)
         idx = np.flatnonzero(~np.isnan(off))
         filled = np.interp(np.arange(f.size), idx, off[idx])
-        floor = median_filter(filled, size=2 * half_floor + 1, mode="nearest")
+        return median_filter(filled, size=2 * half_floor + 1, mode="nearest")
+
+    thr_force = None
+    for w in range(n_windows):
+        psd = periodogram(x, w, False)
+        total = psd[1:].sum()
+        floor = local_floor(psd)
         ratio = psd / np.maximum(floor, 1e-300)
-        # two candidates: the strongest off-harmonic line (Hopf chatter, with its sidebands
-        # f_c + k f_tooth) and the strongest half-tooth line (flip chatter at (m + 1/2) f_tooth,
-        # which a 2-flute tool's runout mask would hide)
-        best = None
-        for j, family in (
-            (int(np.argmax(np.where(searched, psd, -1.0))), None),
-            (int(np.argmax(np.where(flip_bins, psd, -1.0))), flip_bins),
-        ):
-            if family is None:
-                fam_f = np.abs(f[j] + tooth_hz * np.arange(-n_side, n_side + 1))
-                family = (np.abs(f[:, None] - fam_f[None, :]) <= lw).any(axis=1) & ~harmonic
+        # candidates: the strongest off-harmonic lines (Hopf chatter, with its sidebands
+        # f_c + k f_tooth; with a force reference the N_FORCE_CANDIDATES strongest separate
+        # peaks, since a forced resonance can outgrow a young chatter line in the response)
+        # and the strongest half-tooth line (flip chatter at (m + 1/2) f_tooth, which a
+        # 2-flute tool's runout mask would hide)
+        hopf = np.where(searched, psd, -1.0)
+        cands = []
+        for _ in range(1 if frc is None else N_FORCE_CANDIDATES):
+            j = int(np.argmax(hopf))
+            if hopf[j] <= 0:
+                break
+            fam_f = np.abs(f[j] + tooth_hz * np.arange(-n_side, n_side + 1))
+            family = (np.abs(f[:, None] - fam_f[None, :]) <= lw).any(axis=1) & ~harmonic
+            cands.append((j, family))
+            hopf[np.abs(f - f[j]) <= 2 * lw] = -1.0
+        cands.append((int(np.argmax(np.where(flip_bins, psd, -1.0))), flip_bins))
+        fpsd = fpsd_floor = None
+        if frc is not None:
+            fpsd = periodogram(frc, w, True)
+            fpsd_floor = np.maximum(local_floor(fpsd), 1e-300)
+        evaluated = []
+        for j, family in cands:
             power = psd[family].sum()
-            if best is None or power > best[1]:
-                best = (j, power)
-        j, power = best
-        frac = float(power / max(total, 1e-300))
-        rms = float(np.sqrt(power * to_ms))
+            frac = float(power / max(total, 1e-300))
+            rms = float(np.sqrt(power * to_ms))
+            if fpsd is not None and min_line_rms is not None:
+                # the share guards against noise-driven resonances, which condition 3 rejects
+                # (and which dilute the share of a young chatter line): the RMS decides
+                large = rms >= min_line_rms
+            else:
+                large = frac >= min_line_fraction and (min_line_rms is None or rms >= min_line_rms)
+            f_ratio, forced_too = np.nan, True
+            if fpsd is not None:
+                # condition 3: the force has the line (chatter), not a smooth spectrum
+                # (resonance); the false-alarm rate shared among the candidates tested
+                near = np.abs(f - f[j]) <= lw
+                f_ratio = float(np.max(fpsd[near] / fpsd_floor[near]))
+                thr_force = peak_threshold(false_alarm_rate / len(cands), int(near.sum()), k)
+                forced_too = f_ratio > thr_force
+            passes = bool(ratio[j] > thr and large and forced_too)
+            evaluated.append((passes, power, j, frac, rms, f_ratio))
+        # the strongest chattering candidate, else the strongest candidate
+        passes, _, j, frac, rms, f_ratio = max(evaluated, key=lambda e: (e[0], e[1]))
         out["hz"][w], out["ratio"][w], out["frac"][w], out["rms"][w] = f[j], ratio[j], frac, rms
-        large = frac >= min_line_fraction and (min_line_rms is None or rms >= min_line_rms)
-        chatter[w] = (ratio[j] > thr) and large
+        out["force"][w] = f_ratio
+        chatter[w] = passes
     starts = np.arange(n_windows) * n_win / fs
     return ChatterDetection(
         starts, starts + n_win / fs, chatter, out["hz"], out["ratio"], out["frac"], out["rms"], thr,
@@ -306,7 +428,10 @@ def detect_chatter(
          "window_s": n_win / fs, "n_segments": k, "resolution_hz": float(df),
          "harmonic_width_hz": hw, "line_width_hz": lw, "floor_width_hz": float(floor_width_hz),
          "runout_lines_masked": bool(runout), "channels": int(x.shape[1]),
-         "band_hz": [float(lo), float(hi)], "off_harmonic_bins": int(searched.sum())},
+         "band_hz": [float(lo), float(hi)], "off_harmonic_bins": int(searched.sum()),
+         "force_reference": frc is not None,
+         "force_threshold": None if thr_force is None else float(thr_force)},
+        None if frc is None else out["force"],
     )  # fmt: skip
 
 

@@ -18,7 +18,11 @@ field per direction picks the component (``Phi(z) < P(high)``). So at one pose t
 are draws of the model's calibrated predictive distribution, like the draws of
 :func:`robovib.milling.uncertainty.stability_probability`; across poses they are correlated
 over ``correlation_length`` (a stated assumption: the model's own length scales are not
-exposed through the public API).
+exposed through the public API). With ``shared_fraction = rho > 0`` a share of each field is
+one workspace-wide deviation per structure, ``z = sqrt(1 - rho) z_local + sqrt(rho) g_so``,
+``g ~ N(0, 1)``: the marginals stay exact and the correlation between any two poses is at
+least ``rho`` (a campaign model biased as a whole, e.g. stiffer or softer everywhere, which a
+test cut anywhere then learns).
 
 Each structure also carries a **process factor** ``q_s``, log-uniform on ``process_factor``
 (default 0.5-1.5), that multiplies its linear (zero-order) limit: linear theory assumes the
@@ -74,6 +78,9 @@ class StructureSamples:
         structures' coefficients ``a`` (S, n_fields, K).
     settings
         How they were drawn.
+    shared, shared_fraction
+        (S, n_fields) standard-normal workspace-wide deviations ``g`` and the share ``rho`` of
+        each field's variance they carry (module docs; None / 0: none).
     """
 
     model: object = field(repr=False, compare=False)
@@ -84,6 +91,8 @@ class StructureSamples:
     phases: np.ndarray = field(repr=False)  #: (n_outputs + n_dirs, K) b
     amplitudes: np.ndarray = field(repr=False)  #: (S, n_outputs + n_dirs, K) a
     settings: dict = field(default_factory=dict)
+    shared: np.ndarray | None = field(default=None, repr=False)  #: (S, n_outputs + n_dirs) g
+    shared_fraction: float = 0.0
 
     @property
     def n_samples(self) -> int:
@@ -113,7 +122,8 @@ class StructureSamples:
             raise ValueError("all weights are zero")
         return StructureSamples(
             self.model, w / w.sum(), self.process_factor, self.correlation_length,
-            self.frequencies, self.phases, self.amplitudes, dict(self.settings),
+            self.frequencies, self.phases, self.amplitudes, dict(self.settings), self.shared,
+            self.shared_fraction,
         )  # fmt: skip
 
     def fields(self, poses) -> np.ndarray:
@@ -132,7 +142,11 @@ class StructureSamples:
         u = _checked_poses(poses) / np.asarray(self.correlation_length)[None, :]
         k = self.phases.shape[1]
         arg = np.einsum("pd,fkd->pfk", u, self.frequencies) + self.phases[None]  # (P, F, K)
-        return np.sqrt(2.0 / k) * np.einsum("sfk,pfk->spf", self.amplitudes, np.cos(arg))
+        local = np.sqrt(2.0 / k) * np.einsum("sfk,pfk->spf", self.amplitudes, np.cos(arg))
+        rho = float(self.shared_fraction)
+        if self.shared is None or rho == 0.0:
+            return local
+        return np.sqrt(1.0 - rho) * local + np.sqrt(rho) * self.shared[:, None, :]
 
     def modes(self, poses, feed_direction: str = "x"):
         """Modal parameters of every structure at poses, feed and normal modes side by side.
@@ -263,6 +277,7 @@ def sample_structures(
     correlation_length: tuple[float, float, float] = (300.0, 450.0, 45.0),
     process_factor: tuple[float, float] = (0.5, 1.5),
     n_features: int = 64,
+    shared_fraction: float = 0.0,
     rng=0,
 ) -> StructureSamples:
     """Draw structures of a pose model over the workspace (module docs).
@@ -280,6 +295,10 @@ def sample_structures(
         Range of the log-uniform factor on the linear limit (``(1, 1)``: linear theory as is).
     n_features : int
         Random Fourier features per field.
+    shared_fraction : float
+        Share ``rho`` in [0, 1) of each field's variance that is one workspace-wide deviation
+        per structure and output (``z = sqrt(1 - rho) field(u) + sqrt(rho) g``: marginals
+        unchanged; a pose model biased as a whole, which test cuts anywhere can learn).
     rng : int or numpy.random.Generator
         Seed.
 
@@ -310,12 +329,19 @@ def sample_structures(
     phase = gen.uniform(0, 2 * np.pi, size=(n_fields, kf))
     amp = gen.normal(size=(n, n_fields, kf))
     factor = np.exp(gen.uniform(np.log(lo), np.log(hi), n))
+    rho = float(shared_fraction)
+    if not 0.0 <= rho < 1.0:
+        raise ValueError(f"shared_fraction must be in [0, 1), got {shared_fraction!r}")
+    # drawn after the rest, so that rho = 0 leaves every other draw of a seed as it was
+    shared = gen.normal(size=(n, n_fields)) if rho > 0 else None
     return StructureSamples(
         model, np.full(n, 1.0 / n), factor, length, freq, phase, amp,
         {"n_samples": n, "n_features": kf, "correlation_length_mm_mm_deg": list(length),
          "process_factor_range": [lo, hi], "seed": rng if isinstance(rng, int) else None,
          "sampling": "random-Fourier-feature fields over the pose through the calibrated "
-                     "latent predictive quantiles (Student-t, mode mixture)"},
+                     "latent predictive quantiles (Student-t, mode mixture)",
+         "shared_fraction": rho},
+        shared, rho,
     )  # fmt: skip
 
 
