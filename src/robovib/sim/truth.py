@@ -216,6 +216,14 @@ class WorkspaceTruth:
         c = np.atleast_2d(np.asarray(coords, float))
         return 1.0 / (1.0 + np.exp(-(c[:, 0] - 2.62) / 0.02)) * np.cos(np.radians(c[:, 2])) ** 8
 
+    def _low_mode(self, c: np.ndarray, direction: str):
+        """fn [Hz], k [N/m], zeta (n,) of the Table A1 fields' dominant mode at checked poses."""
+        s = self._scaled(c)
+        fn, k, c_ns = (
+            np.exp(self._fields[(direction, q)](s)) for q in ("fn", "stiffness", "damping")
+        )
+        return fn, k, c_ns * 2 * np.pi * fn / (2 * k)
+
     def modes(self, coords, direction: str, *, allow_extrapolation: bool = False) -> ModeSet:
         """All modes of ``direction`` at the poses ``coords`` (n, 3).
 
@@ -236,11 +244,7 @@ class WorkspaceTruth:
         if direction not in DIRECTIONS:
             raise ValueError(f"unknown direction {direction!r}; expected x, y or z")
         c = self.check_coords(coords, allow_extrapolation)
-        s = self._scaled(c)
-        fn, k, c_ns = (
-            np.exp(self._fields[(direction, q)](s)) for q in ("fn", "stiffness", "damping")
-        )
-        zeta = c_ns * 2 * np.pi * fn / (2 * k)
+        fn, k, zeta = self._low_mode(c, direction)
         fns, ks, zetas = _with_secondary(fn, k, zeta)
         if direction == "x":
             weight = 0.1 + 0.9 * self.switch_weight(c)
@@ -295,11 +299,62 @@ class PathTruth:
 
 
 class VirtualRobot:
-    """The virtual KR500-3: ``workspace`` and ``path`` truths (see the module docstring)."""
+    """The virtual KR500-3: ``workspace`` and ``path`` truths (see the module docstring).
+
+    ``VirtualRobot()`` is the thesis robot; :meth:`variant` builds another member of the robot
+    family (:mod:`robovib.sim.family`), a robot robovib has never seen.
+
+    Attributes
+    ----------
+    robot_seed
+        ``None`` for the thesis robot, else the seed of the variant.
+    draw
+        ``None`` for the thesis robot, else the variant's :class:`~robovib.sim.family.RobotDraw`.
+    """
 
     def __init__(self) -> None:
         self.workspace = WorkspaceTruth()
         self.path = PathTruth()
+        self.robot_seed: int | None = None
+        self.draw = None
+
+    @classmethod
+    def variant(cls, seed: int | None) -> VirtualRobot:
+        """The robot of the family drawn from ``seed`` (``None``: the thesis robot).
+
+        Parameters
+        ----------
+        seed : int or None
+            Non-negative seed of :func:`robovib.sim.family.draw_robot`.
+
+        Returns
+        -------
+        VirtualRobot
+            A robot with the drawn physics (its ``workspace``, ``path``, ``draw``).
+
+        Raises
+        ------
+        ValueError
+            A bad seed, or a draw that is not physical.
+
+        Examples
+        --------
+        >>> from robovib.sim import VirtualRobot
+        >>> VirtualRobot.variant(1).robot_seed
+        1
+        """
+        if seed is None:
+            return cls()
+        from .family import VariantPathTruth, VariantWorkspaceTruth, draw_robot
+
+        draw = draw_robot(seed)
+        robot = cls.__new__(cls)
+        robot.workspace = VariantWorkspaceTruth(draw)
+        robot.path = VariantPathTruth(
+            draw, robot.workspace.mean_stiffness_ratio, robot.workspace.mean_mass_ratio
+        )
+        robot.robot_seed, robot.draw = int(seed), draw
+        return robot
 
     def domain(self, name: str):
         if name not in ("workspace", "path"):
