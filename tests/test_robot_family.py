@@ -195,3 +195,32 @@ def test_tooth_passing_speeds_sit_on_the_modes():
     assert speeds["x switching"] * 2 / 60 == pytest.approx(robot.workspace.high_fn_hz)
     with pytest.raises(ValueError, match="n_flutes"):
         tooth_passing_speeds_rpm(robot, c, n_flutes=0)
+
+
+def test_cli_sim_campaign_on_an_unseen_robot(tmp_path):
+    """`sim campaign --robot-seed 7`: truth.csv holds robot 7's dominant modes (not the thesis
+    robot's) and the JSON settings say which robot it was."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    poses = tmp_path / "poses.csv"
+    poses.write_text("x_mm,y_mm,rz_deg\n2300,0,45\n2500,200,120\n")
+    args = ["sim", "campaign", "--poses", str(poses), "--hits", "1", "--duration-s", "1",
+            "--truth", "4", "--json"]  # fmt: skip
+    runner = CliRunner()
+    res = runner.invoke(app, [*args, "-o", str(tmp_path / "seven"), "--robot-seed", "7"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["settings"]["robot_seed"] == 7
+    res = runner.invoke(app, [*args, "-o", str(tmp_path / "thesis")])
+    assert res.exit_code == 0, res.output
+    seven = pd.read_csv(tmp_path / "seven" / "truth.csv")
+    thesis = pd.read_csv(tmp_path / "thesis" / "truth.csv")
+    np.testing.assert_array_equal(
+        seven[["x_mm", "y_mm", "rz_deg"]], thesis[["x_mm", "y_mm", "rz_deg"]]
+    )
+    want = truth_table(VirtualRobot.variant(7), seven[["x_mm", "y_mm", "rz_deg"]].to_numpy())
+    np.testing.assert_allclose(seven["z_fn_hz"], want["z_fn_hz"], rtol=1e-8)
+    assert np.all(np.abs(seven["z_fn_hz"] / thesis["z_fn_hz"] - 1) > 0.05)
