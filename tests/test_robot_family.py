@@ -224,3 +224,20 @@ def test_cli_sim_campaign_on_an_unseen_robot(tmp_path):
     want = truth_table(VirtualRobot.variant(7), seven[["x_mm", "y_mm", "rz_deg"]].to_numpy())
     np.testing.assert_allclose(seven["z_fn_hz"], want["z_fn_hz"], rtol=1e-8)
     assert np.all(np.abs(seven["z_fn_hz"] / thesis["z_fn_hz"] - 1) > 0.05)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"damping_scale": (4.0, 1.0, 1.0)}, "x damping ratios"),
+        ({"switch": True, "switch_x_m": 3.5}, "switching X mode dominates 0 %"),
+        ({"joint_stiffness_scale": (1.0, -1.0, 1.0, 1.0, 1.0, 1.0)}, "6 positive finite"),
+        ({"high_damping_ratio": 0.0}, "high_damping_ratio"),
+        ({"secondary_fn_factor": (0.8, 2.5, 2.5)}, "secondary mode"),
+    ],
+)
+def test_a_non_physical_robot_is_refused(change, message):
+    from robovib.sim.truth import VariantWorkspaceTruth
+
+    with pytest.raises(ValueError, match=message):
+        VariantWorkspaceTruth(replace(draw_robot(2), **change))

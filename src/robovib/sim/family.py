@@ -4,9 +4,10 @@ The thesis robot (:class:`~robovib.sim.VirtualRobot` with no seed) is one member
 :func:`draw_robot` draws the physical parameters of another member from a seed (this module: the
 distributions), and ``VirtualRobot.variant(seed)`` builds that robot
 (:class:`robovib.sim.truth.VariantWorkspaceTruth`, :class:`~robovib.sim.truth.VariantPathTruth`),
-so a method tuned on the thesis robot can be checked on robots it has never seen (issue 36). Every draw keeps the thesis robot's *structure*
-(a dominant mode per direction that varies smoothly with pose, a weak secondary mode per
-direction, an X mode that takes over in a region of the workspace) and changes its *physics*:
+so a method tuned on the thesis robot can be checked on robots it has never seen (issue 36).
+Every draw keeps the thesis robot's *structure* (a dominant mode per direction that varies
+smoothly with pose, a weak secondary mode per direction, an X mode that takes over in a region
+of the workspace) and changes its *physics*:
 
 **Joint stiffness and masses** (the analytical model of thesis §3.4, Eq. 11-16). Each joint
 stiffness is scaled by a lognormal factor ``exp(0.25 z)``, ``z ~ N(0, 1)`` truncated at
@@ -48,10 +49,11 @@ joint model as their geometric means over the workspace (the path's poses are no
 kinematically).
 
 Every robot is checked at construction
-(:meth:`robovib.sim.truth.VariantWorkspaceTruth.check_physics`) on a grid
-of the workspace and the path: finite, positive stiffness, natural frequencies within
-:data:`PLAUSIBLE_FN_HZ`, damping ratios within :data:`PLAUSIBLE_DAMPING_RATIO`, each secondary
-mode above its dominant mode, and a switch region that exists (dominant somewhere, not over
+(:meth:`robovib.sim.truth.VariantWorkspaceTruth.check_physics`) on a grid of the workspace and
+along the path: finite, positive stiffness, natural frequencies within :data:`PLAUSIBLE_FN_HZ`,
+damping ratios within :data:`PLAUSIBLE_DAMPING_RATIO`, each secondary mode above its dominant
+mode in frequency and below it in peak compliance, the switching X mode above the dominant X
+mode, and a switch region that exists (dominant somewhere, not over
 most of the workspace) exactly when the draw says so; anything else raises ``ValueError``.
 """
 
@@ -139,6 +141,28 @@ class RobotDraw:
     high_fn_quantile: float
     high_dominance: float
     high_damping_ratio: float
+
+    def __post_init__(self) -> None:
+        sizes = {"joint_stiffness_scale": 6, "link_mass_scale": 6, "damping_scale": 3,
+                 "secondary_fn_factor": 3, "secondary_peak_ratio": 3}  # fmt: skip
+        for name, size in sizes.items():
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (size,) or not np.all(np.isfinite(v)) or np.any(v <= 0):
+                raise ValueError(
+                    f"robot draw: {name} must be {size} positive finite factors, got {v}"
+                )
+        lo, hi = PLAUSIBLE_DAMPING_RATIO
+        for name in ("secondary_damping_ratio", "high_damping_ratio"):
+            v = np.atleast_1d(np.asarray(getattr(self, name), float))
+            if not np.all((v >= lo) & (v <= hi)):
+                raise ValueError(f"robot draw: {name} must lie in [{lo:g}, {hi:g}], got {v}")
+        if not (self.switch_width_m > 0 and 0 < self.high_floor_weight <= 1
+                and 0 <= self.high_fn_quantile <= 1 and self.high_dominance > 0
+                and self.switch_power > 0):  # fmt: skip
+            raise ValueError(
+                "robot draw: the switch needs width > 0, 0 < floor weight <= 1, a frequency "
+                "quantile in [0, 1], dominance > 0 and power > 0"
+            )
 
     def to_dict(self) -> dict:
         """The draw as plain JSON types.
