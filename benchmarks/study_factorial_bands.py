@@ -55,13 +55,13 @@ def targets(table) -> np.ndarray:
     return np.column_stack([table[f"{d}_{q}"] for d in "xyz" for q in QUANTITIES])
 
 
-def one(seed: int, route: str, n_checks: int) -> dict:
+def one(seed: int, route: str, n_checks: int, robot_seed: int | None = None) -> dict:
     from robovib.campaign import fit_pose_model_from_table, process_campaign
     from robovib.gp import PoseModalModel
     from robovib.sim import VirtualRobot, simulate_campaign
     from robovib.sim.campaign import truth_table
 
-    robot = VirtualRobot()
+    robot = VirtualRobot.variant(robot_seed)
     X = grid_poses()
     Xc = off_grid_poses(n_checks, np.random.default_rng(seed))
     T = targets(truth_table(robot, Xc))
@@ -73,7 +73,7 @@ def one(seed: int, route: str, n_checks: int) -> dict:
             )
         else:
             with tempfile.TemporaryDirectory() as tmp:
-                sim = simulate_campaign(X, tmp, rng=seed, n_hits=2, n_truth=0)
+                sim = simulate_campaign(X, tmp, rng=seed, n_hits=2, n_truth=0, robot=robot)
                 process_campaign(sim.manifest, Path(tmp) / "out", n_workers=1)
                 model = fit_pose_model_from_table(Path(tmp) / "out" / "modal.csv", rng=0).model
     pred = model.predictive(Xc)
@@ -95,6 +95,12 @@ def main(argv=None) -> None:
     ap.add_argument("--route", choices=("truth", "campaign"), default="truth")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--checks", type=int, default=24)
+    ap.add_argument(
+        "--robot-seed",
+        type=int,
+        default=None,
+        help="a robot of the family (robovib.sim.family) instead of the thesis robot",
+    )
     args = ap.parse_args(argv)
     print(f"route {args.route}: 36 grid poses, {args.checks} off-grid checks x 9 outputs")
     print(
@@ -103,7 +109,7 @@ def main(argv=None) -> None:
     total = n = 0
     for seed in args.seeds:
         t0 = time.perf_counter()
-        r = one(seed, args.route, args.checks)
+        r = one(seed, args.route, args.checks, args.robot_seed)
         total, n = total + r["covered"], n + r["checks"]
         print(f"{seed:4d} {r['covered']:4d}/{r['checks']:<4d} {100 * r['covered'] / r['checks']:6.1f} "
               f"{r['poses_covered']:3d}/{args.checks:<2d} {r['median_err_over_std']:6.2f} "

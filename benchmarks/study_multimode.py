@@ -31,10 +31,11 @@ from pathlib import Path
 import numpy as np
 
 
-def fit_models(n_poses: int, seed: int, band_hz, scatter=(0.01, 0.04, 0.04)):
+def fit_models(n_poses: int, seed: int, band_hz, scatter=(0.01, 0.04, 0.04), robot=None):
     """Sim campaign -> campaign process (every mode) -> dominant and multi-mode pose models.
 
     ``scatter``: test-to-test scatter of (fn, k, zeta) per recording; ``None``: a clean campaign.
+    ``robot``: the virtual robot hammered (``None``: the thesis robot).
     """
     import pandas as pd
 
@@ -51,7 +52,8 @@ def fit_models(n_poses: int, seed: int, band_hz, scatter=(0.01, 0.04, 0.04)):
     poses = np.column_stack([x, rng.uniform(-300, 600, n_poses), rng.uniform(0, 180, n_poses)])
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        sim = simulate_campaign(poses, tmp, rng=seed, n_hits=2, n_truth=0, scatter=scatter)
+        sim = simulate_campaign(poses, tmp, rng=seed, n_hits=2, n_truth=0, scatter=scatter,
+                                robot=robot)  # fmt: skip
         out = Path(tmp) / "out"
         process_campaign(sim.manifest, out, n_workers=1,
                          settings=ProcessingSettings(modes_band_hz=tuple(band_hz)))  # fmt: skip
@@ -79,7 +81,10 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, default=20)
     ap.add_argument("--campaign-poses", type=int, default=36)
-    ap.add_argument("--speeds", type=float, nargs="+", default=[1300.0, 1900.0, 2600.0])
+    ap.add_argument("--speeds", type=float, nargs="+", default=None,
+                    help="spindle speeds [rpm]; default 1300 1900 2600 on the thesis robot, and on "
+                         "a --robot-seed robot the speeds whose tooth passing sits on its X "
+                         "secondary and switching modes, and 2600")  # fmt: skip
     ap.add_argument("--samples", type=int, default=40)
     ap.add_argument("--band", type=float, nargs=2, default=[5.0, 100.0])
     ap.add_argument("--seed", type=int, default=21)
@@ -87,6 +92,12 @@ def main(argv=None) -> None:
                     metavar=("FN", "K", "ZETA"),
                     help="test-to-test scatter of the campaign (relative stds of fn, k, zeta per "
                          "recording); 0 0 0: a clean campaign")  # fmt: skip
+    ap.add_argument(
+        "--robot-seed",
+        type=int,
+        default=None,
+        help="a robot of the family (robovib.sim.family) instead of the thesis robot",
+    )
     ap.add_argument("--figure", type=Path, default=None, help="PNG of predicted vs true limits")
     ap.add_argument("--json", type=Path, default=None, help="per-case results")
     args = ap.parse_args(argv)
@@ -101,19 +112,31 @@ def main(argv=None) -> None:
     from robovib.sim import VirtualRobot
 
     t0 = time.perf_counter()
+    robot = VirtualRobot.variant(args.robot_seed)
     scatter = tuple(args.scatter) if any(v > 0 for v in args.scatter) else None
-    dominant, multi, _modes = fit_models(args.campaign_poses, args.seed, args.band, scatter)
+    dominant, multi, _modes = fit_models(args.campaign_poses, args.seed, args.band, scatter, robot)
     pres = json.loads(multi.provenance_["mode_presence"])
     print(f"campaign of {args.campaign_poses} poses processed, models fitted "
           f"({time.perf_counter() - t0:.0f} s); tracked modes: "
           + ", ".join(f"{k} {v['presence']:.2f}" for k, v in pres.items()))  # fmt: skip
     print(f"multi-mode model directions: {', '.join(multi.directions)}")
-    robot = VirtualRobot()
     tool = MillingTool()
     rng = np.random.default_rng(args.seed + 1)
     unseen = np.column_stack([rng.uniform(2150, 2500, args.poses), rng.uniform(-250, 550, args.poses),
                               rng.uniform(5, 175, args.poses)])  # fmt: skip
-    rpm = np.asarray(args.speeds, float)
+    speeds = args.speeds or [1300.0, 1900.0, 2600.0]
+    if args.robot_seed is not None:
+        from robovib.sim.family import tooth_passing_speeds_rpm
+
+        on_modes = tooth_passing_speeds_rpm(robot, unseen * [1e-3, 1e-3, 1], tool.n_flutes)
+        speeds = args.speeds or [
+            round(on_modes["x secondary"]),
+            round(on_modes["x switching"]),
+            2600.0,
+        ]
+        print(f"robot seed {args.robot_seed} (switch region: {robot.draw.switch}); tooth passing "
+              + ", ".join(f"on the {k} mode at {v:.0f} rpm" for k, v in on_modes.items()))  # fmt: skip
+    rpm = np.asarray(speeds, float)
     cond0 = CuttingConditions(float(rpm[0]), 0.058e-3, 1e-3, 6e-3)
     names = ("dominant", "multi-mode")
     rows = []

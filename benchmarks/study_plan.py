@@ -49,7 +49,7 @@ BACKGROUND = 0.15  # broadband force / RMS cutting force, as ``robovib sim mill`
 X_MM, Y_MM = (2150.0, 2650.0), (-250.0, 550.0)
 
 
-def fit_campaign_model(n_poses: int, seed: int):
+def fit_campaign_model(n_poses: int, seed: int, robot=None):
     from robovib.campaign import fit_pose_model_from_table, process_campaign
     from robovib.sim import simulate_campaign
 
@@ -59,7 +59,7 @@ def fit_campaign_model(n_poses: int, seed: int):
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sim = simulate_campaign(
-            poses, tmp, rng=seed, n_hits=2, n_truth=0, scatter=(0.01, 0.04, 0.04)
+            poses, tmp, rng=seed, n_hits=2, n_truth=0, scatter=(0.01, 0.04, 0.04), robot=robot
         )
         process_campaign(sim.manifest, Path(tmp) / "out", n_workers=1)
         return fit_pose_model_from_table(Path(tmp) / "out" / "modal.csv").model
@@ -68,11 +68,12 @@ def fit_campaign_model(n_poses: int, seed: int):
 class Truth:
     """The virtual robot's modes and its regenerative simulation (records + indicator)."""
 
-    def __init__(self, truth: str, sim_kw: dict):
+    def __init__(self, truth: str, sim_kw: dict, robot_seed: int | None = None):
         from robovib.milling import ALUMINIUM_7075, MillingTool
         from robovib.sim import VirtualRobot
 
-        self.robot, self.tool, self.coef = VirtualRobot(), MillingTool(), ALUMINIUM_7075
+        self.robot, self.tool = VirtualRobot.variant(robot_seed), MillingTool()
+        self.coef = ALUMINIUM_7075
         self.kind, self.kw = truth, sim_kw
         self.rng = np.random.default_rng(0)
 
@@ -172,6 +173,12 @@ def main(argv=None) -> None:
     )
     ap.add_argument("--shared-fractions", default="",
                     help="also: the Brier before/after 5 test cuts with these shares, e.g. 0.5")  # fmt: skip
+    ap.add_argument(
+        "--robot-seed",
+        type=int,
+        default=None,
+        help="a robot of the family (robovib.sim.family) instead of the thesis robot",
+    )
     args = ap.parse_args(argv)
 
     from robovib.milling import CuttingConditions
@@ -181,13 +188,14 @@ def main(argv=None) -> None:
 
     t_start = time.perf_counter()
     rng = np.random.default_rng(args.seed)
-    truth = Truth(args.truth, {"steps_per_tooth": args.steps, "seconds": args.seconds})
+    truth = Truth(args.truth, {"steps_per_tooth": args.steps, "seconds": args.seconds},
+                  args.robot_seed)  # fmt: skip
     tool, coef = truth.tool, truth.coef
     fz = 0.058e-3
     cond = CuttingConditions(1750.0, fz, 1e-3, 6e-3)
     print(f"# study_plan: seed {args.seed}, {args.campaign_poses}-pose campaign model, truth "
           f"{args.truth}, {args.samples} structures")  # fmt: skip
-    model = fit_campaign_model(args.campaign_poses, args.seed)
+    model = fit_campaign_model(args.campaign_poses, args.seed, truth.robot)
     print(f"model fitted ({time.perf_counter() - t_start:.0f} s)")
     prior = sample_structures(model, args.samples, rng=args.seed,
                               shared_fraction=args.shared_fraction)  # fmt: skip

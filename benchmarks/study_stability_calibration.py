@@ -62,7 +62,7 @@ QUANTILES = (0.05, 0.15, 0.25, 0.35, 0.45, 0.55, 0.65, 0.75, 0.85, 0.95)
 MODES_BAND_HZ = (5.0, 100.0)
 
 
-def fit_campaign_model(n_poses: int, seed: int, route: str = "dominant"):
+def fit_campaign_model(n_poses: int, seed: int, route: str = "dominant", robot=None):
     """The pose model a user fits: ``modal.csv`` (dominant) or ``modes.csv`` (``--modes-band``)."""
     from robovib.campaign import (
         ProcessingSettings,
@@ -78,7 +78,7 @@ def fit_campaign_model(n_poses: int, seed: int, route: str = "dominant"):
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sim = simulate_campaign(
-            poses, tmp, rng=seed, n_hits=2, n_truth=0, scatter=(0.01, 0.04, 0.04)
+            poses, tmp, rng=seed, n_hits=2, n_truth=0, scatter=(0.01, 0.04, 0.04), robot=robot
         )
         out = Path(tmp) / "out"
         if route == "modes":  # README: campaign process --modes-band 5,100; model fit modes.csv
@@ -102,10 +102,10 @@ def campaign_cuts(c: int, campaign_seed: int, n_unseen: int, args) -> dict:
     )
     from robovib.sim import VirtualRobot, simulate_regenerative_cut
 
-    robot = VirtualRobot()
+    robot = VirtualRobot.variant(args.robot_seed)
     tool = MillingTool()
     rpm = np.asarray(args.speeds, float)
-    model = fit_campaign_model(args.campaign_poses, campaign_seed, args.route)
+    model = fit_campaign_model(args.campaign_poses, campaign_seed, args.route, robot)
     at_pose = mode_distributions_at_pose if args.route == "modes" else mode_distribution_at_pose
     rows = {k: [] for k in ("p", "det", "stable", "plin", "detm", "campaign", "kind")}
     rng = np.random.default_rng(campaign_seed + 1)
@@ -223,6 +223,12 @@ def main(argv=None) -> None:
     ap.add_argument("--workers", type=int, default=1, help="processes, one campaign each at a time")
     ap.add_argument("--plot", type=Path, default=None, help="write the reliability diagram (PNG)")
     ap.add_argument("--seed", type=int, default=21)
+    ap.add_argument(
+        "--robot-seed",
+        type=int,
+        default=None,
+        help="a robot of the family (robovib.sim.family) instead of the thesis robot",
+    )
     ap.add_argument("--no-margin", dest="margin", action="store_false",
                     help="reliability table of the linear P(stable) instead of the one with the "
                          "time-domain margin (the margin is then not simulated)")  # fmt: skip

@@ -396,6 +396,7 @@ case("model-next-poses-k=0", "model next-poses --model {model} --candidates {sch
 bad_inputs("sim-campaign-poses", "sim campaign --poses {IN} -o {out:}", ".csv")
 bad_options("sim-campaign", "sim campaign --poses {missing:.csv} -o {out:}", {
     "--hits": ["0"], "--duration-s": ["nan", "-1"], "--sample-rate-hz": ["0", "inf"],
+    "--robot-seed": ["-1", "x"],
 })  # fmt: skip
 
 # files as labs write them (issue 28): one clear error each, never a silently worse answer

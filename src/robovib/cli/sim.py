@@ -33,6 +33,25 @@ PathFromOpt = Annotated[
 PathToOpt = Annotated[
     float | None, typer.Option("--path-s-to", help="End distance along the chapter-4 path [m].")
 ]
+RobotSeedOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--robot-seed",
+        min=0,
+        help="Simulate a robot robovib has never seen: the member of the virtual-robot family "
+        "drawn from this seed (robovib.sim.family; default: the thesis robot).",
+    ),
+]
+
+
+def _robot(robot_seed: int | None):
+    """The thesis robot, or the family's robot drawn from ``robot_seed``."""
+    from ..sim import VirtualRobot
+
+    try:
+        return VirtualRobot.variant(robot_seed)
+    except ValueError as exc:
+        fail(str(exc))
 
 
 @app.command("hammer")
@@ -60,12 +79,13 @@ def hammer(
         ),
     ] = None,
     seed: SeedOpt = 0,
+    robot_seed: RobotSeedOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Impact-hammer test of the virtual robot at a workspace pose (or a path point), UFF 58 or CSV."""
     from ..gp.pose_units import pose_in_units
     from ..io import write_recording
-    from ..sim import VirtualRobot, simulate_hammer_test
+    from ..sim import simulate_hammer_test
 
     if path_s is None:  # the virtual robot takes metres: units named, no conversion by hand
         where = tuple(map(float, pose_in_units(_WORKSPACE_M, {"x_mm": x, "y_mm": y, "rz_deg": rz})))
@@ -73,7 +93,7 @@ def hammer(
     else:
         where, domain = path_s, "path"
     rec = simulate_hammer_test(
-        VirtualRobot(), where, direction, domain=domain, n_hits=hits,
+        _robot(robot_seed), where, direction, domain=domain, n_hits=hits,
         sample_rate_hz=sample_rate_hz, duration_s=duration_s, snr_db=snr_db, rng=seed,
     )  # fmt: skip
     write_recording(output, rec)
@@ -111,6 +131,7 @@ def mill(
     ] = 0.15,
     disturbance: DisturbanceOpt = None,
     seed: SeedOpt = 0,
+    robot_seed: RobotSeedOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Milling pass on the virtual robot (thesis §3.5: 25.4 mm 2-flute 30° helix tool); CSV out.
@@ -119,7 +140,7 @@ def mill(
     matter under control, ``robovib control simulate milling``).
     """
     from ..milling import CuttingConditions, MillingTool
-    from ..sim import LinearMove, VirtualRobot, simulate_milling
+    from ..sim import LinearMove, simulate_milling
 
     coefficients = material(material_name)
     dist = parse_disturbances(disturbance)
@@ -137,7 +158,7 @@ def mill(
     else:
         move = LinearMove("path", (path_s_from,), (path_s_to,))
     run = simulate_milling(
-        VirtualRobot(), move, MillingTool(), cond, coefficients,
+        _robot(robot_seed), move, MillingTool(), cond, coefficients,
         background_noise_rel=background, disturbances=dist if dist.active() else None, rng=seed,
     )  # fmt: skip
     run.to_csv(output)
@@ -175,13 +196,14 @@ def offset_mass(
         float, typer.Option("--speed", help="Robot speed along the path [mm/s].")
     ] = 84.0,
     seed: SeedOpt = 0,
+    robot_seed: RobotSeedOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """Rotating offset-mass run (1 kg at 50.8 mm, thesis §4.3.3) along the chapter-4 path; CSV out."""
-    from ..sim import LinearMove, VirtualRobot, simulate_offset_mass
+    from ..sim import LinearMove, simulate_offset_mass
 
     run = simulate_offset_mass(
-        VirtualRobot(),
+        _robot(robot_seed),
         LinearMove("path", (path_s_from,), (path_s_to,)),
         rpm,
         speed_m_per_s=to_si(speed_mm_s, "mm/s"),
@@ -213,6 +235,7 @@ def campaign(
         ),
     ] = None,
     seed: SeedOpt = 0,
+    robot_seed: RobotSeedOpt = None,
     json_out: JsonFlag = False,
 ) -> None:
     """A virtual hammer campaign: recordings in mixed layouts, manifest and truth at unseen poses."""
@@ -226,7 +249,7 @@ def campaign(
             fail(f"--scatter must be three numbers 'fn,k,zeta', got {scatter!r}")
     res = simulate_campaign(poses, output, rng=seed, n_hits=hits, duration_s=duration_s,
                             sample_rate_hz=sample_rate_hz, n_truth=truth,
-                            scatter=rel)  # fmt: skip
+                            scatter=rel, robot=_robot(robot_seed))  # fmt: skip
     doc = {
         "manifest": str(res.manifest),
         "truth": str(res.truth),

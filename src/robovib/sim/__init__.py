@@ -1,7 +1,9 @@
 """The virtual robot: a synthetic, pose-dependent KR500-3 lab (hammer tests, milling, offset mass).
 
 See :mod:`robovib.sim.truth` for exactly how the ground truth is built (a plausible synthetic
-robot fitted to the thesis' data, not a claim about the real one). The path model of the
+robot fitted to the thesis' data, not a claim about the real one), and
+:mod:`robovib.sim.family` for the family of other robots (``VirtualRobot.variant(seed)``):
+robots robovib has never seen, for checking a method beyond the one robot it was tuned on. The path model of the
 virtual EMA (:mod:`robovib.sim.path_model`, which needs the GP and the FRF estimators) is
 imported on first use.
 """
@@ -19,6 +21,7 @@ from .experiments import (
     simulate_milling,
     simulate_offset_mass,
 )
+from .family import RobotDraw, draw_robot, tooth_passing_speeds_rpm
 from .plant import ACTUATORS, PURE_DELAY, CommandChannel, ConstantModesRobot, run_closed_loop
 from .regenerative import RegenerativeCut, simulate_regenerative_cut, simulated_stability_limit
 from .truth import (
@@ -50,11 +53,13 @@ __all__ = [
     "MotionRecord",
     "PathTruth",
     "RegenerativeCut",
+    "RobotDraw",
     "SimulatedCampaign",
     "VirtualRobot",
     "WorkspaceTruth",
     "affine_scan",
     "default_path_move",
+    "draw_robot",
     "modal_response",
     "offset_mass_force",
     "path_modal_model",
@@ -65,6 +70,7 @@ __all__ = [
     "simulate_offset_mass",
     "simulate_regenerative_cut",
     "simulated_stability_limit",
+    "tooth_passing_speeds_rpm",
     "truth_table",
     "virtual_path_modes",
     "zoh_transition",

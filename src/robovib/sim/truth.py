@@ -26,18 +26,24 @@ and Z, placed at s = 0.35 m (Position 1) and s = 1.00 m (Position 2) — an assu
 thesis gives those poses only in a figure — and end values extrapolated along the §4.2.2
 trends (X, Z stiffness and fn fall with extension, Y stiffness rises, damping ratio
 nonlinear); Y's dominant mode near 22.9 Hz as in §5.4.1. Secondary modes as above.
+
+**Other robots** (``VirtualRobot.variant(seed)``): :class:`VariantWorkspaceTruth` and
+:class:`VariantPathTruth` change this robot's physics by a draw of :mod:`robovib.sim.family`
+(joint stiffness and masses through the analytical model, damping, tool orientation, the
+secondary modes, the switch region); the distributions are documented there.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator, RBFInterpolator
+from scipy.interpolate import PchipInterpolator, RBFInterpolator, RegularGridInterpolator
 
 from ..datasets import load_table_a1
 from ..modal.parameters import ModalParameters
+from .family import PLAUSIBLE_DAMPING_RATIO, PLAUSIBLE_FN_HZ, RobotDraw, draw_robot
 
 __all__ = [
     "PATH_LENGTH_M",
@@ -46,6 +52,8 @@ __all__ = [
     "WORKSPACE_BOUNDS",
     "ModeSet",
     "PathTruth",
+    "VariantPathTruth",
+    "VariantWorkspaceTruth",
     "VirtualRobot",
     "WorkspaceTruth",
 ]
@@ -216,6 +224,14 @@ class WorkspaceTruth:
         c = np.atleast_2d(np.asarray(coords, float))
         return 1.0 / (1.0 + np.exp(-(c[:, 0] - 2.62) / 0.02)) * np.cos(np.radians(c[:, 2])) ** 8
 
+    def _low_mode(self, c: np.ndarray, direction: str):
+        """fn [Hz], k [N/m], zeta (n,) of the Table A1 fields' dominant mode at checked poses."""
+        s = self._scaled(c)
+        fn, k, c_ns = (
+            np.exp(self._fields[(direction, q)](s)) for q in ("fn", "stiffness", "damping")
+        )
+        return fn, k, c_ns * 2 * np.pi * fn / (2 * k)
+
     def modes(self, coords, direction: str, *, allow_extrapolation: bool = False) -> ModeSet:
         """All modes of ``direction`` at the poses ``coords`` (n, 3).
 
@@ -236,11 +252,7 @@ class WorkspaceTruth:
         if direction not in DIRECTIONS:
             raise ValueError(f"unknown direction {direction!r}; expected x, y or z")
         c = self.check_coords(coords, allow_extrapolation)
-        s = self._scaled(c)
-        fn, k, c_ns = (
-            np.exp(self._fields[(direction, q)](s)) for q in ("fn", "stiffness", "damping")
-        )
-        zeta = c_ns * 2 * np.pi * fn / (2 * k)
+        fn, k, zeta = self._low_mode(c, direction)
         fns, ks, zetas = _with_secondary(fn, k, zeta)
         if direction == "x":
             weight = 0.1 + 0.9 * self.switch_weight(c)
@@ -294,12 +306,358 @@ class PathTruth:
         return ModeSet(*_with_secondary(fn, k_mn * 1e6, zeta))
 
 
+_Z_M = 0.325
+_GRID_N = 7
+
+
+def _joint_model_ratios(draw: RobotDraw):
+    """log r_k, log r_m (3, 7, 7) on the (x, y) grid, and the grid axes."""
+    from ..robot import KR500, tool_down_orientation
+    from ..robot.dynamics import LINK_SOLIDS, TABLE_4_JOINT_STIFFNESS, joint_space_inertia
+
+    robot = KR500()
+    k_nominal = TABLE_4_JOINT_STIFFNESS
+    k_variant = k_nominal * np.asarray(draw.joint_stiffness_scale)
+    links = tuple(
+        replace(link, mass_kg=link.mass_kg * f)
+        for link, f in zip(LINK_SOLIDS, draw.link_mass_scale, strict=True)
+    )
+    xs = np.linspace(*WORKSPACE_BOUNDS[0], _GRID_N)
+    ys = np.linspace(*WORKSPACE_BOUNDS[1], _GRID_N)
+    log_rk = np.empty((3, _GRID_N, _GRID_N))
+    log_rm = np.empty((3, _GRID_N, _GRID_N))
+    ref = np.array([0.0, -30.0, 70.0, 0.0, 50.0, 0.0])
+    for i, x in enumerate(xs):
+        for j, y in enumerate(ys):
+            q = robot.ik(np.array([x, y, _Z_M]), tool_down_orientation(0.0), reference_deg=ref)
+            jac = robot.jacobian(q)
+            jv = jac[:3]
+            # directional compliance (J K^-1 J^T)_dd and inverse apparent mass (Jv Mq^-1 Jv^T)_dd
+            c_nom = np.diag(jac @ np.diag(1 / k_nominal) @ jac.T)[:3]
+            c_var = np.diag(jac @ np.diag(1 / k_variant) @ jac.T)[:3]
+            mi_nom = np.diag(jv @ np.linalg.solve(joint_space_inertia(robot, q), jv.T))
+            mi_var = np.diag(jv @ np.linalg.solve(joint_space_inertia(robot, q, links), jv.T))
+            log_rk[:, i, j] = np.log(c_nom / c_var)
+            log_rm[:, i, j] = np.log(mi_nom / mi_var)
+    return xs, ys, log_rk, log_rm
+
+
+class VariantWorkspaceTruth(WorkspaceTruth):
+    """The chapter-3 workspace truth of one drawn robot (see the module docstring).
+
+    Parameters
+    ----------
+    draw : RobotDraw
+        The robot's physical parameters.
+
+    Raises
+    ------
+    ValueError
+        The drawn robot is not physical (:meth:`check_physics`).
+    """
+
+    def __init__(self, draw: RobotDraw) -> None:
+        super().__init__()
+        self.draw = draw
+        xs, ys, log_rk, log_rm = _joint_model_ratios(draw)
+        grid = (xs, ys)
+        self._log_rk = [RegularGridInterpolator(grid, log_rk[i], method="cubic", bounds_error=False,
+                                                fill_value=None) for i in range(3)]  # fmt: skip
+        self._log_rm = [RegularGridInterpolator(grid, log_rm[i], method="cubic", bounds_error=False,
+                                                fill_value=None) for i in range(3)]  # fmt: skip
+        #: Geometric means of the joint model's stiffness and mass ratios (X, Y, Z).
+        self.mean_stiffness_ratio = np.exp(log_rk.mean(axis=(1, 2)))
+        self.mean_mass_ratio = np.exp(log_rm.mean(axis=(1, 2)))
+        grid3 = self.check_grid()
+        #: (3,) X, Y, Z stiffness factors of the secondary modes on the dominant ones.
+        self.secondary_stiffness_factor = _secondary_factors(
+            draw, [self._low_mode(grid3, d)[2] for d in DIRECTIONS]
+        )
+        fn_x, k_x, zeta_x = self._low_mode(grid3, "x")
+        f_max = float(fn_x.max())
+        lo, hi = max(1.8 * f_max, 45.0), min(3.2 * f_max, 100.0)
+        if lo >= hi:
+            raise ValueError(
+                f"robot seed {draw.seed}: the dominant X mode reaches {f_max:.1f} Hz, leaving no "
+                "room for a switching mode below 100 Hz"
+            )
+        self.high_fn_hz = float(np.exp(np.log(lo) + draw.high_fn_quantile * np.log(hi / lo)))
+        self.high_damping_ratio = draw.high_damping_ratio
+        largest_peak = float(np.max(1.0 / (2 * zeta_x * k_x)))
+        self.high_stiffness_n_per_m = 1.0 / (
+            2 * self.high_damping_ratio * draw.high_dominance * largest_peak
+        )
+        self.check_physics()
+
+    @staticmethod
+    def check_grid() -> np.ndarray:
+        """(n, 3) poses ``(x_m, y_m, rz_deg)`` on which a robot is checked: 9 x 9 x 19.
+
+        Returns
+        -------
+        numpy.ndarray
+            The grid poses.
+        """
+        axes = [
+            np.linspace(lo, hi, n) for (lo, hi), n in zip(WORKSPACE_BOUNDS, (9, 9, 19), strict=True)
+        ]
+        return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+
+    def _low_mode(self, c: np.ndarray, direction: str):
+        fn, k, zeta = super()._low_mode(c, direction)
+        i = DIRECTIONS.index(direction)
+        xy = c[:, :2]
+        log_rk = self._log_rk[i](xy)
+        if direction in ("x", "y"):
+            sign = 1.0 if direction == "x" else -1.0
+            phase = np.radians(2 * (c[:, 2] - self.draw.orientation_phase_deg))
+            log_rk = log_rk + sign * self.draw.orientation_amplitude * np.cos(phase)
+        rk, rm = np.exp(log_rk), np.exp(self._log_rm[i](xy))
+        return fn * np.sqrt(rk / rm), k * rk, zeta * self.draw.damping_scale[i]
+
+    def switch_weight(self, coords) -> np.ndarray:
+        """s(pose) in [0, 1]: how strongly the switching X mode is excited (0 without a switch).
+
+        Parameters
+        ----------
+        coords : array_like
+            (n, 3) poses ``(x_m, y_m, rz_deg)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) weights in [0, 1].
+        """
+        c = np.atleast_2d(np.asarray(coords, float))
+        d = self.draw
+        if not d.switch:
+            return np.zeros(len(c))
+        along = 1.0 / (1.0 + np.exp(-(c[:, 0] - d.switch_x_m) / d.switch_width_m))
+        return along * np.abs(np.cos(np.radians(c[:, 2] - d.switch_rz_deg))) ** d.switch_power
+
+    def modes(self, coords, direction: str, *, allow_extrapolation: bool = False) -> ModeSet:
+        """All modes of ``direction`` at the poses ``coords`` (n, 3).
+
+        Parameters
+        ----------
+        coords : array_like
+            (n, 3) poses ``(x_m, y_m, rz_deg)``.
+        direction : {"x", "y", "z"}
+            Direction.
+        allow_extrapolation : bool
+            Allow poses outside the workspace.
+
+        Returns
+        -------
+        ModeSet
+            Dominant, secondary (and in X the switching) modes per pose.
+        """
+        if direction not in DIRECTIONS:
+            raise ValueError(f"unknown direction {direction!r}; expected x, y or z")
+        c = self.check_coords(coords, allow_extrapolation)
+        fn, k, zeta = self._low_mode(c, direction)
+        i = DIRECTIONS.index(direction)
+        d = self.draw
+        fns = np.column_stack([fn, d.secondary_fn_factor[i] * fn])
+        ks = np.column_stack([k, self.secondary_stiffness_factor[i] * k])
+        zetas = np.column_stack([zeta, np.full_like(zeta, d.secondary_damping_ratio[i])])
+        if direction == "x":
+            weight = d.high_floor_weight + (1 - d.high_floor_weight) * self.switch_weight(c)
+            fns = np.column_stack([fns, np.full(len(c), self.high_fn_hz)])
+            ks = np.column_stack([ks, self.high_stiffness_n_per_m / weight])
+            zetas = np.column_stack([zetas, np.full(len(c), self.high_damping_ratio)])
+        return ModeSet(fns, ks, zetas)
+
+    def check_physics(self) -> None:
+        """Raise ``ValueError`` if the robot is not physical on :meth:`check_grid`.
+
+        Checked: finite values, positive stiffness, fn in :data:`PLAUSIBLE_FN_HZ`, damping
+        ratios in :data:`PLAUSIBLE_DAMPING_RATIO`, each secondary mode above its dominant
+        mode, the switching X mode above the dominant X mode; with a switch, the switching mode
+        dominant at some but under half of the grid poses; without one, nowhere.
+
+        Raises
+        ------
+        ValueError
+            Naming the seed, the direction and the quantity out of range.
+        """
+        _check_modes(
+            self.draw.seed, "workspace", {d: self.modes(self.check_grid(), d) for d in DIRECTIONS}
+        )
+        x = self.modes(self.check_grid(), "x")
+        if np.any(x.fn_hz[:, 2] <= 1.3 * x.fn_hz[:, 0]):
+            raise ValueError(
+                f"robot seed {self.draw.seed}: the switching X mode is not above the dominant X mode"
+            )
+        share = float(np.mean(np.argmax(x.peak_compliance(), axis=1) == 2))
+        if self.draw.switch and not 0.0 < share < 0.5:
+            raise ValueError(
+                f"robot seed {self.draw.seed}: the switching X mode dominates {100 * share:.0f} % "
+                "of the workspace (a switch region needs 0 < share < 50 %)"
+            )
+        if not self.draw.switch and share > 0:
+            raise ValueError(f"robot seed {self.draw.seed}: a robot without a switch has one")
+
+    def switch_share(self) -> float:
+        """The share of :meth:`check_grid` poses where the switching X mode dominates.
+
+        Returns
+        -------
+        float
+            In [0, 1).
+        """
+        x = self.modes(self.check_grid(), "x")
+        return float(np.mean(np.argmax(x.peak_compliance(), axis=1) == 2))
+
+
+def _secondary_factors(draw: RobotDraw, dominant_damping) -> np.ndarray:
+    """Stiffness factors k2 / k putting each secondary peak at its drawn ratio (median zeta)."""
+    zeta = np.array([np.median(z) for z in dominant_damping])
+    return zeta / (np.asarray(draw.secondary_damping_ratio) * np.asarray(draw.secondary_peak_ratio))
+
+
+def _check_modes(seed: int, where: str, modes: dict[str, ModeSet]) -> None:
+    lo_f, hi_f = PLAUSIBLE_FN_HZ
+    lo_z, hi_z = PLAUSIBLE_DAMPING_RATIO
+    for d, m in modes.items():
+        for name, a in (
+            ("fn", m.fn_hz),
+            ("stiffness", m.stiffness_n_per_m),
+            ("damping ratio", m.damping_ratio),
+        ):
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"robot seed {seed}: non-finite {name} in {d} ({where})")
+        if np.any(m.stiffness_n_per_m <= 0):
+            raise ValueError(f"robot seed {seed}: non-positive stiffness in {d} ({where})")
+        if np.any((m.fn_hz < lo_f) | (m.fn_hz > hi_f)):
+            raise ValueError(
+                f"robot seed {seed}: {d} natural frequencies {m.fn_hz.min():.1f}-{m.fn_hz.max():.1f} Hz "
+                f"leave the plausible {lo_f:g}-{hi_f:g} Hz ({where})"
+            )
+        if np.any((m.damping_ratio < lo_z) | (m.damping_ratio > hi_z)):
+            raise ValueError(
+                f"robot seed {seed}: {d} damping ratios {m.damping_ratio.min():.3f}-"
+                f"{m.damping_ratio.max():.3f} leave the plausible {lo_z:g}-{hi_z:g} ({where})"
+            )
+        peaks = m.peak_compliance()
+        if np.any(peaks[:, 1] >= 0.9 * peaks[:, 0]):
+            raise ValueError(
+                f"robot seed {seed}: the {d} secondary mode's peak reaches the dominant one's ({where})"
+            )
+        if np.any(m.fn_hz[:, 1] <= m.fn_hz[:, 0]):
+            raise ValueError(
+                f"robot seed {seed}: the {d} secondary mode is not above the dominant one ({where})"
+            )
+
+
+class VariantPathTruth(PathTruth):
+    """The chapter-4/5 path truth of one drawn robot (see the module docstring).
+
+    Parameters
+    ----------
+    draw : RobotDraw
+        The robot's physical parameters.
+    stiffness_ratio, mass_ratio : array_like
+        (3,) X, Y, Z ratios of the joint model (the workspace's geometric means).
+    """
+
+    def __init__(self, draw: RobotDraw, stiffness_ratio, mass_ratio) -> None:
+        super().__init__()
+        self.draw = draw
+        self._rk = np.asarray(stiffness_ratio, float)
+        self._rm = np.asarray(mass_ratio, float)
+        s = np.linspace(0.0, 1.235, 50)
+        self.secondary_stiffness_factor = _secondary_factors(
+            draw, [super(VariantPathTruth, self).modes(s, d).damping_ratio[:, 0] * draw.damping_scale[i]
+                   for i, d in enumerate(DIRECTIONS)]
+        )  # fmt: skip
+        _check_modes(draw.seed, "path", {d: self.modes(s, d) for d in DIRECTIONS})
+
+    def modes(self, s_m, direction: str, *, allow_extrapolation: bool = False) -> ModeSet:
+        """All modes of ``direction`` at path coordinates ``s_m`` [m].
+
+        Parameters
+        ----------
+        s_m : array_like
+            (n,) distances along the path [m].
+        direction : {"x", "y", "z"}
+            Direction.
+        allow_extrapolation : bool
+            Allow coordinates outside the path.
+
+        Returns
+        -------
+        ModeSet
+            Dominant and secondary mode per coordinate.
+        """
+        base = super().modes(s_m, direction, allow_extrapolation=allow_extrapolation)
+        i = DIRECTIONS.index(direction)
+        d = self.draw
+        fn = base.fn_hz[:, 0] * np.sqrt(self._rk[i] / self._rm[i])
+        k = base.stiffness_n_per_m[:, 0] * self._rk[i]
+        zeta = base.damping_ratio[:, 0] * d.damping_scale[i]
+        return ModeSet(
+            np.column_stack([fn, d.secondary_fn_factor[i] * fn]),
+            np.column_stack([k, self.secondary_stiffness_factor[i] * k]),
+            np.column_stack([zeta, np.full_like(zeta, d.secondary_damping_ratio[i])]),
+        )
+
+
 class VirtualRobot:
-    """The virtual KR500-3: ``workspace`` and ``path`` truths (see the module docstring)."""
+    """The virtual KR500-3: ``workspace`` and ``path`` truths (see the module docstring).
+
+    ``VirtualRobot()`` is the thesis robot; :meth:`variant` builds another member of the robot
+    family (:mod:`robovib.sim.family`), a robot robovib has never seen.
+
+    Attributes
+    ----------
+    robot_seed
+        ``None`` for the thesis robot, else the seed of the variant.
+    draw
+        ``None`` for the thesis robot, else the variant's :class:`~robovib.sim.family.RobotDraw`.
+    """
 
     def __init__(self) -> None:
         self.workspace = WorkspaceTruth()
         self.path = PathTruth()
+        self.robot_seed: int | None = None
+        self.draw = None
+
+    @classmethod
+    def variant(cls, seed: int | None) -> VirtualRobot:
+        """The robot of the family drawn from ``seed`` (``None``: the thesis robot).
+
+        Parameters
+        ----------
+        seed : int or None
+            Non-negative seed of :func:`robovib.sim.family.draw_robot`.
+
+        Returns
+        -------
+        VirtualRobot
+            A robot with the drawn physics (its ``workspace``, ``path``, ``draw``).
+
+        Raises
+        ------
+        ValueError
+            A bad seed, or a draw that is not physical.
+
+        Examples
+        --------
+        >>> from robovib.sim import VirtualRobot
+        >>> VirtualRobot.variant(1).robot_seed
+        1
+        """
+        if seed is None:
+            return cls()
+        draw = draw_robot(seed)
+        robot = cls.__new__(cls)
+        robot.workspace = VariantWorkspaceTruth(draw)  # (validated: raises if not physical)
+        robot.path = VariantPathTruth(
+            draw, robot.workspace.mean_stiffness_ratio, robot.workspace.mean_mass_ratio
+        )
+        robot.robot_seed, robot.draw = int(seed), draw
+        return robot
 
     def domain(self, name: str):
         if name not in ("workspace", "path"):
