@@ -523,6 +523,7 @@ def critical_depths(
     scan_ratio: float = 1.2,
     first_stride: int = 8,
     scan_from_m=None,
+    batch_modes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Lowest unstable depth [m] at each delay [s] of the semi-discretized DDE, and its multiplier.
 
@@ -561,6 +562,11 @@ def critical_depths(
         there is scanned again from about 3x lower (down to the bottom of the range), so the
         result is its lowest unstable depth unless a window lies wholly below a stable start.
         NaN or non-positive: from the bottom.
+    batch_modes : (wn_rad_s, zeta, mass_kg), each (b, n), optional
+        A different structure at every delay (e.g. the samples of a predictive distribution,
+        all solved in one batch): the natural frequencies [rad/s], damping ratios and modal
+        masses [kg] of its ``n`` modes, in the order ``modes_x + modes_y`` (which then give only
+        the x/y split and the default depth range).
 
     Returns
     -------
@@ -586,10 +592,26 @@ def critical_depths(
         if not 0 < lo < hi:
             raise ValueError(f"depth_range_m must be 0 < low < high [m], got {depth_range_m}")
 
+    if batch_modes is not None:
+        wn_b, zeta_b, mass_b = (np.asarray(v, float) for v in batch_modes)
+        if not wn_b.shape == zeta_b.shape == mass_b.shape == (delay.size, len(modes)):
+            raise ValueError(
+                f"batch_modes must be three ({delay.size}, {len(modes)}) arrays, got "
+                f"{wn_b.shape}, {zeta_b.shape}, {mass_b.shape}"
+            )
+        sel_b = _modal_matrices(modes_x, modes_y)[1]
+
     def radius(depths, idx):
-        mu = semi_discretization_multipliers(
-            modes_x, modes_y, hmat, frac, delay[idx], depths, eigensolver=eigensolver
-        )
+        if batch_modes is None:
+            mu = semi_discretization_multipliers(
+                modes_x, modes_y, hmat, frac, delay[idx], depths, eigensolver=eigensolver
+            )
+        else:
+            phi = _monodromy(wn_b[idx], zeta_b[idx], mass_b[idx], sel_b, hmat, frac,
+                             delay[idx], np.asarray(depths, float))  # fmt: skip
+            mu = dominant_eigenvalues(phi) if eigensolver == "arnoldi" else np.linalg.eigvals(phi)
+            if eigensolver != "arnoldi":
+                mu = np.take_along_axis(mu, np.argsort(-np.abs(mu), axis=1)[:, :1], axis=1)
         return np.abs(mu[:, 0]), mu[:, 0]
 
     if not scan_ratio > 1:
