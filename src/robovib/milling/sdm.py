@@ -328,8 +328,7 @@ def semi_discretization_multipliers(
     """
     if eigensolver not in EIGENSOLVERS:
         raise ValueError(f"eigensolver must be one of {EIGENSOLVERS}, got {eigensolver!r}")
-    a0, sel, mass, n = _modal_matrices(modes_x, modes_y)
-    d = 2 * n
+    _, sel, mass, n = _modal_matrices(modes_x, modes_y)
     hmat = np.asarray(h_n_per_m2, float)
     frac = np.asarray(fraction, float)
     if hmat.ndim != 3 or hmat.shape[1:] != (2, 2) or frac.shape != hmat.shape[:1]:
@@ -348,7 +347,31 @@ def semi_discretization_multipliers(
         raise ValueError("delay_s must be positive finite seconds")
     if not (np.all(np.isfinite(depth)) and np.all(depth >= 0)):
         raise ValueError("depth_m must be finite and >= 0 m")
+    modes = list(modes_x) + list(modes_y)
+    wn = np.array([md.omega_n for md in modes])
+    zeta = np.array([md.damping_ratio for md in modes])
     b = delay.size
+    phi = _monodromy(
+        np.broadcast_to(wn, (b, n)), np.broadcast_to(zeta, (b, n)),
+        np.broadcast_to(mass, (b, n)), sel, hmat, frac, delay, depth,
+    )  # fmt: skip
+    if eigensolver == "arnoldi":
+        return dominant_eigenvalues(phi, int(n_multipliers))
+    mu = np.linalg.eigvals(phi)
+    order = np.argsort(-np.abs(mu), axis=1)[:, : int(n_multipliers)]
+    return np.take_along_axis(mu, order, axis=1)
+
+
+def _monodromy(wn, zeta, mass, sel, hmat, frac, delay, depth) -> np.ndarray:
+    """Monodromy matrices (b, dim, dim) of the semi-discretized DDE, the modes per batch element.
+
+    ``wn`` [rad/s], ``zeta``, ``mass`` [kg] (b, n) of the ``n`` modes of each element (``sel``
+    (2, n) maps them on x and y; equal for all elements), ``hmat`` (n_steps, 2, 2) and ``frac``
+    (n_steps,) as in :func:`semi_discretization_multipliers`, ``delay`` [s] and ``depth`` [m]
+    (b,). Samples of a structure with different modes are solved in one batch this way.
+    """
+    b, n = wn.shape
+    d = 2 * n
     n_steps = frac.size
     cutting = np.any(hmat != 0, axis=(1, 2))
     # Delayed displacement indices (i - M, i - M + 1), M = n_steps; state columns for them.
@@ -368,23 +391,26 @@ def semi_discretization_multipliers(
         return slice(start, start + n)
 
     # Modal input of the delayed displacement: xi'' += M^-1 sel^T H sel a xi(t - tau).
-    mh = (sel.T @ hmat @ sel) / mass[None, :, None]  # (n_steps, n, n)
+    mh = (sel.T @ hmat @ sel)[None] / mass[:, None, :, None]  # (b, n_steps, n, n)
     h = delay[:, None] * frac[None, :]  # (b, n_steps)
     size = d + 2 * n
     blk = np.zeros((b, n_steps, size, size))
-    blk[:, :, :d, :d] = a0
-    blk[:, :, n:d, :n] -= depth[:, None, None, None] * mh[None]
-    blk[:, :, n:d, d : d + n] = depth[:, None, None, None] * mh[None]
+    idx = np.arange(n)
+    blk[:, :, idx, n + idx] = 1.0
+    blk[:, :, n + idx, idx] = -(wn**2)[:, None, :]
+    blk[:, :, n + idx, n + idx] = -(2 * zeta * wn)[:, None, :]
+    blk[:, :, n:d, :n] -= depth[:, None, None, None] * mh
+    blk[:, :, n:d, d : d + n] = depth[:, None, None, None] * mh
     blk[:, :, d : d + n, d + n :] = np.eye(n)[None, None] / h[:, :, None, None]
     blk *= h[:, :, None, None]
     # Balance before the exponential: velocities in units of wn x displacement (exp(T^-1 B T) =
     # T^-1 exp(B) T). The blocks' 1-norms fall from ~10-10^4 to ~1, and with them the
     # squarings of the scaling-and-squaring method (the chart's main cost).
-    t = np.ones(size)
-    t[n:d] = np.sqrt(-np.diag(a0[n:, :n]))  # wn of each mode
-    blk *= t[None, None, None, :] / t[None, None, :, None]
+    t = np.ones((b, size))
+    t[:, n:d] = wn
+    blk *= t[:, None, None, :] / t[:, None, :, None]
     ex = batched_expm(blk)
-    ex *= t[None, None, :, None] / t[None, None, None, :]
+    ex *= t[:, None, :, None] / t[:, None, None, :]
     e_mat = ex[..., :d, :d]
     r_mat = ex[..., :d, d : d + n]
     s_mat = ex[..., :d, d + n :]
@@ -401,11 +427,7 @@ def semi_discretization_multipliers(
     phi[:, :d, :] = y
     for j, c in col.items():
         phi[:, c : c + n, :] = xi_out[j + n_steps]
-    if eigensolver == "arnoldi":
-        return dominant_eigenvalues(phi, int(n_multipliers))
-    mu = np.linalg.eigvals(phi)
-    order = np.argsort(-np.abs(mu), axis=1)[:, : int(n_multipliers)]
-    return np.take_along_axis(mu, order, axis=1)
+    return phi
 
 
 def floquet_multipliers(
@@ -501,6 +523,7 @@ def critical_depths(
     scan_ratio: float = 1.2,
     first_stride: int = 8,
     scan_from_m=None,
+    batch_modes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Lowest unstable depth [m] at each delay [s] of the semi-discretized DDE, and its multiplier.
 
@@ -539,6 +562,11 @@ def critical_depths(
         there is scanned again from about 3x lower (down to the bottom of the range), so the
         result is its lowest unstable depth unless a window lies wholly below a stable start.
         NaN or non-positive: from the bottom.
+    batch_modes : (wn_rad_s, zeta, mass_kg), each (b, n), optional
+        A different structure at every delay (e.g. the samples of a predictive distribution,
+        all solved in one batch): the natural frequencies [rad/s], damping ratios and modal
+        masses [kg] of its ``n`` modes, in the order ``modes_x + modes_y`` (which then give only
+        the x/y split and the default depth range).
 
     Returns
     -------
@@ -564,10 +592,26 @@ def critical_depths(
         if not 0 < lo < hi:
             raise ValueError(f"depth_range_m must be 0 < low < high [m], got {depth_range_m}")
 
+    if batch_modes is not None:
+        wn_b, zeta_b, mass_b = (np.asarray(v, float) for v in batch_modes)
+        if not wn_b.shape == zeta_b.shape == mass_b.shape == (delay.size, len(modes)):
+            raise ValueError(
+                f"batch_modes must be three ({delay.size}, {len(modes)}) arrays, got "
+                f"{wn_b.shape}, {zeta_b.shape}, {mass_b.shape}"
+            )
+        sel_b = _modal_matrices(modes_x, modes_y)[1]
+
     def radius(depths, idx):
-        mu = semi_discretization_multipliers(
-            modes_x, modes_y, hmat, frac, delay[idx], depths, eigensolver=eigensolver
-        )
+        if batch_modes is None:
+            mu = semi_discretization_multipliers(
+                modes_x, modes_y, hmat, frac, delay[idx], depths, eigensolver=eigensolver
+            )
+        else:
+            phi = _monodromy(wn_b[idx], zeta_b[idx], mass_b[idx], sel_b, hmat, frac,
+                             delay[idx], np.asarray(depths, float))  # fmt: skip
+            mu = dominant_eigenvalues(phi) if eigensolver == "arnoldi" else np.linalg.eigvals(phi)
+            if eigensolver != "arnoldi":
+                mu = np.take_along_axis(mu, np.argsort(-np.abs(mu), axis=1)[:, :1], axis=1)
         return np.abs(mu[:, 0]), mu[:, 0]
 
     if not scan_ratio > 1:

@@ -513,8 +513,17 @@ FIT_STIFFNESS_BIAS = 0.018
 
 
 def _scan_start(rpm: np.ndarray, a_mean: np.ndarray) -> np.ndarray:
-    """Per speed: 0.7 x the mean's lowest limit within +-15 % of the speed (NaN: scan all)."""
+    """Per speed: 0.7 x the mean's lowest limit within +-15 % of the speed (NaN: scan all).
+
+    The neighbouring speeds of the chart always count as near: on a coarse speed grid the
+    +-15 % hold no other speed, and a sample whose lobes sit a little off the mean's has its
+    unstable window (a flip lens, the next lobe) at a speed where the mean's starts only at the
+    next speed (issue 37: a 20-speed chart put a sample's limit at 7.6 mm instead of 1.8 mm).
+    """
     near = np.abs(np.log(rpm[:, None] / rpm[None, :])) <= np.log(1.15)
+    rank = np.empty(rpm.size, int)
+    rank[np.argsort(rpm, kind="stable")] = np.arange(rpm.size)
+    near |= np.abs(rank[:, None] - rank[None, :]) <= 1
     low = np.min(np.where(near, a_mean[None, :], np.inf), axis=1)
     return np.where(np.isfinite(low), 0.7 * low, np.nan)
 
