@@ -197,6 +197,12 @@ def amplification_test(y, y_open, *, max_ratio: float = 1.0,
         raise ValueError("y and y_open must be finite")
     if not (max_ratio > 0 and z_score > 0):
         raise ValueError("max_ratio and z_score must be > 0")
+    return _amplification(a, b, float(max_ratio), float(z_score))
+
+
+def _amplification(a, b, max_ratio: float, z_score: float) -> AmplificationTest:
+    """:func:`amplification_test` on checked (n, m) float arrays (the guard's fast path)."""
+    n = a.shape[0]
     a = a - a.mean(axis=0)
     b = b - b.mean(axis=0)
     pa = np.sum(a * a, axis=1)
@@ -212,7 +218,7 @@ def amplification_test(y, y_open, *, max_ratio: float = 1.0,
     tau = 1.0
     if r0 > 0:
         spec = np.fft.rfft(r, 2 * n)
-        rho = np.fft.irfft(spec * np.conj(spec), 2 * n)[:n] / (n * r0)
+        rho = np.fft.irfft(spec.real**2 + spec.imag**2, 2 * n)[:n] / (n * r0)
         pairs = rho[0 : n - 1 : 2] + rho[1:n:2]
         stop = np.flatnonzero(pairs <= 0)
         m = int(stop[0]) if stop.size else pairs.size
@@ -346,7 +352,16 @@ class PeriodTracker:
         self._next = 0
         self.period_s = self.nominal_period_s
         self.correlation = math.nan
-        self.history: list[tuple[float, float, float]] = []  #: (time [s], period [s], corr)
+        # (time [s], period [s], corr) of every estimate, preallocated: no growth per step
+        n0 = self.nominal_period_s * self._fs
+        every = max(1, round(self.update_periods * n0))
+        self._hist = np.zeros((int(n_samples) // every + 2, 3))
+        self._n_hist = 0
+
+    @property
+    def history(self) -> list[tuple[float, float, float]]:
+        """Every estimate so far: (time [s], smoothed period [s], correlation)."""
+        return [tuple(map(float, row)) for row in self._hist[: self._n_hist]]
 
     def update(self, k: int, force_n: np.ndarray) -> None:
         if k <= self._last_k:
@@ -365,7 +380,9 @@ class PeriodTracker:
         self.correlation = r
         if r > 0.3:  # only a periodic signal moves the estimate
             self.period_s += self.smoothing * (p - self.period_s)
-        self.history.append((self._len / self._fs, self.period_s, r))
+        if self._n_hist < self._hist.shape[0]:
+            self._hist[self._n_hist] = (self._len / self._fs, self.period_s, r)
+            self._n_hist += 1
 
 
 class TrackingFeedforward(ForceFeedforward):
@@ -776,7 +793,7 @@ class FadeGuard:
         if self._len >= w and self._scale > 0.5:
             seg = self._y[self._len - w : self._len]
             ol = self._yol[self._len - w : self._len]
-            test = amplification_test(seg, ol, max_ratio=self.max_ratio, z_score=self.z_score)
+            test = _amplification(seg, ol, self.max_ratio, self.z_score)
             if test.amplified:
                 rms = np.sqrt(np.sum(np.var(seg, axis=0)))
                 rms_ol = np.sqrt(np.sum(np.var(ol, axis=0)))
