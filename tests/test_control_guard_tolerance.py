@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy import signal, stats
+from scipy import signal
 
 from robovib.control.adaptive import FadeGuard, PeriodTracker, amplification_test
 
@@ -13,31 +13,25 @@ def _ar1(rng, n, phi):
     return signal.lfilter([1.0], [1.0, -phi], rng.standard_normal(n + 200))[200:]
 
 
-def test_false_alarm_rate_of_white_noise_matches_the_normal_tail():
-    # y and y_open independent, equal variance: not amplified; a one-sided z = 2 test
-    # trips with probability 1 - Phi(2) = 2.3 % (the tau >= 1 floor makes it slightly less).
+@pytest.mark.parametrize("phi", [0.0, 0.8])
+def test_resolution_is_the_sampling_noise_of_a_windows_rms(phi):
+    # The window's RMS over n samples of an AR(1) process: its relative std is
+    # 1 / sqrt(2 n_eff) with n_eff = n (1 - phi^2) / (1 + phi^2) (x^2 has autocorrelation
+    # phi^(2k)); the test's resolution at z = 1 must match the spread of RMS estimates.
     rng = np.random.default_rng(0)
-    trials = 2000
-    hits = sum(
-        amplification_test(
-            rng.standard_normal(500), rng.standard_normal(500), z_score=2.0
-        ).amplified
-        for _ in range(trials)
-    )
-    expected = stats.norm.sf(2.0)
-    sd = math.sqrt(expected * (1 - expected) / trials)
-    assert expected - 4 * sd - 0.006 < hits / trials < expected + 4 * sd
-
-
-def test_effective_samples_of_an_ar1_process_match_the_closed_form():
-    # x AR(1) with coefficient phi: x^2 has autocorrelation phi^(2k), so the variance ratio's
-    # residual has tau = (1 + phi^2) / (1 - phi^2) and n_eff = n / tau.
-    rng = np.random.default_rng(1)
-    phi, n = 0.8, 500
-    n_eff = [amplification_test(_ar1(rng, n, phi), _ar1(rng, n, phi)).n_effective
-             for _ in range(200)]  # fmt: skip
+    n = 500
+    rms, res, n_eff = [], [], []
+    for _ in range(400):
+        x = _ar1(rng, n, phi)
+        t = amplification_test(x, x)
+        rms.append(np.std(x))
+        res.append(t.resolution)
+        n_eff.append(t.n_effective)
+    rel_std = np.std(rms) / np.mean(rms)
     closed = n * (1 - phi**2) / (1 + phi**2)
     assert np.median(n_eff) == pytest.approx(closed, rel=0.15)
+    assert np.median(res) == pytest.approx(rel_std, rel=0.2)
+    assert np.median(res) == pytest.approx(1 / np.sqrt(2 * closed), rel=0.1)
 
 
 def test_a_real_amplification_is_found_and_equal_signals_are_not():
@@ -46,8 +40,17 @@ def test_a_real_amplification_is_found_and_equal_signals_are_not():
     found = amplification_test(1.1 * y_open + 0.01 * rng.standard_normal(500), y_open)
     assert found.amplified
     assert found.ratio == pytest.approx(1.1, rel=0.01)
+    assert found.effect == pytest.approx(0.1, rel=0.1)
     same = amplification_test(y_open.copy(), y_open)
-    assert not same.amplified and same.ratio == pytest.approx(1.0)
+    assert not same.amplified and same.ratio == pytest.approx(1.0) and same.effect == 0.0
+
+
+def test_an_uncorrelated_correction_as_large_as_the_noise_is_amplification():
+    # d independent of y_open with RMS 0.5 x: the true RMS ratio is sqrt(1.25) = 1.118
+    rng = np.random.default_rng(3)
+    y_open = rng.standard_normal((500, 3))
+    t = amplification_test(y_open + 0.5 * rng.standard_normal((500, 3)), y_open)
+    assert t.amplified and t.ratio == pytest.approx(np.sqrt(1.25), rel=0.05)
 
 
 def test_noise_dominated_window_with_a_tiny_correction_is_not_amplified():
@@ -119,4 +122,4 @@ def test_guard_keeps_a_harmless_correction_and_fades_a_harmful_one(seed):
     assert not _guard_events(1e-9, seed)
     # 20 µm of dither through the mode: the tip moves far more than the noise -> faded
     events = _guard_events(2e-5, seed)
-    assert events and "independent samples" in events[0].reason
+    assert events and "independent samples" in events[0].reason and "resolution" in events[0].reason

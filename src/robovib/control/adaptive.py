@@ -119,10 +119,9 @@ def estimate_period(
     return (lags[j] + off) / fs, float(y1)
 
 
-#: The guard's default z-score: a one-sided false-alarm probability of 3e-5 per independent
-#: window, so that a 60 s cut (120 independent 0.5 s windows) of a controller that does not
-#: amplify is faded out by chance with a probability below 0.5 % (the fade is latched).
-GUARD_Z_SCORE = 4.0
+#: The guard's default resolution in standard errors: a window counts as evidence only where
+#: the correction's largest possible effect on the RMS exceeds one standard error of the RMS.
+GUARD_Z_SCORE = 1.0
 
 
 @dataclass(frozen=True)
@@ -133,36 +132,39 @@ class AmplificationTest:
     ----------
     ratio
         RMS of the tracker signal over RMS of the open-loop estimate (both mean-removed).
-    limit_ratio
-        The RMS ratio above which the window counts as amplified: ``max_ratio`` plus the
-        tolerance of the window's sampling noise (``z_score`` standard errors).
+    effect
+        RMS of their difference (the correction's response) over RMS of the estimate: the
+        largest change of the RMS the correction can make (triangle inequality).
+    resolution
+        ``z_score`` standard errors of the estimate's RMS over the window,
+        ``z_score / sqrt(2 n_effective)``.
     n_effective
-        Effective number of independent samples of the variance difference (window length
-        over its integrated autocorrelation time).
+        Effective number of independent samples of the estimate's power in the window.
     amplified
-        ``ratio > limit_ratio``.
+        ``ratio > max_ratio`` and ``effect > resolution``.
     """
 
     ratio: float
-    limit_ratio: float
+    effect: float
+    resolution: float
     n_effective: float
     amplified: bool
 
 
 def amplification_test(y, y_open, *, max_ratio: float = 1.0,
                        z_score: float = GUARD_Z_SCORE) -> AmplificationTest:  # fmt: skip
-    """Test whether ``y`` is larger than ``max_ratio`` x ``y_open`` beyond the window's noise.
+    """Test whether ``y`` is larger than ``max_ratio`` x ``y_open`` by something the window resolves.
 
-    The statistic is the variance ratio ``q = mean |y|^2 / mean |y_open|^2`` (mean-removed
-    columns, summed over columns), ``ratio = sqrt(q)``. Its standard error is the ratio
-    estimator's (delta method): ``SE(q) = std(r) / sqrt(n_eff) / mean |y_open|^2`` with the
-    residual ``r_t = |y_t|^2 - q |y_open,t|^2`` (a common change of both signals' level cancels
-    in it) and ``n_eff = n / tau``, ``tau = 1 + 2 sum_k rho_k`` the integrated autocorrelation
-    time of ``r``, summed by Geyer's initial positive sequence (Geyer 1992, *Statist. Sci.* 7:
-    pairs ``rho_2m + rho_2m+1`` while positive; ``tau >= 1``). A narrow-band vibration (a
-    lightly damped mode) has few independent samples in a window and gets a wide tolerance,
-    white sensor noise a narrow one. The window is amplified when ``q > max_ratio^2 + z_score
-    SE(q)``.
+    The correction changes the window's RMS by at most the RMS of its response ``d = y -
+    y_open`` (triangle inequality). The window estimates an RMS with a relative standard error
+    ``1 / sqrt(2 n_eff)`` (Gaussian signal), ``n_eff = n / tau`` with ``tau = 1 + 2 sum_k rho_k``
+    the integrated autocorrelation time of the estimate's power ``|y_open|^2``, summed by Geyer's
+    initial positive sequence (Geyer 1992, *Statist. Sci.* 7: pairs ``rho_2m + rho_2m+1`` while
+    positive; ``tau >= 1``). A correction whose largest possible effect is below ``z_score``
+    standard errors cannot be told from the window's noise, and the window is no evidence
+    against it; otherwise the window is amplified when ``RMS(y) > max_ratio RMS(y_open)``. On a
+    noise-dominated cut the correction's effect is a fraction of a per cent of the noise and is
+    kept; a correction that moves the tool as much as the vibration is judged strictly.
 
     Parameters
     ----------
@@ -173,7 +175,7 @@ def amplification_test(y, y_open, *, max_ratio: float = 1.0,
     max_ratio
         The RMS ratio tested against (> 0; 1: "not reduced").
     z_score
-        One-sided threshold in standard errors (> 0).
+        The resolution in standard errors of the RMS (> 0).
 
     Returns
     -------
@@ -205,15 +207,16 @@ def _amplification(a, b, max_ratio: float, z_score: float) -> AmplificationTest:
     n = a.shape[0]
     a = a - a.mean(axis=0)
     b = b - b.mean(axis=0)
-    pa = np.sum(a * a, axis=1)
+    d = a - b
     pb = np.sum(b * b, axis=1)
     var_open = float(np.mean(pb))
+    var_y = float(np.sum(a * a)) / n
+    var_d = float(np.sum(d * d)) / n
     if var_open == 0:
-        amplified = bool(np.any(pa > 0))
-        return AmplificationTest(math.inf if amplified else 1.0, max_ratio, float(n), amplified)
-    q = float(np.mean(pa)) / var_open
-    r = pa - q * pb
-    r -= r.mean()
+        amplified = var_y > 0
+        return AmplificationTest(math.inf if amplified else 1.0, math.inf if amplified else 0.0,
+                                 0.0, float(n), amplified)  # fmt: skip
+    r = pb - var_open
     r0 = float(r @ r) / n
     tau = 1.0
     if r0 > 0:
@@ -224,10 +227,11 @@ def _amplification(a, b, max_ratio: float, z_score: float) -> AmplificationTest:
         m = int(stop[0]) if stop.size else pairs.size
         tau = max(1.0, 2.0 * float(np.sum(pairs[:m])) - 1.0)
     n_eff = n / tau
-    se_q = math.sqrt(r0 / n_eff) / var_open
-    limit = math.sqrt(max_ratio**2 + z_score * se_q)
-    ratio = math.sqrt(q)
-    return AmplificationTest(ratio, limit, n_eff, bool(ratio > limit))
+    ratio = math.sqrt(var_y / var_open)
+    effect = math.sqrt(var_d / var_open)
+    resolution = z_score / math.sqrt(2.0 * n_eff)
+    return AmplificationTest(ratio, effect, resolution, n_eff,
+                             bool(ratio > max_ratio and effect > resolution))  # fmt: skip
 
 
 def robust_learning_scale(
@@ -630,10 +634,10 @@ class FadeGuard:
     * benefit: the tracker signal ``y`` against the open-loop estimate ``y - P u`` (``P`` the
       pose model's correction-to-tip response of each direction, ``u`` the corrections sent,
       ``delay_s`` late). If the RMS of ``y`` exceeds ``max_ratio`` x that of the estimate the
-      correction is not reducing the vibration: faded out for good (latched). "Exceeds" is
-      tested against the window's sampling noise (:func:`amplification_test`, ``z_score``
-      standard errors): on a cut where sensor noise dominates, ``y`` and the estimate are
-      equal up to noise and the correction is kept.
+      correction is not reducing the vibration: faded out for good (latched). A window
+      counts only where the correction's largest possible effect on the RMS exceeds
+      ``z_score`` standard errors of the window's RMS (:func:`amplification_test`): on a cut
+      where sensor noise dominates, the correction is far below that and is kept.
 
     The output is ``scale * inner``, ``scale`` moving toward its target at ``check_s /
     fade_time_s`` per check (the first check after ``warmup_s``). :attr:`events` lists the
@@ -657,8 +661,8 @@ class FadeGuard:
         The correction is faded out for good when the tracker signal's RMS exceeds this
         multiple of the open-loop estimate's RMS (> 0) by more than the window's noise.
     z_score
-        How many standard errors of the window's variance difference count as "exceeds"
-        (> 0; :data:`GUARD_Z_SCORE`).
+        The resolution of a window in standard errors of its RMS (> 0;
+        :data:`GUARD_Z_SCORE`).
     window_s
         Length of the window the RMS values are taken over [s].
     check_s
@@ -799,10 +803,10 @@ class FadeGuard:
                 rms_ol = np.sqrt(np.sum(np.var(ol, axis=0)))
                 self._latched = True
                 self._set_target(0.0, f"tracker signal not reduced: RMS {rms * 1e3:.4f} mm = "
-                                      f"{test.ratio:.3f} x open-loop estimate {rms_ol * 1e3:.4f} mm "
-                                      f"> {test.limit_ratio:.3f} (max_ratio {self.max_ratio:.2f} + "
-                                      f"{self.z_score:g} std of the window's noise, "
-                                      f"{test.n_effective:.0f} independent samples)")  # fmt: skip
+                                      f"{test.ratio:.4f} x open-loop estimate {rms_ol * 1e3:.4f} mm "
+                                      f"> {self.max_ratio:.2f}, the correction's effect "
+                                      f"{test.effect:.3f} above the window's resolution "
+                                      f"{test.resolution:.3f} ({test.n_effective:.0f} independent samples)")  # fmt: skip
                 return
         if math.isfinite(r) and r >= self.min_periodicity + 0.1:
             self._set_target(1.0, f"force periodic again: autocorrelation {r:.2f}")

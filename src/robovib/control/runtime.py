@@ -78,7 +78,7 @@ _UNITS = {
                                    "gain is kept stable over)",
     "learner.fn_uncertainty_rel": "1 (1.96 std / fn of the model, worst along the path)",
     "learner.gain_uncertainty_rel": "1 (relative actuator-gain error the learning covers)",
-    "guard.z_score": "1 (standard errors of the window's variance difference, amplification_test)",
+    "guard.z_score": "1 (standard errors of the window's RMS, amplification_test)",
     "excitation.spindle_rpm": "rev/min",
     "stability.*_worst_spectral_radius": "1 (< 1: stable on every plant of the band)",
     "stability.force_model_worst_rms_ratio": "1 (< 1: the force-model feedforward reduces "
