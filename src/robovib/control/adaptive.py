@@ -42,12 +42,15 @@ from .controllers import (
 )
 
 __all__ = [
+    "AmplificationTest",
     "FadeGuard",
     "GuardEvent",
     "PeriodTracker",
     "TrackingFeedforward",
     "TrackingRepetitive",
+    "amplification_test",
     "estimate_period",
+    "robust_learning_scale",
 ]
 
 
@@ -116,6 +119,192 @@ def estimate_period(
     return (lags[j] + off) / fs, float(y1)
 
 
+#: The guard's default resolution in standard errors: a window counts as evidence only where
+#: the correction's largest possible effect on the RMS exceeds one standard error of the RMS.
+GUARD_Z_SCORE = 1.0
+
+
+@dataclass(frozen=True)
+class AmplificationTest:
+    """The guard's test of one window: is the tracker signal larger than the open-loop estimate?
+
+    Attributes
+    ----------
+    ratio
+        RMS of the tracker signal over RMS of the open-loop estimate (both mean-removed).
+    effect
+        RMS of their difference (the correction's response) over RMS of the estimate: the
+        largest change of the RMS the correction can make (triangle inequality).
+    resolution
+        ``z_score`` standard errors of the estimate's RMS over the window,
+        ``z_score / sqrt(2 n_effective)``.
+    n_effective
+        Effective number of independent samples of the estimate's power in the window.
+    amplified
+        ``ratio > max_ratio`` and ``effect > resolution``.
+    """
+
+    ratio: float
+    effect: float
+    resolution: float
+    n_effective: float
+    amplified: bool
+
+
+def amplification_test(y, y_open, *, max_ratio: float = 1.0,
+                       z_score: float = GUARD_Z_SCORE) -> AmplificationTest:  # fmt: skip
+    """Test whether ``y`` is larger than ``max_ratio`` x ``y_open`` by something the window resolves.
+
+    The correction changes the window's RMS by at most the RMS of its response ``d = y -
+    y_open`` (triangle inequality). The window estimates an RMS with a relative standard error
+    ``1 / sqrt(2 n_eff)`` (Gaussian signal), ``n_eff = n / tau`` with ``tau = 1 + 2 sum_k rho_k``
+    the integrated autocorrelation time of the estimate's power ``|y_open|^2``, summed by Geyer's
+    initial positive sequence (Geyer 1992, *Statist. Sci.* 7: pairs ``rho_2m + rho_2m+1`` while
+    positive; ``tau >= 1``). A correction whose largest possible effect is below ``z_score``
+    standard errors cannot be told from the window's noise, and the window is no evidence
+    against it; otherwise the window is amplified when ``RMS(y) > max_ratio RMS(y_open)``. On a
+    noise-dominated cut the correction's effect is a fraction of a per cent of the noise and is
+    kept; a correction that moves the tool as much as the vibration is judged strictly.
+
+    Parameters
+    ----------
+    y
+        (n,) or (n, m) tracker signal over the window.
+    y_open
+        The open-loop estimate, same shape.
+    max_ratio
+        The RMS ratio tested against (> 0; 1: "not reduced").
+    z_score
+        The resolution in standard errors of the RMS (> 0).
+
+    Returns
+    -------
+    AmplificationTest
+
+    Raises
+    ------
+    ValueError
+        Mismatched shapes, fewer than 8 samples, non-finite values or bad thresholds.
+    """
+    a = np.asarray(y, float)
+    b = np.asarray(y_open, float)
+    if a.shape != b.shape:
+        raise ValueError(f"y and y_open must have the same shape, got {a.shape} and {b.shape}")
+    if a.ndim == 1:
+        a, b = a[:, None], b[:, None]
+    n = a.shape[0]
+    if a.ndim != 2 or n < 8:
+        raise ValueError(f"need (n, m) windows with n >= 8 samples, got shape {a.shape}")
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise ValueError("y and y_open must be finite")
+    if not (max_ratio > 0 and z_score > 0):
+        raise ValueError("max_ratio and z_score must be > 0")
+    return _amplification(a, b, float(max_ratio), float(z_score))
+
+
+def _amplification(a, b, max_ratio: float, z_score: float) -> AmplificationTest:
+    """:func:`amplification_test` on checked (n, m) float arrays (the guard's fast path)."""
+    n = a.shape[0]
+    a = a - a.mean(axis=0)
+    b = b - b.mean(axis=0)
+    d = a - b
+    pb = np.sum(b * b, axis=1)
+    var_open = float(np.mean(pb))
+    var_y = float(np.sum(a * a)) / n
+    var_d = float(np.sum(d * d)) / n
+    if var_open == 0:
+        amplified = var_y > 0
+        return AmplificationTest(math.inf if amplified else 1.0, math.inf if amplified else 0.0,
+                                 0.0, float(n), amplified)  # fmt: skip
+    r = pb - var_open
+    r0 = float(r @ r) / n
+    tau = 1.0
+    if r0 > 0:
+        spec = np.fft.rfft(r, 2 * n)
+        rho = np.fft.irfft(spec.real**2 + spec.imag**2, 2 * n)[:n] / (n * r0)
+        pairs = rho[0 : n - 1 : 2] + rho[1:n:2]
+        stop = np.flatnonzero(pairs <= 0)
+        m = int(stop[0]) if stop.size else pairs.size
+        tau = max(1.0, 2.0 * float(np.sum(pairs[:m])) - 1.0)
+    n_eff = n / tau
+    ratio = math.sqrt(var_y / var_open)
+    effect = math.sqrt(var_d / var_open)
+    resolution = z_score / math.sqrt(2.0 * n_eff)
+    return AmplificationTest(ratio, effect, resolution, n_eff,
+                             bool(ratio > max_ratio and effect > resolution))  # fmt: skip
+
+
+def robust_learning_scale(
+    fz_rows,
+    harmonic_hz,
+    gain: float,
+    delay_cycles: float,
+    *,
+    delay_uncertainty_s: float,
+    fn_uncertainty_rel: float = 0.0,
+    gain_uncertainty_rel: float = 0.1,
+) -> np.ndarray:
+    """Per-harmonic factor (0..1) on a phasor learner's gain that keeps it stable over a band.
+
+    The learning loop of one harmonic is a delayed integrator, ``U <- U - g r U(delayed by D
+    cycles)`` with ``r = P_true / P_model`` at the harmonic: it converges iff ``g |r| D <
+    pi / 2 - |arg r|`` (the continuous-time limit of :func:`repetitive_loop_radius`). Over the
+    band (the model's fn within ``± fn_uncertainty_rel``, the transport delay within
+    ``± delay_uncertainty_s``, the actuator gain within ``± gain_uncertainty_rel``) the worst
+    phase ``phi = max |arg r|`` and magnitude ``max |r|`` give ``g_max = (pi / 2 - phi) /
+    (max |r| D)``; the gain used is ``min(gain, g_max / 2)`` (half the phase left over as
+    margin: the learner also averages the non-periodic response near a resonance rather than
+    chasing it). A harmonic with ``phi >= 0.9 pi / 2`` has no robust gain and gets 0 (not
+    learnt).
+
+    Parameters
+    ----------
+    fz_rows
+        (n, 2) model rows (fn [Hz], zeta) along the path; the worst row counts.
+    harmonic_hz
+        (H,) harmonic frequencies [Hz].
+    gain
+        The nominal learning gain per command cycle (command period / learning time).
+    delay_cycles
+        The loop's delay in command cycles (transport delay plus half the DFT window).
+    delay_uncertainty_s
+        Unknown part of the transport delay [s] (>= 0).
+    fn_uncertainty_rel
+        Relative uncertainty of the model's natural frequency (>= 0; e.g. 1.96 std / fn).
+    gain_uncertainty_rel
+        Relative uncertainty of the actuator gain, in [0, 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        (H,) factors in [0, 1] on ``gain``.
+    """
+    rows = np.atleast_2d(np.asarray(fz_rows, float))
+    f = np.asarray(harmonic_hz, float)[None, :]
+    if not (delay_uncertainty_s >= 0 and fn_uncertainty_rel >= 0 and 0 <= gain_uncertainty_rel < 1
+            and gain > 0 and delay_cycles > 0):  # fmt: skip
+        raise ValueError("uncertainties >= 0 (gain one < 1), gain and delay_cycles > 0")
+
+    def frf(fn, z):
+        wn = 2 * np.pi * fn
+        w = 2 * np.pi * f
+        return wn**2 / (wn**2 - w**2 + 2j * z * wn * w)
+
+    fn, z = rows[:, :1], rows[:, 1:2]
+    nominal = frf(fn, z)
+    phase = np.zeros(f.shape[1])
+    mag = np.ones(f.shape[1])
+    for scale in (1 - fn_uncertainty_rel, 1 + fn_uncertainty_rel):
+        r = frf(fn * scale, z) / nominal
+        phase = np.maximum(phase, np.max(np.abs(np.angle(r)), axis=0))
+        mag = np.maximum(mag, np.max(np.abs(r), axis=0))
+    phase = phase + 2 * np.pi * f[0] * delay_uncertainty_s
+    mag = mag * (1 + gain_uncertainty_rel)
+    left = np.pi / 2 - phase
+    g_max = np.where(left > 0.1 * np.pi / 2, left / (mag * delay_cycles), 0.0)
+    return np.clip(0.5 * g_max / gain, 0.0, 1.0)
+
+
 class PeriodTracker:
     """Online excitation period from the measured force (shared by the controllers of a loop).
 
@@ -167,7 +356,16 @@ class PeriodTracker:
         self._next = 0
         self.period_s = self.nominal_period_s
         self.correlation = math.nan
-        self.history: list[tuple[float, float, float]] = []  #: (time [s], period [s], corr)
+        # (time [s], period [s], corr) of every estimate, preallocated: no growth per step
+        n0 = self.nominal_period_s * self._fs
+        every = max(1, round(self.update_periods * n0))
+        self._hist = np.zeros((int(n_samples) // every + 2, 3))
+        self._n_hist = 0
+
+    @property
+    def history(self) -> list[tuple[float, float, float]]:
+        """Every estimate so far: (time [s], smoothed period [s], correlation)."""
+        return [tuple(map(float, row)) for row in self._hist[: self._n_hist]]
 
     def update(self, k: int, force_n: np.ndarray) -> None:
         if k <= self._last_k:
@@ -186,7 +384,9 @@ class PeriodTracker:
         self.correlation = r
         if r > 0.3:  # only a periodic signal moves the estimate
             self.period_s += self.smoothing * (p - self.period_s)
-        self.history.append((self._len / self._fs, self.period_s, r))
+        if self._n_hist < self._hist.shape[0]:
+            self._hist[self._n_hist] = (self._len / self._fs, self.period_s, r)
+            self._n_hist += 1
 
 
 class TrackingFeedforward(ForceFeedforward):
@@ -258,6 +458,13 @@ class TrackingRepetitive(RepetitiveFeedback):
         diverging learner overshoots the disturbance it cancels, while a residual that grows
         from unlearnable (non-periodic) response near a resonance leaves the correction at the
         disturbance's size and the harmonic is kept.
+    delay_uncertainty_s
+        None (off), or the unknown part of the transport delay [s]: each harmonic's gain is
+        then made robust over that delay, ``fn_uncertainty_rel`` and ``gain_uncertainty_rel``
+        (:func:`robust_learning_scale`); a harmonic no gain keeps stable is not learnt.
+    fn_uncertainty_rel, gain_uncertainty_rel
+        Relative uncertainties of the model's fn and of the actuator gain (with
+        ``delay_uncertainty_s``).
     model_at_tracked_period
         Evaluate the inverse model FRF ``1 / P`` at the harmonics of the *tracked* period
         (``True``) rather than the nominal one: near a resonance a few per cent of spindle-speed
@@ -281,6 +488,9 @@ class TrackingRepetitive(RepetitiveFeedback):
         period_multiple: int = 1,
         divergence_test: str = "residual",
         model_at_tracked_period: bool = False,
+        delay_uncertainty_s: float | None = None,
+        fn_uncertainty_rel: float = 0.0,
+        gain_uncertainty_rel: float = 0.1,
         **kwargs,
     ):
         m = int(period_multiple)
@@ -298,6 +508,11 @@ class TrackingRepetitive(RepetitiveFeedback):
         self.divergence_test = divergence_test
         self.model_at_tracked_period = bool(model_at_tracked_period)
         self.period_multiple = m
+        self.delay_uncertainty_s = (
+            None if delay_uncertainty_s is None else float(delay_uncertainty_s)
+        )
+        self.fn_uncertainty_rel = float(fn_uncertainty_rel)
+        self.gain_uncertainty_rel = float(gain_uncertainty_rel)
 
     def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
         super().reset(coords, period_s, sample_rate_hz)
@@ -316,6 +531,15 @@ class TrackingRepetitive(RepetitiveFeedback):
         if self.model_at_tracked_period:
             self._fz_rows = {a: tab.at(coords) for a, tab in self.modes.items()}
             self._own = (self._h % self.period_multiple == 0) if self.period_multiple > 1 else None
+        self._gscale = {a: np.ones(self.n_harmonics) for a in self._pinv}
+        if self.delay_uncertainty_s is not None:
+            loop_delay = (self._delay + (self._window - 1) / 2) / self._every  # command cycles
+            for a, tab in self.modes.items():
+                self._gscale[a] = robust_learning_scale(
+                    tab.values, self._hw / (2 * math.pi), self._gain, loop_delay,
+                    delay_uncertainty_s=self.delay_uncertainty_s,
+                    fn_uncertainty_rel=self.fn_uncertainty_rel,
+                    gain_uncertainty_rel=self.gain_uncertainty_rel)  # fmt: skip
         self._mag = None
         self._mag0 = None
         self.events: list[GuardEvent] = []
@@ -372,7 +596,7 @@ class TrackingRepetitive(RepetitiveFeedback):
                         f"direction {a} harmonic {h + 1}: learning diverged (residual "
                         f"{self._mag[h, a] * 1e3:.4f} mm > {self.divergence_ratio:g} x open loop "
                         f"{self._mag0[h, a] * 1e3:.4f} mm), dropped"))  # fmt: skip
-                self._u[:, a] -= self._gain * resid[:, a] * row * self._on[a]
+                self._u[:, a] -= self._gain * self._gscale[a] * resid[:, a] * row * self._on[a]
         target = self._phase + w_dt * (self._delay + np.arange(self._every))
         phase = np.exp(1j * np.outer(self._h, target)).mean(axis=1)
         return np.real(phase @ self._u)
@@ -410,7 +634,10 @@ class FadeGuard:
     * benefit: the tracker signal ``y`` against the open-loop estimate ``y - P u`` (``P`` the
       pose model's correction-to-tip response of each direction, ``u`` the corrections sent,
       ``delay_s`` late). If the RMS of ``y`` exceeds ``max_ratio`` x that of the estimate the
-      correction is not reducing the vibration: faded out for good (latched).
+      correction is not reducing the vibration: faded out for good (latched). A window
+      counts only where the correction's largest possible effect on the RMS exceeds
+      ``z_score`` standard errors of the window's RMS (:func:`amplification_test`): on a cut
+      where sensor noise dominates, the correction is far below that and is kept.
 
     The output is ``scale * inner``, ``scale`` moving toward its target at ``check_s /
     fade_time_s`` per check (the first check after ``warmup_s``). :attr:`events` lists the
@@ -432,7 +659,10 @@ class FadeGuard:
         and the correction is faded out, in [0, 1).
     max_ratio
         The correction is faded out for good when the tracker signal's RMS exceeds this
-        multiple of the open-loop estimate's RMS (> 0).
+        multiple of the open-loop estimate's RMS (> 0) by more than the window's noise.
+    z_score
+        The resolution of a window in standard errors of its RMS (> 0;
+        :data:`GUARD_Z_SCORE`).
     window_s
         Length of the window the RMS values are taken over [s].
     check_s
@@ -452,19 +682,22 @@ class FadeGuard:
         *,
         min_periodicity: float = 0.5,
         max_ratio: float = 1.0,
+        z_score: float = GUARD_Z_SCORE,
         window_s: float = 0.5,
         check_s: float = 0.1,
         fade_time_s: float = 0.2,
         warmup_s: float = 0.5,
     ):
-        if not (0 <= min_periodicity < 1 and max_ratio > 0 and window_s > 0 and check_s > 0):
-            raise ValueError("0 <= min_periodicity < 1, max_ratio, window_s, check_s > 0")
+        if not (0 <= min_periodicity < 1 and max_ratio > 0 and window_s > 0 and check_s > 0
+                and z_score > 0):  # fmt: skip
+            raise ValueError("0 <= min_periodicity < 1, max_ratio, z_score, window_s, check_s > 0")
         self.inner = inner
         self.tracker = tracker
         self.modes = modes
         self.delay_s = float(delay_s)
         self.min_periodicity = float(min_periodicity)
         self.max_ratio = float(max_ratio)
+        self.z_score = float(z_score)
         self.window_s = float(window_s)
         self.check_s = float(check_s)
         self.fade_time_s = float(fade_time_s)
@@ -564,12 +797,16 @@ class FadeGuard:
         if self._len >= w and self._scale > 0.5:
             seg = self._y[self._len - w : self._len]
             ol = self._yol[self._len - w : self._len]
-            rms = np.sqrt(np.sum(np.var(seg, axis=0)))
-            rms_ol = np.sqrt(np.sum(np.var(ol, axis=0)))
-            if rms > self.max_ratio * rms_ol:
+            test = _amplification(seg, ol, self.max_ratio, self.z_score)
+            if test.amplified:
+                rms = np.sqrt(np.sum(np.var(seg, axis=0)))
+                rms_ol = np.sqrt(np.sum(np.var(ol, axis=0)))
                 self._latched = True
-                self._set_target(0.0, f"tracker signal not reduced: RMS {rms * 1e3:.4f} mm > "
-                                      f"{self.max_ratio:.2f} x open-loop estimate {rms_ol * 1e3:.4f} mm")  # fmt: skip
+                self._set_target(0.0, f"tracker signal not reduced: RMS {rms * 1e3:.4f} mm = "
+                                      f"{test.ratio:.4f} x open-loop estimate {rms_ol * 1e3:.4f} mm "
+                                      f"> {self.max_ratio:.2f}, the correction's effect "
+                                      f"{test.effect:.3f} above the window's resolution "
+                                      f"{test.resolution:.3f} ({test.n_effective:.0f} independent samples)")  # fmt: skip
                 return
         if math.isfinite(r) and r >= self.min_periodicity + 0.1:
             self._set_target(1.0, f"force periodic again: autocorrelation {r:.2f}")

@@ -382,8 +382,8 @@ _NEEDS_EXCITATION = {
 TRACKER_DEFAULTS = {"rel_range": 0.1, "window_periods": 2.0, "update_periods": 1.0,
                     "smoothing": 0.5}  # fmt: skip
 #: Default fade-out guard settings (:class:`~robovib.control.adaptive.FadeGuard`).
-GUARD_DEFAULTS = {"min_periodicity": 0.5, "max_ratio": 1.0, "window_s": 0.5, "check_s": 0.1,
-                  "fade_time_s": 0.2, "warmup_s": 0.5}  # fmt: skip
+GUARD_DEFAULTS = {"min_periodicity": 0.5, "max_ratio": 1.0, "z_score": 1.0, "window_s": 0.5,
+                  "check_s": 0.1, "fade_time_s": 0.2, "warmup_s": 0.5}  # fmt: skip
 
 
 def assemble_controller(

@@ -74,6 +74,11 @@ _UNITS = {
     "gains.lqg": "[K_x m/m, K_v s, K_u1..K_ud m/m] per design point",
     "gains.force_model_r": "1 (LQR input weight)",
     "timing": "s, Hz",
+    "learner.delay_uncertainty_s": "s (unknown part of the delay each harmonic's learning "
+                                   "gain is kept stable over)",
+    "learner.fn_uncertainty_rel": "1 (1.96 std / fn of the model, worst along the path)",
+    "learner.gain_uncertainty_rel": "1 (relative actuator-gain error the learning covers)",
+    "guard.z_score": "1 (standard errors of the window's RMS, amplification_test)",
     "excitation.spindle_rpm": "rev/min",
     "stability.*_worst_spectral_radius": "1 (< 1: stable on every plant of the band)",
     "stability.force_model_worst_rms_ratio": "1 (< 1: the force-model feedforward reduces "
@@ -187,7 +192,9 @@ def _settings(what: str, defaults: dict, given: dict | None) -> dict:
 
 #: The repetitive learners' settings of a controller file (see ``TrackingRepetitive``).
 LEARNER_DEFAULTS = {"divergence_ratio": 1.2, "divergence_test": "correction",
-                    "n_harmonics": "auto", "model_at_tracked_period": True}  # fmt: skip
+                    "n_harmonics": "auto", "model_at_tracked_period": True,
+                    "delay_uncertainty_s": 0.008, "fn_uncertainty_rel": 0.0,
+                    "gain_uncertainty_rel": 0.1}  # fmt: skip
 
 
 def _learner(given: dict | None) -> dict:
@@ -198,6 +205,8 @@ def _learner(given: dict | None) -> dict:
     out = {**LEARNER_DEFAULTS, **(given or {})}
     out["divergence_ratio"] = float(out["divergence_ratio"])
     out["model_at_tracked_period"] = bool(out["model_at_tracked_period"])
+    for key in ("delay_uncertainty_s", "fn_uncertainty_rel", "gain_uncertainty_rel"):
+        out[key] = float(out[key])
     if out["n_harmonics"] != "auto":
         out["n_harmonics"] = int(out["n_harmonics"])
     return out
@@ -215,6 +224,13 @@ def _check_timing(period_s: float, delay_s: float, sample_rate_hz: float) -> Non
     if abs(d - round(d)) > 1e-9:
         raise ValueError(f"the delay {delay_s * 1e3:g} ms must be a whole number of command "
                          f"periods ({period_s * 1e3:g} ms)")  # fmt: skip
+
+
+def _fn_uncertainty(modes: dict) -> float:
+    """The learners' relative fn band: the model's 1.96 std over fn, worst along the path."""
+    rel = [1.96 * sd / fn for m in modes.values()
+           for fn, sd in zip(m["fn_hz"], m["fn_std_hz"], strict=True) if fn > 0]  # fmt: skip
+    return float(max(rel, default=0.0))
 
 
 def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, rpm, teeth,
@@ -280,7 +296,7 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
         "gains": gains,
         "tracker": tracker,
         "guard": guard,
-        "learner": _learner(None),
+        "learner": _learner({"fn_uncertainty_rel": _fn_uncertainty(modes)}),
         "stability": stability,
         "provenance": design.provenance(),
         "units": _UNITS,
