@@ -79,7 +79,7 @@ class _TruthModel:
         self.robot = robot
 
     def modes(self, poses):
-        from robovib.gp.pose_mode import PoseMode
+        from robovib.gp.dominant_modes import PoseMode
         from robovib.modal.parameters import ModalParameters
 
         p = np.asarray(poses, float)
@@ -137,8 +137,9 @@ def compare_modes(ctl: Path) -> None:
 
 
 def simulate(ctl: Path, level: float, seed: int) -> list[dict]:
-    from robovib.sim.disturbances import CutDisturbances
     from robovib.studies.control_closed_loop import simulate_control
+
+    from robovib.sim.disturbances import CutDisturbances
 
     dist = CutDisturbances.parse([f"all={level:g}"])
     res = simulate_control("milling", disturbances=dist, controller_file=ctl, rng=seed)

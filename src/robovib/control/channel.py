@@ -5,7 +5,7 @@ The closed/open amplitude ratio of the thesis' offset-mass experiment through a 
 :func:`required_channel_gain` (the channel gain a target ratio needs) and
 :func:`operating_mode` (the single mode behind measured open-loop amplitudes). A channel is
 anything with ``frequency_response(f_hz, period_s)``, e.g. :class:`robovib.sim.CommandChannel`;
-the studies (:mod:`robovib.studies.control_closed_loop`) run them on the virtual robot.
+the studies (:mod:`robovib.studies.control`) run them on the virtual robot.
 """
 
 from __future__ import annotations

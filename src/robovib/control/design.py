@@ -5,7 +5,7 @@
 path distance ``s_m``; the virtual robot's is :func:`robovib.sim.path_modal_model`): the
 thesis' Eq. 28-29 schedule, constant designs, LQG, the robust design over the GP band
 (:func:`robovib.control.pose_plants.plant_set`), force feedforward, a tuned state feedback,
-repetitive and adaptive controllers. The studies (:mod:`robovib.studies.control_closed_loop`)
+repetitive and adaptive controllers. The studies (:mod:`robovib.studies.control`)
 run them on the virtual robot.
 """
 
