@@ -137,9 +137,8 @@ def compare_modes(ctl: Path) -> None:
 
 
 def simulate(ctl: Path, level: float, seed: int) -> list[dict]:
-    from robovib.studies.control_closed_loop import simulate_control
-
     from robovib.sim.disturbances import CutDisturbances
+    from robovib.studies.control.simulate import simulate_control
 
     dist = CutDisturbances.parse([f"all={level:g}"])
     res = simulate_control("milling", disturbances=dist, controller_file=ctl, rng=seed)
