@@ -5,7 +5,7 @@ import pytest
 
 from robovib.io import read_cuts_csv
 from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
-from robovib.milling.chart import lobes_chart, parse_mode_spec, parse_rpm_range, plot_lobes_chart
+from robovib.milling.chart import lobes_chart, plot_lobes_chart
 from robovib.milling.lobes import LobeEnvelope
 from robovib.milling.sdm import sdm_lobes
 from robovib.modal import ModalParameters
@@ -22,17 +22,6 @@ def _write_frf_csv(path, unit_scale=1e6):
     np.savetxt(path, np.column_stack([f, gx.real, gx.imag, gy.real, gy.imag]), delimiter=",",
                header="frequency_hz,x_real_um_per_n,x_imag_um_per_n,y_real_um_per_n,y_imag_um_per_n",
                comments="")  # fmt: skip
-
-
-def test_parsers():
-    d, m = parse_mode_spec("y:650,2.1e7,0.03")
-    assert d == "y" and m.natural_frequency_hz == 650 and m.stiffness_n_per_m == 2.1e7
-    np.testing.assert_allclose(parse_rpm_range("1000:2000:3"), [1000, 1500, 2000])
-    for bad in ("z:1,2,0.1", "x:1,2", "x:650,2e7,3"):
-        with pytest.raises(ValueError, match="mode"):
-            parse_mode_spec(bad)
-    with pytest.raises(ValueError, match="rpm range"):
-        parse_rpm_range("2000:1000:3")
 
 
 def test_chart_from_modes_and_from_a_measured_frf_csv(tmp_path):
@@ -131,19 +120,14 @@ def test_cli_mill_lobes_with_explicit_modes_frf_cuts_and_operating_point(tmp_pat
     assert res.exit_code == 1 and "direction" in res.output
 
 
-def test_mode_specs_split_and_flip_count():
-    """The CLI's mode texts and flip-lobe count come from the library (cli/mill.py is thin)."""
+def test_flip_count():
+    """The chart counts the speeds whose limit is a flip (period-doubling) lobe."""
     import doctest
     from types import SimpleNamespace
 
     from robovib.milling import chart as ch
 
-    mx, my = ch.parse_mode_specs(["y:8.2,1e6,0.18", "x:16.5,3.4e6,0.11", "x:63.5,4.2e7,0.055"])
-    assert [m.natural_frequency_hz for m in mx] == [16.5, 63.5]
-    assert [m.stiffness_n_per_m for m in my] == [1e6]
-    assert ch.parse_mode_specs([]) == ((), ())
-    with pytest.raises(ValueError, match="direction must be x"):
-        ch.parse_mode_specs(["z:10,1e6,0.1"])
+    mx, my = (ModalParameters(16.5, 3.4e6, 0.11),), (ModalParameters(8.2, 1e6, 0.18),)
     assert doctest.testmod(ch, verbose=False).failed == 0
     env = SimpleNamespace(kind=np.array(["hopf", "flip", "flip", "hopf", "flip"]))
     chart = ch.LobesChart(env, mx, my, None, None, None, "t")

@@ -182,13 +182,8 @@ def lobes(
     json_out: JsonFlag = False,
 ) -> None:
     """Stability lobes (envelope) from explicit modes, a measured FRF or the pose model's modes."""
-    from ..milling.chart import (
-        lobes_chart,
-        parse_mode_specs,
-        parse_operating_point,
-        parse_rpm_range,
-        plot_lobes_chart,
-    )
+    from ..milling.chart import lobes_chart, plot_lobes_chart
+    from ._parsers import parse_mode_specs, parse_operating_point, parse_rpm_range
 
     check_output(plot, [model_path, frf, cuts])
     tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,

@@ -92,7 +92,6 @@ def lobe_map(
     --samples adds the uncertainty (5/50/95 % critical depth, P(stable) at --depth)."""
     from rich.progress import Progress
 
-    from ..milling.chart import parse_rpm_range
     from ..milling.maps import (
         WORKSPACE_X_MM,
         WORKSPACE_Y_MM,
@@ -102,6 +101,7 @@ def lobe_map(
         save_lobe_map,
         workspace_lobe_map,
     )
+    from ._parsers import parse_rpm_range
 
     check_output(plot, [model_path, cuts])
     measured_cuts = None

@@ -104,9 +104,9 @@ def plan(
     """Plan Rz and spindle speed along a tool path at a required P(stable); optional test cuts."""
 
     from ..files.units import to_si
-    from ..milling.chart import parse_rpm_range
     from ..milling.planning import plan_path, read_path_csv
     from ..milling.structures import sample_structures
+    from ._parsers import parse_rpm_range
 
     outs = [p for p in (output, plot, report_html, suggest_cuts) if p is not None]
     for out in outs:

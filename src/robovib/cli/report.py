@@ -107,11 +107,12 @@ def lobes(
 ) -> None:
     """Stability lobes at a pose from a pose model (either kind; default chapter 3), as a page."""
     from ..report import lobes_study_report
+    from ._parsers import parse_rpm_range
 
     _check(output, *([model_path] if model_path else []))
     model = None if model_path is None else workspace_model(model_path, seed)
     _done(lobes_study_report(x, y, rz, ae_mm=ae, material=material_name, feed=feed,
-                             rpm_range=rpm_range, method=method, rng=seed, model=model,
+                             spindle_rpm=parse_rpm_range(rpm_range), method=method, rng=seed, model=model,
                              n_samples=samples), output, json_out,
           *([model_path] if model_path else []))  # fmt: skip
 

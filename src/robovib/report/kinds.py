@@ -460,7 +460,7 @@ def lobes_study_report(
     ae_mm: float = 6.0,
     material: str = "al7075",
     feed: str = "x",
-    rpm_range: str = "100:3000:200",
+    spindle_rpm=None,
     method: str = "sdm",
     model=None,
     rng: int = 0,
@@ -481,8 +481,8 @@ def lobes_study_report(
         Cutting-force coefficients.
     feed : {"x", "y"}
         Feed direction.
-    rpm_range : str
-        Spindle speeds ``start:stop:count`` [rpm].
+    spindle_rpm : array_like, optional
+        Spindle speeds [rpm], rising (default: 200 from 100 to 3000 rpm).
     method : str
         Stability method (``"sdm"`` or ``"zoa"``).
     model : PoseModel, optional
@@ -513,14 +513,24 @@ def lobes_study_report(
         raise ValueError(f"unknown material {material!r}; use one of {', '.join(mats)}")
     if feed not in ("x", "y"):
         raise ValueError(f"unknown feed direction {feed!r}; use x or y")
-    for name, v in (("x", x_mm), ("y", y_mm), ("rz", rz_deg), ("ae", ae_mm)):
+    for name, v in (("x_mm", x_mm), ("y_mm", y_mm), ("rz_deg", rz_deg), ("ae_mm", ae_mm)):
         if not np.isfinite(v):
-            raise ValueError(f"--{name} must be finite, got {v}")
+            raise ValueError(f"{name} must be finite, got {v}")
     if not ae_mm > 0:
         raise ValueError(f"radial depth ae must be > 0 mm, got {ae_mm}")
-    from ..milling.chart import parse_rpm_range
-
-    speeds = parse_rpm_range(rpm_range)
+    speeds = (
+        np.linspace(100.0, 3000.0, 200) if spindle_rpm is None else np.asarray(spindle_rpm, float)
+    )
+    if (
+        speeds.ndim != 1
+        or speeds.size < 2
+        or not np.all(np.isfinite(speeds))
+        or np.any(np.diff(speeds) <= 0)
+        or speeds[0] <= 0
+    ):
+        raise ValueError("spindle_rpm must be 2 or more positive, finite, rising speeds [rpm]")
+    even = np.allclose(np.diff(speeds), speeds[1] - speeds[0], rtol=1e-9)
+    rpm_range = f"{speeds[0]:g}:{speeds[-1]:g}:{speeds.size}" if even else speeds.tolist()
     model = model if model is not None else get_chapter3_model(rng=rng)
     tool = MillingTool()
     chart = lobes_chart(
