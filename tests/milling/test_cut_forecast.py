@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from robovib.io.cuts import MeasuredCuts
+from robovib.io.cuts import MeasuredCuts, read_cuts_csv
 from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
 from robovib.milling.cut_forecast import add_cut_forecast, cuts_at_pose, forecast_with_cuts
 from robovib.milling.structures import StructureSamples
@@ -97,7 +97,7 @@ def test_lobes_and_map_use_one_posterior(model, tmp_path):
     path.write_text("spindle_rpm,depth_mm,result\n1700,5.0,chatter\n2100,4.0,stable\n")
     chart = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=rpm,
                         method="zoa", pose_model=model, pose=pose, n_samples=48, rng=1,
-                        cuts_file=path, operating_point=(1700.0, 5e-3))  # fmt: skip
+                        cuts=read_cuts_csv(path), operating_point=(1700.0, 5e-3))  # fmt: skip
     fc = chart.cut_forecast
     upd = fc.update
     assert upd.effective_sample_size < 48 and upd.information_nats > 0
@@ -135,14 +135,14 @@ def test_lobes_and_map_use_one_posterior(model, tmp_path):
     elsewhere.write_text("x_mm,y_mm,rz_deg,spindle_rpm,depth_mm,result\n"
                          "2400,100,45,1700,5.0,chatter\n2300,300,45,2100,4.0,stable\n")  # fmt: skip
     other = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=rpm,
-                        method="zoa", pose_model=model, pose=pose, n_samples=8, cuts_file=elsewhere)  # fmt: skip
+                        method="zoa", pose_model=model, pose=pose, n_samples=8, cuts=read_cuts_csv(elsewhere))  # fmt: skip
     drawn = {ln.get_label(): ln.get_xdata().size for ln in plot_lobes_chart(other).axes[0].lines}
     assert drawn["cut: chatter"] == 1 and drawn["cut: stable"] == 0
     with pytest.raises(ValueError, match="poses"):
         add_cut_forecast(ds, model, chart.cuts, TOOL, COND, ALUMINIUM_7075)
     with pytest.raises(ValueError, match="time-domain margin"):
         lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=rpm,
-                    method="zoa", pose_model=model, pose=pose, n_samples=8, cuts_file=path,
+                    method="zoa", pose_model=model, pose=pose, n_samples=8, cuts=read_cuts_csv(path),
                     time_domain_margin=True)  # fmt: skip
 
 

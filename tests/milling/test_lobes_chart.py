@@ -1,9 +1,10 @@
-"""mill-lobes library side: modes or a measured FRF file, cuts, operating point, figure."""
+"""mill-lobes library side: modes or measured FRFs, cuts, operating point, figure."""
 
 import numpy as np
 import pytest
 
-from robovib.io import read_cuts_csv
+from robovib.frf import FRF
+from robovib.io import read_cuts_csv, read_frfs
 from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
 from robovib.milling.chart import lobes_chart, plot_lobes_chart
 from robovib.milling.lobes import LobeEnvelope
@@ -33,14 +34,20 @@ def test_chart_from_modes_and_from_a_measured_frf_csv(tmp_path):
     path = tmp_path / "frf.csv"
     _write_frf_csv(path)
     from_frf = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=RPM,
-                           frf_file=path)  # fmt: skip
+                           frfs=read_frfs(path))  # fmt: skip
     # Modes identified from the FRF (LSCF) give the same lobes within 2 %.
     np.testing.assert_allclose(from_frf.envelope.a_lim_m, direct.a_lim_m, rtol=0.02)
     zoa_modes = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=RPM,
                             modes_x=[MX], modes_y=[MY], method="zoa")  # fmt: skip
     zoa_frf = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=RPM,
-                          frf_file=path, method="zoa")  # fmt: skip
+                          frfs=read_frfs(path), method="zoa")  # fmt: skip
     np.testing.assert_allclose(zoa_frf.envelope.a_lim_m, zoa_modes.envelope.a_lim_m, rtol=0.02)
+    # the same values made in memory (the file holds µm/N) give the same chart
+    f = np.linspace(100, 1500, 2801)
+    in_memory = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=RPM,
+                            frfs=[FRF(f, MX.compliance(f), direction="x"),
+                                  FRF(f, MY.compliance(f), direction="y")])  # fmt: skip
+    np.testing.assert_allclose(in_memory.envelope.a_lim_m, from_frf.envelope.a_lim_m, rtol=1e-6)
     doc = from_frf.to_dict()
     assert len(doc["rpm"]) == len(doc["a_lim_m"]) == RPM.size
     assert doc["tool"]["n_flutes"] == 3 and doc["cutting"]["milling"] == "up"
@@ -53,7 +60,8 @@ def test_chart_with_cuts_operating_point_and_figure(tmp_path):
     )
     a = sdm_lobes([MX], [MY], TOOL, COND, ALUMINIUM_7075, [9000.0]).a_lim_m[0]
     chart = lobes_chart(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=RPM,
-                        modes_x=[MX], modes_y=[MY], cuts_file=cuts, operating_point=(9000.0, 1.3 * a),
+                        modes_x=[MX], modes_y=[MY], cuts=read_cuts_csv(cuts),
+                        operating_point=(9000.0, 1.3 * a),
                         pose_label="X 2400 Y 0 Rz 45", material_label="Al 7075")  # fmt: skip
     assert chart.operating_point_stable is False
     assert list(chart.cuts.chatter) == [False, True, False]
@@ -171,3 +179,31 @@ def test_operating_point_p_stable_median_and_settings_actually_used():
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
     assert f"P(stable) = {expected:.2f} (6 samples)" in res.output
+
+
+def test_chart_from_frf_values_built_in_memory():
+    """FRFs made in memory (no file) give the chart the file gives; the label only names them."""
+    f = np.linspace(100, 1500, 2801)
+    # displacement per force from the closed-form SDOF; the chart converts mobility back.
+    frfs = [FRF(f, 1j * 2 * np.pi * f * MX.compliance(f), quantity="mobility", direction="x"),
+            FRF(f, MY.compliance(f), direction="y"), FRF(f, MX.compliance(f), direction="z")]  # fmt: skip
+    kw = dict(tool=TOOL, conditions=COND, coefficients=ALUMINIUM_7075, spindle_rpm=RPM)
+    direct = sdm_lobes([MX], [MY], TOOL, COND, ALUMINIUM_7075, RPM)
+    chart = lobes_chart(frfs=frfs, frf_label="bench/tooltip.h5", **kw)
+    np.testing.assert_allclose(chart.envelope.a_lim_m, direct.a_lim_m, rtol=0.02)
+    assert (
+        chart.frf_file == "bench/tooltip.h5" and chart.to_dict()["frf_file"] == "bench/tooltip.h5"
+    )
+    assert "SDM, FRF tooltip.h5" in chart.title
+    unlabelled = lobes_chart(frfs=frfs, **kw)
+    assert unlabelled.frf_file is None and "SDM, measured FRF" in unlabelled.title
+    np.testing.assert_array_equal(unlabelled.envelope.a_lim_m, chart.envelope.a_lim_m)
+    # errors begin with the label (the CLI's file path), or name the parameter
+    with pytest.raises(ValueError, match=r"^bench/z\.h5: no FRF with direction x or y"):
+        lobes_chart(frfs=frfs[2:], frf_label="bench/z.h5", **kw)
+    with pytest.raises(ValueError, match=r"^frfs: the y FRF is zero at every frequency"):
+        lobes_chart(frfs=[frfs[0], FRF(f, 0 * f + 0j, direction="y")], **kw)
+    with pytest.raises(TypeError, match=r"robovib\.frf\.FRF"):
+        lobes_chart(frfs=[f], **kw)
+    with pytest.raises(TypeError, match="MeasuredCuts"):
+        lobes_chart(modes_x=[MX], cuts="cuts.csv", **kw)

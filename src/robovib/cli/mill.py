@@ -203,11 +203,19 @@ def lobes(
                    TimeRemainingColumn(), console=err_console, transient=True,
                    disable=samples == 0 or not err_console.is_terminal)  # fmt: skip
     task = bar.add_task("P(stable): sampled envelopes", total=max(samples, 1))
+    from ..io import read_frfs
+    from ..io.cuts import read_cuts_csv
+
+    speeds = parse_rpm_range(rpm_range)
+    op = None if operating_point is None else parse_operating_point(operating_point)
+    frfs = None if frf is None else read_frfs(frf)  # .h5/.hdf5, .uff/.unv or .csv
+    measured_cuts = None if cuts is None else read_cuts_csv(cuts)
     with bar:
         chart = lobes_chart(
-        tool=tool, conditions=cond, coefficients=coef, spindle_rpm=parse_rpm_range(rpm_range),
-        method=method, modes_x=modes_x, modes_y=modes_y, frf_file=frf, cuts_file=cuts,
-        operating_point=None if operating_point is None else parse_operating_point(operating_point),
+        tool=tool, conditions=cond, coefficients=coef, spindle_rpm=speeds, method=method,
+        modes_x=modes_x, modes_y=modes_y, frfs=frfs, frf_label=None if frf is None else str(frf),
+        cuts=measured_cuts,
+        operating_point=op,
         pose_label=pose_label, material_label=material_name if kt is None and kn is None else
         f"Kt {coef.ktc:.3g}, Kn {coef.krc:.3g} N/m²", pose_model=model, pose=pose,
         feed_direction=feed, n_samples=samples, rng=seed, steps_per_period=steps,

@@ -1,8 +1,9 @@
-"""One stability chart from what a user has: explicit modes or a measured FRF file, tool, material.
+"""One stability chart from what a user has: explicit modes or measured FRFs, tool, material.
 
-This is the library side of ``robovib mill lobes`` (its option strings are parsed in
-``robovib.cli``): the FRF and test-cut files are read through :mod:`robovib.io`, the envelope is computed by the semi-discretization (default) or the
-zero-order method, and :func:`plot_lobes_chart` draws it with the operating point and the cuts.
+This is the library side of ``robovib mill lobes``: the CLI parses the option strings and reads
+the FRF and test-cut files (:mod:`robovib.io`), and passes their values here. The envelope is
+computed by the semi-discretization (default) or the zero-order method, and
+:func:`plot_lobes_chart` draws it with the operating point and the cuts.
 
 With a measured FRF the semi-discretization needs modes: they are identified from each
 direction's driving-point compliance (:func:`robovib.modal.fit_modes`, LSCF + LSFD); the
@@ -11,8 +12,9 @@ zero-order method uses the measured FRF directly.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import PurePath
 
 import numpy as np
 
@@ -98,12 +100,6 @@ def cutting_setup(
     return tool, cond, coefficients
 
 
-def _read_frfs(path: Path):
-    from ..io import read_frfs
-
-    return read_frfs(path)  # .h5/.hdf5, .uff/.unv or .csv
-
-
 @dataclass(frozen=True)
 class LobesChart:
     """A stability chart with its inputs (everything the JSON output and the figure need).
@@ -123,7 +119,7 @@ class LobesChart:
     operating_point, operating_point_stable
         ``(rpm, depth [m])`` and whether it lies below the envelope.
     frf_file
-        The measured FRF file the envelope came from, if any.
+        Label of the measured FRFs the envelope came from (the CLI's file path), if any.
     settings
         Settings of the computation.
     probability
@@ -240,8 +236,9 @@ def lobes_chart(
     method: str = "sdm",
     modes_x=(),
     modes_y=(),
-    frf_file: str | Path | None = None,
-    cuts_file: str | Path | None = None,
+    frfs: Sequence | None = None,
+    frf_label: str | None = None,
+    cuts=None,
     operating_point: tuple[float, float] | None = None,
     pose_label: str | None = None,
     material_label: str | None = None,
@@ -255,7 +252,7 @@ def lobes_chart(
     progress=None,
     label_noise: float = 0.05,
 ) -> LobesChart:
-    """Stability envelope from modes or a measured FRF file, with cuts and an operating point.
+    """Stability envelope from modes or measured FRFs, with cuts and an operating point.
 
     Parameters
     ----------
@@ -266,12 +263,16 @@ def lobes_chart(
         Speeds [rpm].
     method : {"sdm", "zoa"}
     modes_x, modes_y : sequence of ModalParameters
-        Tool-tip modes in the feed and normal directions (ignored with ``frf_file``).
-    frf_file : path, optional
-        Measured tool-tip FRFs (.h5/.hdf5, .uff/.unv with direction metadata, or .csv as in
-        :func:`read_frf_csv`); directions x (feed) and y (normal).
-    cuts_file : path, optional
-        Test cuts CSV (:func:`robovib.io.read_cuts_csv`).
+        Tool-tip modes in the feed and normal directions (ignored with ``frfs``).
+    frfs : sequence of robovib.frf.FRF, optional
+        Measured tool-tip FRFs (e.g. from :func:`robovib.io.read_frfs`); the first FRF of
+        direction x (feed) and of direction y (normal) are used, converted to compliance.
+    frf_label : str, optional
+        Where ``frfs`` came from (the CLI passes the file path): it begins the FRF errors, is
+        echoed as ``frf_file`` in :meth:`LobesChart.to_dict` and its last path component is
+        in the title.
+    cuts : robovib.io.MeasuredCuts, optional
+        Measured test cuts (e.g. from :func:`robovib.io.read_cuts_csv`).
     operating_point : (rpm, depth [m]), optional
         Marked on the chart, with its verdict.
     steps_per_period : int
@@ -294,7 +295,7 @@ def lobes_chart(
     progress : callable, optional
         ``progress(done, total)`` while the samples are computed (never printed here).
     label_noise : float
-        With a pose model, ``n_samples`` and ``cuts_file``: the probability that a test cut's
+        With a pose model, ``n_samples`` and ``cuts``: the probability that a test cut's
         label is wrong. The cuts then update the forecast (a posterior over the pose model's
         sampled structures, :mod:`robovib.milling.cut_forecast`): P(stable) and the limit
         quantiles come from the weighted structures; cuts without poses are taken at ``pose``.
@@ -302,6 +303,14 @@ def lobes_chart(
     Returns
     -------
     LobesChart
+
+    Raises
+    ------
+    TypeError
+        An item of ``frfs`` is not an FRF, or ``cuts`` is not measured cuts.
+    ValueError
+        No FRF of direction x or y, an FRF zero at every frequency, modes that cannot be
+        identified for SDM, or bad settings.
     """
     if method not in ("sdm", "zoa"):
         raise ValueError(f"method must be 'sdm' or 'zoa', got {method!r}")
@@ -311,8 +320,13 @@ def lobes_chart(
     n_samples = check_int("n_samples", n_samples, lo=0, hi=100_000)
     if time_domain_margin and n_samples == 0:
         raise ValueError("the time-domain margin applies to P(stable): give n_samples > 0")
-    update_cuts = (cuts_file is not None and pose_model is not None and n_samples > 0
-                   and not tuple(modes_x) and not tuple(modes_y) and frf_file is None)  # fmt: skip
+    if cuts is not None:
+        from ..io.cuts import MeasuredCuts
+
+        if not isinstance(cuts, MeasuredCuts):
+            raise TypeError(f"cuts must be robovib.io.MeasuredCuts, got {type(cuts).__name__}")
+    update_cuts = (cuts is not None and pose_model is not None and n_samples > 0
+                   and not tuple(modes_x) and not tuple(modes_y) and frfs is None)  # fmt: skip
     if update_cuts and time_domain_margin:
         raise ValueError(
             "test cuts update the sampled structures, whose process factor already spans the "
@@ -320,16 +334,25 @@ def lobes_chart(
         )
     rpm = np.atleast_1d(np.asarray(spindle_rpm, float))
     modes_x, modes_y = tuple(modes_x), tuple(modes_y)
-    frfs = {}
-    if frf_file is not None:
-        for frf in _read_frfs(Path(frf_file)):
+    measured_frfs, frfs = frfs, {}
+    if measured_frfs is not None:
+        from ..frf import FRF
+
+        where = frf_label if frf_label is not None else "frfs"
+        if isinstance(measured_frfs, FRF):
+            measured_frfs = (measured_frfs,)
+        for frf in measured_frfs:
+            if not isinstance(frf, FRF):
+                raise TypeError(
+                    f"{where}: expected robovib.frf.FRF items, got {type(frf).__name__}"
+                )
             if frf.direction in ("x", "y") and frf.direction not in frfs:
                 frfs[frf.direction] = frf.to_compliance()
         if not frfs:
-            raise ValueError(f"{frf_file}: no FRF with direction x or y")
+            raise ValueError(f"{where}: no FRF with direction x or y")
         for d, f in frfs.items():
             if not np.any(np.abs(f.values) > 0):  # LSCF would end in "SVD did not converge"
-                raise ValueError(f"{frf_file}: the {d} FRF is zero at every frequency")
+                raise ValueError(f"{where}: the {d} FRF is zero at every frequency")
         from ..modal.lscf import fit_modes
 
         fitted = {}
@@ -339,7 +362,7 @@ def lobes_chart(
             except ValueError as exc:
                 if method == "sdm":  # the user sets no max_order here: say what to do instead
                     raise ValueError(
-                        f"{frf_file}: the modes of the {d} FRF cannot be identified for SDM "
+                        f"{where}: the modes of the {d} FRF cannot be identified for SDM "
                         f"({exc}); --method zoa uses the measured FRF itself"
                     ) from None
                 fitted[d] = ()  # the zero-order method uses the measured FRF itself
@@ -413,11 +436,6 @@ def lobes_chart(
     else:
         lobes = stability_lobes(modes_x, modes_y, tool, conditions, coefficients, n_lobes=40)
         env = zoa_envelope(lobes, rpm, settings={"n_lobes": 40})
-    cuts = None
-    if cuts_file is not None:
-        from ..io.cuts import read_cuts_csv
-
-        cuts = read_cuts_csv(cuts_file)
     forecast = None
     if update_cuts and from_model:
         from .cut_forecast import cuts_at_pose, forecast_with_cuts
@@ -445,10 +463,13 @@ def lobes_chart(
     ae_mm = conditions.radial_depth_m * 1e3
     tool_txt = (f"Ø{tool.diameter_m * 1e3:g} mm, {tool.n_flutes} teeth, ae {ae_mm:g} mm "
                 f"{'down' if conditions.down_milling else 'up'}-milling")  # fmt: skip
+    frf_txt = (
+        "" if not frfs else f", FRF {PurePath(frf_label).name}" if frf_label else ", measured FRF"
+    )
     title = lobes_title(pose=pose_label, tool=tool_txt, material=material_label,
-                        extra=f"{method.upper()}" + (f", FRF {Path(frf_file).name}" if frf_file else ""))  # fmt: skip
+                        extra=f"{method.upper()}{frf_txt}")  # fmt: skip
     return LobesChart(env, modes_x, modes_y, tool, conditions, coefficients, title, cuts,
-                      operating_point, op_stable, None if frf_file is None else str(frf_file),
+                      operating_point, op_stable, None if not frfs else frf_label,
                       probability=probability, notes=notes,
                       operating_point_p_stable=op_p, cut_forecast=forecast)  # fmt: skip
 
