@@ -212,7 +212,7 @@ def process_row(row: CampaignRow, settings: ProcessingSettings) -> RowResult:
 
 
 def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
-    from ..frf import impact_compliance_frf
+    from ..frf import check_lines_in_band, impact_compliance_frf
     from ..io import read_recording_channels, select_channel
     from ..modal import fit_dominant_mode
 
@@ -265,12 +265,8 @@ def _process_row(row: CampaignRow, s: ProcessingSettings) -> RowResult:
     lo, hi = fit.band_hz
     band = frf.band(lo, hi)
     df = frf.df_hz
-    if band.frequency_hz.size < s.min_fit_bins:
-        raise ValueError(
-            f"{resolution} leaves {band.frequency_hz.size} lines in the "
-            f"fit band {lo:.4g}-{hi:.4g} Hz, fewer than {s.min_fit_bins}: the hits are too short "
-            f"for this band (need >= {s.min_fit_bins / max(hi - lo, 1e-12):.3g} s)"
-        )
+    check_lines_in_band(frf, (lo, hi), hit_samples=n_fs, sample_rate_hz=direct.sample_rate_hz,
+                        min_lines=s.min_fit_bins, band_name="fit band")  # fmt: skip
     coh = float(np.mean(band.coherence)) if band.coherence is not None else float("nan")
     flags = []
     width = hi - lo

@@ -104,7 +104,7 @@ def compute(
     """Averaged compliance FRF of a hammer recording, with per-hit quality control."""
     from dataclasses import replace
 
-    from ..frf import impact_compliance_frf
+    from ..frf import BandTooShortError, check_lines_in_band, impact_compliance_frf
     from ..io import Sensitivity, from_si, read_recording, to_si, write_frfs
 
     if direction is not None and direction not in ("x", "y", "z"):
@@ -128,10 +128,13 @@ def compute(
             plausible=plausible,
         )  # fmt: skip
     frf = result.frf
-    if frf.frequency_hz.size < 5:
+    try:
+        check_lines_in_band(frf, (f_min_hz, f_max_hz), hit_samples=rec.forces.shape[1],
+                            sample_rate_hz=rec.sample_rate_hz, min_lines=5)  # fmt: skip
+    except BandTooShortError as exc:  # the band is the one --fmin and --fmax set
         fail(
-            f"{frf.frequency_hz.size} FRF lines between --fmin and --fmax at df = {frf.df_hz:.3g} Hz "
-            f"(hits of {rec.forces.shape[1] / rec.sample_rate_hz:.3g} s): too short for the band"
+            f"{exc.n_lines} FRF lines between --fmin and --fmax at df = {exc.df_hz:.3g} Hz "
+            f"(hits of {exc.hit_duration_s:.3g} s): too short for the band"
         )
     if path_s is not None:
         frf = replace(frf, meta={**frf.meta, "path_s_m": float(path_s)})

@@ -7,6 +7,7 @@ SciPy's signal module, which the estimators need.
 from .._lazy import lazy_exports
 
 _WHERE = {
+    "BandTooShortError": "resolution",
     "FRF": "core",
     "FRFCurve": "plot",
     "HitReport": "impact",
@@ -17,6 +18,7 @@ _WHERE = {
     "SpectralDensities": "estimate",
     "check_frf_level": "plausibility",
     "check_hit": "impact",
+    "check_lines_in_band": "resolution",
     "check_levels": "plausibility",
     "estimate_frf": "estimate",
     "impact_frf": "impact",
