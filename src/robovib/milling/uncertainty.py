@@ -510,6 +510,10 @@ def _refine_at_ranks(est, feed_s, norm_s, tool, cond, coef, rpm, quantiles, band
 #: 32-33: k +0.8 to +1.8 % before the upper-residual term, +0.2 % after on a clean campaign;
 #: the larger figure is kept as the floor while multi-mode fits are not measured).
 FIT_STIFFNESS_BIAS = 0.018
+#: Factors of the linear limit above 1 simulated by the time-domain margin where the cut at the
+#: linear limit is stable (issue 36: the time-domain limit of a structure with several modes
+#: per direction reached 1.3 times its zero-order limit on the virtual robot).
+MARGIN_ABOVE = (1.05, 1.1, 1.15, 1.2, 1.3, 1.45)
 
 
 def _scan_start(rpm: np.ndarray, a_mean: np.ndarray) -> np.ndarray:
@@ -564,6 +568,7 @@ def stability_probability(
     time_domain_margin: bool = False,
     entry_tooth_periods: int = 0,
     margin_samples: int = 20,
+    margin_above: tuple[float, ...] = MARGIN_ABOVE,
     method_error: bool = True,
     fit_bias: float = FIT_STIFFNESS_BIAS,
     progress=None,
@@ -609,6 +614,12 @@ def stability_probability(
     margin_samples : int
         Samples whose margin is simulated (about 0.15 s per sample and speed); 0: the mean
         modes' margin for every sample (the form before per-sample margins).
+    margin_above : tuple of float
+        Factors of the linear limit above 1 simulated where the cut at the linear limit is
+        stable (``above`` of :func:`~robovib.milling.time_domain.time_domain_limit_ratios`):
+        with several modes per direction the time-domain limit often lies above the linear one
+        (up to 1.3 times the zero-order limit on the virtual robot), and a margin capped at 1
+        made P(stable) too low there (issue 36). ``()``: capped at 1.
     entry_tooth_periods : int
         Entry ramp of that simulation (0: the cut starts at full depth, the conservative case).
     method_error : bool
@@ -749,7 +760,7 @@ def stability_probability(
         low, high = time_domain_limit_ratios(
             sets, tool, conditions, coefficients, rpm,
             np.vstack([mean_env.a_lim_m[None, :], a_s[sim]]),
-            entry_tooth_periods=int(entry_tooth_periods),
+            entry_tooth_periods=int(entry_tooth_periods), above=tuple(margin_above),
         )  # fmt: skip
         ratio = 0.5 * (low[0] + high[0])
         if sim.size:
