@@ -64,10 +64,10 @@ def _next_poses_args() -> list[str]:
 )  # fmt: skip
 def test_single_pose_command_loads_only_what_it_computes_with(args, used, unneeded):
     """Issue 27: every single-pose command reads the saved pose model with NumPy and h5py
-    (:class:`robovib.gp.predictor.PosePredictor`), never scikit-learn or SciPy's statistics."""
+    (:class:`robovib.gp.saved_model.PosePredictor`), never scikit-learn or SciPy's statistics."""
     imported = _imported(_next_poses_args() if args is None else args)
     assert used in imported  # the report is read right: the command's own module is listed
-    assert "robovib.gp.predictor" in imported
+    assert "robovib.gp.saved_model" in imported
     assert not imported & unneeded, sorted(imported & unneeded)
 
 

@@ -111,7 +111,7 @@ def _read(kind: str, path: Path):
     from robovib import io
 
     if kind == "pose_model":
-        from robovib.gp.predictor import PosePredictor
+        from robovib.gp.saved_model import PosePredictor
 
         return PosePredictor.load(path).predict(QUERY, return_std=True)
     if kind == "pose_model_full":

@@ -31,7 +31,7 @@ from robovib.files.h5safe import (
 from robovib.files.provenance import read_provenance
 from robovib.gp import PoseModalModel
 from robovib.gp.chapter3_model import chapter3_model_path
-from robovib.gp.predictor import PosePredictor
+from robovib.gp.saved_model import PosePredictor
 from robovib.io import read_frfs, write_frfs
 
 SECRET = b"root:x:0:0:root:/root:/bin/bash\n" * 200  # stands in for /etc/passwd

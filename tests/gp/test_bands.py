@@ -8,8 +8,8 @@ import pytest
 from scipy import integrate, stats
 
 from robovib.gp import BatchedGPRegressor, PoseModalModel
+from robovib.gp.bands import ModalPredictive
 from robovib.gp.calibration import fit_student_t, grouped_folds
-from robovib.gp.predictive import ModalPredictive
 
 
 # ------------------------------------------------------------------------------ kernels
@@ -54,7 +54,7 @@ def test_unknown_covariance_is_refused():
 @pytest.mark.oracle
 @pytest.mark.parametrize("dof", [1, 2, 3, 4, 6, 10, 30, np.inf])
 def test_numpy_student_t_matches_scipy(dof):
-    from robovib.gp.predictive import _t_cdf, _t_logpdf, t_quantile
+    from robovib.gp.bands import _t_cdf, _t_logpdf, t_quantile
 
     z = np.linspace(-9, 9, 181)
     ref = stats.t(dof) if np.isfinite(dof) else stats.norm()
@@ -197,7 +197,7 @@ def test_calibrated_bands_cover_unseen_poses_of_a_synthetic_robot():
 
 
 def test_calibration_round_trips_through_the_file_and_the_fast_predictor(tmp_path):
-    from robovib.gp.predictor import PosePredictor, predict_at
+    from robovib.gp.saved_model import PosePredictor, predict_at
 
     rng = np.random.default_rng(2)
     X, Y, _ = _synthetic(rng, 25)

@@ -12,7 +12,7 @@ import pytest
 
 from robovib.campaign import fit_pose_model_from_table
 from robovib.campaign.quality import ModelQualityWarning, model_quality_warnings
-from robovib.gp.predictor import predict_at
+from robovib.gp.saved_model import predict_at
 from robovib.sim import VirtualRobot
 
 SWITCH_POSES = [(2700.0, 100.0, 0.0), (2700.0, 300.0, 180.0)]  # the ~63 Hz X mode dominates

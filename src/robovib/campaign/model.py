@@ -25,7 +25,7 @@ import numpy as np
 
 from ..gp.loader import load_pose_model
 from ..gp.pose_model import PoseModalModel
-from ..gp.predictor import PosePrediction, predict_at
+from ..gp.saved_model import PosePrediction, predict_at
 from .quality import ModelQualityWarning, model_quality_warnings
 from .selection import NextPoses, _gps_of, _posterior_cov, next_poses  # noqa: F401 (re-exported)
 
@@ -160,8 +160,9 @@ def fit_pose_model_from_table(
         Path to ``modal.csv`` or a DataFrame with its columns.
     inputs
         Pose columns used as model inputs (units in the names).
-    kernel
-        ``"ard"`` or ``"isotropic"``.
+    kernel : {"ard", "isotropic"}
+        The length scales (not the covariance family, which is ``covariance``): one per input
+        (``"ard"``) or one shared by all inputs (``"isotropic"``, thesis Eq. 7).
     directions
         Directions modelled (default: those in the table, x/y/z order).
     mode_switch
@@ -172,8 +173,9 @@ def fit_pose_model_from_table(
         Also use rows whose fit is flagged (band edge, residual, coherence).
     rng
         Seed of the fold shuffle and the optimiser restarts.
-    covariance
-        Covariance family, or ``"auto"`` (default): chosen per output by grouped-CV log
+    covariance : {"auto", "se", "matern52", "matern32"}
+        The covariance family (:mod:`robovib.gp.kernels`; the length scales are ``kernel``), or
+        ``"auto"`` (default): chosen per output by grouped-CV log
         predictive density (:mod:`robovib.gp.calibration`).
 
     Returns

@@ -294,7 +294,7 @@ def fit_campaign_table(
     inputs : sequence of str
         Pose columns, with their units (``x_mm``, ``rz_deg`` ...).
     kernel : {"ard", "isotropic"}
-        GP kernel.
+        The GP length scales (not the covariance family): one per input (ARD) or one shared.
     n_folds : int
         Cross-validation folds (grouped by pose).
     use_flagged : bool

@@ -1,14 +1,14 @@
 """Where to hammer next: greedy integrated-variance reduction over candidate poses.
 
 :func:`next_poses` needs only the GP posteriors, so it runs on a saved model read without
-scikit-learn (:class:`robovib.gp.predictor.PosePredictor`). It is the one next-poses algorithm
+scikit-learn (:class:`robovib.gp.saved_model.PosePredictor`). It is the one next-poses algorithm
 of the package: :class:`robovib.gp.PoseModalModel` (modal outputs), its predictor and
 :class:`robovib.hybrid.FRFPoseModel` (FRF bins) all go through it, and
 :func:`robovib.campaign.plot_next_poses` draws its :class:`NextPoses`.
 
 What it needs from a model (a small protocol): ``input_names`` and either ``gp_posteriors()``
 (a list of ``(GPPosterior, noise_std, signal_std, columns, mode)``, as
-:meth:`robovib.gp.predictor.PosePredictor.gp_posteriors` and
+:meth:`robovib.gp.saved_model.PosePredictor.gp_posteriors` and
 :meth:`robovib.hybrid.FRFPoseModel.gp_posteriors`) or the fitted regressors of a
 :class:`~robovib.gp.PoseModalModel` (``estimators_``, ``estimator_columns_``); optionally a
 ``calibration_`` with per-output band scales.
@@ -82,7 +82,7 @@ def _gps_of(model) -> list:
 def _posterior_cov(gp, Xc: np.ndarray):
     """Latent posterior covariance (B, m, m) at Xc, noise and prior variances (B,), in target
     units (the regressor's own posterior, :class:`robovib.gp.posterior.GPPosterior`)."""
-    from ..gp.predictive import noise_std_of
+    from ..gp.bands import noise_std_of
 
     hp = gp.hyperparameters_
     return (
@@ -96,7 +96,7 @@ def _covariances(model, Xc: np.ndarray) -> list:
     """``((cov, noise var, prior var), c²)`` of every GP of the model at the candidates.
 
     Every pose model (:class:`~robovib.gp.PoseModalModel`, its read-only
-    :class:`~robovib.gp.predictor.PosePredictor`, the hybrid FRF model) gives its GP
+    :class:`~robovib.gp.saved_model.PosePredictor`, the hybrid FRF model) gives its GP
     posteriors through ``gp_posteriors``; same numbers from the same file.
     """
     cal = getattr(model, "calibration_", None)  # the FRF pose model has no band calibration
@@ -119,7 +119,7 @@ def next_poses(model, candidates, k: int = 5) -> NextPoses:
     ----------
     model
         A fitted :class:`robovib.gp.PoseModalModel` or its read-only
-        :class:`~robovib.gp.predictor.PosePredictor` (all its GPs count, the per-mode GPs of a
+        :class:`~robovib.gp.saved_model.PosePredictor` (all its GPs count, the per-mode GPs of a
         switching direction included), or a fitted :class:`robovib.hybrid.FRFPoseModel` (one
         GP per bin and Re/Im; the EMA noise group counts, as the next poses are hammer tests);
         see the module docs for what a model must provide.

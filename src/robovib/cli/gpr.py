@@ -83,7 +83,7 @@ def predict(
     Without --model: the thesis' chapter-3 model of Table A1 (Z = 325 mm, Rx = Ry = 0), loaded
     from package data in milliseconds; --kernel isotropic, --seed or --no-mode-switch refit it.
     """
-    from ..gp.predictor import predict_at
+    from ..gp.saved_model import predict_at
 
     given = {"x_mm": x, "y_mm": y, "z_mm": z, "rx_deg": rx, "ry_deg": ry, "rz_deg": rz,
              "a1_deg": a1, "a2_deg": a2, "a3_deg": a3, "a4_deg": a4, "a5_deg": a5,
@@ -94,7 +94,7 @@ def predict(
         if refit:
             fail("--kernel, --seed and --no-mode-switch refit the thesis model; they do not "
                  "apply to --model")  # fmt: skip
-        from ..gp.predictor import load_pose_predictor
+        from ..gp.saved_model import load_pose_predictor
 
         pm, source = load_pose_predictor(model), str(model)
     elif refit:

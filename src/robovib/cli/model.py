@@ -117,7 +117,7 @@ def next_poses_cmd(
 ) -> None:
     """Where to hammer next: largest integrated variance reduction over the candidates."""
     from ..campaign.selection import next_poses
-    from ..gp.predictor import load_pose_predictor
+    from ..gp.saved_model import load_pose_predictor
     from ..io.poses import read_pose_array
 
     m = load_pose_predictor(model)  # NumPy only: the full model would import scikit-learn

@@ -1,6 +1,6 @@
 """Gaussian-process regression of pose-dependent quantities (thesis §3.3, Eq. 6-10, 33-36).
 
-Names are imported on first use (PEP 562): ``from robovib.gp.predictor import ...`` (NumPy only)
+Names are imported on first use (PEP 562): ``from robovib.gp.saved_model import ...`` (NumPy only)
 does not pay for scikit-learn, which the estimators need.
 """
 
@@ -9,7 +9,7 @@ from .._lazy import lazy_exports
 _WHERE = {
     "BandCalibration": "calibration",
     "COVARIANCES": "kernels",
-    "ModalPredictive": "predictive",
+    "ModalPredictive": "bands",
     "BatchedGPRegressor": "regressor",
     "GPHyperparameters": "regressor",
     "GPNumericalError": "regressor",
@@ -18,13 +18,13 @@ _WHERE = {
     "ModeSwitchingGPRegressor": "mode_switch",
     "PoseModalModel": "pose_model",
     "PoseMode": "dominant_modes",
-    "PosePredictor": "predictor",
+    "PosePredictor": "saved_model",
     "detect_mode_switch": "mode_switch",
     "fit_chapter3_model": "chapter3_model",
     "get_chapter3_model": "chapter3_model",
     "load_chapter3_model": "chapter3_model",
     "load_chapter3_predictor": "chapter3_model",
-    "load_pose_predictor": "predictor",
+    "load_pose_predictor": "saved_model",
     "load_pose_model": "loader",
     "PoseModel": "contract",
     "pick_mode": "contract",

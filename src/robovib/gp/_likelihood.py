@@ -14,7 +14,7 @@ parameters, scaling and bookkeeping. Three things make it fast and lean:
   :func:`robovib._threads.single_blas_thread` so their thread pools do not contend.
 * **SciPy only when fitting.** SciPy's LAPACK is imported when first needed. The posterior of
   stored hyperparameters (:func:`evaluate` with ``linalg="numpy"``, value and state only) runs on
-  NumPy's LAPACK, so that :mod:`robovib.gp.predictor` builds the same posterior without SciPy.
+  NumPy's LAPACK, so that :mod:`robovib.gp.saved_model` builds the same posterior without SciPy.
 * **Bounded memory.** Rows (outputs x starts) are processed in chunks whose work arrays (three
   ``n x n`` per row) are allocated once per call and fit in :data:`WORK_BYTES`.
 """

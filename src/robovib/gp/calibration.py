@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..files.h5format import as_text
-from .predictive import ModalPredictive, _t_logpdf
+from .bands import ModalPredictive, _t_logpdf
 
 __all__ = [
     "DOF_GRID",
@@ -365,7 +365,7 @@ def scores(pred: ModalPredictive, Y: np.ndarray) -> dict:
 
 def uncalibrated_coverage(pred: ModalPredictive, Y: np.ndarray) -> np.ndarray:
     """Coverage of the plain latent band ``point ± z σ`` (the band robovib printed before)."""
-    from .predictive import t_quantile
+    from .bands import t_quantile
 
     obs = np.isfinite(Y)
     n = np.maximum(obs.sum(axis=0), 1)

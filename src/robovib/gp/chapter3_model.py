@@ -21,7 +21,7 @@ import numpy as np
 
 if TYPE_CHECKING:  # imported where used: the predictor path must not import scikit-learn/pandas
     from .pose_model import PoseModalModel
-    from .predictor import PosePredictor
+    from .saved_model import PosePredictor
 
 __all__ = [
     "CHAPTER3_INPUTS",
@@ -79,8 +79,9 @@ def fit_chapter3_model(
 
     Parameters
     ----------
-    kernel
-        ``"ard"`` (default) or ``"isotropic"`` (thesis Eq. 7).
+    kernel : {"ard", "isotropic"}
+        The length scales (not the covariance family): one per input (``"ard"``, default) or
+        one shared by all inputs (``"isotropic"``, thesis Eq. 7).
     mode_switch
         ``"auto"`` (default: detects the ~63 Hz X-mode switch), ``True`` or ``False`` (the
         thesis' one smooth GP per output); see :class:`PoseModalModel`.
@@ -163,7 +164,7 @@ def load_chapter3_model() -> PoseModalModel:
 
 
 def load_chapter3_predictor() -> PosePredictor:
-    """The shipped chapter-3 model as a :class:`~robovib.gp.predictor.PosePredictor`.
+    """The shipped chapter-3 model as a :class:`~robovib.gp.saved_model.PosePredictor`.
 
     Predictions equal :func:`load_chapter3_model`'s (to ~1e-12) without importing scikit-learn:
     what ``robovib gpr predict`` uses to answer in well under a second.
@@ -178,7 +179,7 @@ def load_chapter3_predictor() -> PosePredictor:
     FileNotFoundError
         If the package data is missing (run ``python scripts/build_chapter3_model.py``).
     """
-    from .predictor import load_pose_predictor
+    from .saved_model import load_pose_predictor
 
     return load_pose_predictor(chapter3_model_path())
 
@@ -214,7 +215,7 @@ def workspace_predictor(
 ) -> PosePredictor | PoseModalModel:
     """The pose model to predict with: a saved model, or the thesis' chapter-3 model.
 
-    A saved model is read as a :class:`~robovib.gp.predictor.PosePredictor` (NumPy and h5py
+    A saved model is read as a :class:`~robovib.gp.saved_model.PosePredictor` (NumPy and h5py
     only, the same predictions as the full model): a prediction at one pose starts in well
     under a second. Only a chapter-3 model with another optimiser ``seed`` is refitted
     (scikit-learn, seconds).
@@ -246,6 +247,6 @@ def workspace_predictor(
             except FileNotFoundError:
                 pass
         return get_chapter3_model(rng=seed)
-    from .predictor import load_pose_predictor
+    from .saved_model import load_pose_predictor
 
     return load_pose_predictor(path, require_inputs=require_inputs)

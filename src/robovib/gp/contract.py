@@ -8,7 +8,7 @@ Every kind of pose model robovib makes answers through the same interface, :clas
   ``x1, x2, y1, ...`` of :func:`robovib.campaign.fit_multimode_pose_model`).
 
 Each is a :class:`robovib.gp.PoseModalModel` (fit, update, save) or its read-only, SciPy-free
-:class:`robovib.gp.predictor.PosePredictor` (the same file, the same numbers). Both take their
+:class:`robovib.gp.saved_model.PosePredictor` (the same file, the same numbers). Both take their
 whole prediction side from :class:`PosePredictionSide` here, so neither re-implements the other;
 they differ only in where the GP posteriors come from (scikit-learn estimators, or NumPy
 rebuilt from the stored hyperparameters).
@@ -42,8 +42,8 @@ import numpy as np
 
 from .._threads import single_blas_thread
 from ..modal.parameters import ModalParameters
+from .bands import ModalPredictive, assemble, calibrated_mode_probability
 from .dominant_modes import PoseMode, modes_at
-from .predictive import ModalPredictive, assemble, calibrated_mode_probability
 
 __all__ = [
     "DOMINANT",
@@ -138,7 +138,7 @@ class ModeAtPose:
 @runtime_checkable
 class PoseModel(Protocol):
     """What every pose model gives (module docstring); honoured by
-    :class:`robovib.gp.PoseModalModel` and :class:`robovib.gp.predictor.PosePredictor`.
+    :class:`robovib.gp.PoseModalModel` and :class:`robovib.gp.saved_model.PosePredictor`.
 
     Inputs ``X`` are (n, n_inputs) poses in the units of ``input_names`` (``x_mm``, ``rz_deg``);
     every output is SI.
@@ -181,7 +181,7 @@ class PoseModel(Protocol):
 
 class PosePredictionSide:
     """The one prediction side of a pose model (:class:`PoseModel`), shared by
-    :class:`~robovib.gp.PoseModalModel` and :class:`~robovib.gp.predictor.PosePredictor`.
+    :class:`~robovib.gp.PoseModalModel` and :class:`~robovib.gp.saved_model.PosePredictor`.
 
     A subclass provides :meth:`_prediction_parts` — ``(estimator, columns)`` pairs whose
     estimator has ``switches_mode`` (bool), ``predict(X) -> (mean, std)`` and either ``noise_std``
@@ -265,7 +265,7 @@ class PosePredictionSide:
     def predictive(self, X) -> ModalPredictive:
         """Calibrated predictive distribution of every output (latent and measurement, modes).
 
-        See :mod:`robovib.gp.predictive` and ``docs/bands.md``.
+        See :mod:`robovib.gp.bands` and ``docs/bands.md``.
 
         Parameters
         ----------

@@ -1,7 +1,7 @@
 """The dominant mode per direction at a pose (:class:`PoseMode`), NumPy only.
 
 :meth:`robovib.gp.PoseModalModel.modes` and the scikit-learn-free
-:meth:`robovib.gp.predictor.PosePredictor.modes` both answer through :func:`modes_at`, so a
+:meth:`robovib.gp.saved_model.PosePredictor.modes` both answer through :func:`modes_at`, so a
 command that reads modes from a saved model (milling, control) gets the same numbers from
 either without importing scikit-learn.
 """
@@ -93,7 +93,7 @@ def modes_at(model, X: np.ndarray) -> list[dict[str, PoseMode]]:
 
     ``model`` offers ``predictive``, ``extrapolating``, ``mode_switch_probability``,
     ``directions_`` and ``input_names_`` (a fitted :class:`~robovib.gp.PoseModalModel` or a
-    :class:`~robovib.gp.predictor.PosePredictor`); see :meth:`PoseModalModel.modes`.
+    :class:`~robovib.gp.saved_model.PosePredictor`); see :meth:`PoseModalModel.modes`.
 
     Parameters
     ----------

@@ -58,7 +58,7 @@ class TrainingRegion:
     """Where a pose model was calibrated: the box of its training inputs and their hull.
 
     One rule for every pose model (:class:`~robovib.gp.PoseModalModel` and its fast
-    :class:`~robovib.gp.predictor.PosePredictor`): an input is outside when it leaves the
+    :class:`~robovib.gp.saved_model.PosePredictor`): an input is outside when it leaves the
     training range by more than ``1e-9`` of that range; a pose extrapolates when an input is
     outside or, for two or more inputs spanning a volume, the pose lies outside the convex hull
     of the standardised unique training poses (:func:`_in_hull`, NumPy only).

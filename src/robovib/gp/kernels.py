@@ -2,7 +2,7 @@
 
 One place for the kernel of every GP in robovib: the likelihood core
 (:mod:`robovib.gp._likelihood`), the estimator's posterior (:class:`~robovib.gp.BatchedGPRegressor`),
-the scikit-learn-free predictor (:mod:`robovib.gp.predictor`) and next-pose selection all call
+the scikit-learn-free predictor (:mod:`robovib.gp.saved_model`) and next-pose selection all call
 :func:`correlation`.
 
 With ``r² = Σ_d (q_d − q'_d)² / l_d²`` (thesis Eq. 7 with the squared length scale, see

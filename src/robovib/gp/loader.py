@@ -22,7 +22,7 @@ def load_pose_model(path, require_inputs=None, *, predict_only: bool = False):
     require_inputs : sequence of str, optional
         The input names the caller needs (e.g. ``("x_mm", "y_mm", "rz_deg")``).
     predict_only : bool
-        ``True``: a :class:`~robovib.gp.predictor.PosePredictor` (NumPy and h5py only, starts in
+        ``True``: a :class:`~robovib.gp.saved_model.PosePredictor` (NumPy and h5py only, starts in
         milliseconds; the full model only where the stored covariance needed jitter).
         ``False``: the :class:`~robovib.gp.PoseModalModel` (scikit-learn; refit, update, save).
         Both honour :class:`PoseModel` with the same numbers.
@@ -48,7 +48,7 @@ def load_pose_model(path, require_inputs=None, *, predict_only: bool = False):
     'dominant-mode'
     """
     if predict_only:  # the fast reader, the full model only where it must
-        from .predictor import load_pose_predictor
+        from .saved_model import load_pose_predictor
 
         return load_pose_predictor(path, require_inputs)
     from .pose_model import PoseModalModel

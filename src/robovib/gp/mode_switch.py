@@ -127,7 +127,7 @@ def detect_mode_switch(
         Fewest samples of the high mode. A high mode seen at fewer than ``min_samples``
         samples is still a switch (issue 36): smoothing it into the low mode would predict
         a blend of the two that exists nowhere. It then has no GP of its own (a constant with
-        a wide band, :data:`robovib.gp.predictive.UNMODELLED_MODE_RELATIVE_STD`), and the
+        a wide band, :data:`robovib.gp.bands.UNMODELLED_MODE_RELATIVE_STD`), and the
         reason says so.
 
     Returns
@@ -279,12 +279,16 @@ class ModeSwitchingGPRegressor(BaseEstimator):
     classifier_features
         Optional map from the inputs (n, d) to the classifier's inputs, e.g.
         :func:`symmetric_rz_features` where Rz = 0° and 180° are the same configuration.
-    kernel, rng
+    kernel : {"ard", "isotropic"}
+        The length scales of both modes' GPs (not the covariance family): one per input (ARD)
+        or one shared (isotropic); passed to the underlying :class:`BatchedGPRegressor` models.
+    rng
         Passed to the underlying :class:`BatchedGPRegressor` models.
     n_noise_groups
         Number of noise groups (``fit(..., groups=...)``), passed to the regressors.
-    covariance
-        Covariance family of both modes' GPs (:mod:`robovib.gp.kernels`).
+    covariance : {"se", "matern52", "matern32"}
+        The covariance family of both modes' GPs (:mod:`robovib.gp.kernels`; the length
+        scales are ``kernel``).
 
     Attributes
     ----------
@@ -576,7 +580,7 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         ``low``/``high`` are ``(mean, latent_std, noise_std)`` with arrays (n, n_outputs); the
         non-switching outputs repeat the low-mode GP in ``high``. A high mode seen fewer than 3
         times has no GP: its mean is the observed mean and its latent std
-        :data:`~robovib.gp.predictive.UNMODELLED_MODE_RELATIVE_STD` of it.
+        :data:`~robovib.gp.bands.UNMODELLED_MODE_RELATIVE_STD` of it.
 
         Parameters
         ----------
@@ -590,7 +594,7 @@ class ModeSwitchingGPRegressor(BaseEstimator):
         low, high : tuple of numpy.ndarray
             ``(mean, latent_std, noise_std)`` of each mode.
         """
-        from .predictive import UNMODELLED_MODE_RELATIVE_STD, noise_std_of
+        from .bands import UNMODELLED_MODE_RELATIVE_STD, noise_std_of
 
         X = self._check_query(X)
         mean, std = self.low_model_.predict(X, return_std=True)

@@ -2,7 +2,7 @@
 
 A :class:`~robovib.gp.PoseModalModel` file is written and read in full by
 :mod:`robovib.gp._h5` (scikit-learn estimators re-created) and read for prediction only by
-:class:`~robovib.gp.predictor.PosePredictor` (no scikit-learn). Both, and the model itself,
+:class:`~robovib.gp.saved_model.PosePredictor` (no scikit-learn). Both, and the model itself,
 take from here what defines the file: its format tag and version, the classifier feature map
 stored by tag, and the check of a loaded model's inputs. Nothing here imports the readers,
 so they import it without a circle.
@@ -32,7 +32,7 @@ def read_pose_file(path) -> tuple[H5Tree, int]:
     """Open a pose-model file, check its tag and version, and read it whole into memory.
 
     The one reader of the file; :func:`robovib.gp.PoseModalModel.load` (scikit-learn
-    estimators) and :class:`robovib.gp.predictor.PosePredictor` (NumPy ones) interpret what it
+    estimators) and :class:`robovib.gp.saved_model.PosePredictor` (NumPy ones) interpret what it
     returns.
 
     Parameters

@@ -42,13 +42,13 @@ from sklearn.base import BaseEstimator
 from sklearn.exceptions import NotFittedError
 
 from . import _h5
+from .bands import ModalPredictive, noise_std_of
 from .contract import PosePredictionSide
 from .dominant_modes import PoseMode
 from .extrapolation import TrainingRegion
 from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
 from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2
-from .predictive import ModalPredictive, noise_std_of
 from .regressor import BatchedGPRegressor
 
 __all__ = [
@@ -85,8 +85,10 @@ class PoseModalModel(PosePredictionSide, BaseEstimator):
     directions
         Directions modelled; ``Y`` has 3 columns per direction. A multi-mode model uses mode
         ids as directions (``x1``, ``x2``, ``y1``: :func:`robovib.campaign.fit_multimode_pose_model`).
-    kernel
-        ``"ard"`` (one length scale per input) or ``"isotropic"`` (thesis Eq. 7).
+    kernel : {"ard", "isotropic"}
+        The length scales (not the covariance family, which is ``covariance``): ``"ard"``
+        (automatic relevance determination: one length scale per input) or ``"isotropic"``
+        (thesis Eq. 7: one length scale shared by all inputs).
     mode_switch
         ``"auto"``: test each direction for a switch of the dominant mode and model it where
         found (:func:`detect_mode_switch`); ``True``: the same, but fitting fails when no switch
@@ -97,8 +99,9 @@ class PoseModalModel(PosePredictionSide, BaseEstimator):
     rz_symmetric
         The mode classifier sees cos(2 Rz) instead of ``rz_deg`` (Rz and Rz + 180° give the
         same configuration of the arm, as on Table A1). Needs an input named ``"rz_deg"``.
-    covariance
-        Covariance family of the GPs (:mod:`robovib.gp.kernels`): ``"se"`` (thesis Eq. 7),
+    covariance : {"se", "matern52", "matern32", "auto"}
+        The covariance family of the GPs (:mod:`robovib.gp.kernels`; the length scales are
+        ``kernel``): ``"se"`` (squared exponential, thesis Eq. 7),
         ``"matern52"``, ``"matern32"`` or ``"auto"``: chosen per output by the grouped-CV log
         predictive density (needs ``calibrate=True``).
     calibrate
@@ -574,7 +577,7 @@ class PoseModalModel(PosePredictionSide, BaseEstimator):
     def gp_posteriors(self) -> list:
         """Every GP of the model: ``(posterior, noise_std, signal_std, columns, mode)``.
 
-        As :meth:`robovib.gp.predictor.PosePredictor.gp_posteriors` (same order, same numbers):
+        As :meth:`robovib.gp.saved_model.PosePredictor.gp_posteriors` (same order, same numbers):
         ``noise_std`` and ``signal_std`` (B,) in data units (the reference noise group),
         ``columns`` the model outputs of the B targets, ``mode`` 0 for the low (or only) mode
         and 1 for the high mode of a switching direction.

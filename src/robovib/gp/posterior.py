@@ -1,7 +1,7 @@
 """The posterior of a batch of exact GPs (thesis Eq. 9-10): one implementation, NumPy only.
 
 :class:`~robovib.gp.BatchedGPRegressor` (after fitting), the scikit-learn-free
-:class:`~robovib.gp.predictor.PosePredictor` (from a saved file) and next-pose selection
+:class:`~robovib.gp.saved_model.PosePredictor` (from a saved file) and next-pose selection
 (:func:`robovib.campaign.next_poses`) all evaluate the posterior through :class:`GPPosterior`.
 
 Everything is held in the scaled space of the fit (standardised inputs, centred and scaled
@@ -216,8 +216,8 @@ def fitted_posterior(
         Noise groups.
     constant_mean : bool
         Profiled constant mean (else zero mean).
-    covariance : str
-        Covariance family.
+    covariance : {"se", "matern52", "matern32"}
+        The covariance family (:func:`robovib.gp.kernels.correlation`), not the length scales.
     x_loc, x_scale, y_loc, y_scale : numpy.ndarray
         Scaling (:func:`standardisation`).
     linalg : str

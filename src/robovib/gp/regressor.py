@@ -181,8 +181,10 @@ class BatchedGPRegressor(BaseEstimator):
 
     Parameters
     ----------
-    kernel
-        ``"isotropic"`` (thesis Eq. 7: one length scale) or ``"ard"`` (one per input).
+    kernel : {"isotropic", "ard"}
+        The length scales (not the covariance family, which is ``covariance``): ``"isotropic"``
+        (thesis Eq. 7: one length scale shared by all inputs) or ``"ard"`` (automatic relevance
+        determination: one length scale per input).
     mean
         ``"constant"`` (estimated, thesis) or ``"zero"`` (after target centring is disabled,
         exactly the zero-mean GP of scikit-learn).
@@ -206,9 +208,9 @@ class BatchedGPRegressor(BaseEstimator):
         hyperparameters are then (B, G) and ``noise_std`` has that shape.
     rng
         Seed or :class:`numpy.random.Generator` for the restarts.
-    covariance
-        Covariance family (:mod:`robovib.gp.kernels`): ``"se"`` (squared exponential, thesis
-        Eq. 7), ``"matern52"`` or ``"matern32"``.
+    covariance : {"se", "matern52", "matern32"}
+        The covariance family (:mod:`robovib.gp.kernels`; the length scales are ``kernel``):
+        ``"se"`` (squared exponential, thesis Eq. 7), ``"matern52"`` or ``"matern32"``.
 
     Notes
     -----

@@ -65,8 +65,9 @@ class FRFPoseModel(BaseEstimator):
     ----------
     frequency_hz
         The common frequency grid (n_f,) [Hz]: all FRFs must be given on it.
-    kernel
-        ``"isotropic"`` (thesis Eq. 7) or ``"ard"`` (one length scale per pose input).
+    kernel : {"isotropic", "ard"}
+        The length scales of the GP (not its covariance family): one shared by all pose inputs
+        (``"isotropic"``, thesis Eq. 7) or one per pose input (``"ard"``).
     n_restarts, rng
         Passed to :class:`~robovib.gp.BatchedGPRegressor` (2 n_f outputs, 2 noise groups).
     input_names
@@ -467,7 +468,7 @@ class FRFPoseModel(BaseEstimator):
             bin), the EMA (group 0) noise std and the signal std (2 n_f,) [um/N], the output
             columns ``0 .. 2 n_f - 1`` and mode 0.
         """
-        from ..gp.predictive import noise_std_of
+        from ..gp.bands import noise_std_of
 
         self._require_fitted()
         hp = self.gp_.hyperparameters_

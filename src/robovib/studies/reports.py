@@ -22,7 +22,7 @@ def chapter3_study_report(
     Parameters
     ----------
     kernel : {"ard", "isotropic"}
-        GP kernel.
+        The GP length scales (not the covariance family): one per input (ARD) or one shared.
     n_splits : int
         Cross-validation folds, 2-20.
     mode_switch : bool

@@ -200,7 +200,7 @@ class _Switching:
 
     def components(self, X: np.ndarray):
         """``(p_high, low, high)`` as :meth:`ModeSwitchingGPRegressor.components`."""
-        from .predictive import UNMODELLED_MODE_RELATIVE_STD
+        from .bands import UNMODELLED_MODE_RELATIVE_STD
 
         mean, std = self.low.predict(X)
         noise = np.broadcast_to(self.low.noise_std, mean.shape)
@@ -426,7 +426,7 @@ def predict_at(model, pose) -> PosePrediction:
     ----------
     model
         A fitted :class:`robovib.gp.PoseModalModel` or its read-only
-        :class:`robovib.gp.predictor.PosePredictor` (same file, same numbers).
+        :class:`robovib.gp.saved_model.PosePredictor` (same file, same numbers).
     pose
         Mapping input name -> value in the units of the name (``x_mm``, ``rz_deg``, ...).
 

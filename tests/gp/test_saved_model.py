@@ -1,4 +1,4 @@
-"""robovib.gp.predictor: the NumPy-only predictor of a saved pose model.
+"""robovib.gp.saved_model: the NumPy-only predictor of a saved pose model.
 
 References: the full PoseModalModel loaded from the same file (scikit-learn estimators),
 scikit-learn's GaussianProcessClassifier for the Laplace classifier, SciPy's Delaunay
@@ -16,7 +16,7 @@ import pytest
 from robovib.gp import PoseModalModel
 from robovib.gp.chapter3_model import chapter3_model_path, load_chapter3_predictor
 from robovib.gp.extrapolation import _in_hull
-from robovib.gp.predictor import PosePredictor, _LaplaceGPC, predict_at
+from robovib.gp.saved_model import PosePredictor, _LaplaceGPC, predict_at
 
 
 @pytest.fixture(scope="module")
@@ -157,7 +157,7 @@ def test_prediction_imports_neither_scikit_learn_nor_scipy_nor_pandas():
     code = (
         "import sys\n"
         "from robovib.gp.chapter3_model import load_chapter3_predictor\n"
-        "from robovib.gp.predictor import predict_at\n"
+        "from robovib.gp.saved_model import predict_at\n"
         "p = predict_at(load_chapter3_predictor(), {'x_mm': 2400, 'y_mm': 0, 'rz_deg': 45})\n"
         "print(sorted(m for m in ('sklearn', 'scipy', 'pandas') if m in sys.modules))\n"
     )
@@ -171,5 +171,5 @@ def test_gpr_predict_command_imports_neither_scikit_learn_nor_scipy_nor_pandas()
            "--x", "2400", "--y", "0", "--rz", "45", "--json"]  # fmt: skip
     out = subprocess.run(cmd, capture_output=True, text=True, check=True)
     imported = {line.rsplit("|", 1)[-1].strip() for line in out.stderr.splitlines()}
-    assert "robovib.gp.predictor" in imported
+    assert "robovib.gp.saved_model" in imported
     assert not imported & {"sklearn", "scipy", "pandas", "matplotlib"}
