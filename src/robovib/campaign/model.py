@@ -174,7 +174,7 @@ def fit_pose_model_from_table(
     rng
         Seed of the fold shuffle and the optimiser restarts.
     covariance : {"auto", "se", "matern52", "matern32"}
-        The covariance family (:mod:`robovib.gp.kernels`; the length scales are ``kernel``), or
+        The covariance family (:mod:`robovib.gp.covariances`; the length scales are ``kernel``), or
         ``"auto"`` (default): chosen per output by grouped-CV log
         predictive density (:mod:`robovib.gp.calibration`).
 

@@ -8,7 +8,7 @@ from .._lazy import lazy_exports
 
 _WHERE = {
     "BandCalibration": "calibration",
-    "COVARIANCES": "kernels",
+    "COVARIANCES": "covariances",
     "ModalPredictive": "bands",
     "BatchedGPRegressor": "regressor",
     "GPHyperparameters": "regressor",

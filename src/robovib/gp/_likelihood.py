@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels import correlation
+from .covariances import correlation
 
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Target size of the per-chunk work arrays (bytes); a chunk holds at least one row.
@@ -302,7 +302,7 @@ def evaluate(
     ----------
     theta : (k, p) log-hyperparameters [log sf, log l (1 or d), log sn (G)] per row.
     design : :class:`Design` whose per-output arrays have ``k`` rows (see :meth:`Design.take`).
-    covariance : ``"se"``, ``"matern52"`` or ``"matern32"`` (:func:`robovib.gp.kernels.correlation`).
+    covariance : ``"se"``, ``"matern52"`` or ``"matern32"`` (:func:`robovib.gp.covariances.correlation`).
     linalg : ``"scipy"`` or ``"numpy"`` (whose LAPACK factorises; ``"numpy"`` needs
         ``want_grad=False``).
 

@@ -287,7 +287,7 @@ class ModeSwitchingGPRegressor(BaseEstimator):
     n_noise_groups
         Number of noise groups (``fit(..., groups=...)``), passed to the regressors.
     covariance : {"se", "matern52", "matern32"}
-        The covariance family of both modes' GPs (:mod:`robovib.gp.kernels`; the length
+        The covariance family of both modes' GPs (:mod:`robovib.gp.covariances`; the length
         scales are ``kernel``).
 
     Attributes

@@ -44,9 +44,9 @@ from sklearn.exceptions import NotFittedError
 from . import _h5
 from .bands import ModalPredictive, noise_std_of
 from .contract import PosePredictionSide
+from .covariances import COVARIANCES
 from .dominant_modes import PoseMode
 from .extrapolation import TrainingRegion
-from .kernels import COVARIANCES
 from .mode_switch import ModeSwitchDetection, ModeSwitchingGPRegressor, detect_mode_switch
 from .pose_file import FORMAT, FORMAT_VERSION, _RzCos2
 from .regressor import BatchedGPRegressor
@@ -100,7 +100,7 @@ class PoseModalModel(PosePredictionSide, BaseEstimator):
         The mode classifier sees cos(2 Rz) instead of ``rz_deg`` (Rz and Rz + 180° give the
         same configuration of the arm, as on Table A1). Needs an input named ``"rz_deg"``.
     covariance : {"se", "matern52", "matern32", "auto"}
-        The covariance family of the GPs (:mod:`robovib.gp.kernels`; the length scales are
+        The covariance family of the GPs (:mod:`robovib.gp.covariances`; the length scales are
         ``kernel``): ``"se"`` (squared exponential, thesis Eq. 7),
         ``"matern52"``, ``"matern32"`` or ``"auto"``: chosen per output by the grouped-CV log
         predictive density (needs ``calibrate=True``).

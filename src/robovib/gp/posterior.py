@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _likelihood
-from .kernels import correlation
+from .covariances import correlation
 
 __all__ = ["GPPosterior", "fitted_posterior", "standardisation", "theta_from_hyperparameters"]
 
@@ -53,7 +53,7 @@ class GPPosterior:
     chol_inv
         (B, n, n) ``L⁻¹`` (zero columns where a target is unobserved).
     covariance
-        Covariance family (:func:`robovib.gp.kernels.correlation`).
+        Covariance family (:func:`robovib.gp.covariances.correlation`).
     """
 
     x_loc: np.ndarray
@@ -217,7 +217,7 @@ def fitted_posterior(
     constant_mean : bool
         Profiled constant mean (else zero mean).
     covariance : {"se", "matern52", "matern32"}
-        The covariance family (:func:`robovib.gp.kernels.correlation`), not the length scales.
+        The covariance family (:func:`robovib.gp.covariances.correlation`), not the length scales.
     x_loc, x_scale, y_loc, y_scale : numpy.ndarray
         Scaling (:func:`standardisation`).
     linalg : str

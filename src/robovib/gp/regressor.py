@@ -49,7 +49,7 @@ from sklearn.exceptions import NotFittedError
 
 from .._threads import single_blas_thread
 from . import _likelihood
-from .kernels import COVARIANCES, correlation
+from .covariances import COVARIANCES, correlation
 from .optimize import batched_bfgs
 from .posterior import fitted_posterior, standardisation, theta_from_hyperparameters
 
@@ -209,7 +209,7 @@ class BatchedGPRegressor(BaseEstimator):
     rng
         Seed or :class:`numpy.random.Generator` for the restarts.
     covariance : {"se", "matern52", "matern32"}
-        The covariance family (:mod:`robovib.gp.kernels`; the length scales are ``kernel``):
+        The covariance family (:mod:`robovib.gp.covariances`; the length scales are ``kernel``):
         ``"se"`` (squared exponential, thesis Eq. 7), ``"matern52"`` or ``"matern32"``.
 
     Notes

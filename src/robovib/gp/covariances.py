@@ -1,6 +1,7 @@
 """Stationary covariance functions of the GP pose models, on squared scaled distances (NumPy only).
 
-One place for the kernel of every GP in robovib: the likelihood core
+The covariance families (``covariance=``; the length scales, ``kernel="ard"`` or
+``"isotropic"``, are the estimators'), in one place for every GP in robovib: the likelihood core
 (:mod:`robovib.gp._likelihood`), the estimator's posterior (:class:`~robovib.gp.BatchedGPRegressor`),
 the scikit-learn-free predictor (:mod:`robovib.gp.saved_model`) and next-pose selection all call
 :func:`correlation`.
@@ -58,7 +59,7 @@ def correlation(r2: np.ndarray, covariance: str = "se", *, with_gradient: bool =
     Examples
     --------
     >>> import numpy as np
-    >>> from robovib.gp.kernels import correlation
+    >>> from robovib.gp.covariances import correlation
     >>> float(correlation(np.array(0.0), "matern52"))
     1.0
     """
