@@ -7,15 +7,15 @@ import json
 import numpy as np
 import pytest
 
-from robovib.control.controllers import PathCursor, ScheduledTable
-from robovib.control.path_design import ControlPath, PathDesign
-from robovib.control.runtime import (
-    RuntimeController,
+from robovib.control.controller_file import (
     design_controller,
     load_controller,
-    replay,
     write_controller_file,
 )
+from robovib.control.controllers import PathCursor, ScheduledTable
+from robovib.control.cut_replay import replay
+from robovib.control.path_design import ControlPath, PathDesign
+from robovib.control.runtime import RuntimeController
 from robovib.gp.dominant_modes import PoseMode
 from robovib.modal.parameters import ModalParameters
 
@@ -268,7 +268,6 @@ def test_replay_of_a_cut_logged_without_the_controller_feeds_it_the_corrections_
     against SciPy's ZOH discretisation and dlsim, not robovib's)."""
     from scipy import signal
 
-    from robovib.control.runtime import replay
     from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
     from robovib.sim.disturbances import REALISTIC_LEVELS
 
