@@ -141,6 +141,7 @@ def _amplification(a, b, max_ratio: float, z_score: float) -> AmplificationTest:
                              bool(ratio > max_ratio and effect > resolution))  # fmt: skip
 
 
+@dataclass(frozen=True)
 class GuardEvent:
     """A change of the :class:`FadeGuard`'s target: at ``time_s`` [s], to ``target`` (0 or 1).
 
