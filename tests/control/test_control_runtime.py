@@ -309,3 +309,13 @@ def test_replay_of_a_cut_logged_without_the_controller_feeds_it_the_corrections_
     np.testing.assert_array_equal(with_it.tracker_fed_m, logged)
     with pytest.raises(ValueError, match="record_made"):
         replay(load_controller(path), record, spindle_rpm=250.0, record_made="maybe")
+
+
+def test_the_closed_loop_study_reads_a_controller_file_through_the_library(tmp_path):
+    """``control simulate milling --controller-file`` reaches the library's loader: a missing
+    file is the loader's error, not an import error of the study (it imported
+    ``robovib.studies.control.runtime``, which does not exist)."""
+    from robovib.studies.control import simulate_control
+
+    with pytest.raises(ValueError, match="no such controller file"):
+        simulate_control("milling", controller_file=tmp_path / "missing.json")
