@@ -20,10 +20,11 @@ import tracemalloc
 
 import numpy as np
 
+from robovib.control.controller_file import design_controller
 from robovib.control.controllers import ScheduledTable  # noqa: F401  (warm the import)
 from robovib.control.design import assemble_controller
 from robovib.control.path_design import ControlPath
-from robovib.control.runtime import RuntimeController, design_controller
+from robovib.control.runtime import RuntimeController
 from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
 from robovib.sim import POSITION_1_S_M, REALISTIC_LEVELS, VirtualRobot, path_modal_model
 

@@ -103,8 +103,8 @@ class _TruthModel:
 
 
 def oracle_file(path: tuple[str, str], out: Path, controller: str) -> Path:
+    from robovib.control.controller_file import design_controller, write_controller_file
     from robovib.control.path_design import ControlPath
-    from robovib.control.runtime import design_controller, write_controller_file
     from robovib.sim.truth import VirtualRobot
 
     model = _TruthModel(VirtualRobot())
@@ -116,7 +116,7 @@ def oracle_file(path: tuple[str, str], out: Path, controller: str) -> Path:
 
 def compare_modes(ctl: Path) -> None:
     """The file's modes along its path against the virtual robot's truth."""
-    from robovib.control.runtime import load_controller
+    from robovib.control.controller_file import load_controller
     from robovib.sim.truth import VirtualRobot
 
     rt = load_controller(ctl)

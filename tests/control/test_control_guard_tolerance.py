@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from robovib.control.adaptive import FadeGuard, PeriodTracker, amplification_test
+from robovib.control.adaptive import PeriodTracker
+from robovib.control.guard import FadeGuard, amplification_test
 
 
 def _ar1(rng, n, phi):

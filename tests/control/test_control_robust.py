@@ -12,13 +12,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from robovib.control.adaptive import (
-    FadeGuard,
-    PeriodTracker,
-    TrackingRepetitive,
-    estimate_period,
-)
+from robovib.control.adaptive import PeriodTracker, TrackingRepetitive, estimate_period
 from robovib.control.controllers import RepetitiveFeedback, ScheduledTable
+from robovib.control.guard import FadeGuard
 from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
 from robovib.modal.parameters import ModalParameters
 from robovib.sim import (

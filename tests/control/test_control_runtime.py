@@ -7,15 +7,15 @@ import json
 import numpy as np
 import pytest
 
-from robovib.control.controllers import PathCursor, ScheduledTable
-from robovib.control.path_design import ControlPath, PathDesign
-from robovib.control.runtime import (
-    RuntimeController,
+from robovib.control.controller_file import (
     design_controller,
     load_controller,
-    replay,
     write_controller_file,
 )
+from robovib.control.controllers import PathCursor, ScheduledTable
+from robovib.control.cut_replay import replay
+from robovib.control.path_design import ControlPath, PathDesign
+from robovib.control.runtime import RuntimeController
 from robovib.gp.dominant_modes import PoseMode
 from robovib.modal.parameters import ModalParameters
 
@@ -268,7 +268,6 @@ def test_replay_of_a_cut_logged_without_the_controller_feeds_it_the_corrections_
     against SciPy's ZOH discretisation and dlsim, not robovib's)."""
     from scipy import signal
 
-    from robovib.control.runtime import replay
     from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
     from robovib.sim.disturbances import REALISTIC_LEVELS
 
@@ -310,3 +309,13 @@ def test_replay_of_a_cut_logged_without_the_controller_feeds_it_the_corrections_
     np.testing.assert_array_equal(with_it.tracker_fed_m, logged)
     with pytest.raises(ValueError, match="record_made"):
         replay(load_controller(path), record, spindle_rpm=250.0, record_made="maybe")
+
+
+def test_the_closed_loop_study_reads_a_controller_file_through_the_library(tmp_path):
+    """``control simulate milling --controller-file`` reaches the library's loader: a missing
+    file is the loader's error, not an import error of the study (it imported
+    ``robovib.studies.control.runtime``, which does not exist)."""
+    from robovib.studies.control import simulate_control
+
+    with pytest.raises(ValueError, match="no such controller file"):
+        simulate_control("milling", controller_file=tmp_path / "missing.json")

@@ -130,8 +130,8 @@ def design(
     json_out: JsonFlag = False,
 ) -> None:
     """A controller file from your pose model along your path (gains, tracker, guard, checks)."""
+    from ..control.controller_file import design_controller, write_controller_file
     from ..control.path_design import ControlPath
-    from ..control.runtime import design_controller, write_controller_file
     from ..io import to_si
 
     inputs = [p for p in (path_file, model_path) if p is not None]
@@ -219,7 +219,8 @@ def replay_cmd(
 ) -> None:
     """What the controller would have commanded on a logged cut, what its guard did, and the
     vibration the model predicts with the correction."""
-    from ..control.runtime import load_controller, replay
+    from ..control.controller_file import load_controller
+    from ..control.cut_replay import replay
     from ..io import read_milling_record_csv
 
     check_output(output, [controller_file, record], force)

@@ -3,7 +3,8 @@
 * :mod:`~robovib.control.lqr`: LQR, delay analysis and delay-aware designs;
 * :mod:`~robovib.control.schedule`: gain schedules over a path or a line through the workspace;
 * :mod:`~robovib.control.controllers` and :mod:`~robovib.control.adaptive`: run-time
-  controllers (state feedback, LQG, feedforward, repetitive, period tracking, fade-out guard);
+  controllers (state feedback, LQG, feedforward, repetitive, period tracking);
+  :mod:`~robovib.control.guard`: the fade-out guard and its amplification test;
   :mod:`~robovib.control.loop_analysis`: their closed-loop matrices, learning-loop radii and
   the tuned design; :mod:`~robovib.control.scheduled`: gains scheduled along the path, looked
   up for a planned run or live;
@@ -15,9 +16,12 @@
   over one path design: the modes along the path computed once, names checked first
   (:func:`~robovib.control.design.build_controllers` for the closed-loop studies);
 * :mod:`~robovib.control.path_design`: a path through any pose model (dominant or multi-mode);
-* :mod:`~robovib.control.runtime`: controller files (:func:`~robovib.control.runtime.design_controller`),
-  the run-time controller an RSI bridge calls (:func:`~robovib.control.runtime.load_controller`,
-  ``reset`` / ``step``) and :func:`~robovib.control.runtime.replay` over a logged cut;
+* :mod:`~robovib.control.controller_file`: controller files
+  (:func:`~robovib.control.controller_file.design_controller`,
+  :func:`~robovib.control.controller_file.load_controller`) in the format of
+  :mod:`~robovib.control.controller_format`; :mod:`~robovib.control.runtime`: the run-time
+  controller an RSI bridge calls (``reset`` / ``step``);
+  :func:`~robovib.control.cut_replay.replay` over a logged cut;
 * :mod:`~robovib.control.protocol`: the ``Controller`` (planned run) and ``StepController``
   (run time) protocols.
 
@@ -30,8 +34,9 @@ from .._lazy import lazy_exports
 
 _WHERE = {
     **dict.fromkeys(
-        ["FadeGuard", "GuardEvent", "PeriodTracker", "TrackingFeedforward",
-         "TrackingRepetitive", "estimate_period"], "adaptive"),
+        ["PeriodTracker", "TrackingFeedforward", "TrackingRepetitive", "estimate_period"],
+        "adaptive"),
+    **dict.fromkeys(["FadeGuard", "GuardEvent"], "guard"),
     "stability_over_band": "band_stability",
     **dict.fromkeys(
         ["THESIS_OFFSET_MASS_GAINS", "THESIS_OFFSET_MASS_MODE", "operating_mode",
@@ -46,9 +51,10 @@ _WHERE = {
          "check_controller_names", "design_tables", "thesis_printed_gains"], "design"),
     **dict.fromkeys(["ControlPath", "PathDesign"], "path_design"),
     **dict.fromkeys(["Controller", "StepController"], "protocol"),
-    **dict.fromkeys(
-        ["Measurement", "ReplayResult", "RuntimeController", "design_controller",
-         "load_controller", "replay", "write_controller_file"], "runtime"),
+    **dict.fromkeys(["design_controller", "load_controller", "write_controller_file"],
+                    "controller_file"),
+    **dict.fromkeys(["ReplayResult", "replay"], "cut_replay"),
+    **dict.fromkeys(["Measurement", "RuntimeController"], "runtime"),
     **dict.fromkeys(
         ["ForceModelFeedforward", "force_model_r", "force_model_variance_ratio",
          "unpredictable_fraction"], "force_model"),

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..modal.parameters import ModalParameters
-from .adaptive import FadeGuard, PeriodTracker, TrackingFeedforward, TrackingRepetitive
+from .adaptive import PeriodTracker, TrackingFeedforward, TrackingRepetitive
 from .controllers import (
     Combined,
     DelayAwareFeedback,
@@ -33,6 +33,7 @@ from .controllers import (
     spectral_radius,
 )
 from .force_model import ForceModelFeedforward, force_model_r
+from .guard import FadeGuard
 from .lqr import design_delay_aware_lqr
 from .pose_plants import path_mode
 from .pose_plants import plant_set as _model_set
@@ -381,7 +382,7 @@ _NEEDS_EXCITATION = {
 #: Default period-tracker settings (:class:`~robovib.control.adaptive.PeriodTracker`).
 TRACKER_DEFAULTS = {"rel_range": 0.1, "window_periods": 2.0, "update_periods": 1.0,
                     "smoothing": 0.5}  # fmt: skip
-#: Default fade-out guard settings (:class:`~robovib.control.adaptive.FadeGuard`).
+#: Default fade-out guard settings (:class:`~robovib.control.guard.FadeGuard`).
 GUARD_DEFAULTS = {"min_periodicity": 0.5, "max_ratio": 1.0, "z_score": 1.0, "window_s": 0.5,
                   "check_s": 0.1, "fade_time_s": 0.2, "warmup_s": 0.5}  # fmt: skip
 

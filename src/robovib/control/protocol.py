@@ -7,7 +7,7 @@
   ``command(k, tracker_m, force_n) -> (3,)`` at command instant ``k`` with the tracker [m]
   and force [N] samples (m, 3) of the period that ends now, returning the correction [m].
   Every class of :mod:`robovib.control.controllers` and :mod:`robovib.control.adaptive`
-  follows it.
+  follows it, and :class:`~robovib.control.guard.FadeGuard`.
 * :class:`StepController` — a controller at run time (what a KUKA RSI/EKI bridge calls):
   ``reset()`` then ``step(measurement) -> (3,)`` correction [mm], one call per command
   cycle; :class:`~robovib.control.runtime.RuntimeController` follows it.

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from ...control.adaptive import FadeGuard
 from ...control.design import build_controllers
+from ...control.guard import FadeGuard
 from ...gp import PoseModalModel
 from ...milling.forces import ACETAL, CuttingCoefficients, CuttingConditions, MillingTool
 from ...sim import (

@@ -227,7 +227,8 @@ def file_milling_positions(runtime, cut_length_m: float = 0.05) -> tuple:
 
 
 def _simulate_file(controller_file, channel, actuator, disturbances, keep_traces, rng):
-    from ..control.runtime import RuntimeController, load_controller
+    from ...control.controller_file import load_controller
+    from ...control.runtime import RuntimeController
 
     runtime = (controller_file if isinstance(controller_file, RuntimeController)
                else load_controller(controller_file))  # fmt: skip
