@@ -173,6 +173,14 @@ def main(argv=None) -> None:
     )
     ap.add_argument("--shared-fractions", default="",
                     help="also: the Brier before/after 5 test cuts with these shares, e.g. 0.5")  # fmt: skip
+    ap.add_argument("--factor-grid", type=int, default=0,
+                    help="also: the Brier with the process factor integrated on this many grid "
+                         "points (robovib.milling.factor_grid), e.g. 32")  # fmt: skip
+    ap.add_argument(
+        "--brier-only",
+        action="store_true",
+        help="stop after the Brier tables (no re-plan, no detection table)",
+    )
     ap.add_argument(
         "--robot-seed",
         type=int,
@@ -319,6 +327,72 @@ def main(argv=None) -> None:
         f"| after {args.test_cuts} test cuts, simulated labels (label noise 0.05) | {b2:.3f} | "
         f"{ev_stable.mean():.2f} | {p2.mean():.2f} |"
     )
+    if args.factor_grid:
+        # Rao-Blackwellised: the same structures and test cuts, the factor on a grid
+        from robovib.milling.factor_grid import factor_grid_posterior, unscaled_limits
+
+        qr = tuple(prior.settings["process_factor_range"])
+        t_lim = np.column_stack([
+            unscaled_limits(prior, cand_pose[i : i + 1], [cand_rpm[i]], tool, cond, coef)[:, 0, 0]
+            for i in idx])  # fmt: skip
+        e_lim = np.column_stack([
+            unscaled_limits(prior, ev_pose[k : k + 1], [ev_rpm[k]], tool, cond, coef)[:, 0, 0]
+            for k in range(len(rows))])  # fmt: skip
+        g = []
+        for labels_v, noise in (([], 0.05), (labels, args.label_noise), (sim_labels, 0.05)):
+            if labels_v:
+                g.append(
+                    factor_grid_posterior(
+                        t_lim,
+                        tdepth,
+                        np.array(labels_v),
+                        process_factor=qr,
+                        n_factors=args.factor_grid,
+                        label_noise=noise,
+                    )
+                )
+            else:  # the prior: no cuts
+                g.append(
+                    factor_grid_posterior(
+                        t_lim[:, :0],
+                        tdepth[:0],
+                        np.zeros(0, bool),
+                        process_factor=qr,
+                        n_factors=args.factor_grid,
+                    )
+                )
+        pg = [gp.p_stable(e_lim, ev_depth) for gp in g]
+        bg = [brier(p_, ev_stable) for p_ in pg]
+        print(
+            f"\n## process factor on a {args.factor_grid}-point grid (same structures, test "
+            "cuts and evaluation cuts)"
+        )
+        print("| forecast | Brier | mean P(stable) | ESS (structure x factor) | ESS (structures) |")
+        print("|---|---|---|---|---|")
+        for name, b_, p_, gp in zip(
+            ("prior", "after, detected labels", "after, simulated labels"), bg, pg, g, strict=True
+        ):
+            print(f"| {name} | {b_:.3f} | {p_.mean():.2f} | {gp.effective_sample_size:.0f} | "
+                  f"{gp.structure_effective_sample_size:.1f} |")  # fmt: skip
+        print(
+            "| depth / truth's limit | mean P(stable) prior | after (detected) | after (simulated) |"
+        )
+        print("|---|---|---|---|")
+        ev_fac_g = np.array([r[3] for r in rows])
+        for f_ in FACTORS:
+            s_ = ev_fac_g == f_
+            print(f"| {f_:g} | {pg[0][s_].mean():.2f} | {pg[1][s_].mean():.2f} | "
+                  f"{pg[2][s_].mean():.2f} |")  # fmt: skip
+        print(
+            f"grid Brier improvement over the grid prior: {100 * (1 - bg[1] / bg[0]):.0f} % "
+            f"(detected), {100 * (1 - bg[2] / bg[0]):.0f} % (simulated); over the sampled "
+            f"prior: {100 * (1 - bg[1] / b0):.0f} %, {100 * (1 - bg[2] / b0):.0f} %"
+        )
+        fp = g[2].factor_posterior()
+        print(
+            f"factor posterior (simulated labels): mean {np.sum(fp * g[2].factors):.2f}, "
+            f"sd {np.sqrt(np.sum(fp * g[2].factors ** 2) - np.sum(fp * g[2].factors) ** 2):.2f}"
+        )
     ev_fac = np.array([r[3] for r in rows])
     print("| depth / truth's limit | cuts | stable | mean P(stable) prior | after (detected) | "
           "after (simulated) |")  # fmt: skip
@@ -359,6 +433,9 @@ def main(argv=None) -> None:
             print(f"| {rho:g} | {bb[0]:.3f} | {bb[1]:.3f} | {100 * (1 - bb[1] / bb[0]):.0f} % | "
                   f"{bb[2]:.3f} | {100 * (1 - bb[2] / bb[0]):.0f} % |")  # fmt: skip
 
+    if args.brier_only:
+        print(f"\ntotal {time.perf_counter() - t_start:.0f} s")
+        return
     plans1 = plan_all(upd.structures)
     _, det_plan1 = check(plans1, "after test cuts (re-planned)")
 

@@ -1,0 +1,245 @@
+"""Test cuts with the process factor integrated on a grid (Rao-Blackwellised posterior, issue 39).
+
+Each sampled structure ``s`` (:func:`robovib.milling.structures.sample_structures`) has a
+linear limit ``a_s`` at a pose and speed, and the limit used is ``q a_s`` with the process
+factor ``q`` log-uniform on ``(low, high)``. :func:`robovib.milling.cut_posterior.update_with_cuts`
+draws one ``q_s`` per structure, so a few cuts that mostly learn ``q`` leave few structures
+with weight. Since the limit scales exactly with ``q``, the factor is integrated here on ``K``
+stratified quantiles instead (the midpoints of ``K`` equally probable bins of the
+log-uniform)::
+
+    q_k = low (high / low)^((k + 1/2) / K),   k = 0 .. K-1,   prior weight 1 / (S K)
+
+A test cut ``i`` at depth ``d_i`` with result ``y_i`` has under ``(s, k)`` the likelihood of
+:mod:`robovib.milling.cut_posterior` (label-noise rate ``eps``)::
+
+    P(y_i = chatter | s, k) = 1 - eps   if d_i >= q_k a_si,   eps   otherwise
+
+    W_sk ∝ W0_sk prod_i P(y_i | s, k)
+
+and P(stable) at depth ``d`` is ``sum_sk W_sk [q_k a_s > d]``. The linear limits are computed
+once per structure (``StructureSamples.limits / process_factor``); the grid costs only the
+products with the ``K`` factors. As ``K`` grows the prior P(stable) tends to the Monte-Carlo
+average over independent factor draws (the stratified grid's error is at most ``1 / K`` per
+structure).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = [
+    "FactorGridPosterior",
+    "factor_grid",
+    "factor_grid_posterior",
+    "unscaled_limits",
+]
+
+
+def factor_grid(
+    process_factor: tuple[float, float] = (0.5, 1.5), n_factors: int = 32
+) -> np.ndarray:
+    """Stratified quantiles of the log-uniform process factor (module docs).
+
+    Parameters
+    ----------
+    process_factor : (low, high)
+        Range of the log-uniform factor, ``0 < low <= high``.
+    n_factors : int
+        Grid points ``K >= 1`` (equally probable bins, one point at each bin's median).
+
+    Returns
+    -------
+    numpy.ndarray
+        (K,) factors, increasing.
+    """
+    lo, hi = (float(v) for v in process_factor)
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi):
+        raise ValueError(f"process_factor must be 0 < low <= high, got {process_factor}")
+    k = int(n_factors)
+    if k < 1 or k != n_factors:
+        raise ValueError(f"n_factors must be an integer >= 1, got {n_factors!r}")
+    u = (np.arange(k) + 0.5) / k
+    return np.exp(np.log(lo) + u * (np.log(hi) - np.log(lo)))
+
+
+def unscaled_limits(structures, poses, spindle_rpm, tool, conditions, coefficients,
+                    **kwargs) -> np.ndarray:  # fmt: skip
+    """(S, P, J) linear limits [m] of the structures, without their own process factor.
+
+    Parameters
+    ----------
+    structures : StructureSamples
+        The structures.
+    poses, spindle_rpm, tool, conditions, coefficients, **kwargs
+        As :meth:`robovib.milling.structures.StructureSamples.limits`.
+
+    Returns
+    -------
+    numpy.ndarray
+        The limits divided by each structure's drawn factor.
+    """
+    lim = structures.limits(poses, spindle_rpm, tool, conditions, coefficients, **kwargs)
+    return lim / np.asarray(structures.process_factor, float)[:, None, None]
+
+
+@dataclass(frozen=True)
+class FactorGridPosterior:
+    """Weights over structures x process factors (module docs).
+
+    Attributes
+    ----------
+    factors
+        (K,) the factor grid.
+    weights
+        (S, K) normalised weights.
+    prior_weights
+        (S, K) the weights before the cuts.
+    label_noise
+        The label-noise rate used.
+    settings
+        How the grid and the likelihood were set.
+    """
+
+    factors: np.ndarray
+    weights: np.ndarray
+    prior_weights: np.ndarray
+    label_noise: float
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def effective_sample_size(self) -> float:
+        """Kish's effective sample size over (structure, factor) pairs, ``1 / sum W^2``."""
+        return float(1.0 / np.sum(self.weights**2))
+
+    @property
+    def structure_effective_sample_size(self) -> float:
+        """Kish's effective sample size of the structures' marginal weights ``sum_k W_sk``."""
+        return float(1.0 / np.sum(self.weights.sum(axis=1) ** 2))
+
+    @property
+    def information_nats(self) -> float:
+        """Kullback-Leibler divergence of the posterior from the prior weights [nats]."""
+        w, w0 = self.weights, self.prior_weights
+        keep = w > 0
+        return float(np.sum(w[keep] * np.log(w[keep] / w0[keep])))
+
+    def factor_posterior(self) -> np.ndarray:
+        """The marginal posterior of the process factor on the grid, ``sum_s W_sk``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (K,) probabilities of the grid points ``factors``.
+        """
+        return self.weights.sum(axis=0)
+
+    def p_stable(self, unscaled_limits_m, depth_m) -> np.ndarray:
+        """P(stable) = ``sum_sk W_sk [q_k a_s > d]``.
+
+        Parameters
+        ----------
+        unscaled_limits_m : array_like
+            (S, ...) linear limits [m] without a process factor (:func:`unscaled_limits`).
+        depth_m : array_like
+            Depths [m], broadcast against ``unscaled_limits_m[0]``.
+
+        Returns
+        -------
+        numpy.ndarray
+            The shape of ``unscaled_limits_m[0]`` broadcast with ``depth_m``.
+        """
+        lim = _checked_limits(unscaled_limits_m, self.weights.shape[0])
+        d = np.asarray(depth_m, float)
+        if np.any(np.isnan(d)):
+            raise ValueError("depth_m contains NaN")
+        # q_k a_s > d for every grid point, weighted (as cut_posterior.p_stable, per factor)
+        out = 0.0
+        for k, q in enumerate(self.factors):
+            stable = (q * lim > d[None]).astype(float)
+            out = out + np.tensordot(self.weights[:, k], stable, axes=(0, 0))
+        out = np.asarray(out, float)
+        return out
+
+
+def _checked_limits(limits_m, n_structures: int) -> np.ndarray:
+    lim = np.asarray(limits_m, float)
+    if lim.ndim < 1 or lim.shape[0] != n_structures:
+        raise ValueError(f"limits must have {n_structures} structures first, got {lim.shape}")
+    if np.any(np.isnan(lim)) or np.any(lim <= 0):
+        raise ValueError("limits must be positive (inf: no lobe), without NaN")
+    return lim
+
+
+def factor_grid_posterior(
+    unscaled_limits_m,
+    depth_m,
+    chatter,
+    *,
+    process_factor: tuple[float, float] = (0.5, 1.5),
+    n_factors: int = 32,
+    label_noise: float = 0.05,
+    prior_weights=None,
+) -> FactorGridPosterior:
+    """Posterior over structures x factor grid given test cuts (module docs).
+
+    Parameters
+    ----------
+    unscaled_limits_m : array_like
+        (S, n_cuts) linear limits [m] of each structure at each cut's pose and speed, without
+        a process factor (:func:`unscaled_limits`; inf: no lobe).
+    depth_m : array_like
+        (n_cuts,) the cuts' depths [m].
+    chatter : array_like
+        (n_cuts,) bool, the observed results.
+    process_factor : (low, high)
+        Range of the log-uniform factor (as the structures were drawn with).
+    n_factors : int
+        Grid points ``K``.
+    label_noise : float
+        Probability that a cut's label disagrees with the limit (0 < eps < 0.5).
+    prior_weights : array_like, optional
+        (S,) structure weights before the cuts (default uniform).
+
+    Returns
+    -------
+    FactorGridPosterior
+    """
+    if not 0 < label_noise < 0.5:
+        raise ValueError(f"label_noise must be in (0, 0.5), got {label_noise!r}")
+    q = factor_grid(process_factor, n_factors)
+    lim = np.asarray(unscaled_limits_m, float)
+    if lim.ndim != 2:
+        raise ValueError(f"unscaled_limits_m must be (S, n_cuts), got shape {lim.shape}")
+    lim = _checked_limits(lim, lim.shape[0])
+    d = np.asarray(depth_m, float)
+    y = np.asarray(chatter)
+    if d.shape != (lim.shape[1],) or y.shape != (lim.shape[1],):
+        raise ValueError(
+            f"depth_m and chatter must be ({lim.shape[1]},) like the limits' cuts; got "
+            f"{d.shape} and {y.shape}"
+        )
+    if not np.all(np.isfinite(d) & (d > 0)):
+        raise ValueError("depth_m must be positive and finite")
+    if y.dtype != bool:
+        raise ValueError(f"chatter must be bool, got dtype {y.dtype}")
+    s = lim.shape[0]
+    w0s = np.full(s, 1.0 / s) if prior_weights is None else np.asarray(prior_weights, float)
+    if w0s.shape != (s,) or np.any(~np.isfinite(w0s)) or np.any(w0s < 0) or w0s.sum() <= 0:
+        raise ValueError(f"prior_weights must be ({s},) finite, >= 0, not all zero")
+    w0 = np.outer(w0s / w0s.sum(), np.full(q.size, 1.0 / q.size))
+    predicted = d[None, None, :] >= q[None, :, None] * lim[:, None, :]  # (S, K, n_cuts)
+    agree = predicted == y[None, None, :]
+    loglik = np.where(agree, np.log1p(-label_noise), np.log(label_noise)).sum(axis=2)
+    with np.errstate(divide="ignore"):
+        logw = np.log(w0) + loglik
+    w = np.exp(logw - logw.max())
+    return FactorGridPosterior(
+        q, w / w.sum(), w0, float(label_noise),
+        {"process_factor_range": [float(process_factor[0]), float(process_factor[1])],
+         "n_factors": int(q.size),
+         "grid": "stratified quantiles of the log-uniform (bin medians)",
+         "likelihood": "label noise eps: P(observed = predicted) = 1 - eps"},
+    )  # fmt: skip

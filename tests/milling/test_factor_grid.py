@@ -1,0 +1,150 @@
+"""The process factor integrated on a grid (issue 39): against direct numerical integration over
+the log-uniform factor (SciPy quad), against independent Monte-Carlo draws of the factor, and
+bad input refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import integrate, stats
+
+from robovib.milling.factor_grid import factor_grid, factor_grid_posterior, unscaled_limits
+
+LO, HI = 0.5, 1.5
+
+
+def test_grid_points_are_the_bin_medians_of_the_log_uniform():
+    q = factor_grid((LO, HI), 8)
+    expected = stats.loguniform(LO, HI).ppf((np.arange(8) + 0.5) / 8)
+    np.testing.assert_allclose(q, expected, rtol=1e-12)
+    assert factor_grid((1.0, 1.0), 3) == pytest.approx([1.0, 1.0, 1.0])
+
+
+def _reference_p_stable(limit, depths, chatter, eps, depth):
+    """One structure of linear limit ``limit``: P(stable at depth | cuts) by quad over log q."""
+    lo, hi = np.log(LO), np.log(HI)
+
+    def lik(t):
+        q = np.exp(t)
+        pred = depths >= q * limit
+        return np.prod(np.where(pred == chatter, 1 - eps, eps))
+
+    breaks = sorted({np.log(d / limit) for d in [*depths, depth] if lo < np.log(d / limit) < hi})
+    norm = integrate.quad(lik, lo, hi, points=breaks or None, limit=200)[0]
+    t_d = np.log(depth / limit)  # stable where q limit > depth: t > t_d
+    upper = integrate.quad(lik, max(lo, t_d), hi, points=[b for b in breaks if b > t_d] or None,
+                           limit=200)[0] if t_d < hi else 0.0  # fmt: skip
+    return upper / norm
+
+
+@pytest.mark.parametrize(
+    ("depths_mm", "chatter"),
+    [([3.0, 4.5], [False, True]), ([2.0, 2.6, 3.3, 4.0], [False, True, False, True])],
+)
+def test_one_structure_posterior_matches_direct_integration(depths_mm, chatter):
+    limit = 4e-3
+    d = np.array(depths_mm) * 1e-3
+    y = np.array(chatter)
+    k = 4000
+    post = factor_grid_posterior(np.full((1, d.size), limit), d, y, process_factor=(LO, HI),
+                                 n_factors=k, label_noise=0.1)  # fmt: skip
+    for depth in (2.2e-3, 3.1e-3, 3.9e-3, 5.5e-3):
+        ref = _reference_p_stable(limit, d, y, 0.1, depth)
+        # a stratified grid misplaces at most one bin's mass per break (cuts + the depth)
+        assert post.p_stable(np.array([limit]), depth) == pytest.approx(ref, abs=(d.size + 2) / k)
+    # the factor's posterior mean against quad as well
+    lo, hi = np.log(LO), np.log(HI)
+
+    def lik(t):
+        return np.prod(np.where((d >= np.exp(t) * limit) == y, 0.9, 0.1))
+
+    num = integrate.quad(lambda t: np.exp(t) * lik(t), lo, hi, limit=200)[0]
+    den = integrate.quad(lik, lo, hi, limit=200)[0]
+    fp = post.factor_posterior()
+    assert np.sum(fp * post.factors) == pytest.approx(num / den, rel=1e-3)
+
+
+def test_prior_p_stable_tends_to_monte_carlo_over_independent_factor_draws():
+    gen = np.random.default_rng(3)
+    s = 40
+    lim = gen.uniform(1e-3, 6e-3, (s, 3))
+    lim[5, 1] = np.inf  # no lobe: stable at any depth
+    depth = np.array([1.5e-3, 2.5e-3, 4.0e-3])
+    prior = factor_grid_posterior(lim[:, :0], depth[:0], np.zeros(0, bool),
+                                  process_factor=(LO, HI), n_factors=512)  # fmt: skip
+    # an independent reference: (structure, factor) pairs drawn at random
+    n = 400_000
+    which = gen.integers(0, s, n)
+    q = stats.loguniform(LO, HI).rvs(n, random_state=gen)
+    mc = np.mean(q[:, None] * lim[which] > depth[None, :], axis=0)
+    p = prior.p_stable(lim, depth)
+    assert p.shape == (3,)
+    np.testing.assert_allclose(p, mc, atol=5 * 0.5 / np.sqrt(n) + 1 / 512)
+    assert prior.effective_sample_size == pytest.approx(s * 512)
+
+
+def test_posterior_matches_importance_weighting_of_many_factor_draws():
+    # the grid posterior is the limit of the per-structure-draw posterior (cut_posterior)
+    from robovib.milling.cut_posterior import p_stable
+
+    gen = np.random.default_rng(4)
+    lim = gen.uniform(2e-3, 5e-3, (10, 4))
+    d = np.array([3e-3, 2.5e-3, 3.5e-3, 3e-3])
+    y = np.array([True, False, True, False])
+    post = factor_grid_posterior(lim, d, y, process_factor=(LO, HI), n_factors=1024,
+                                 label_noise=0.05)  # fmt: skip
+    n = 200_000
+    which = gen.integers(0, 10, n)
+    q = stats.loguniform(LO, HI).rvs(n, random_state=gen)
+    drawn = q[:, None] * lim[which]
+    w = np.prod(np.where((d[None] >= drawn) == y[None], 0.95, 0.05), axis=1)
+    w /= w.sum()
+    depth = np.array([2e-3, 3e-3, 4e-3, 5e-3])
+    ref = p_stable(drawn, w, depth)
+    ess = 1 / np.sum(w**2)
+    np.testing.assert_allclose(
+        post.p_stable(lim, depth), ref, atol=5 * 0.5 / np.sqrt(ess) + 4 / 1024
+    )
+    assert post.information_nats > 0
+    assert post.effective_sample_size < post.prior_weights.size
+
+
+def test_unscaled_limits_divides_out_the_drawn_factor():
+    class _Structures:
+        process_factor = np.array([0.5, 2.0])
+
+        def limits(self, poses, spindle_rpm, tool, conditions, coefficients, **kw):
+            return (
+                np.full((2, len(poses), len(spindle_rpm)), 3e-3)
+                * self.process_factor[:, None, None]
+            )
+
+    out = unscaled_limits(_Structures(), np.zeros((3, 3)), [2000.0, 3000.0], None, None, None)
+    np.testing.assert_allclose(out, np.full((2, 3, 2), 3e-3))
+
+
+def test_bad_input_is_refused():
+    lim = np.full((3, 2), 3e-3)
+    d = np.array([2e-3, 4e-3])
+    y = np.array([False, True])
+    with pytest.raises(ValueError, match="label_noise"):
+        factor_grid_posterior(lim, d, y, label_noise=0.0)
+    with pytest.raises(ValueError, match="n_factors"):
+        factor_grid_posterior(lim, d, y, n_factors=0)
+    with pytest.raises(ValueError, match="process_factor"):
+        factor_grid((1.5, 0.5), 4)
+    with pytest.raises(ValueError, match="NaN"):
+        factor_grid_posterior(np.where(lim > 0, np.nan, lim), d, y)
+    with pytest.raises(ValueError, match="depth_m and chatter"):
+        factor_grid_posterior(lim, d[:1], y)
+    with pytest.raises(ValueError, match="bool"):
+        factor_grid_posterior(lim, d, y.astype(int))
+    with pytest.raises(ValueError, match="positive"):
+        factor_grid_posterior(lim, -d, y)
+    with pytest.raises(ValueError, match="prior_weights"):
+        factor_grid_posterior(lim, d, y, prior_weights=[1.0, -1.0, 1.0])
+    post = factor_grid_posterior(lim, d, y)
+    with pytest.raises(ValueError, match="3 structures"):
+        post.p_stable(lim[:2], 1e-3)
+    with pytest.raises(ValueError, match="NaN"):
+        post.p_stable(lim, np.nan)
