@@ -393,6 +393,50 @@ def main(argv=None) -> None:
             f"factor posterior (simulated labels): mean {np.sum(fp * g[2].factors):.2f}, "
             f"sd {np.sqrt(np.sum(fp * g[2].factors ** 2) - np.sum(fp * g[2].factors) ** 2):.2f}"
         )
+    if args.spread_cuts:
+        # the test cuts spread: at most one per segment (x, y) of the candidates
+        from robovib.milling.factor_grid import factor_grid_posterior, unscaled_limits
+
+        qr = tuple(prior.settings["process_factor_range"])
+        grp = np.unique(cand_pose[:, :2], axis=0, return_inverse=True)[1].ravel()
+        ix, dd = choose_test_cuts(cand_lim, prior.weights, args.test_cuts, groups=grp)
+        lab, slab = [], []
+        for i, dep in zip(ix, dd, strict=True):
+            cut = truth.simulate(cand_pose[i], cand_rpm[i], [dep], cond)
+            lab.append(truth.detect(cut, 0, cand_rpm[i], fz, cand_pose[i]).result == "chatter")
+            slab.append(bool(cut.chatter[0]))
+        print("\n## 5 test cuts spread (one per x, y)")
+        print("| x [mm] | y [mm] | Rz [deg] | speed [rpm] | depth [mm] | detected | simulated |")
+        print("|---|---|---|---|---|---|---|")
+        for k, i in enumerate(ix):
+            print(f"| {cand_pose[i, 0]:.0f} | {cand_pose[i, 1]:.0f} | {cand_pose[i, 2]:.0f} | "
+                  f"{cand_rpm[i]:.0f} | {dd[k] * 1e3:.2f} | {lab[k]} | {slab[k]} |")  # fmt: skip
+        ts_lim = np.column_stack([
+            unscaled_limits(prior, cand_pose[i : i + 1], [cand_rpm[i]], tool, cond, coef)[:, 0, 0]
+            for i in ix])  # fmt: skip
+        es_lim = np.column_stack([
+            unscaled_limits(prior, ev_pose[k : k + 1], [ev_rpm[k]], tool, cond, coef)[:, 0, 0]
+            for k in range(len(rows))])  # fmt: skip
+        print("| labels | Brier, weights (update_with_cuts) | ESS | Brier, factor grid | "
+              "ESS (structures) |")  # fmt: skip
+        print("|---|---|---|---|---|")
+        for name, labels_v, noise in (
+            ("detected", lab, args.label_noise),
+            ("simulated", slab, 0.05),
+        ):
+            mc = MeasuredCuts(cand_rpm[ix], dd, np.array(labels_v), cand_pose[ix])
+            u = update_with_cuts(prior, mc, tool, cond, coef, label_noise=noise)
+            gq = factor_grid_posterior(
+                ts_lim,
+                dd,
+                np.array(labels_v),
+                process_factor=qr,
+                n_factors=args.factor_grid or 32,
+                label_noise=noise,
+            )
+            print(f"| {name} | {brier(forecast(u.structures), ev_stable):.3f} | "
+                  f"{u.effective_sample_size:.1f} | {brier(gq.p_stable(es_lim, ev_depth), ev_stable):.3f} | "
+                  f"{gq.structure_effective_sample_size:.1f} |")  # fmt: skip
     ev_fac = np.array([r[3] for r in rows])
     print("| depth / truth's limit | cuts | stable | mean P(stable) prior | after (detected) | "
           "after (simulated) |")  # fmt: skip

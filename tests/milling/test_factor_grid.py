@@ -148,3 +148,21 @@ def test_bad_input_is_refused():
         post.p_stable(lim[:2], 1e-3)
     with pytest.raises(ValueError, match="NaN"):
         post.p_stable(lim, np.nan)
+
+
+def test_choose_test_cuts_groups_spread_the_cuts():
+    from robovib.milling.cut_posterior import choose_test_cuts
+
+    # 4 equally likely structures; candidates 0 and 1 split them independently (joint outcome
+    # entropy log 4), candidate 2 together with 0 gives only 3 outcome patterns
+    lim = np.array([[1, 1, 1], [2, 3, 1], [3, 2, 1], [4, 4, 4]], float) * 1e-3
+    w = np.full(4, 0.25)
+    idx, _ = choose_test_cuts(lim, w, 2)
+    assert list(idx) == [0, 1]
+    idx, depth = choose_test_cuts(lim, w, 2, groups=["a", "a", "b"])
+    assert list(idx) == [0, 2]
+    assert depth == pytest.approx([2e-3, 1e-3])
+    with pytest.raises(ValueError, match="groups"):
+        choose_test_cuts(lim, w, 2, groups=[0, 1])
+    with pytest.raises(ValueError, match="fewer informative"):
+        choose_test_cuts(lim, w, 3, groups=[0, 0, 1])

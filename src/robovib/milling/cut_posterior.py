@@ -234,7 +234,9 @@ def update_with_cuts(
     )  # fmt: skip
 
 
-def choose_test_cuts(limits_m, weights, n_cuts: int = 5) -> tuple[np.ndarray, np.ndarray]:
+def choose_test_cuts(
+    limits_m, weights, n_cuts: int = 5, *, groups=None
+) -> tuple[np.ndarray, np.ndarray]:
     """The most informative test cuts among candidates (module docs).
 
     Parameters
@@ -245,6 +247,9 @@ def choose_test_cuts(limits_m, weights, n_cuts: int = 5) -> tuple[np.ndarray, np
         (S,) current weights.
     n_cuts : int
         Cuts to choose.
+    groups : array_like, optional
+        (C,) labels of the candidates (e.g. the pose's x, y or the plan's segment): at most one
+        cut per label, to spread the cuts over the workspace. Default: no constraint.
 
     Returns
     -------
@@ -259,6 +264,12 @@ def choose_test_cuts(limits_m, weights, n_cuts: int = 5) -> tuple[np.ndarray, np
     if lim.ndim != 2 or lim.shape[0] != w.size:
         raise ValueError(f"limits_m must be (S={w.size}, C), got {lim.shape}")
     n = int(n_cuts)
+    if groups is not None:
+        groups = np.asarray(groups)
+        if groups.shape != (lim.shape[1],):
+            raise ValueError(
+                f"groups must be ({lim.shape[1]},) like the candidates, got {groups.shape}"
+            )
     if not 1 <= n <= lim.shape[1]:
         raise ValueError(f"n_cuts must be in 1..{lim.shape[1]} candidates, got {n_cuts}")
     # each candidate's depth: the structure limit at which the weight predicting chatter
@@ -276,7 +287,7 @@ def choose_test_cuts(limits_m, weights, n_cuts: int = 5) -> tuple[np.ndarray, np
     for _ in range(n):
         best, best_h = -1, -1.0
         for c in np.flatnonzero(finite):
-            if c in chosen:
+            if c in chosen or (groups is not None and any(groups[c] == groups[i] for i in chosen)):
                 continue
             h = _pattern_entropy(code * 2 + outcome[:, c].astype(int), w)
             if h > best_h + 1e-12:
