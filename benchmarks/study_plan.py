@@ -177,6 +177,12 @@ def main(argv=None) -> None:
                     help="also: the Brier with the process factor integrated on this many grid "
                          "points (robovib.milling.factor_grid), e.g. 32")  # fmt: skip
     ap.add_argument(
+        "--spread-cuts",
+        action="store_true",
+        help="also: 5 test cuts chosen at most one per (x, y) of the candidates "
+        "(choose_test_cuts(groups=)), Brier by weights and by the factor grid",
+    )
+    ap.add_argument(
         "--brier-only",
         action="store_true",
         help="stop after the Brier tables (no re-plan, no detection table)",
