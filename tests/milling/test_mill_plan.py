@@ -146,17 +146,43 @@ def test_plan_is_the_best_rz_sequence_under_the_rate_limit(model):
     plan = plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, rz_range_deg=(0, 120), rz_step_deg=60,
                      max_rz_rate_deg_per_mm=rate, **kw)  # fmt: skip
     assert np.all(np.abs(np.diff(plan.rz_deg)) <= 60 + 1e-9)
-    # brute force over every Rz sequence allowed, from single-Rz plans (the same forecast)
-    single = {a: plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, rz_range_deg=(a, a), **kw)
-              for a in rz}  # fmt: skip
-    t = {a: single[a].length_mm / single[a].spindle_rpm for a in rz}
-    best = max(
-        sum(single[a].mrr_m3_per_s[i] * t[a][i] for i, a in enumerate(seq))
-        for seq in itertools.product(rz, repeat=4)
-        if all(abs(b - a) <= 60 for a, b in itertools.pairwise(seq))
-    )
-    got = np.sum(plan.mrr_m3_per_s * plan.length_mm / plan.spindle_rpm)
-    assert got == pytest.approx(best, rel=1e-9)
+    # brute force over every (Rz, speed) sequence allowed: volume / time, the allowed depths
+    # from the plan's limit table by NumPy's quantile (equal weights)
+    rpm = np.asarray(plan.settings["rpm_grid"])
+    allowed = np.minimum(
+        np.quantile(plan.limits_m, 0.05, axis=0, method="inverted_cdf") * (1 - 1e-9), 0.02
+    )  # (m, r, j)
+    configs = list(itertools.product(range(3), range(4)))
+
+    def brute(score_of):
+        best = -1.0
+        for seq in itertools.product(configs, repeat=4):
+            if all(abs(rz[b[0]] - rz[a[0]]) <= 60 for a, b in itertools.pairwise(seq)):
+                best = max(best, score_of(seq))
+        return best
+
+    def per_segment(seq):
+        d = np.array([allowed[i, a, b] for i, (a, b) in enumerate(seq)])
+        return np.sum(d * plan.length_mm) / np.sum(plan.length_mm / rpm[[b for _, b in seq]])
+
+    def one_depth(seq):
+        d = min(allowed[i, a, b] for i, (a, b) in enumerate(seq))
+        return d * np.sum(plan.length_mm) / np.sum(plan.length_mm / rpm[[b for _, b in seq]])
+
+    k = COND.radial_depth_m * COND.feed_per_tooth_m * TOOL.n_flutes / 60.0
+    assert plan.mean_mrr_m3_per_s == pytest.approx(k * brute(per_segment), rel=1e-9)
+    path = plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, rz_range_deg=(0, 120), rz_step_deg=60,
+                     max_rz_rate_deg_per_mm=rate, depth_rule="path", **kw)  # fmt: skip
+    assert np.all(path.depth_m == path.depth_m[0])
+    assert np.all(path.depth_m <= path.depth_allowed_m) and np.all(path.p_stable >= 0.95)
+    assert path.mean_mrr_m3_per_s == pytest.approx(k * brute(one_depth), rel=1e-9)
+    # the fixed comparisons: the same rules at one (Rz, speed), brute force
+    fixed_seg = max(np.mean(allowed[:, a, b]) * rpm[b] for a, b in configs)  # equal lengths
+    fixed_one = max(np.min(allowed[:, a, b]) * rpm[b] for a, b in configs)
+    assert plan.fixed["mean_mrr_mm3_per_s"] == pytest.approx(k * fixed_seg * 1e9, rel=1e-9)
+    assert path.fixed["mean_mrr_mm3_per_s"] == pytest.approx(k * fixed_one * 1e9, rel=1e-9)
+    assert plan.fixed["one_depth"] == path.fixed["one_depth"]
+    assert path.mean_mrr_m3_per_s * 1e9 >= path.fixed["mean_mrr_mm3_per_s"] * (1 - 1e-9)
     assert plan.mean_mrr_m3_per_s * 1e9 >= plan.fixed["mean_mrr_mm3_per_s"] * (1 - 1e-9)
     assert np.all(plan.p_stable >= 0.95)
     # a depth asked: P(stable) there reported, infeasible segments flagged
@@ -165,6 +191,8 @@ def test_plan_is_the_best_rz_sequence_under_the_rate_limit(model):
     np.testing.assert_array_equal(asked.feasible, asked.p_stable_at_asked >= 0.95)
     with pytest.raises(ValueError, match="p_required"):
         plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, p_required=1.0, **kw)
+    with pytest.raises(ValueError, match="depth_rule"):
+        plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, depth_rule="pass", **kw)
     with pytest.raises(ValueError, match="repeats a point"):
         plan_path(st, [[2200.0, 0.0], [2200.0, 0.0], [2300.0, 0.0]], TOOL, COND,
                   ALUMINIUM_7075, vibration_samples=0)  # fmt: skip
