@@ -615,7 +615,12 @@ def _one_depth_for_the_path(allowed, rpm, length, step_ok) -> ConfigurationChoic
     seg = np.arange(m)
     reach = allowed.reshape(m, -1).max(axis=1)  # deepest cut each segment allows
     top = float(reach.min())
-    cand = np.unique(allowed[allowed <= top])
+    # the fastest speed of a (segment, Rz) that allows d changes only where d passes a maximum
+    # over the faster speeds; between those the time is constant and d * L / time grows, so
+    # the best d is one of them
+    order = np.argsort(rpm)
+    suffix = np.flip(np.maximum.accumulate(np.flip(allowed[..., order], axis=2), axis=2), axis=2)
+    cand = np.unique(suffix[suffix <= top])
     cand = cand[cand > 0] if np.isfinite(top) else cand[np.isfinite(cand) & (cand > 0)]
     if cand.size == 0:  # no depth > 0 anywhere: the fastest configuration at depth 0
         cand = np.array([0.0])
