@@ -235,3 +235,45 @@ def test_cli_plan_suggest_update_replan(tmp_path):
     assert upd["n_cuts"] == 2 and upd["effective_sample_size"] < 24
     out = run.invoke(app, ["mill", "plan", "--segments", "6"])
     assert out.exit_code == 1 and "give a tool path" in out.output
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_choose_configurations_is_the_brute_force_optimum(seed):
+    """Random depth tables: the planner's choice against every (Rz, speed) sequence."""
+    from robovib.milling.planning import choose_configurations, fixed_configuration
+
+    rng = np.random.default_rng(seed)
+    m, rz, rpm = 4, np.array([0.0, 30.0, 60.0]), np.array([1000.0, 1800.0, 3000.0])
+    allowed = rng.uniform(0.5e-3, 5e-3, (m, rz.size, rpm.size))
+    length = rng.uniform(20.0, 40.0, m)
+    rate = 1.1 * 30.0 / length.min()  # one 30° step between segments, never two
+    configs = list(itertools.product(range(rz.size), range(rpm.size)))
+    best = {"segment": -1.0, "path": -1.0}
+    for seq in itertools.product(configs, repeat=m):
+        if any(abs(rz[b[0]] - rz[a[0]]) > 30 for a, b in itertools.pairwise(seq)):
+            continue
+        d = np.array([allowed[i, a, b] for i, (a, b) in enumerate(seq)])
+        t = np.sum(length / rpm[[b for _, b in seq]])
+        best["segment"] = max(best["segment"], np.sum(d * length) / t)
+        best["path"] = max(best["path"], d.min() * length.sum() / t)
+    for rule in ("segment", "path"):
+        ch = choose_configurations(allowed, rz, rpm, length, max_rz_rate_deg_per_mm=rate,
+                                   depth_rule=rule)  # fmt: skip
+        assert np.all(np.abs(np.diff(rz[ch.rz_index])) <= 30)
+        assert np.all(ch.depth_m <= allowed[np.arange(m), ch.rz_index, ch.speed_index])
+        t = np.sum(length / rpm[ch.speed_index])
+        assert np.sum(ch.depth_m * length) / t == pytest.approx(best[rule], rel=1e-12)
+        assert ch.score == pytest.approx(best[rule], rel=1e-12)
+        fixed = fixed_configuration(allowed, rz, rpm, length, depth_rule=rule)
+        one = (allowed.min(axis=0) if rule == "path" else
+               np.einsum("i,irj->rj", length, allowed) / length.sum()) * rpm  # fmt: skip
+        assert fixed["score"] == pytest.approx(one.max(), rel=1e-12)
+        assert ch.score >= fixed["score"] * (1 - 1e-12)
+    # no Rz change allowed: every segment at one Rz
+    ch = choose_configurations(allowed, rz, rpm, length, max_rz_rate_deg_per_mm=0.0)
+    assert np.unique(ch.rz_index).size == 1
+    with pytest.raises(ValueError, match="allowed_m"):
+        choose_configurations(allowed[:, :2], rz, rpm, length, max_rz_rate_deg_per_mm=1.0)
+    with pytest.raises(ValueError, match="finite"):
+        choose_configurations(np.full(allowed.shape, np.inf), rz, rpm, length,
+                              max_rz_rate_deg_per_mm=1.0)  # fmt: skip
