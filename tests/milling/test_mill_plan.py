@@ -277,3 +277,23 @@ def test_choose_configurations_is_the_brute_force_optimum(seed):
     with pytest.raises(ValueError, match="finite"):
         choose_configurations(np.full(allowed.shape, np.inf), rz, rpm, length,
                               max_rz_rate_deg_per_mm=1.0)  # fmt: skip
+
+
+def test_cli_plan_one_depth_for_the_path():
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    run = CliRunner()
+    args = ["mill", "plan", "--start", "2200,-100", "--end", "2600,400", "--segments", "5",
+            "--samples", "16", "--rpm-range", "1500:3000:3", "--json"]  # fmt: skip
+    out = run.invoke(app, [*args, "--depth-rule", "path"])
+    assert out.exit_code == 0, out.output
+    doc = json.loads(out.output)
+    depths = {round(s["depth_mm"], 9) for s in doc["segments"]}
+    assert len(depths) == 1 and doc["settings"]["depth_rule"] == "path"
+    # compared with one fixed Rz, speed and depth: the same rule
+    assert doc["fixed"]["mean_mrr_mm3_per_s"] == doc["fixed"]["one_depth"]["mean_mrr_mm3_per_s"]
+    assert doc["gain_over_fixed"] >= 1 - 1e-9
+    out = run.invoke(app, [*args, "--depth-rule", "pass"])
+    assert out.exit_code == 1 and "depth_rule" in out.output
