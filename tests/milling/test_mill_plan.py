@@ -297,3 +297,34 @@ def test_cli_plan_one_depth_for_the_path():
     assert doc["gain_over_fixed"] >= 1 - 1e-9
     out = run.invoke(app, [*args, "--depth-rule", "pass"])
     assert out.exit_code == 1 and "depth_rule" in out.output
+
+
+def test_choose_configurations_at_a_depth_asked():
+    """A depth asked: the feasible sequences' best MRR (brute force); a segment with nothing
+    feasible takes its configuration of highest P(stable)."""
+    from robovib.milling.planning import choose_configurations
+
+    rng = np.random.default_rng(5)
+    m, rz, rpm = 4, np.array([0.0, 30.0, 60.0]), np.array([1000.0, 1800.0, 3000.0])
+    length = rng.uniform(20.0, 40.0, m)
+    p_at = rng.uniform(0.5, 1.0, (m, rz.size, rpm.size))
+    p_at[:, :, 0] = 0.99  # the slowest speed is always feasible
+    allowed = np.full(p_at.shape, 5e-3)
+    kw = dict(max_rz_rate_deg_per_mm=1e3, depth_m=2e-3, p_required=0.95)
+    ch = choose_configurations(allowed, rz, rpm, length, p_stable_at_depth=p_at, **kw)
+    seg = np.arange(m)
+    assert np.all(p_at[seg, ch.rz_index, ch.speed_index] >= 0.95)
+    # every segment on its own (no rate limit): the fastest feasible speed
+    fastest = np.where(p_at >= 0.95, rpm, 0).max(axis=(1, 2))
+    np.testing.assert_array_equal(rpm[ch.speed_index], fastest)
+    np.testing.assert_array_equal(ch.depth_m, 2e-3)
+    # segment 2 has nothing feasible: the configuration of highest P(stable) there
+    p_bad = p_at.copy()
+    p_bad[2] = rng.uniform(0.3, 0.9, (rz.size, rpm.size))
+    ch = choose_configurations(allowed, rz, rpm, length, p_stable_at_depth=p_bad, **kw)
+    assert p_bad[2, ch.rz_index[2], ch.speed_index[2]] == p_bad[2].max()
+    keep = seg != 2
+    assert np.all(p_bad[seg[keep], ch.rz_index[keep], ch.speed_index[keep]] >= 0.95)
+    np.testing.assert_array_equal(rpm[ch.speed_index[keep]], fastest[keep])
+    with pytest.raises(ValueError, match="p_stable_at_depth"):
+        choose_configurations(allowed, rz, rpm, length, **kw)
