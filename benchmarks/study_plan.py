@@ -9,9 +9,13 @@ virtual robot's truth:
 1. **Plan cuts stable**: every planned segment (its pose, Rz, speed and depth) is run through
    the regenerative time-domain simulation of the truth (``sim.simulate_regenerative_cut``, the
    truth's modes, full-depth entry); the fraction that does not chatter (target >= 95 %).
-2. **MRR gain**: the plan's mean MRR over the best single fixed Rz and speed at the same
-   P(stable) (depth per segment as allowed there; target >= 1.3x), and over one fixed Rz,
-   speed and depth.
+2. **MRR gain**: the plan's mean MRR (volume over machining time) over the best single fixed
+   Rz and speed at the same P(stable) and under the same depth rule (``--depth-rule``:
+   ``segment``, each segment as deep as allowed there, or ``path``, one depth for the whole
+   path; target >= 1.3x), and over one fixed Rz, speed and depth. ``--mrr-only`` prints only
+   the MRR tables for both rules, with the oracle gain from the truth's limits on the same
+   grids (the attainable gain: ``benchmarks/study_plan_bound.py`` measures it over many
+   paths and robots of the family; on the thesis robot it is ~1.0-1.1x).
 3. **Test cuts**: the planner picks the 5 most informative cuts among the plans' segments x Rz
    x speeds of its grids (``PathPlan.test_cut_candidates``, ``choose_test_cuts``); each is simulated on the truth, its record (displacement + 2 um
    tracker noise) labelled by ``detect_chatter``, and the labels update the forecast
@@ -35,6 +39,7 @@ structure x factor; better than the per-structure draws on seeds 7, 8, 9 at ``--
 ``--shared-fractions 0.5`` also reports the Brier score before/after 5 test cuts with
 structures whose fields share a workspace-wide part (``sample_structures(shared_fraction=)``).
 
+    nice python benchmarks/study_plan.py --mrr-only                # the MRR tables (~2 min)
     nice python benchmarks/study_plan.py --configs 8 --paths 1     # quick look (~3 min)
     nice python benchmarks/study_plan.py --configs 22 --paths 1 --brier-only   # 110 Brier cuts (~2 min)
     nice python benchmarks/study_plan.py                           # the issue's check (~10 min)
@@ -149,6 +154,60 @@ class Truth:
                               min_line_fraction=0.2, force=f if force_check else None)  # fmt: skip
 
 
+def mrr_tables(args, truth, prior, plan_all, cond) -> None:
+    """The MRR gain of the model's plans and the gain attainable from the truth's limits.
+
+    Per path and depth rule: the plan's mean MRR (volume over machining time) over the best
+    single fixed Rz and speed under the same rule and the same P(stable)
+    (``PathPlan.fixed``), and the oracle ratio: the same optimiser and comparison
+    (``choose_configurations``, ``fixed_configuration``) on the truth's zero-order limits at
+    the plan's segments and grids, capped at the same ``max_depth_m`` (what a perfect model
+    would let the planner claim; ``benchmarks/study_plan_bound.py`` over many paths/robots).
+    """
+    from robovib.milling.planning import choose_configurations, fixed_configuration
+    from robovib.milling.structures import zoa_limits
+
+    print(f"\n## MRR (model plans at P(stable) >= {args.p_stable:g} vs the truth's oracle), "
+          f"speeds {args.rpm_range} rpm, Rz step {args.rz_step:g} deg")  # fmt: skip
+    print("| path | depth rule | plan MRR [mm³/s] | best fixed Rz, speed | fixed MRR [mm³/s] | "
+          "gain (model) | oracle gain (truth) | plan time [s] |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
+    gains: dict[str, list] = {"segment": [], "path": []}
+    oracle: dict[str, list] = {"segment": [], "path": []}
+    for rule in ("segment", "path"):
+        for k, plan in enumerate(plan_all(prior, rule)):
+            rz = np.asarray(plan.settings["rz_grid_deg"])
+            rpm = np.asarray(plan.settings["rpm_grid"])
+            m = plan.midpoints_mm.shape[0]
+            poses = np.column_stack([np.repeat(plan.midpoints_mm, rz.size, axis=0) / 1e3,
+                                     np.tile(rz, m)])  # fmt: skip
+            mx, my = (
+                truth.robot.workspace.modes(poses, "x"),
+                truth.robot.workspace.modes(poses, "y"),
+            )
+            fn = np.concatenate([mx.fn_hz, my.fn_hz], axis=1)
+            kk = np.concatenate([mx.stiffness_n_per_m, my.stiffness_n_per_m], axis=1)
+            zz = np.concatenate([mx.damping_ratio, my.damping_ratio], axis=1)
+            feed = np.arange(fn.shape[1]) < mx.fn_hz.shape[1]
+            lim = zoa_limits(fn, kk, zz, feed, rpm, truth.tool, cond, truth.coef)
+            allowed = np.minimum(lim.reshape(m, rz.size, rpm.size), plan.settings["max_depth_m"])
+            rate = plan.settings["max_rz_rate_deg_per_mm"]
+            ch = choose_configurations(allowed, rz, rpm, plan.length_mm,
+                                       max_rz_rate_deg_per_mm=rate, depth_rule=rule)  # fmt: skip
+            fx = fixed_configuration(allowed, rz, rpm, plan.length_mm, depth_rule=rule)
+            g = plan.mean_mrr_m3_per_s * 1e9 / plan.fixed["mean_mrr_mm3_per_s"]
+            gains[rule].append(g)
+            oracle[rule].append(ch.score / fx["score"])
+            f = plan.fixed
+            print(f"| {k} | {rule} | {plan.mean_mrr_m3_per_s * 1e9:.1f} | {f['rz_deg']:g}°, "
+                  f"{f['spindle_rpm']:.0f} rpm | {f['mean_mrr_mm3_per_s']:.1f} | {g:.2f} | "
+                  f"{oracle[rule][-1]:.2f} | {plan.settings['seconds']:.1f} |")  # fmt: skip
+    for rule in ("segment", "path"):
+        print(
+            f"| all | {rule} | | | | {np.mean(gains[rule]):.2f} | {np.mean(oracle[rule]):.2f} | |"
+        )
+
+
 def brier(p, stable) -> float:
     return float(np.mean((np.asarray(p) - np.asarray(stable, float)) ** 2))
 
@@ -194,6 +253,19 @@ def main(argv=None) -> None:
         help="stop after the Brier tables (no re-plan, no detection table)",
     )
     ap.add_argument(
+        "--mrr-only",
+        action="store_true",
+        help="only the MRR tables: plans by both depth rules against the best fixed Rz and "
+        "speed under the same rule, and the oracle gain from the truth's limits on the same "
+        "grids (no simulation, test cuts or detection; ~1-2 min)",
+    )
+    ap.add_argument("--rpm-range", default="1000:3500:12",
+                    help="the planner's speeds LO:HI:N [rpm] (mill plan --rpm-range)")  # fmt: skip
+    ap.add_argument("--rz-step", type=float, default=20.0, help="the planner's Rz grid step")
+    ap.add_argument("--depth-rule", choices=("segment", "path"), default="segment",
+                    help="depth of the plans checked in simulation (segment: as deep as "
+                         "allowed per segment; path: one depth for the path)")  # fmt: skip
+    ap.add_argument(
         "--robot-seed",
         type=int,
         default=None,
@@ -224,18 +296,29 @@ def main(argv=None) -> None:
         for _ in range(args.paths)
     ]  # fmt: skip
 
-    def plan_all(structures):
+    lo_rpm, hi_rpm, n_rpm = (float(v) for v in args.rpm_range.split(":"))
+
+    def plan_all(structures, depth_rule=None):
         out = []
         for p in paths:
             out.append(plan_path(structures, p, tool, cond, coef, n_segments=args.segments,
-                                 p_required=args.p_stable, vibration_samples=0))  # fmt: skip
+                                 p_required=args.p_stable, vibration_samples=0,
+                                 rpm_range=(lo_rpm, hi_rpm), n_speeds=int(n_rpm),
+                                 rz_step_deg=args.rz_step,
+                                 depth_rule=depth_rule or args.depth_rule))  # fmt: skip
         return out
+
+    if args.mrr_only:
+        mrr_tables(args, truth, prior, plan_all, cond)
+        print(f"\ntotal {time.perf_counter() - t_start:.0f} s")
+        return
 
     def check(plans, label):
         stable, gains, gains1, secs = [], [], [], []
         det_rows = []
         for plan in plans:
             secs.append(plan.settings["seconds"])
+            # the same depth rule for the plan and the fixed Rz and speed (plan.fixed)
             gains.append(plan.mean_mrr_m3_per_s * 1e9 / plan.fixed["mean_mrr_mm3_per_s"])
             gains1.append(
                 plan.mean_mrr_m3_per_s * 1e9 / plan.fixed["one_depth"]["mean_mrr_mm3_per_s"]
@@ -247,6 +330,8 @@ def main(argv=None) -> None:
                 det_rows.append((truth.detect(cut, 0, plan.spindle_rpm[i], fz, pose).result == "chatter",
                                  bool(cut.chatter[0])))  # fmt: skip
         print(f"\n## plan {label}: {len(stable)} segments over {len(plans)} paths")
+        print(f"depth rule {args.depth_rule}; the MRR ratio against the best fixed Rz+speed "
+              "under the same rule; the last ratio against one fixed Rz, speed and depth")  # fmt: skip
         print("| path | segments | stable in simulation | MRR / best fixed Rz+speed | MRR / fixed Rz+speed+depth | plan time [s] |")  # fmt: skip
         print("|---|---|---|---|---|---|")
         n = args.segments

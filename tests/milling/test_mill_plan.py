@@ -146,17 +146,43 @@ def test_plan_is_the_best_rz_sequence_under_the_rate_limit(model):
     plan = plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, rz_range_deg=(0, 120), rz_step_deg=60,
                      max_rz_rate_deg_per_mm=rate, **kw)  # fmt: skip
     assert np.all(np.abs(np.diff(plan.rz_deg)) <= 60 + 1e-9)
-    # brute force over every Rz sequence allowed, from single-Rz plans (the same forecast)
-    single = {a: plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, rz_range_deg=(a, a), **kw)
-              for a in rz}  # fmt: skip
-    t = {a: single[a].length_mm / single[a].spindle_rpm for a in rz}
-    best = max(
-        sum(single[a].mrr_m3_per_s[i] * t[a][i] for i, a in enumerate(seq))
-        for seq in itertools.product(rz, repeat=4)
-        if all(abs(b - a) <= 60 for a, b in itertools.pairwise(seq))
-    )
-    got = np.sum(plan.mrr_m3_per_s * plan.length_mm / plan.spindle_rpm)
-    assert got == pytest.approx(best, rel=1e-9)
+    # brute force over every (Rz, speed) sequence allowed: volume / time, the allowed depths
+    # from the plan's limit table by NumPy's quantile (equal weights)
+    rpm = np.asarray(plan.settings["rpm_grid"])
+    allowed = np.minimum(
+        np.quantile(plan.limits_m, 0.05, axis=0, method="inverted_cdf") * (1 - 1e-9), 0.02
+    )  # (m, r, j)
+    configs = list(itertools.product(range(3), range(4)))
+
+    def brute(score_of):
+        best = -1.0
+        for seq in itertools.product(configs, repeat=4):
+            if all(abs(rz[b[0]] - rz[a[0]]) <= 60 for a, b in itertools.pairwise(seq)):
+                best = max(best, score_of(seq))
+        return best
+
+    def per_segment(seq):
+        d = np.array([allowed[i, a, b] for i, (a, b) in enumerate(seq)])
+        return np.sum(d * plan.length_mm) / np.sum(plan.length_mm / rpm[[b for _, b in seq]])
+
+    def one_depth(seq):
+        d = min(allowed[i, a, b] for i, (a, b) in enumerate(seq))
+        return d * np.sum(plan.length_mm) / np.sum(plan.length_mm / rpm[[b for _, b in seq]])
+
+    k = COND.radial_depth_m * COND.feed_per_tooth_m * TOOL.n_flutes / 60.0
+    assert plan.mean_mrr_m3_per_s == pytest.approx(k * brute(per_segment), rel=1e-9)
+    path = plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, rz_range_deg=(0, 120), rz_step_deg=60,
+                     max_rz_rate_deg_per_mm=rate, depth_rule="path", **kw)  # fmt: skip
+    assert np.all(path.depth_m == path.depth_m[0])
+    assert np.all(path.depth_m <= path.depth_allowed_m) and np.all(path.p_stable >= 0.95)
+    assert path.mean_mrr_m3_per_s == pytest.approx(k * brute(one_depth), rel=1e-9)
+    # the fixed comparisons: the same rules at one (Rz, speed), brute force
+    fixed_seg = max(np.mean(allowed[:, a, b]) * rpm[b] for a, b in configs)  # equal lengths
+    fixed_one = max(np.min(allowed[:, a, b]) * rpm[b] for a, b in configs)
+    assert plan.fixed["mean_mrr_mm3_per_s"] == pytest.approx(k * fixed_seg * 1e9, rel=1e-9)
+    assert path.fixed["mean_mrr_mm3_per_s"] == pytest.approx(k * fixed_one * 1e9, rel=1e-9)
+    assert plan.fixed["one_depth"] == path.fixed["one_depth"]
+    assert path.mean_mrr_m3_per_s * 1e9 >= path.fixed["mean_mrr_mm3_per_s"] * (1 - 1e-9)
     assert plan.mean_mrr_m3_per_s * 1e9 >= plan.fixed["mean_mrr_mm3_per_s"] * (1 - 1e-9)
     assert np.all(plan.p_stable >= 0.95)
     # a depth asked: P(stable) there reported, infeasible segments flagged
@@ -165,6 +191,8 @@ def test_plan_is_the_best_rz_sequence_under_the_rate_limit(model):
     np.testing.assert_array_equal(asked.feasible, asked.p_stable_at_asked >= 0.95)
     with pytest.raises(ValueError, match="p_required"):
         plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, p_required=1.0, **kw)
+    with pytest.raises(ValueError, match="depth_rule"):
+        plan_path(st, pts, TOOL, COND, ALUMINIUM_7075, depth_rule="pass", **kw)
     with pytest.raises(ValueError, match="repeats a point"):
         plan_path(st, [[2200.0, 0.0], [2200.0, 0.0], [2300.0, 0.0]], TOOL, COND,
                   ALUMINIUM_7075, vibration_samples=0)  # fmt: skip
@@ -207,3 +235,96 @@ def test_cli_plan_suggest_update_replan(tmp_path):
     assert upd["n_cuts"] == 2 and upd["effective_sample_size"] < 24
     out = run.invoke(app, ["mill", "plan", "--segments", "6"])
     assert out.exit_code == 1 and "give a tool path" in out.output
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_choose_configurations_is_the_brute_force_optimum(seed):
+    """Random depth tables: the planner's choice against every (Rz, speed) sequence."""
+    from robovib.milling.planning import choose_configurations, fixed_configuration
+
+    rng = np.random.default_rng(seed)
+    m, rz, rpm = 4, np.array([0.0, 30.0, 60.0]), np.array([1000.0, 1800.0, 3000.0])
+    allowed = rng.uniform(0.5e-3, 5e-3, (m, rz.size, rpm.size))
+    length = rng.uniform(20.0, 40.0, m)
+    rate = 1.1 * 30.0 / length.min()  # one 30° step between segments, never two
+    configs = list(itertools.product(range(rz.size), range(rpm.size)))
+    best = {"segment": -1.0, "path": -1.0}
+    for seq in itertools.product(configs, repeat=m):
+        if any(abs(rz[b[0]] - rz[a[0]]) > 30 for a, b in itertools.pairwise(seq)):
+            continue
+        d = np.array([allowed[i, a, b] for i, (a, b) in enumerate(seq)])
+        t = np.sum(length / rpm[[b for _, b in seq]])
+        best["segment"] = max(best["segment"], np.sum(d * length) / t)
+        best["path"] = max(best["path"], d.min() * length.sum() / t)
+    for rule in ("segment", "path"):
+        ch = choose_configurations(allowed, rz, rpm, length, max_rz_rate_deg_per_mm=rate,
+                                   depth_rule=rule)  # fmt: skip
+        assert np.all(np.abs(np.diff(rz[ch.rz_index])) <= 30)
+        assert np.all(ch.depth_m <= allowed[np.arange(m), ch.rz_index, ch.speed_index])
+        t = np.sum(length / rpm[ch.speed_index])
+        assert np.sum(ch.depth_m * length) / t == pytest.approx(best[rule], rel=1e-12)
+        assert ch.score == pytest.approx(best[rule], rel=1e-12)
+        fixed = fixed_configuration(allowed, rz, rpm, length, depth_rule=rule)
+        one = (allowed.min(axis=0) if rule == "path" else
+               np.einsum("i,irj->rj", length, allowed) / length.sum()) * rpm  # fmt: skip
+        assert fixed["score"] == pytest.approx(one.max(), rel=1e-12)
+        assert ch.score >= fixed["score"] * (1 - 1e-12)
+    # no Rz change allowed: every segment at one Rz
+    ch = choose_configurations(allowed, rz, rpm, length, max_rz_rate_deg_per_mm=0.0)
+    assert np.unique(ch.rz_index).size == 1
+    with pytest.raises(ValueError, match="allowed_m"):
+        choose_configurations(allowed[:, :2], rz, rpm, length, max_rz_rate_deg_per_mm=1.0)
+    with pytest.raises(ValueError, match="finite"):
+        choose_configurations(np.full(allowed.shape, np.inf), rz, rpm, length,
+                              max_rz_rate_deg_per_mm=1.0)  # fmt: skip
+
+
+def test_cli_plan_one_depth_for_the_path():
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+
+    run = CliRunner()
+    args = ["mill", "plan", "--start", "2200,-100", "--end", "2600,400", "--segments", "5",
+            "--samples", "16", "--rpm-range", "1500:3000:3", "--json"]  # fmt: skip
+    out = run.invoke(app, [*args, "--depth-rule", "path"])
+    assert out.exit_code == 0, out.output
+    doc = json.loads(out.output)
+    depths = {round(s["depth_mm"], 9) for s in doc["segments"]}
+    assert len(depths) == 1 and doc["settings"]["depth_rule"] == "path"
+    # compared with one fixed Rz, speed and depth: the same rule
+    assert doc["fixed"]["mean_mrr_mm3_per_s"] == doc["fixed"]["one_depth"]["mean_mrr_mm3_per_s"]
+    assert doc["gain_over_fixed"] >= 1 - 1e-9
+    out = run.invoke(app, [*args, "--depth-rule", "pass"])
+    assert out.exit_code == 1 and "depth_rule" in out.output
+
+
+def test_choose_configurations_at_a_depth_asked():
+    """A depth asked: the feasible sequences' best MRR (brute force); a segment with nothing
+    feasible takes its configuration of highest P(stable)."""
+    from robovib.milling.planning import choose_configurations
+
+    rng = np.random.default_rng(5)
+    m, rz, rpm = 4, np.array([0.0, 30.0, 60.0]), np.array([1000.0, 1800.0, 3000.0])
+    length = rng.uniform(20.0, 40.0, m)
+    p_at = rng.uniform(0.5, 1.0, (m, rz.size, rpm.size))
+    p_at[:, :, 0] = 0.99  # the slowest speed is always feasible
+    allowed = np.full(p_at.shape, 5e-3)
+    kw = dict(max_rz_rate_deg_per_mm=1e3, depth_m=2e-3, p_required=0.95)
+    ch = choose_configurations(allowed, rz, rpm, length, p_stable_at_depth=p_at, **kw)
+    seg = np.arange(m)
+    assert np.all(p_at[seg, ch.rz_index, ch.speed_index] >= 0.95)
+    # every segment on its own (no rate limit): the fastest feasible speed
+    fastest = np.where(p_at >= 0.95, rpm, 0).max(axis=(1, 2))
+    np.testing.assert_array_equal(rpm[ch.speed_index], fastest)
+    np.testing.assert_array_equal(ch.depth_m, 2e-3)
+    # segment 2 has nothing feasible: the configuration of highest P(stable) there
+    p_bad = p_at.copy()
+    p_bad[2] = rng.uniform(0.3, 0.9, (rz.size, rpm.size))
+    ch = choose_configurations(allowed, rz, rpm, length, p_stable_at_depth=p_bad, **kw)
+    assert p_bad[2, ch.rz_index[2], ch.speed_index[2]] == p_bad[2].max()
+    keep = seg != 2
+    assert np.all(p_bad[seg[keep], ch.rz_index[keep], ch.speed_index[keep]] >= 0.95)
+    np.testing.assert_array_equal(rpm[ch.speed_index[keep]], fastest[keep])
+    with pytest.raises(ValueError, match="p_stable_at_depth"):
+        choose_configurations(allowed, rz, rpm, length, **kw)

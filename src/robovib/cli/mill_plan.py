@@ -61,6 +61,13 @@ def plan(
         typer.Option("--ap", help="Axial depth wanted [mm] (default: as deep as allowed)."),
     ] = None,
     max_depth: Annotated[float, typer.Option(help="Deepest cut the tool allows [mm].")] = 20.0,
+    depth_rule: Annotated[
+        str,
+        typer.Option(
+            help="With no --ap: 'segment' (each segment as deep as allowed) or 'path' (one "
+            "depth for the whole path); the fixed comparison follows the same rule."
+        ),
+    ] = "segment",
     max_rz_rate: Annotated[
         float, typer.Option(help="Largest Rz change per mm of path [deg/mm].")
     ] = 1.0,
@@ -143,6 +150,7 @@ def plan(
         rpm_range=(float(speeds.min()), float(speeds.max())), n_speeds=speeds.size,
         p_required=p_stable, depth_m=None if ap is None else to_si(ap, "mm"),
         max_depth_m=to_si(max_depth, "mm"), max_rz_rate_deg_per_mm=max_rz_rate,
+        depth_rule=depth_rule,
         check_sdm=check_sdm,
     )  # fmt: skip
     suggested = None

@@ -12,15 +12,26 @@ stability limit, so
   the limits (:func:`robovib.milling.cut_posterior.weighted_quantile`);
 * P(stable) at the depth asked is the weighted fraction of limits above it.
 
-The value of a (segment, Rz, speed) is its material removal rate ``MRR = a_e a_p f_z N n``
-[m³/s] at the depth cut there: the allowed depth ("as deep as allowed"), or the depth asked
-where its P(stable) reaches ``p`` (elsewhere the configuration is infeasible; if no
-configuration of a segment is feasible, the one of highest P(stable) is taken and flagged).
-The speed may change from segment to segment; Rz may change by at most ``max_rz_rate_deg_per_mm``
-times the segment length (the robot reorients smoothly): dynamic programming over the Rz grid
-maximises the summed MRR x segment time share (the mean MRR over the path). The comparison is
-the best single fixed Rz and speed for the whole path under the same rule (depth per segment
-as allowed there at the same P(stable)), and the best fixed one at one depth for the whole path.
+The value of a plan is its mean material removal rate over the path, the volume removed over
+the machining time: ``a_e f_z N / 60 * sum(d_i L_i) / sum(L_i / n_i)`` (depth ``d_i``, length
+``L_i`` and speed ``n_i`` [rpm] of segment ``i``; ``MRR = a_e a_p f_z N n``). The depth rule
+(``depth_rule``) says what is cut:
+
+* ``"segment"`` (default): each segment as deep as allowed at its Rz and speed;
+* ``"path"``: one depth for the whole path, the deepest that every chosen configuration allows
+  (a user who mills a pocket in passes of one depth);
+* a depth asked (``depth_m``): that depth where its P(stable) reaches ``p`` (elsewhere the
+  configuration is infeasible; a segment with no feasible configuration in reach takes the one
+  of highest P(stable) and is flagged).
+
+The speed may change from segment to segment; Rz may change by at most
+``max_rz_rate_deg_per_mm`` times the segment length (the robot reorients smoothly). Rz and
+speed are searched jointly: dynamic programming over the Rz grid, each (segment, Rz) with its
+best speed, inside Dinkelbach's iteration for the ratio (volume / time), or, for one depth, over
+every candidate depth (:func:`choose_configurations`). The comparison
+(:func:`fixed_configuration`) is the best single fixed Rz and speed for the whole path under
+the same depth rule and the same P(stable); both are reported (``PathPlan.fixed``:
+``segment_depth`` and ``one_depth``).
 
 Per segment the plan also predicts the vibration at the chosen configuration and depth (mean
 deflection and peak-to-valley per revolution with 95 % bands over the structures, as
@@ -41,7 +52,10 @@ from .forces import CuttingCoefficients, CuttingConditions, MillingTool
 from .structures import StructureSamples
 
 __all__ = [
+    "ConfigurationChoice",
     "PathPlan",
+    "choose_configurations",
+    "fixed_configuration",
     "path_segments",
     "plan_path",
     "plot_path_plan",
@@ -310,6 +324,7 @@ def plan_path(
     depth_m: float | None = None,
     max_rz_rate_deg_per_mm: float = 1.0,
     max_depth_m: float = 0.02,
+    depth_rule: str = "segment",
     vibration_samples: int = 24,
     check_sdm: bool = False,
     points_per_decade: float = 200.0,
@@ -342,6 +357,10 @@ def plan_path(
         Largest change of Rz per mm of path between segments [deg/mm].
     max_depth_m : float
         Deepest cut the tool allows [m] (caps "as deep as allowed").
+    depth_rule : {"segment", "path"}
+        With no depth asked: each segment as deep as allowed there, or one depth for the whole
+        path (the deepest that every chosen configuration allows; :func:`choose_configurations`).
+        The fixed comparison (``PathPlan.fixed``) follows the same rule.
     vibration_samples : int
         Structures (the heaviest) whose forced vibration gives the bands (0: none).
     check_sdm : bool
@@ -355,6 +374,8 @@ def plan_path(
     PathPlan
     """
     t0 = time.perf_counter()
+    if depth_rule not in ("segment", "path"):
+        raise ValueError(f"depth_rule must be 'segment' or 'path', got {depth_rule!r}")
     if not 0 < p_required < 1:
         raise ValueError(f"p_required must be in (0, 1), got {p_required!r}")
     if depth_m is not None and not (np.isfinite(depth_m) and depth_m > 0):
@@ -381,50 +402,24 @@ def plan_path(
     )  # (m, r, j)
     feed_speed = conditions.feed_per_tooth_m * tool.n_flutes * rpm / 60.0  # (j,) m/s
     ae = conditions.radial_depth_m
-    if depth_m is None:
-        depth = allowed
-        p_at = None
-        value = ae * depth * feed_speed[None, None, :]
-        feasible = depth > 0
-    else:
-        p_at = p_stable(lim, w, depth_m)  # (m, r, j)
-        feasible = p_at >= p_required
-        depth = np.full(allowed.shape, float(depth_m))
-        value = np.where(feasible, ae * depth_m * feed_speed[None, None, :], 0.0)
-    # machining-time weights: segment time ∝ length / feed speed
-    tw = length[:, None, None] / feed_speed[None, None, :]
-    best_j = np.argmax(value + 1e-30 * (p_at if p_at is not None else 0), axis=2)  # (m, r)
-    if p_at is not None:  # an infeasible (segment, Rz): the speed of highest P(stable)
-        none = ~feasible.any(axis=2)
-        best_j = np.where(none, np.argmax(p_at, axis=2), best_j)
-    v_mr = np.take_along_axis(value, best_j[..., None], axis=2)[..., 0]
-    t_mr = np.take_along_axis(tw, best_j[..., None], axis=2)[..., 0]
-    # DP over Rz: maximise the removed volume rate integrated over time ~ sum(MRR * t)
-    gain = v_mr * t_mr
-    if p_at is not None:
-        p_best = np.take_along_axis(p_at, best_j[..., None], axis=2)[..., 0]
-        gain = gain + 1e-6 * gain.max(initial=1e-30) * p_best  # ties: the safer one
-    step_ok = np.abs(rz[:, None] - rz[None, :]) <= (
-        max_rz_rate_deg_per_mm * 0.5 * (length[:-1, None, None] + length[1:, None, None]) + 1e-9
-    )  # (m-1, r, r): from segment i at rz a to i+1 at rz b
-    score = gain[0].copy()
-    back = np.zeros((m, r), int)
-    for i in range(1, m):
-        cand = np.where(step_ok[i - 1], score[:, None], -np.inf)  # (from, to)
-        back[i] = np.argmax(cand, axis=0)
-        score = cand[back[i], np.arange(r)] + gain[i]
-    path_r = np.empty(m, int)
-    path_r[-1] = int(np.argmax(score))
-    for i in range(m - 1, 0, -1):
-        path_r[i - 1] = back[i, path_r[i]]
+    p_at = None if depth_m is None else p_stable(lim, w, depth_m)  # (m, r, j)
+    choice = choose_configurations(allowed, rz, rpm, length,
+                                   max_rz_rate_deg_per_mm=max_rz_rate_deg_per_mm,
+                                   depth_rule=depth_rule, depth_m=depth_m,
+                                   p_stable_at_depth=p_at, p_required=p_required)  # fmt: skip
     seg = np.arange(m)
-    jj = best_j[seg, path_r]
-    plan_depth = depth[seg, path_r, jj]
+    path_r, jj, plan_depth = choice.rz_index, choice.speed_index, choice.depth_m
     plan_allowed = allowed[seg, path_r, jj]
     p_plan = p_stable(lim[:, seg, path_r, jj], w, plan_depth)
+    feasible = (
+        (plan_depth > 0) & (plan_depth <= plan_allowed)
+        if p_at is None
+        else p_at[seg, path_r, jj] >= p_required
+    )
     mrr = ae * plan_depth * feed_speed[jj]
-    fixed = _fixed_comparison(value, allowed, tw, feasible, rz, rpm, ae, feed_speed, length,
-                              depth_m, lim, w, p_required)  # fmt: skip
+    fixed = fixed_configuration(allowed, rz, rpm, length, depth_rule=depth_rule, depth_m=depth_m,
+                                p_stable_at_depth=p_at, p_required=p_required)  # fmt: skip
+    fixed = _fixed_to_units(fixed, ae, conditions.feed_per_tooth_m * tool.n_flutes / 60.0)
     vib = []
     if int(vibration_samples) > 0:
         vib = _vibration(structures, mid, rz[path_r], rpm[jj], plan_depth, tool, conditions,
@@ -441,6 +436,7 @@ def plan_path(
         "rpm_grid": rpm.tolist(),
         "max_rz_rate_deg_per_mm": float(max_rz_rate_deg_per_mm),
         "max_depth_m": float(max_depth_m),
+        "depth_rule": depth_rule if depth_m is None else "asked",
         "radial_depth_m": float(ae),
         "feed_per_tooth_m": float(conditions.feed_per_tooth_m),
         "n_flutes": int(tool.n_flutes),
@@ -454,37 +450,272 @@ def plan_path(
     return PathPlan(
         mid, length, rz[path_r], rpm[jj], plan_allowed, plan_depth, p_plan,
         None if p_at is None else p_at[seg, path_r, jj],
-        feasible[seg, path_r, jj], mrr, vib, fixed, settings, lim,
+        feasible, mrr, vib, fixed, settings, lim,
     )  # fmt: skip
 
 
-def _fixed_comparison(value, allowed, tw, feasible, rz, rpm, ae, feed_speed, length, depth_m,
-                      lim, w, p_required) -> dict:  # fmt: skip
-    """Best single (Rz, speed) for the whole path: depth per segment, and one depth."""
-    # per-segment depth (as allowed there) at one Rz and speed
-    total = np.sum(value * tw, axis=0) / np.sum(tw, axis=0)  # (r, j) time-weighted mean MRR
+@dataclass(frozen=True)
+class ConfigurationChoice:
+    """Rz and speed per segment (grid indices) and the depth cut there.
+
+    Attributes
+    ----------
+    rz_index, speed_index
+        (m,) indices into the Rz and speed grids.
+    depth_m
+        (m,) depth cut [m].
+    score
+        The mean MRR over the path divided by ``a_e f_z N / 60`` [m rpm]: ``sum(d_i L_i) /
+        sum(L_i / n_i)`` (volume over machining time).
+    """
+
+    rz_index: np.ndarray
+    speed_index: np.ndarray
+    depth_m: np.ndarray
+    score: float
+
+
+def _rz_steps_allowed(rz_deg, length_mm, max_rz_rate_deg_per_mm) -> np.ndarray:
+    """(m-1, r, r): from segment i at Rz a to segment i+1 at Rz b within the rate limit."""
+    rz = np.asarray(rz_deg, float)
+    length = np.asarray(length_mm, float)
+    return np.abs(rz[:, None] - rz[None, :]) <= (
+        max_rz_rate_deg_per_mm * 0.5 * (length[:-1, None, None] + length[1:, None, None]) + 1e-9
+    )
+
+
+def _best_rz_sequence(gain, step_ok) -> np.ndarray:
+    """Dynamic programming: the Rz indices maximising ``sum_i gain[..., i, r_i]`` under the
+    rate limit; ``gain`` (..., m, r) with leading batch axes (candidates)."""
+    m = gain.shape[-2]
+    score = gain[..., 0, :].copy()
+    back = np.zeros(gain.shape, int)
+    for i in range(1, m):
+        cand = np.where(step_ok[i - 1], score[..., :, None], -np.inf)  # (..., from, to)
+        back[..., i, :] = np.argmax(cand, axis=-2)
+        score = (
+            np.take_along_axis(cand, back[..., i, None, :], axis=-2)[..., 0, :] + gain[..., i, :]
+        )
+    path = np.empty(gain.shape[:-1], int)
+    path[..., -1] = np.argmax(score, axis=-1)
+    for i in range(m - 1, 0, -1):
+        path[..., i - 1] = np.take_along_axis(back[..., i, :], path[..., i, None], axis=-1)[..., 0]
+    return path
+
+
+def choose_configurations(
+    allowed_m,
+    rz_deg,
+    spindle_rpm,
+    length_mm,
+    *,
+    max_rz_rate_deg_per_mm: float,
+    depth_rule: str = "segment",
+    depth_m: float | None = None,
+    p_stable_at_depth=None,
+    p_required: float = 0.95,
+) -> ConfigurationChoice:
+    """The Rz and speed per segment of largest mean MRR, Rz changes within the rate limit.
+
+    The mean MRR over the path is the volume removed over the machining time,
+    ``a_e f_z N / 60 * sum(d_i L_i) / sum(L_i / n_i)`` (depth ``d_i``, length ``L_i``, speed
+    ``n_i`` [rpm] of segment ``i``): segments cut faster take less time.
+
+    * ``depth_rule="segment"``: each segment is cut at the depth allowed at its Rz and speed.
+      The ratio is maximised exactly by Dinkelbach's iteration (``max sum(V_i - lam T_i)``
+      by dynamic programming over the Rz grid, ``lam`` the ratio of the last solution,
+      until it no longer grows).
+    * ``depth_rule="path"``: one depth ``d`` for the whole path, at most the depth allowed at
+      every segment's Rz and speed. For every candidate ``d`` (each allowed depth of the table
+      up to the smallest segment maximum) each (segment, Rz) takes the fastest speed that
+      allows ``d``; dynamic programming finds the quickest Rz sequence; the candidate of
+      largest ``d sum(L_i) / sum(L_i / n_i)`` wins.
+    * ``depth_m`` given: that depth everywhere; configurations where ``p_stable_at_depth``
+      reaches ``p_required`` are feasible; a segment without a feasible one within the rate
+      limit takes the one of highest P(stable); among feasible ones the speeds and Rz of
+      largest mean MRR (shortest time).
+
+    Parameters
+    ----------
+    allowed_m : array_like
+        (m, r, j) depth allowed at the required P(stable) per segment, Rz and speed [m].
+    rz_deg, spindle_rpm : array_like
+        (r,) Rz grid [deg], (j,) speed grid [rpm].
+    length_mm : array_like
+        (m,) segment lengths [mm].
+    max_rz_rate_deg_per_mm : float
+        Largest Rz change per mm of path between segments.
+    depth_rule : {"segment", "path"}
+        Depth per segment or one depth for the path (``depth_m`` None).
+    depth_m : float, optional
+        The depth asked [m].
+    p_stable_at_depth : array_like, optional
+        (m, r, j) P(stable) at ``depth_m`` (needed with it).
+    p_required : float
+        Required P(stable).
+
+    Returns
+    -------
+    ConfigurationChoice
+    """
+    allowed = np.asarray(allowed_m, float)
+    rz = np.asarray(rz_deg, float)
+    rpm = np.asarray(spindle_rpm, float)
+    length = np.asarray(length_mm, float)
+    if allowed.ndim != 3 or allowed.shape[1:] != (rz.size, rpm.size):
+        raise ValueError(
+            f"allowed_m must be (segments, {rz.size} Rz, {rpm.size} speeds), got {allowed.shape}"
+        )
+    if length.shape != allowed.shape[:1]:
+        raise ValueError(f"length_mm must be ({allowed.shape[0]},), got {length.shape}")
+    if depth_rule not in ("segment", "path"):
+        raise ValueError(f"depth_rule must be 'segment' or 'path', got {depth_rule!r}")
+    if np.any(np.isnan(allowed)) or np.any(allowed < 0):
+        raise ValueError("allowed_m must be depths >= 0 (inf: unlimited)")
+    m = allowed.shape[0]
+    seg = np.arange(m)
+    step_ok = _rz_steps_allowed(rz, length, max_rz_rate_deg_per_mm)
+    time_ = np.broadcast_to(length[:, None, None] / rpm[None, None, :], allowed.shape)
     if depth_m is not None:
-        total = np.where(feasible.all(axis=0), total, 0.0)
-    r0, j0 = np.unravel_index(int(np.argmax(total)), total.shape)
-    out = {
-        "rz_deg": float(rz[r0]),
-        "spindle_rpm": float(rpm[j0]),
-        "mean_mrr_mm3_per_s": float(total[r0, j0] * 1e9),
-        "rule": "one Rz and speed for the whole path, the depth per segment as allowed there "
-        "at the same P(stable)" if depth_m is None else
-        "one Rz and speed for the whole path at the depth asked, feasible on every segment",
-    }  # fmt: skip
-    if depth_m is None:
-        # and one depth for the whole path: the smallest allowed one at that Rz and speed
-        one = allowed.min(axis=0)  # (r, j)
-        mrr_one = ae * one * feed_speed[None, :]
-        r1, j1 = np.unravel_index(int(np.argmax(mrr_one)), mrr_one.shape)
-        out["one_depth"] = {
-            "rz_deg": float(rz[r1]),
-            "spindle_rpm": float(rpm[j1]),
-            "depth_mm": float(one[r1, j1] * 1e3),
-            "mean_mrr_mm3_per_s": float(mrr_one[r1, j1] * 1e9),
-        }
+        if p_stable_at_depth is None:
+            raise ValueError("a depth asked needs p_stable_at_depth")
+        p_at = np.asarray(p_stable_at_depth, float)
+        ok = p_at >= p_required
+        volume = np.where(ok, float(depth_m) * length[:, None, None], 0.0)
+        # infeasible configurations only where nothing else is within reach: a penalty larger
+        # than any MRR difference, smaller for a higher P(stable)
+        big = 4.0 * (np.abs(volume).max() + time_.max() * (volume / time_).max() + 1.0) * m
+        penalty = np.where(ok, 0.0, big * (1.0 + 1e6 * (1.0 - p_at)))
+        depth_table = np.full(allowed.shape, float(depth_m))
+    elif depth_rule == "segment":
+        if not np.all(np.isfinite(allowed)):
+            raise ValueError("allowed_m must be finite with depth_rule='segment' (cap it)")
+        volume = allowed * length[:, None, None]
+        penalty = np.zeros(allowed.shape)
+        depth_table = allowed
+    else:
+        return _one_depth_for_the_path(allowed, rpm, length, step_ok)
+    lam, best = 0.0, None
+    for _ in range(200):  # Dinkelbach: converges in a handful of steps
+        g = volume - lam * time_ - penalty
+        j_best = np.argmax(g, axis=2)  # (m, r)
+        gain = np.take_along_axis(g, j_best[..., None], axis=2)[..., 0]
+        path_r = _best_rz_sequence(gain, step_ok)
+        jj = j_best[seg, path_r]
+        ratio = float(volume[seg, path_r, jj].sum() / time_[seg, path_r, jj].sum())
+        if best is not None and ratio <= lam * (1 + 1e-12):
+            break
+        best, lam = (path_r, jj), ratio
+    path_r, jj = best
+    return ConfigurationChoice(path_r, jj, depth_table[seg, path_r, jj], lam)
+
+
+def _one_depth_for_the_path(allowed, rpm, length, step_ok) -> ConfigurationChoice:
+    m = allowed.shape[0]
+    seg = np.arange(m)
+    reach = allowed.reshape(m, -1).max(axis=1)  # deepest cut each segment allows
+    top = float(reach.min())
+    # the fastest speed of a (segment, Rz) that allows d changes only where d passes a maximum
+    # over the faster speeds; between those the time is constant and d * L / time grows, so
+    # the best d is one of them
+    order = np.argsort(rpm)
+    suffix = np.flip(np.maximum.accumulate(np.flip(allowed[..., order], axis=2), axis=2), axis=2)
+    cand = np.unique(suffix[suffix <= top])
+    cand = cand[cand > 0] if np.isfinite(top) else cand[np.isfinite(cand) & (cand > 0)]
+    if cand.size == 0:  # no depth > 0 anywhere: the fastest configuration at depth 0
+        cand = np.array([0.0])
+    best = (-1.0, None)
+    for c0 in range(0, cand.size, 256):  # candidates in batches (memory)
+        c = cand[c0 : c0 + 256]
+        ok = allowed[None] >= c[:, None, None, None]  # (C, m, r, j)
+        fastest = np.where(ok, rpm, 0.0).max(axis=3)  # (C, m, r)
+        t = np.where(fastest > 0, length[None, :, None] / np.maximum(fastest, 1e-300), np.inf)
+        gain = np.where(np.isfinite(t), -t, -1e300)
+        path_r = _best_rz_sequence(gain, step_ok)  # (C, m)
+        tt = np.take_along_axis(t, path_r[..., None], axis=2)[..., 0].sum(axis=1)
+        score = np.where(np.isfinite(tt), c * length.sum() / tt, -1.0)
+        k = int(np.argmax(score))
+        if score[k] > best[0]:
+            best = (float(score[k]), (c[k], path_r[k]))
+    score, (d, path_r) = best
+    okj = allowed[seg, path_r] >= d  # (m, j)
+    jj = np.argmax(np.where(okj, rpm, -np.inf), axis=1)
+    return ConfigurationChoice(path_r, jj, np.full(m, d), max(score, 0.0))
+
+
+def fixed_configuration(
+    allowed_m,
+    rz_deg,
+    spindle_rpm,
+    length_mm,
+    *,
+    depth_rule: str = "segment",
+    depth_m: float | None = None,
+    p_stable_at_depth=None,
+    p_required: float = 0.95,
+) -> dict:
+    """The best single Rz and speed for the whole path under the same depth rule.
+
+    Parameters
+    ----------
+    allowed_m, rz_deg, spindle_rpm, length_mm, depth_rule, depth_m, p_stable_at_depth, p_required
+        As :func:`choose_configurations`.
+
+    Returns
+    -------
+    dict
+        ``rz_deg``, ``spindle_rpm``, ``score`` (as :attr:`ConfigurationChoice.score`),
+        ``rule`` (in words), and with no depth asked ``one_depth`` (``rz_deg``,
+        ``spindle_rpm``, ``depth_m``, ``score``: one depth for the whole path, the smallest
+        allowed along it at that Rz and speed) and ``segment_depth`` (the depth per segment).
+    """
+    allowed = np.asarray(allowed_m, float)
+    rz = np.asarray(rz_deg, float)
+    rpm = np.asarray(spindle_rpm, float)
+    length = np.asarray(length_mm, float)
+    lw = length / length.sum()
+    # depth per segment at one Rz and speed: sum(d L) / sum(L / n) = n * mean_L(d)
+    seg_score = np.einsum("i,irj->rj", lw, allowed) * rpm[None, :]
+    one = allowed.min(axis=0)  # (r, j)
+    one_score = one * rpm[None, :]
+
+    def best_of(score):
+        r0, j0 = np.unravel_index(int(np.argmax(score)), score.shape)
+        return {"rz_deg": float(rz[r0]), "spindle_rpm": float(rpm[j0]),
+                "score": float(score[r0, j0])}, (r0, j0)  # fmt: skip
+
+    if depth_m is not None:
+        ok = (np.asarray(p_stable_at_depth) >= p_required).all(axis=0)
+        out, _ = best_of(np.where(ok, float(depth_m) * rpm[None, :], 0.0))
+        out["rule"] = (
+            "one Rz and speed for the whole path at the depth asked, feasible on every segment"
+        )
+        return out
+    seg_best, _ = best_of(seg_score)
+    one_best, (r1, j1) = best_of(one_score)
+    one_best["depth_m"] = float(one[r1, j1])
+    seg_best["rule"] = ("one Rz and speed for the whole path, the depth per segment as allowed "
+                        "there at the same P(stable)")  # fmt: skip
+    one_best["rule"] = ("one Rz, speed and depth for the whole path (the smallest allowed along "
+                        "it) at the same P(stable)")  # fmt: skip
+    out = dict(seg_best if depth_rule == "segment" else one_best)
+    out["segment_depth"] = seg_best
+    out["one_depth"] = one_best
+    return out
+
+
+def _fixed_to_units(fixed: dict, ae: float, per_rpm: float) -> dict:
+    """The fixed comparison with MRR [mm³/s] and depths [mm] (``per_rpm`` = f_z N / 60)."""
+    out = {}
+    for key, val in fixed.items():
+        if isinstance(val, dict):
+            out[key] = _fixed_to_units(val, ae, per_rpm)
+        elif key == "score":
+            out["mean_mrr_mm3_per_s"] = float(val * ae * per_rpm * 1e9)
+        elif key == "depth_m":
+            out["depth_mm"] = float(val * 1e3)
+        else:
+            out[key] = val
     return out
 
 
