@@ -369,9 +369,12 @@ def _poincare_loop(
     fewer modes has zero slots). The loops over the rows are innermost and touch few arrays,
     so that they vectorise. The operations are those of :func:`_step_rows` in the same order
     (the displacement sums the feed modes in their order; a zero slot adds a zero), so the
-    once-per-period samples are bit for bit the same (tested). Rows are stepped ``chunk`` at a
-    time (cache). ``engaged[kk, :n_engaged[kk]]``: the flutes inside the engagement at step
-    ``kk`` of the tooth period; ``poincare`` (n_per, 2, b) is filled.
+    once-per-period samples are bit for bit the same (tested), less the work whose result is
+    never used or is an exact zero: at a step where no flute is in the engagement the force is
+    zero (its term is left out) and the delay buffer is not read, and the displacement is
+    summed only where the next step's chip or the record needs it. Rows are stepped ``chunk``
+    at a time (cache). ``engaged[kk, :n_engaged[kk]]``: the flutes inside the engagement at
+    step ``kk`` of the tooth period; ``poincare`` (n_per, 2, b) is filled.
     """
     nm = coef.shape[0]
     b = coef.shape[2]
@@ -392,54 +395,73 @@ def _poincare_loop(
             a[r] = depth[r0 + r]
         for i in range(n_steps):
             kk = i % m_steps
+            cutting = n_engaged[kk] > 0
+            # x, y at the end of this step are needed by the next step's chip or the record.
+            need = n_engaged[(kk + 1) % m_steps] > 0 or kk == m_steps - 1
             if i < n_ramp:
                 scale = (i + 1) / n_ramp
                 for r in range(n):
                     a[r] = depth[r0 + r] * scale
-            for r in range(n):
-                x = xy[0, r]
-                y = xy[1, r]
-                dxy[0, r] = x - hist[kk, 0, r]
-                dxy[1, r] = y - hist[kk, 1, r]
-                hist[kk, 0, r] = x
-                hist[kk, 1, r] = y
-                fxy[0, r] = 0.0
-                fxy[1, r] = 0.0
-                xy[0, r] = 0.0
-                xy[1, r] = 0.0
-            for jj in range(n_engaged[kk]):
-                j = engaged[kk, jj]
-                s = s_tab[kk, j]
-                co = c_tab[kk, j]
-                base = fz * s
+            if cutting:
                 for r in range(n):
-                    h = base + dxy[0, r] * s + dxy[1, r] * co
-                    cut = h > 0.0
-                    hc = h if cut else 0.0
-                    on = 1.0 if cut else 0.0
-                    ft = a[r] * (ktc * hc + kte * on)
-                    fr = a[r] * (krc * hc + kre * on)
-                    fxy[0, r] += -ft * co - fr * s
-                    fxy[1, r] += ft * s - fr * co
-            for m in range(nm):
-                if m < n_feed:
+                    x = xy[0, r]
+                    y = xy[1, r]
+                    dxy[0, r] = x - hist[kk, 0, r]
+                    dxy[1, r] = y - hist[kk, 1, r]
+                    hist[kk, 0, r] = x
+                    hist[kk, 1, r] = y
+                    fxy[0, r] = 0.0
+                    fxy[1, r] = 0.0
+                for jj in range(n_engaged[kk]):
+                    j = engaged[kk, jj]
+                    s = s_tab[kk, j]
+                    co = c_tab[kk, j]
+                    base = fz * s
                     for r in range(n):
-                        f = fxy[0, r]
+                        h = base + dxy[0, r] * s + dxy[1, r] * co
+                        cut = h > 0.0
+                        hc = h if cut else 0.0
+                        on = 1.0 if cut else 0.0
+                        ft = a[r] * (ktc * hc + kte * on)
+                        fr = a[r] * (krc * hc + kre * on)
+                        fxy[0, r] += -ft * co - fr * s
+                        fxy[1, r] += ft * s - fr * co
+            if need:
+                for r in range(n):
+                    xy[0, r] = 0.0
+                    xy[1, r] = 0.0
+            for m in range(nm):
+                d = 0 if m < n_feed else 1
+                if cutting and need:
+                    for r in range(n):
+                        f = fxy[d, r]
                         xo = state[m, 0, r]
                         vo = state[m, 1, r]
                         xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
                         state[m, 0, r] = xn
                         state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
-                        xy[0, r] += xn
+                        xy[d, r] += xn
+                elif cutting:
+                    for r in range(n):
+                        f = fxy[d, r]
+                        xo = state[m, 0, r]
+                        vo = state[m, 1, r]
+                        state[m, 0, r] = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
+                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
+                elif need:
+                    for r in range(n):
+                        xo = state[m, 0, r]
+                        vo = state[m, 1, r]
+                        xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo
+                        state[m, 0, r] = xn
+                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
+                        xy[d, r] += xn
                 else:
                     for r in range(n):
-                        f = fxy[1, r]
                         xo = state[m, 0, r]
                         vo = state[m, 1, r]
-                        xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
-                        state[m, 0, r] = xn
-                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
-                        xy[1, r] += xn
+                        state[m, 0, r] = cc[m, 0, r] * xo + cc[m, 1, r] * vo
+                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
             if i >= n_ramp and kk == m_steps - 1:
                 j = (i - n_ramp) // m_steps
                 for r in range(n):

@@ -1,0 +1,186 @@
+"""Benchmark (issue 37 item 2): what ``--time-domain-margin`` adds to a P(stable) chart.
+
+Run from the repository root::
+
+    python benchmarks/bench_time_domain_margin.py [--speeds 200] [--samples 100] [--ref-speeds 2]
+
+Chart: the shipped chapter-3 pose model at X 2400, Y 0 mm, Rz 45° (2 modes; ``--five-mode``:
+the 5-mode stand-in of ``bench_stability_probability.py``, from 300 rpm so that its ~65 Hz
+mode gets 10 steps per period), 25.4 mm 2-flute tool, 6 mm radial depth, down-milling,
+Al 7075, 100-3000 rpm, the quantile-targeted route (``exact=False``; ``--exact``: the default
+route). Measured in the same run on one core (one BLAS thread, pinned to one CPU where the OS
+allows), CPU seconds:
+
+* the chart without and with ``time_domain_margin=True`` (the mean modes and 20 samples
+  simulated at their own linear limits): their difference is what the margin adds, numba's
+  import and the load of its cached kernel included;
+* the margin pass alone inside that chart, and the cuts it simulated;
+* the reference: the previous pass (numpy stepping, every factor of every case: 11 factors
+  0.6-1, and 6 above 1 where the cut at the linear limit is stable) on ``--ref-speeds`` of the
+  speeds, scaled to the chart, and its ratio to the new pass;
+* agreement: the brackets of the new pass against the reference at those speeds, and against
+  every factor simulated (compiled) at every speed of the chart (must be identical: same cuts,
+  same verdicts);
+* the compile time of the kernel on first use after an install (cached on disk afterwards).
+
+Measured 2026-11-27, 11th session (one core of a 2-core machine shared with other work, load
+1-3): see the module's report in the closing note; the figures printed are the ones to quote.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+
+from robovib.gp.chapter3_model import load_chapter3_predictor
+from robovib.milling import ALUMINIUM_7075, time_domain
+from robovib.milling.chart import cutting_setup
+from robovib.milling.uncertainty import (
+    ModeDistribution,
+    mode_distribution_at_pose,
+    stability_probability,
+)
+
+
+def _five_mode() -> dict:
+    def md(fn, k, zeta, name):
+        c = 2 * zeta * k / (2 * np.pi * fn)
+        return ModeDistribution(fn, k, c, 0.04 * fn, 0.06 * k, 0.05 * c, name=name)
+
+    return {
+        "x": [
+            md(16.4, 4.2e6, 0.11, "x1"),
+            md(42.0, 2.0e7, 0.05, "x2"),
+            md(63.5, 4.2e7, 0.04, "x3"),
+        ],
+        "y": [md(8.5, 9.4e5, 0.19, "y1"), md(21.9, 1.0e7, 0.06, "y2")],
+    }
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--speeds", type=int, default=200)
+    ap.add_argument("--samples", type=int, default=100)
+    ap.add_argument("--ref-speeds", type=int, default=2, help="speeds of the numpy reference")
+    ap.add_argument("--five-mode", action="store_true", help="the 5-mode stand-in structure")
+    ap.add_argument("--exact", action="store_true", help="the default (exact) chart route")
+    opts = ap.parse_args(argv)
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    tool, cond, coef = cutting_setup(
+        ALUMINIUM_7075, diameter_m=0.0254, n_flutes=2, helix_deg=30.0, radial_depth_m=6e-3
+    )
+    rpm = np.linspace(300.0 if opts.five_mode else 100.0, 3000.0, opts.speeds)
+    if opts.five_mode:
+        dist, label = _five_mode(), "5-mode stand-in"
+    else:
+        dist = mode_distribution_at_pose(load_chapter3_predictor(), (2400.0, 0.0, 45.0))
+        label = "2-DOF chapter-3 model at 2400, 0, 45"
+    common = dict(n_samples=opts.samples, rng=0, method_error=False, fit_bias=0.0,
+                  exact=opts.exact)  # fmt: skip
+    load = os.getloadavg()[0]
+
+    # The margin pass inside the chart: its inputs, CPU time and brackets.
+    original = time_domain.time_domain_limit_ratios
+    seen = {}
+
+    def recorded(sets, tool_, cond_, coef_, speeds, limits, **kw):
+        c0 = time.process_time()
+        out = original(sets, tool_, cond_, coef_, speeds, limits, **kw)
+        seen.update(sets=sets, limits=np.asarray(limits), kw=kw, out=out,
+                    cpu=time.process_time() - c0)  # fmt: skip
+        return out
+
+    cpu = {}
+    for flag in (False, True):
+        time_domain.time_domain_limit_ratios = recorded
+        c0 = time.process_time()
+        try:
+            stability_probability(dist, tool, cond, coef, rpm, **common, time_domain_margin=flag)
+        finally:
+            time_domain.time_domain_limit_ratios = original
+        cpu[flag] = time.process_time() - c0
+    added = cpu[True] - cpu[False]
+    sets, limits, kw, (low, high) = seen["sets"], seen["limits"], seen["kw"], seen["out"]
+    n_cases = limits.size
+
+    # Cuts simulated by the top-down pass (counted on a second, warm run).
+    counted = [0]
+    rows_of = time_domain._chatter_of_rows
+
+    def counting(*args, **kwargs):
+        counted[0] += len(args[5])
+        return rows_of(*args, **kwargs)
+
+    time_domain._chatter_of_rows = counting
+    try:
+        c0 = time.process_time()
+        warm = original(sets, tool, cond, coef, rpm, limits, **kw)
+        c_warm = time.process_time() - c0
+    finally:
+        time_domain._chatter_of_rows = rows_of
+    # Every factor of every case, compiled: the brackets the walk must reproduce.
+    c0 = time.process_time()
+    grid = original(sets, tool, cond, coef, rpm, limits, search="grid", **kw)
+    c_grid = time.process_time() - c0
+
+    # The reference: numpy stepping of every factor (the pass before), on a few speeds.
+    pick = np.linspace(0, rpm.size - 1, max(opts.ref_speeds, 1)).round().astype(int)
+    compiled = time_domain._COMPILED.get("loop")
+    time_domain._COMPILED["loop"] = None
+    try:
+        c0 = time.process_time()
+        ref = original(sets, tool, cond, coef, rpm[pick], limits[:, pick], search="grid", **kw)
+        c_ref = (time.process_time() - c0) / pick.size * rpm.size
+    finally:
+        time_domain._COMPILED["loop"] = compiled
+
+    # Compile time of the kernel (first use after an install; then cached on disk).
+    import numba
+
+    fresh = numba.njit(cache=False)(time_domain._poincare_loop)
+    time_domain._COMPILED["loop"] = fresh
+    try:
+        c0 = time.process_time()
+        original(sets[:1], tool, cond, coef, rpm[:1], limits[:1, :1], factors=(0.9, 1.0),
+                 n_tooth_periods=20)  # fmt: skip
+        c_compile = time.process_time() - c0
+    finally:
+        time_domain._COMPILED["loop"] = compiled
+
+    same_ref = np.sum((ref[0] == low[:, pick]) & (ref[1] == high[:, pick]))
+    same_grid = np.sum((grid[0] == low) & (grid[1] == high))
+    same_warm = np.array_equal(warm[0], low) and np.array_equal(warm[1], high)
+    print(f"{label}: {rpm.size} speeds x {opts.samples} samples, "
+          f"{'exact' if opts.exact else 'quantile-targeted'} route, one core, "
+          f"load before {load:.2f}")  # fmt: skip
+    print(f"chart without the margin        {cpu[False]:8.2f} s CPU")
+    print(f"chart with --time-domain-margin {cpu[True]:8.2f} s CPU")
+    print(f"  added                         {added:8.2f} s CPU   (target <= 2 s)")
+    print(f"  the margin pass in the chart  {seen['cpu']:8.2f} s CPU (numba import, cached kernel)")
+    print(f"  the same pass again (warm)    {c_warm:8.2f} s CPU, {counted[0]} cuts for "
+          f"{n_cases} cases ({counted[0] / n_cases:.2f} a case)")  # fmt: skip
+    print(f"every factor, compiled          {c_grid:8.2f} s CPU, brackets identical at "
+          f"{same_grid}/{n_cases} cases")  # fmt: skip
+    print(f"reference (numpy, every factor) {c_ref:8.2f} s CPU scaled from {pick.size} speeds "
+          f"({c_ref / rpm.size:.2f} s a speed), {c_ref / max(added, 1e-9):.0f}x the added time; "
+          f"brackets identical at {same_ref}/{ref[0].size} cases")  # fmt: skip
+    print(f"kernel compile on first use     {c_compile:8.2f} s CPU (cached on disk afterwards)")
+    print(f"warm pass reproduces the chart's brackets: {same_warm}")
+    r = 0.5 * (low + high)
+    print(f"time-domain / linear limit over the cases: min {r.min():.3f}, median "
+          f"{np.median(r):.3f}, max {r.max():.3f}; above 1 at {np.mean(r > 1):.1%}")  # fmt: skip
+    print(
+        f"Done-when (issue 37): --time-domain-margin adds <= 2 s to a {rpm.size}-speed chart: "
+        f"{'met' if added <= 2.0 else 'not met'} ({added:.2f} s)"
+    )
+
+
+if __name__ == "__main__":
+    main()
