@@ -168,3 +168,23 @@ def test_stability_probability_with_the_margin_is_that_of_the_numpy_grid(monkeyp
     np.testing.assert_array_equal(fast.a_lim_samples_m, slow.a_lim_samples_m)
     assert fast.settings["time_domain_ratio"] == slow.settings["time_domain_ratio"]
     assert not np.allclose(fast.a_lim_samples_m[0] / fast.mean.a_lim_m, 1.0)  # a margin applied
+
+
+def test_slow_speeds_take_enough_steps_for_the_stiffest_mode():
+    # At 100 rpm a tooth period is 0.3 s: 120 steps give the 63.55 Hz mode 6 steps per period
+    # (simulate_regenerative_cut refuses). The batched pass takes floor(10 fn tau) + 1 = 191
+    # there and keeps 120 at 1750 rpm: its brackets are those of single cuts at those steps.
+    rpm = np.array([100.0, 1750.0])
+    lim = sdm_lobes(MX, MY, TOOL, COND, ALUMINIUM_7075, rpm).a_lim_m[None, :]
+    factors, sim = (0.6, 0.8, 0.9, 1.0), dict(n_tooth_periods=40)
+    with pytest.raises(ValueError, match="steps per period"):
+        simulate_regenerative_cut(MX, MY, TOOL, replace(COND, spindle_rpm=100.0),
+                                  ALUMINIUM_7075, lim[0, :1], **sim)  # fmt: skip
+    low, high = time_domain_limit_ratios([(MX, MY)], TOOL, COND, ALUMINIUM_7075, rpm, lim,
+                                         factors=factors, **sim)  # fmt: skip
+    for r, (speed, steps) in enumerate(zip(rpm, (191, 120), strict=True)):
+        chat = simulate_regenerative_cut(MX, MY, TOOL, replace(COND, spindle_rpm=speed),
+                                         ALUMINIUM_7075, lim[0, r] * np.array(factors),
+                                         steps_per_tooth=steps, **sim).chatter  # fmt: skip
+        pattern = "".join("X" if c else "-" for c in chat)
+        assert (low[0, r], high[0, r]) == pytest.approx(_persistent(pattern, factors, ()))

@@ -211,7 +211,9 @@ def simulate_regenerative_cut(
 
 def _poincare_indicators(poincare: np.ndarray):
     """Growth, decay rate and late amplitude from (b, n_periods, 2) once-per-period samples."""
-    diff = np.linalg.norm(np.diff(poincare, axis=1), axis=-1)  # (b, n_per - 1)
+    step = np.diff(poincare, axis=1)
+    # |step| as numpy.linalg.norm computes it (same bits), without its generic overhead.
+    diff = np.sqrt(step[..., 0] * step[..., 0] + step[..., 1] * step[..., 1])  # (b, n_per - 1)
     n = diff.shape[1]
     early = np.sqrt(
         np.mean(diff[:, int(0.05 * n) : max(int(0.2 * n), int(0.05 * n) + 1)] ** 2, axis=1)
@@ -374,7 +376,7 @@ def _poincare_loop(
     zero (its term is left out) and the delay buffer is not read, and the displacement is
     summed only where the next step's chip or the record needs it. Rows are stepped ``chunk``
     at a time (cache). ``engaged[kk, :n_engaged[kk]]``: the flutes inside the engagement at
-    step ``kk`` of the tooth period; ``poincare`` (n_per, 2, b) is filled.
+    step ``kk`` of the tooth period; ``poincare`` (b, n_per, 2) is filled.
     """
     nm = coef.shape[0]
     b = coef.shape[2]
@@ -465,8 +467,8 @@ def _poincare_loop(
             if i >= n_ramp and kk == m_steps - 1:
                 j = (i - n_ramp) // m_steps
                 for r in range(n):
-                    poincare[j, 0, r0 + r] = xy[0, r]
-                    poincare[j, 1, r0 + r] = xy[1, r]
+                    poincare[r0 + r, j, 0] = xy[0, r]
+                    poincare[r0 + r, j, 1] = xy[1, r]
 
 
 def _slots(coef, selx: np.ndarray, sely: np.ndarray) -> tuple[np.ndarray, int]:
@@ -530,14 +532,14 @@ def _poincare_rows(
         engaged[kk, : on.size] = on
     packed, n_feed = _slots(coef, selx, sely)
     c = coefficients
-    out = np.empty((n_per, 2, depth.size))
+    out = np.empty((depth.size, n_per, 2))
     if depth.size:
         loop(
             packed, n_feed, depth, np.ascontiguousarray(s_tab), np.ascontiguousarray(c_tab),
             engaged, n_engaged, float(c.ktc), float(c.kte), float(c.krc), float(c.kre),
             float(conditions.feed_per_tooth_m), n_per, n_entry, int(chunk), out,
         )  # fmt: skip
-    return np.ascontiguousarray(out.transpose(2, 0, 1))
+    return out
 
 
 def _chatter_of_rows(
@@ -785,7 +787,11 @@ def time_domain_limit_ratios(
         bit for bit, as :func:`simulate_regenerative_cut`'s.
     **simulation
         ``n_tooth_periods``, ``steps_per_tooth``, ``entry_tooth_periods``,
-        ``chatter_fraction_of_feed`` of :func:`simulate_regenerative_cut`.
+        ``chatter_fraction_of_feed`` of :func:`simulate_regenerative_cut`. ``steps_per_tooth``
+        (default 120) is a minimum here: at a speed where a structure's highest mode would get
+        fewer than 10 steps per period of its own, its cuts take enough more (a slow speed
+        with a stiff mode, e.g. 100 rpm and 63 Hz; :func:`simulate_regenerative_cut` raises
+        there instead).
 
     Returns
     -------
@@ -855,17 +861,28 @@ def time_domain_limit_ratios(
         fn[i, : len(modes)], k[i, : len(modes)], z[i, : len(modes)] = _mode_arrays(modes)
         feed[i, : len(mx)] = True
     step = max(int(max_batch), 1)
+    m_min, _, _ = _checked_simulation(
+        simulation.get("steps_per_tooth", 120), simulation.get("n_tooth_periods", 300),
+        simulation.get("entry_tooth_periods", 0), simulation.get("chatter_fraction_of_feed", 0.1),
+    )  # fmt: skip
+    # Steps per tooth period of each structure and speed: at least ``steps_per_tooth``, more
+    # where its highest mode would get fewer than 10 steps per period (slow speeds).
+    tooth_period = 60.0 / (int(tool.n_flutes) * rpm)
+    steps = np.maximum(m_min, np.floor(10 * fn.max(axis=1)[:, None] * tooth_period).astype(int) + 1)
 
     def chatter_at(sets_i, speeds_i, depth):
         """Chatter of the cuts of structures ``sets_i`` at speeds ``speeds_i`` and ``depth``."""
         flags = np.empty(depth.size, bool)
-        for a in range(0, flags.size, step):
-            sl = slice(a, a + step)
-            si = sets_i[sl]
-            flags[sl] = _chatter_of_rows(
-                fn[si], k[si], z[si], feed[si], rpm[speeds_i[sl]], depth[sl], tool,
-                conditions, coefficients, **simulation,
-            )  # fmt: skip
+        m_rows = steps[sets_i, speeds_i]
+        for m in np.unique(m_rows):
+            rows = np.flatnonzero(m_rows == m)
+            for a in range(0, rows.size, step):
+                sub = rows[a : a + step]
+                si = sets_i[sub]
+                flags[sub] = _chatter_of_rows(
+                    fn[si], k[si], z[si], feed[si], rpm[speeds_i[sub]], depth[sub], tool,
+                    conditions, coefficients, **{**simulation, "steps_per_tooth": int(m)},
+                )  # fmt: skip
         return flags
 
     if search == "top-down" and onset == "persistent":
