@@ -5,10 +5,10 @@ Run from the repository root::
     python benchmarks/bench_time_domain_margin.py [--speeds 200] [--samples 100] [--ref-speeds 2]
 
 Chart: the shipped chapter-3 pose model at X 2400, Y 0 mm, Rz 45° (2 modes; ``--five-mode``:
-the 5-mode stand-in of ``bench_stability_probability.py``, from 300 rpm so that its ~65 Hz
-mode gets 10 steps per period), 25.4 mm 2-flute tool, 6 mm radial depth, down-milling,
-Al 7075, 100-3000 rpm, the quantile-targeted route (``exact=False``; ``--exact``: the default
-route). Measured in the same run on one core (one BLAS thread, pinned to one CPU where the OS
+the 5-mode stand-in of ``bench_stability_probability.py``, whose ~65 Hz mode takes more than
+120 steps per tooth period below ~160 rpm), 25.4 mm 2-flute tool, 6 mm radial depth,
+down-milling, Al 7075, 100-3000 rpm, the quantile-targeted route (``exact=False``;
+``--exact``: the default route). Measured in the same run on one core (one BLAS thread, pinned to one CPU where the OS
 allows), CPU seconds:
 
 * the chart without and with ``time_domain_margin=True`` (the mean modes and 20 samples
@@ -76,7 +76,7 @@ def main(argv=None) -> None:
     tool, cond, coef = cutting_setup(
         ALUMINIUM_7075, diameter_m=0.0254, n_flutes=2, helix_deg=30.0, radial_depth_m=6e-3
     )
-    rpm = np.linspace(300.0 if opts.five_mode else 100.0, 3000.0, opts.speeds)
+    rpm = np.linspace(100.0, 3000.0, opts.speeds)
     if opts.five_mode:
         dist, label = _five_mode(), "5-mode stand-in"
     else:
@@ -131,7 +131,8 @@ def main(argv=None) -> None:
     c_grid = time.process_time() - c0
 
     # The reference: numpy stepping of every factor (the pass before), on a few speeds.
-    pick = np.linspace(0, rpm.size - 1, max(opts.ref_speeds, 1)).round().astype(int)
+    # Interior speeds, evenly spread (the slowest take more steps per tooth with stiff modes).
+    pick = np.linspace(0, rpm.size - 1, max(opts.ref_speeds, 1) + 2)[1:-1].round().astype(int)
     compiled = time_domain._COMPILED.get("loop")
     time_domain._COMPILED["loop"] = None
     try:
@@ -162,23 +163,28 @@ def main(argv=None) -> None:
           f"load before {load:.2f}")  # fmt: skip
     print(f"chart without the margin        {cpu[False]:8.2f} s CPU")
     print(f"chart with --time-domain-margin {cpu[True]:8.2f} s CPU")
-    print(f"  added                         {added:8.2f} s CPU   (target <= 2 s)")
+    print(f"  added                         {added:8.2f} s CPU   (the difference of two charts: "
+          "noisy by the chart's own run-to-run spread)")  # fmt: skip
     print(f"  the margin pass in the chart  {seen['cpu']:8.2f} s CPU (numba import, cached kernel)")
     print(f"  the same pass again (warm)    {c_warm:8.2f} s CPU, {counted[0]} cuts for "
           f"{n_cases} cases ({counted[0] / n_cases:.2f} a case)")  # fmt: skip
     print(f"every factor, compiled          {c_grid:8.2f} s CPU, brackets identical at "
           f"{same_grid}/{n_cases} cases")  # fmt: skip
     print(f"reference (numpy, every factor) {c_ref:8.2f} s CPU scaled from {pick.size} speeds "
-          f"({c_ref / rpm.size:.2f} s a speed), {c_ref / max(added, 1e-9):.0f}x the added time; "
-          f"brackets identical at {same_ref}/{ref[0].size} cases")  # fmt: skip
+          f"({c_ref / rpm.size:.2f} s a speed); brackets identical at {same_ref}/{ref[0].size} "
+          "cases")  # fmt: skip
     print(f"kernel compile on first use     {c_compile:8.2f} s CPU (cached on disk afterwards)")
     print(f"warm pass reproduces the chart's brackets: {same_warm}")
     r = 0.5 * (low + high)
     print(f"time-domain / linear limit over the cases: min {r.min():.3f}, median "
           f"{np.median(r):.3f}, max {r.max():.3f}; above 1 at {np.mean(r > 1):.1%}")  # fmt: skip
+    # The margin's cost: the larger of the chart difference and the pass measured inside it
+    # (the pass is the margin's whole work; the difference carries the chart's noise).
+    cost = max(added, seen["cpu"])
     print(
         f"Done-when (issue 37): --time-domain-margin adds <= 2 s to a {rpm.size}-speed chart: "
-        f"{'met' if added <= 2.0 else 'not met'} ({added:.2f} s)"
+        f"{'met' if cost <= 2.0 else 'not met'} ({cost:.2f} s CPU; reference / this "
+        f"{c_ref / cost:.0f}x)"
     )
 
 

@@ -188,3 +188,24 @@ def test_slow_speeds_take_enough_steps_for_the_stiffest_mode():
                                          steps_per_tooth=steps, **sim).chatter  # fmt: skip
         pattern = "".join("X" if c else "-" for c in chat)
         assert (low[0, r], high[0, r]) == pytest.approx(_persistent(pattern, factors, ()))
+
+
+def test_simulated_stability_limit_bisects_as_single_cuts_do():
+    # The compiled verdicts in the bisection are simulate_regenerative_cut's: replaying the
+    # same rounds with single cuts gives the same bracket.
+    from robovib.milling.time_domain import simulated_stability_limit
+
+    cond = replace(COND, spindle_rpm=2600.0)
+    sim = dict(steps_per_tooth=40, n_tooth_periods=80)
+    a_lim = sdm_lobes(MX[:1], MY[:1], TOOL, cond, ALUMINIUM_7075, [2600.0]).a_lim_m[0]
+    lo, hi = 0.5 * a_lim, 2.0 * a_lim
+    got = simulated_stability_limit(MX[:1], MY[:1], TOOL, cond, ALUMINIUM_7075, (lo, hi),
+                                    n_bisections=4, n_parallel=2, **sim)  # fmt: skip
+    for _ in range(4):
+        trial = np.linspace(lo, hi, 4)[1:-1]
+        chat = simulate_regenerative_cut(MX[:1], MY[:1], TOOL, cond, ALUMINIUM_7075, trial,
+                                         **sim).chatter  # fmt: skip
+        lo = max([lo, *trial[~chat]])
+        hi = min([hi, *trial[chat]])
+    assert got == (lo, hi)
+    assert 0.5 * a_lim < got[0] < got[1] < 2.0 * a_lim

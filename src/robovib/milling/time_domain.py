@@ -608,7 +608,9 @@ def simulated_stability_limit(
     n_parallel : int
         Depths per round.
     **simulation
-        Passed to :func:`simulate_regenerative_cut`.
+        ``n_tooth_periods``, ``steps_per_tooth``, ``entry_tooth_periods``,
+        ``chatter_fraction_of_feed`` of :func:`simulate_regenerative_cut` (whose verdicts the
+        compiled batch reproduces).
 
     Returns
     -------
@@ -617,9 +619,22 @@ def simulated_stability_limit(
     lo, hi = (float(v) for v in depth_bracket_m)
     if not 0 < lo < hi:
         raise ValueError(f"depth_bracket_m must be 0 < low < high [m], got {depth_bracket_m}")
-    ends = simulate_regenerative_cut(
-        modes_x, modes_y, tool, conditions, coefficients, [lo, hi], **simulation
-    ).chatter
+    modes = list(modes_x) + list(modes_y)
+    if not modes:
+        raise ValueError("at least one mode (x or y) is needed")
+    fn, k, z = (a[None, :] for a in _mode_arrays(modes))
+    feed = (np.arange(len(modes)) < len(modes_x))[None, :]
+
+    def chatter(depth):
+        # The verdicts of simulate_regenerative_cut (same samples, bit for bit), compiled.
+        depth = np.asarray(depth, float)
+        rows = np.zeros(depth.size, int)
+        return _chatter_of_rows(
+            fn[rows], k[rows], z[rows], feed[rows], np.full(depth.size, conditions.spindle_rpm),
+            depth, tool, conditions, coefficients, **simulation,
+        )  # fmt: skip
+
+    ends = chatter([lo, hi])
     if ends[0] or not ends[1]:
         raise ValueError(
             f"the bracket must be stable at {lo:g} m and chatter at {hi:g} m "
@@ -628,9 +643,7 @@ def simulated_stability_limit(
         )
     for _ in range(int(n_bisections)):
         trial = np.linspace(lo, hi, int(n_parallel) + 2)[1:-1]
-        chat = simulate_regenerative_cut(
-            modes_x, modes_y, tool, conditions, coefficients, trial, **simulation
-        ).chatter
+        chat = chatter(trial)
         stable = trial[~chat]
         unstable = trial[chat]
         if stable.size:
