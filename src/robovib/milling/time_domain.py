@@ -461,23 +461,40 @@ def _poincare_loop(
                     xy[0, r] = 0.0
                     xy[1, r] = 0.0
             for m in range(nm):
-                d = 0 if m < n_feed else 1
-                if cutting and need:
+                if cutting and need and m < n_feed:
                     for r in range(n):
-                        f = fxy[d, r]
+                        f = fxy[0, r]
                         xo = state[m, 0, r]
                         vo = state[m, 1, r]
                         xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
                         state[m, 0, r] = xn
                         state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
-                        xy[d, r] += xn
+                        xy[0, r] += xn
+                elif cutting and need:
+                    for r in range(n):
+                        f = fxy[1, r]
+                        xo = state[m, 0, r]
+                        vo = state[m, 1, r]
+                        xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
+                        state[m, 0, r] = xn
+                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
+                        xy[1, r] += xn
                 elif cutting:
+                    d = 0 if m < n_feed else 1
                     for r in range(n):
                         f = fxy[d, r]
                         xo = state[m, 0, r]
                         vo = state[m, 1, r]
                         state[m, 0, r] = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
                         state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
+                elif need and m < n_feed:
+                    for r in range(n):
+                        xo = state[m, 0, r]
+                        vo = state[m, 1, r]
+                        xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo
+                        state[m, 0, r] = xn
+                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
+                        xy[0, r] += xn
                 elif need:
                     for r in range(n):
                         xo = state[m, 0, r]
@@ -485,7 +502,7 @@ def _poincare_loop(
                         xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo
                         state[m, 0, r] = xn
                         state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
-                        xy[d, r] += xn
+                        xy[1, r] += xn
                 else:
                     for r in range(n):
                         xo = state[m, 0, r]
