@@ -35,10 +35,14 @@ def _rows(sets, rpm, depth):
     return fn, k, z, feed, np.asarray(rpm, float), np.asarray(depth, float)
 
 
-@pytest.mark.parametrize(("entry", "down"), [(0, True), (7, True), (7, False)])
-def test_the_compiled_loop_gives_the_numpy_samples_bit_for_bit(entry, down):
+@pytest.mark.parametrize(
+    ("entry", "down", "flutes", "radial_m"),
+    [(0, True, 2, 6e-3), (7, True, 2, 6e-3), (7, False, 2, 6e-3), (3, True, 4, 25.4e-3)],
+)
+def test_the_compiled_loop_gives_the_numpy_samples_bit_for_bit(entry, down, flutes, radial_m):
     # Structures with 1 to 5 modes, feed or normal modes only, at different speeds and depths
-    # from stable to saturated chatter.
+    # from stable to saturated chatter; up-milling (no flute cuts at the period's end) and a
+    # 4-flute tool slotting (two flutes in the cut at once).
     three = ([MX[0], MX[1]], [MY[0]])
     sets = [(MX, MY), (MX[:1], MY[:1]), (MX[:2], []), ([], MY), three, (MX[:1], MY), (MX, MY)]
     rpm = [1750.0, 2600.0, 900.0, 3100.0, 1200.0, 2000.0, 2900.0]
@@ -48,11 +52,14 @@ def test_the_compiled_loop_gives_the_numpy_samples_bit_for_bit(entry, down):
     order = [2, 0, 1, 3, 4]
     fn[4], k[4], z[4], feed[4] = fn[4, order], k[4, order], z[4, order], feed[4, order]
     sim = dict(steps_per_tooth=40, n_tooth_periods=60, entry_tooth_periods=entry)
-    cond = replace(COND, down_milling=down)  # up-milling: no flute cuts at the period's end
-    ref = time_domain._step_rows(fn, k, z, feed, rpm, depth, TOOL, cond, ALUMINIUM_7075,
+    tool = MillingTool(n_flutes=flutes)
+    cond = replace(COND, down_milling=down, radial_depth_m=radial_m)
+    if flutes == 4:  # slotting: much larger forces, shallower cuts
+        depth = depth / 2
+    ref = time_domain._step_rows(fn, k, z, feed, rpm, depth, tool, cond, ALUMINIUM_7075,
                                  record="poincare", **sim)  # fmt: skip
     for chunk in (3, 128):
-        got = time_domain._poincare_rows(fn, k, z, feed, rpm, depth, TOOL, cond, ALUMINIUM_7075,
+        got = time_domain._poincare_rows(fn, k, z, feed, rpm, depth, tool, cond, ALUMINIUM_7075,
                                          chunk=chunk, **sim)  # fmt: skip
         np.testing.assert_array_equal(got, ref)
     # The record covers chatter and stable cuts alike (not a trivial agreement).
@@ -60,7 +67,7 @@ def test_the_compiled_loop_gives_the_numpy_samples_bit_for_bit(entry, down):
     chat = time_domain._is_chatter(growth, rate, amp, 0.1, COND.feed_per_tooth_m)
     assert chat.any() and not chat.all()
     # And the full simulation of one of them samples the same motion.
-    one = simulate_regenerative_cut(MX, MY, TOOL, replace(cond, spindle_rpm=rpm[0]),
+    one = simulate_regenerative_cut(MX, MY, tool, replace(cond, spindle_rpm=rpm[0]),
                                     ALUMINIUM_7075, depth[:1], **sim)  # fmt: skip
     n_ramp = sim["steps_per_tooth"] * entry
     np.testing.assert_array_equal(one.displacement_m[0, n_ramp + 39 :: 40], ref[0])
