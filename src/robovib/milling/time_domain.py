@@ -375,9 +375,11 @@ def _poincare_loop(
     never used or is an exact zero: at a step where no flute is in the engagement the force is
     zero (its term is left out) and the delay buffer is not read, the displacement is summed
     only where the next step's chip or the record needs it, and runs of such steps advance
-    four at a time with each row's state held in registers (the same operations). Rows are stepped ``chunk``
-    at a time (cache). ``engaged[kk, :n_engaged[kk]]``: the flutes inside the engagement at
-    step ``kk`` of the tooth period; ``poincare`` (b, n_per, 2) is filled.
+    four at a time with each row's state held in registers (the same operations). Rows are
+    stepped ``chunk`` at a time (cache). Which arrays a loop reads and writes was chosen by
+    measurement: arrays written in a loop are not read at other rows of the same array in it,
+    or the loop does not vectorise. ``engaged[kk, :n_engaged[kk]]``: the flutes inside the
+    engagement at step ``kk`` of the tooth period; ``poincare`` (b, n_per, 2) is filled.
     """
     nm = coef.shape[0]
     b = coef.shape[2]
@@ -394,7 +396,8 @@ def _poincare_loop(
         r1 = min(b, r0 + chunk)
         n = r1 - r0
         cc = np.ascontiguousarray(coef[:, :, r0:r1])
-        state = np.zeros((nm, 2, n))
+        xs = np.zeros((nm, n))  # displacement and velocity of every mode slot
+        vs = np.zeros((nm, n))
         hist = np.zeros((m_steps, 2, n))
         xy = np.zeros((2, n))
         dxy = np.empty((2, n))
@@ -413,16 +416,16 @@ def _poincare_loop(
                         c1 = cc[m, 1, r]
                         c2 = cc[m, 2, r]
                         c3 = cc[m, 3, r]
-                        xo = state[m, 0, r]
-                        vo = state[m, 1, r]
+                        xo = xs[m, r]
+                        vo = vs[m, r]
                         x1 = c0 * xo + c1 * vo
                         v1 = c2 * xo + c3 * vo
                         x2 = c0 * x1 + c1 * v1
                         v2 = c2 * x1 + c3 * v1
                         x3 = c0 * x2 + c1 * v2
                         v3 = c2 * x2 + c3 * v2
-                        state[m, 0, r] = c0 * x3 + c1 * v3
-                        state[m, 1, r] = c2 * x3 + c3 * v3
+                        xs[m, r] = c0 * x3 + c1 * v3
+                        vs[m, r] = c2 * x3 + c3 * v3
                 i += 4
                 continue
             cutting = n_engaged[kk] > 0
@@ -464,51 +467,51 @@ def _poincare_loop(
                 if cutting and need and m < n_feed:
                     for r in range(n):
                         f = fxy[0, r]
-                        xo = state[m, 0, r]
-                        vo = state[m, 1, r]
+                        xo = xs[m, r]
+                        vo = vs[m, r]
                         xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
-                        state[m, 0, r] = xn
-                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
+                        xs[m, r] = xn
+                        vs[m, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
                         xy[0, r] += xn
                 elif cutting and need:
                     for r in range(n):
                         f = fxy[1, r]
-                        xo = state[m, 0, r]
-                        vo = state[m, 1, r]
+                        xo = xs[m, r]
+                        vo = vs[m, r]
                         xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
-                        state[m, 0, r] = xn
-                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
+                        xs[m, r] = xn
+                        vs[m, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
                         xy[1, r] += xn
                 elif cutting:
                     d = 0 if m < n_feed else 1
                     for r in range(n):
                         f = fxy[d, r]
-                        xo = state[m, 0, r]
-                        vo = state[m, 1, r]
-                        state[m, 0, r] = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
-                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
+                        xo = xs[m, r]
+                        vo = vs[m, r]
+                        xs[m, r] = cc[m, 0, r] * xo + cc[m, 1, r] * vo + cc[m, 4, r] * f
+                        vs[m, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo + cc[m, 5, r] * f
                 elif need and m < n_feed:
                     for r in range(n):
-                        xo = state[m, 0, r]
-                        vo = state[m, 1, r]
+                        xo = xs[m, r]
+                        vo = vs[m, r]
                         xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo
-                        state[m, 0, r] = xn
-                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
+                        xs[m, r] = xn
+                        vs[m, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
                         xy[0, r] += xn
                 elif need:
                     for r in range(n):
-                        xo = state[m, 0, r]
-                        vo = state[m, 1, r]
+                        xo = xs[m, r]
+                        vo = vs[m, r]
                         xn = cc[m, 0, r] * xo + cc[m, 1, r] * vo
-                        state[m, 0, r] = xn
-                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
+                        xs[m, r] = xn
+                        vs[m, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
                         xy[1, r] += xn
                 else:
                     for r in range(n):
-                        xo = state[m, 0, r]
-                        vo = state[m, 1, r]
-                        state[m, 0, r] = cc[m, 0, r] * xo + cc[m, 1, r] * vo
-                        state[m, 1, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
+                        xo = xs[m, r]
+                        vo = vs[m, r]
+                        xs[m, r] = cc[m, 0, r] * xo + cc[m, 1, r] * vo
+                        vs[m, r] = cc[m, 2, r] * xo + cc[m, 3, r] * vo
             if i >= n_ramp and kk == m_steps - 1:
                 j = (i - n_ramp) // m_steps
                 for r in range(n):
@@ -550,7 +553,7 @@ def _compiled_loop():
 def _poincare_rows(
     fn_hz, stiffness_n_per_m, damping_ratio, in_feed, spindle_rpm, depth_m, tool, conditions,
     coefficients, *, steps_per_tooth: int, n_tooth_periods: int, entry_tooth_periods: int,
-    backend: str = "numba", chunk: int = 128,
+    backend: str = "numba", chunk: int | None = None,
 ) -> np.ndarray:  # fmt: skip
     """The (b, n_tooth_periods, 2) once-per-period samples of :func:`_step_rows`, compiled.
 
@@ -577,6 +580,8 @@ def _poincare_rows(
         on = np.flatnonzero(g_tab[kk])
         engaged[kk, : on.size] = on
     packed, n_feed = _slots(coef, selx, sely)
+    if chunk is None:  # rows stepped together: their coefficients stay in the first cache level
+        chunk = 128 if packed.shape[0] <= 2 else 64
     c = coefficients
     out = np.empty((depth.size, n_per, 2))
     if depth.size:
