@@ -30,14 +30,14 @@ Measured 2026-11-27, 11th session (one core of a 2-core machine shared with othe
 5-7, CPU s; "added" = what the margin adds to the chart, numba's import and kernel load
 included; the reference is the numpy every-factor pass of the 10th session, scaled):
 
-* 2-DOF, ``python benchmarks/bench_time_domain_margin.py``: added 1.11 (warm pass 0.69,
-  first use 0.41), 24 687 cuts for 4200 cases (5.9 a case); reference 287 (1.43 a speed),
-  259x; brackets identical at 4200/4200 cases (every factor, compiled) and 42/42 (reference).
+* 2-DOF, ``python benchmarks/bench_time_domain_margin.py``: added 1.15 (warm pass 0.69,
+  first use 0.43), 24 687 cuts for 4200 cases (5.9 a case); reference 282 (1.41 a speed),
+  245x; brackets identical at 4200/4200 cases (every factor, compiled) and 42/42 (reference).
 * 2-DOF, ``--method sdm-fast --repeats 2 --ref-speeds 1``: the pass inside the SDM chart 1.14
   (warm 0.70); the chart difference (-0.26) is lost in the 27.6 s chart's own spread.
-* 5 modes, ``--five-mode --ref-speeds 1``: added 2.37 (warm pass 1.91-2.01, first use 0.45),
-  31 259 cuts (7.4 a case), reference 415 (2.08 a speed), 175x; identical brackets. Over 2 s:
-  five modes cost ~2x two per step, and their runs of chattering factors are longer.
+* 5 modes, ``--five-mode --ref-speeds 1``: added 2.24-2.26 (warm pass 1.78, first use 0.40),
+  31 259 cuts (7.4 a case), reference 406 (2.03 a speed), 180x; identical brackets. Over 2 s:
+  five modes cost ~2x two per cut step, and their runs of chattering factors are longer.
 * kernel compile on first use after an install: 1.5-2.1 (cached on disk afterwards).
 """
 
