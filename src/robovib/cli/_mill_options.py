@@ -95,7 +95,7 @@ TimeDomainMarginOpt = Annotated[
         "--time-domain-margin",
         help="With --samples: scale P(stable) by the simulated time-domain limit (a cut "
         "entering at full depth chatters up to 15 % below, and with several modes up to 45 % "
-        "above, linear theory; ~1.4 s per speed).",
+        "above, linear theory; ~1.3 s of CPU for 200 speeds).",
     ),
 ]
 LabelNoiseOpt = Annotated[

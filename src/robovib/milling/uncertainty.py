@@ -612,7 +612,7 @@ def stability_probability(
         with the nearest linear envelope, and every ratio is drawn uniformly inside its
         bracket. The ratio of the mean modes is in ``settings["time_domain_ratio"]``.
     margin_samples : int
-        Samples whose margin is simulated (about 0.15 s per sample and speed); 0: the mean
+        Samples whose margin is simulated (about 0.2 ms per sample and speed); 0: the mean
         modes' margin for every sample (the form before per-sample margins).
     margin_above : tuple of float
         Factors of the linear limit above 1 simulated where the cut at the linear limit is
