@@ -166,3 +166,84 @@ def test_choose_test_cuts_groups_spread_the_cuts():
         choose_test_cuts(lim, w, 2, groups=[0, 1])
     with pytest.raises(ValueError, match="fewer informative"):
         choose_test_cuts(lim, w, 3, groups=[0, 0, 1])
+
+
+class _KnownLimits:
+    """Structures whose linear limit is known: ``a_s`` at every pose and speed."""
+
+    @staticmethod
+    def make(limits_m):
+        from robovib.milling.structures import StructureSamples
+
+        class _Known(StructureSamples):
+            def _linear_limits(self, poses, spindle_rpm, *args):
+                shape = (np.atleast_2d(poses).shape[0], np.atleast_1d(spindle_rpm).size)
+                return np.asarray(limits_m, float)[:, None, None] * np.ones(shape)[None]
+
+        n = len(limits_m)
+        return _Known(None, np.full(n, 1.0 / n), np.ones(n), (1.0, 1.0, 1.0),
+                      np.zeros((1, 1, 3)), np.zeros((1, 1)), np.zeros((n, 1, 1)),
+                      {"process_factor_range": [LO, HI]})  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("depths_mm", "chatter"),
+    [([3.0, 4.5], [False, True]), ([2.0, 2.6, 3.3, 4.0], [False, True, False, True])],
+)
+def test_update_with_cuts_integrates_the_factor_like_quad(depths_mm, chatter):
+    """The library's update (``mill lobes|map|plan --cuts``) on the factor grid: one structure's
+    posterior P(stable) against SciPy quad over the log-uniform factor."""
+    from robovib.io.cuts import MeasuredCuts
+    from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    from robovib.milling.cut_posterior import update_with_cuts
+
+    limit, k = 4e-3, 2000
+    d = np.array(depths_mm) * 1e-3
+    y = np.array(chatter)
+    st = _KnownLimits.make([limit])
+    cuts = MeasuredCuts(np.full(d.size, 2000.0), d, y, np.tile([2400.0, 0.0, 45.0], (d.size, 1)))
+    tool, cond = MillingTool(), CuttingConditions(1750.0, 0.058e-3, 1e-3, 6e-3)
+    upd = update_with_cuts(st, cuts, tool, cond, ALUMINIUM_7075, label_noise=0.1, n_factors=k)
+    post = upd.structures
+    assert post.n_samples == k and post.n_structures == 1
+    lim = post.limits([[2300.0, 100.0, 0.0]], [1500.0], tool, cond, ALUMINIUM_7075)[:, 0, 0]
+    for depth in (2.2e-3, 3.1e-3, 3.9e-3, 5.5e-3):
+        ref = _reference_p_stable(limit, d, y, 0.1, depth)
+        got = float(np.sum(post.weights * (lim > depth)))
+        assert got == pytest.approx(ref, abs=(d.size + 2) / k)
+    # the cuts' own P(stable) before: the log-uniform's closed form
+    prior = np.clip(np.log(HI / (d / limit)) / np.log(HI / LO), 0, 1)
+    np.testing.assert_allclose(upd.p_stable_prior, prior, atol=1 / k)
+
+
+def test_update_with_cuts_on_the_grid_equals_factor_grid_posterior():
+    """Several structures: the update's pair weights are those of factor_grid_posterior (tested
+    against quad and Monte Carlo above), a second update continues on the same grid, and the
+    structures' effective sample size sums each structure's factors."""
+    from robovib.io.cuts import MeasuredCuts
+    from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    from robovib.milling.cut_posterior import update_with_cuts
+
+    a = np.array([2.0, 3.0, 4.0, 6.0]) * 1e-3
+    st = _KnownLimits.make(a)
+    d = np.array([2.5e-3, 4e-3])
+    y = np.array([False, True])
+    pose = np.tile([2400.0, 0.0, 45.0], (2, 1))
+    tool, cond = MillingTool(), CuttingConditions(1750.0, 0.058e-3, 1e-3, 6e-3)
+    upd = update_with_cuts(st, MeasuredCuts(np.full(2, 2000.0), d, y, pose), tool, cond,
+                           ALUMINIUM_7075, label_noise=0.1, n_factors=16)  # fmt: skip
+    ref = factor_grid_posterior(np.tile(a[:, None], (1, 2)), d, y, process_factor=(LO, HI),
+                                n_factors=16, label_noise=0.1)  # fmt: skip
+    np.testing.assert_allclose(upd.structures.weights, ref.weights.ravel(), rtol=1e-12)
+    np.testing.assert_allclose(upd.prior_weights, ref.prior_weights.ravel(), rtol=1e-12)
+    marg = ref.weights.sum(axis=1)
+    assert upd.effective_sample_size == pytest.approx(1 / np.sum(marg**2))
+    assert upd.prior_effective_sample_size == pytest.approx(4.0)
+    # one cut after the other = both at once
+    one = update_with_cuts(st, MeasuredCuts(np.full(1, 2000.0), d[:1], y[:1], pose[:1]), tool,
+                           cond, ALUMINIUM_7075, label_noise=0.1, n_factors=16)  # fmt: skip
+    two = update_with_cuts(one.structures, MeasuredCuts(np.full(1, 2000.0), d[1:], y[1:],
+                           pose[1:]), tool, cond, ALUMINIUM_7075, label_noise=0.1)  # fmt: skip
+    np.testing.assert_allclose(two.structures.weights, upd.structures.weights, rtol=1e-12)
+    with pytest.raises(ValueError, match="already on a process-factor grid"):
+        upd.structures.on_factor_grid(4)

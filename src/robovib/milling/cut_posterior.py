@@ -13,7 +13,13 @@ way). Bayes with the prior weights ``w_s`` gives the posterior weights (importan
     w_s' ∝ w_s prod_i P(y_i | s)
 
 and P(stable) anywhere is the weighted fraction of structures whose limit lies above the depth.
-How far the cuts moved the forecast is reported as the effective sample size ``1 / sum w'^2``
+**The process factor on a grid** (default, ``n_factors=32``): a structure's limit scales
+exactly with its process factor ``q``, so instead of one drawn ``q_s`` per structure (a few cuts
+that mostly learn ``q`` then leave few structures with weight) every structure is ``K`` rows
+``(s, q_k)`` on the stratified grid of :mod:`robovib.milling.factor_grid`, prior weight
+``w_s / K``, and the same likelihood weights the pairs (the Rao-Blackwellised posterior; the
+linear limits are still computed once per structure). How far the cuts moved the forecast is
+reported as the effective sample size ``1 / sum w'^2``
 (S before, smaller after: how many structures still carry it), the information gained (the
 Kullback-Leibler divergence of the posterior from the prior weights, nats) and the shift of
 the median limit at the cuts' own poses and speeds.
@@ -132,7 +138,13 @@ class CutUpdate:
 
     @property
     def effective_sample_size(self) -> float:
+        """Kish's effective sample size of the structures (:class:`StructureSamples`)."""
         return self.structures.effective_sample_size
+
+    @property
+    def prior_effective_sample_size(self) -> float:
+        """The same before the cuts."""
+        return self.structures.with_weights(self.prior_weights).effective_sample_size
 
     @property
     def information_nats(self) -> float:
@@ -146,7 +158,7 @@ class CutUpdate:
             "n_cuts": int(self.chatter.size),
             "label_noise": self.label_noise,
             "n_structures": self.structures.n_samples,
-            "effective_sample_size_prior": float(1.0 / np.sum(self.prior_weights**2)),
+            "effective_sample_size_prior": self.prior_effective_sample_size,
             "effective_sample_size": self.effective_sample_size,
             "information_nats": self.information_nats,
             "median_limit_shift_rel": float(
@@ -187,6 +199,7 @@ def update_with_cuts(
     *,
     feed_direction: str = "x",
     label_noise: float = 0.05,
+    n_factors: int | None = 32,
 ) -> CutUpdate:
     """Posterior weights of the structures given test cuts (module docs).
 
@@ -203,14 +216,23 @@ def update_with_cuts(
         Base-frame feed direction of the cuts.
     label_noise : float
         Probability that a cut's label disagrees with its structure's limit (0 < eps < 0.5).
+    n_factors : int or None
+        The process factor integrated on a grid of this many points (the structures are
+        weighted as (structure, factor) pairs, :meth:`StructureSamples.on_factor_grid`;
+        default 32). None: each structure keeps its own drawn factor. Structures already on a
+        grid (an earlier posterior) are updated as they are.
 
     Returns
     -------
     CutUpdate
+        Its ``structures`` are on the factor grid (``n_structures * n_factors`` rows) unless
+        ``n_factors`` is None; ``prior_weights`` are the weights of those rows before the cuts.
     """
     if not 0 < label_noise < 0.5:
         raise ValueError(f"label_noise must be in (0, 0.5), got {label_noise!r}")
     pose, rpm, depth, chatter = _cut_arrays(cuts)
+    if n_factors is not None and structures.factor_grid is None:
+        structures = structures.on_factor_grid(n_factors)
     # one limit per cut: each at its own pose and speed (the diagonal of poses x speeds)
     lim = np.empty((structures.n_samples, rpm.size))
     for j, speed in enumerate(np.unique(rpm)):
@@ -230,7 +252,9 @@ def update_with_cuts(
         weighted_quantile(lim, w0, 0.5), weighted_quantile(lim, post.weights, 0.5),
         float(label_noise), chatter,
         {"likelihood": "label noise eps: P(observed = predicted) = 1 - eps",
-         "feed_direction": feed_direction},
+         "feed_direction": feed_direction,
+         "process_factor": ("per structure, drawn" if structures.factor_grid is None else
+                            f"integrated on a {structures.factor_grid.size}-point grid")},
     )  # fmt: skip
 
 

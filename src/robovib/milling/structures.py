@@ -46,7 +46,7 @@ check.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -70,7 +70,8 @@ class StructureSamples:
         (S,) normalised weights of the structures (uniform: the prior; after test cuts: the
         posterior, :func:`robovib.milling.cut_posterior.update_with_cuts`).
     process_factor
-        (S,) factor on each structure's linear limit.
+        (S,) factor on each row's linear limit (drawn per structure; on a factor grid the
+        grid point of each (structure, factor) row).
     correlation_length
         (x [mm], y [mm], Rz [deg]) of the fields.
     frequencies, phases, amplitudes
@@ -81,6 +82,10 @@ class StructureSamples:
     shared, shared_fraction
         (S, n_fields) standard-normal workspace-wide deviations ``g`` and the share ``rho`` of
         each field's variance they carry (module docs; None / 0: none).
+    factor_grid
+        None, or the (K,) process factors when every structure is K weighted rows
+        (:meth:`on_factor_grid`; what :func:`~robovib.milling.cut_posterior.update_with_cuts`
+        returns): ``weights`` and ``process_factor`` then have ``n_structures * K`` rows.
     """
 
     model: object = field(repr=False, compare=False)
@@ -93,15 +98,76 @@ class StructureSamples:
     settings: dict = field(default_factory=dict)
     shared: np.ndarray | None = field(default=None, repr=False)  #: (S, n_outputs + n_dirs) g
     shared_fraction: float = 0.0
+    #: (K,) the process-factor grid when the rows are (structure, factor) pairs
+    #: (:meth:`on_factor_grid`), else None
+    factor_grid: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def n_samples(self) -> int:
+        """Rows of the weights: structures, or (structure, factor) pairs on a factor grid."""
         return int(self.weights.size)
 
     @property
+    def n_structures(self) -> int:
+        """Structures drawn (fields), whatever their process factors."""
+        return int(self.amplitudes.shape[0])
+
+    def on_factor_grid(self, n_factors: int = 32) -> StructureSamples:
+        """The structures with the process factor on a stratified grid (Rao-Blackwellised).
+
+        Every structure ``s`` with weight ``w_s`` becomes ``K`` rows ``(s, k)`` with the factor
+        ``q_k`` (:func:`robovib.milling.factor_grid.factor_grid` of the structures' own
+        log-uniform range) and the weight ``w_s / K``: the prior of
+        :mod:`robovib.milling.factor_grid`, where test cuts weight (structure, factor) pairs
+        instead of one drawn factor per structure. Rows are structure-major (``s K + k``);
+        the modes and linear limits are still computed once per structure.
+
+        Parameters
+        ----------
+        n_factors : int
+            Grid points ``K >= 1``.
+
+        Returns
+        -------
+        StructureSamples
+            ``n_samples = n_structures * K`` rows.
+
+        Raises
+        ------
+        ValueError
+            The structures are already on a factor grid.
+        """
+        from .factor_grid import factor_grid
+
+        if self.factor_grid is not None:
+            raise ValueError("the structures are already on a process-factor grid")
+        lo, hi = self.settings.get(
+            "process_factor_range",
+            [float(self.process_factor.min()), float(self.process_factor.max())],
+        )
+        q = factor_grid((lo, hi), n_factors)
+        n = self.n_structures
+        w = np.repeat(self.weights, q.size) / q.size
+        settings = dict(
+            self.settings,
+            n_factors=int(q.size),
+            factor_grid="stratified quantiles of the log-uniform (bin medians)",
+        )
+        return replace(self, weights=w / w.sum(), process_factor=np.tile(q, n),
+                       settings=settings, factor_grid=q)  # fmt: skip
+
+    @property
+    def structure_weights(self) -> np.ndarray:
+        """(n_structures,) each structure's weight (on a factor grid: summed over its factors)."""
+        if self.factor_grid is None:
+            return self.weights
+        return self.weights.reshape(self.n_structures, self.factor_grid.size).sum(axis=1)
+
+    @property
     def effective_sample_size(self) -> float:
-        """Kish's effective sample size of the weights, ``1 / sum w^2``."""
-        return float(1.0 / np.sum(self.weights**2))
+        """Kish's effective sample size of the structures, ``1 / sum w_s^2`` (on a factor grid
+        ``w_s`` sums the structure's factors: how many structures still carry the forecast)."""
+        return float(1.0 / np.sum(self.structure_weights**2))
 
     def with_weights(self, weights) -> StructureSamples:
         """The same structures with other weights (normalised here).
@@ -120,11 +186,7 @@ class StructureSamples:
             raise ValueError(f"weights must be {self.weights.shape} finite and >= 0")
         if w.sum() <= 0:
             raise ValueError("all weights are zero")
-        return StructureSamples(
-            self.model, w / w.sum(), self.process_factor, self.correlation_length,
-            self.frequencies, self.phases, self.amplitudes, dict(self.settings), self.shared,
-            self.shared_fraction,
-        )  # fmt: skip
+        return replace(self, weights=w / w.sum(), settings=dict(self.settings))
 
     def fields(self, poses) -> np.ndarray:
         """(S, P, n_fields) standard-normal fields at poses (x_mm, y_mm, rz_deg).
@@ -161,10 +223,19 @@ class StructureSamples:
         Returns
         -------
         fn_hz, stiffness_n_per_m, damping_ratio : numpy.ndarray
-            (S, P, M) each.
+            (S, P, M) each, one row per weight (on a factor grid: each structure's modes
+            repeated for its ``K`` factors).
         in_feed : numpy.ndarray
             (M,) bool, True for the modes along the feed.
         """
+        fn, k, zeta, in_feed = self._structure_modes(poses, feed_direction)
+        if self.factor_grid is not None:
+            rep = self.factor_grid.size
+            fn, k, zeta = (np.repeat(a, rep, axis=0) for a in (fn, k, zeta))
+        return fn, k, zeta, in_feed
+
+    def _structure_modes(self, poses, feed_direction: str = "x"):
+        """:meth:`modes` once per structure (n_structures rows)."""
         from scipy.special import ndtr, stdtrit
 
         if feed_direction not in ("x", "y"):
@@ -248,11 +319,19 @@ class StructureSamples:
         numpy.ndarray
             Critical axial depths [m] (inf where no lobe reaches the speed).
         """
-        fn, k, zeta, in_feed = self.modes(poses, feed_direction)
         cap = depth_cap_m / float(self.process_factor.min())
-        lim = zoa_limits(fn, k, zeta, in_feed, spindle_rpm, tool, conditions, coefficients,
-                         points_per_decade=points_per_decade, depth_cap_m=cap)  # fmt: skip
+        lim = self._linear_limits(poses, spindle_rpm, tool, conditions, coefficients,
+                                  feed_direction, points_per_decade, cap)  # fmt: skip
+        if self.factor_grid is not None:  # rows (s, k): structure-major
+            lim = np.repeat(lim, self.factor_grid.size, axis=0)
         return lim * self.process_factor[:, None, None]
+
+    def _linear_limits(self, poses, spindle_rpm, tool, conditions, coefficients, feed_direction,
+                       points_per_decade, depth_cap_m) -> np.ndarray:  # fmt: skip
+        """(n_structures, P, J) zero-order limits [m] without a process factor."""
+        fn, k, zeta, in_feed = self._structure_modes(poses, feed_direction)
+        return zoa_limits(fn, k, zeta, in_feed, spindle_rpm, tool, conditions, coefficients,
+                          points_per_decade=points_per_decade, depth_cap_m=depth_cap_m)  # fmt: skip
 
 
 def _ndtri(p):
