@@ -247,3 +247,60 @@ def test_update_with_cuts_on_the_grid_equals_factor_grid_posterior():
     np.testing.assert_allclose(two.structures.weights, upd.structures.weights, rtol=1e-12)
     with pytest.raises(ValueError, match="already on a process-factor grid"):
         upd.structures.on_factor_grid(4)
+
+
+def _brute_expected_brier(lim, w, ev, ed, cuts, eps):
+    """Expected Brier score at the evaluation points after cuts (index, depth), by enumerating
+    every outcome sequence with plain Bayes (loops, no shared code)."""
+    import itertools
+
+    total = 0.0
+    for ys in itertools.product([True, False], repeat=len(cuts)):
+        post = np.array(w, float)
+        for (c, d), y in zip(cuts, ys, strict=True):
+            pred = lim[:, c] <= d
+            post = post * np.where(pred == y, 1 - eps, eps)
+        z = post.sum()
+        if z == 0:
+            continue
+        p = (post[:, None] * (ev > ed[None, :])).sum(axis=0) / z
+        total += z * np.mean(p * (1 - p))
+    return total
+
+
+def test_choose_forecast_cuts_minimises_the_expected_brier_score():
+    from robovib.milling.cut_posterior import choose_forecast_cuts, weighted_quantile
+
+    rng = np.random.default_rng(5)
+    r, c, e = 40, 6, 9
+    factor = np.exp(rng.uniform(np.log(0.5), np.log(1.5), r))  # shared by every point
+    lim = factor[:, None] * rng.uniform(2e-3, 6e-3, c)[None] * rng.lognormal(0, 0.1, (r, c))
+    ev = factor[:, None] * rng.uniform(2e-3, 6e-3, e)[None] * rng.lognormal(0, 0.1, (r, e))
+    ed = np.median(ev, axis=0) * rng.uniform(0.7, 1.3, e)
+    w = rng.uniform(0.5, 1.5, r)
+    w /= w.sum()
+    eps, qs = 0.1, (0.3, 0.5, 0.7)
+    idx, depth, scores = choose_forecast_cuts(lim, w, ev, ed, 2, label_noise=eps,
+                                              depth_quantiles=qs)  # fmt: skip
+    assert scores[0] == pytest.approx(_brute_expected_brier(lim, w, ev, ed, [], eps))
+    # the first cut is the best single one over every candidate and depth, by enumeration
+    options = [(k, float(weighted_quantile(lim[:, k : k + 1], w, q)[0])) for k in range(c)
+               for q in qs]  # fmt: skip
+    brute = [_brute_expected_brier(lim, w, ev, ed, [o], eps) for o in options]
+    assert scores[1] == pytest.approx(min(brute), rel=1e-9)
+    assert (idx[0], depth[0]) == options[int(np.argmin(brute))]
+    # the second, given the first (greedy), and its expected score
+    second = [_brute_expected_brier(lim, w, ev, ed, [(idx[0], depth[0]), o], eps)
+              for o in options if o[0] != idx[0]]  # fmt: skip
+    assert scores[2] == pytest.approx(min(second), rel=1e-9)
+    assert scores[2] <= scores[1] <= scores[0]
+    # groups: the two cuts have different labels
+    g = np.array([0, 0, 1, 1, 2, 2])
+    gi, _, _ = choose_forecast_cuts(lim, w, ev, ed, 3, groups=g, label_noise=eps)
+    assert len(set(g[gi])) == 3
+    with pytest.raises(ValueError, match="eval_limits_m"):
+        choose_forecast_cuts(lim, w, ev[:, :2], ed, 2)
+    with pytest.raises(ValueError, match="label_noise"):
+        choose_forecast_cuts(lim, w, ev, ed, 2, label_noise=0.5)
+    with pytest.raises(ValueError, match="fewer allowed"):
+        choose_forecast_cuts(lim, w, ev, ed, 4, groups=g)
