@@ -32,6 +32,17 @@ point grid (``robovib.milling.factor_grid``: the same structures and test cuts, 
 structure x factor; better than the per-structure draws on seeds 7, 8, 9 at ``--configs 22``);
 ``--spread-cuts`` adds 5 test cuts chosen at most one per (x, y).
 
+The test cuts are chosen by ``--cut-rule forecast`` (default; ``choose_forecast_cuts``: the
+least expected Brier score at the plans' other candidates, at most one per segment) or
+``entropy`` (``choose_test_cuts``: the most entropy of their own joint outcome); the library's
+``update_with_cuts`` integrates the process factor on its 32-point grid. ``--model multimode``
+fits every tracked mode of 5-100 Hz (``modes.csv``) instead of the dominant mode per direction;
+``--sdm-correction`` scales the forecast's zero-order limits by the SDM / zero-order ratio of
+the point prediction (flip lobes; the plans stay zero-order)::
+
+    nice python benchmarks/study_plan.py --seed 7 --paths 1 --configs 22 --brier-only \
+        --model multimode --sdm-correction      # the calibrated prior and its 5 test cuts
+
 ``--shared-fractions 0.5`` also reports the Brier score before/after 5 test cuts with
 structures whose fields share a workspace-wide part (``sample_structures(shared_fraction=)``).
 

@@ -34,6 +34,21 @@ simulated against 9 mm for its dominant modes at 3000 rpm); the cutting coeffici
 to some ±10 %. The factor is common to the whole workspace, so test cuts anywhere learn it
 (:mod:`robovib.milling.cut_posterior`).
 
+**What the prior gets wrong, measured (issue 39).** On the virtual robot (36-pose campaign, 22
+random poses and speeds, 1 mm radial depth of the 25.4 mm two-flute cutter, seed 7): the
+linear limits of a *dominant-mode* model's structures centre on the zero-order limit of the
+truth's own dominant modes (median ratio 0.97, 10-90 % of the structures within x1.26): the
+pose model's band is not what is wrong. The robot's time-domain limit (every mode, full-depth
+entry) is a median 1.35x that limit (log sd 0.50): the modes the dominant model drops *raise*
+the limit there, while the factor's prior (median 0.87) pulls it down, so the forecast is
+pessimistic (mean P(stable) 0.31 at 0.8x the true limit). Two corrections of the linear limit
+itself, not of the factor: a **multi-mode** pose model (:func:`robovib.campaign.
+fit_multimode_pose_model`; its structures carry every tracked mode, and the time-domain limit
+is then a median 0.90x their zero-order one), and the **SDM correction**
+(:meth:`StructureSamples.with_sdm_correction`): at 4 % radial immersion the zero-order method
+misses the flip lobes (up to 2.7x the SDM limit); with the truth's own modes the log sd of
+time-domain / linear limit is 0.43 for the zero-order method and 0.23 for the SDM.
+
 **Zero-order limits, batched.** For every structure, pose and spindle speed the critical depth
 of Altintas & Budak's zero-order method (:mod:`robovib.milling.stability`, the same equations)
 is found on a fixed log-spaced chatter-frequency grid: with ``u(f) = 60 f / (N n) - eps(f) /
@@ -86,6 +101,9 @@ class StructureSamples:
         None, or the (K,) process factors when every structure is K weighted rows
         (:meth:`on_factor_grid`; what :func:`~robovib.milling.cut_posterior.update_with_cuts`
         returns): ``weights`` and ``process_factor`` then have ``n_structures * K`` rows.
+    sdm_correction
+        Whether the zero-order limits are scaled by the point prediction's SDM / zero-order
+        ratio (:meth:`with_sdm_correction`).
     """
 
     model: object = field(repr=False, compare=False)
