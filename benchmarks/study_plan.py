@@ -498,6 +498,20 @@ def main(argv=None) -> None:
             f"factor posterior (simulated labels): mean {np.sum(fp * g[2].factors):.2f}, "
             f"sd {np.sqrt(np.sum(fp * g[2].factors ** 2) - np.sum(fp * g[2].factors) ** 2):.2f}"
         )
+        # a bound on what test cuts can do by learning the process factor (common to every
+        # cut): the best Brier score of any log-uniform factor prior (centre x/÷ width), chosen
+        # in hindsight on the evaluation cuts themselves
+        best = min(
+            (brier(factor_grid_posterior(e_lim[:, :0], ev_depth[:0], np.zeros(0, bool),
+                                         process_factor=(c / wd, c * wd), n_factors=16)
+                   .p_stable(e_lim, ev_depth), ev_stable), c, wd)
+            for c in np.geomspace(0.4, 2.0, 29) for wd in (1.0, 1.1, 1.25, 1.5, 1.8)
+        )  # fmt: skip
+        print(
+            f"bound, factor learnt perfectly: best Brier {best[0]:.3f} at factor {best[1]:.2f} "
+            f"x/÷ {best[2]:g} (hindsight on these cuts): at most "
+            f"{100 * (1 - best[0] / bg[0]):.0f} % better than the grid prior"
+        )
     if args.spread_cuts:
         # the test cuts spread: at most one per segment (x, y) of the candidates
         from robovib.milling.factor_grid import factor_grid_posterior, unscaled_limits

@@ -168,22 +168,18 @@ def test_choose_test_cuts_groups_spread_the_cuts():
         choose_test_cuts(lim, w, 3, groups=[0, 0, 1])
 
 
-class _KnownLimits:
+def _known_limits(limits_m):
     """Structures whose linear limit is known: ``a_s`` at every pose and speed."""
+    from robovib.milling.structures import StructureSamples
 
-    @staticmethod
-    def make(limits_m):
-        from robovib.milling.structures import StructureSamples
+    class _Known(StructureSamples):
+        def _linear_limits(self, poses, spindle_rpm, *args):
+            shape = (np.atleast_2d(poses).shape[0], np.atleast_1d(spindle_rpm).size)
+            return np.asarray(limits_m, float)[:, None, None] * np.ones(shape)[None]
 
-        class _Known(StructureSamples):
-            def _linear_limits(self, poses, spindle_rpm, *args):
-                shape = (np.atleast_2d(poses).shape[0], np.atleast_1d(spindle_rpm).size)
-                return np.asarray(limits_m, float)[:, None, None] * np.ones(shape)[None]
-
-        n = len(limits_m)
-        return _Known(None, np.full(n, 1.0 / n), np.ones(n), (1.0, 1.0, 1.0),
-                      np.zeros((1, 1, 3)), np.zeros((1, 1)), np.zeros((n, 1, 1)),
-                      {"process_factor_range": [LO, HI]})  # fmt: skip
+    n = len(limits_m)
+    return _Known(None, np.full(n, 1.0 / n), np.ones(n), (1.0, 1.0, 1.0), np.zeros((1, 1, 3)),
+                  np.zeros((1, 1)), np.zeros((n, 1, 1)), {"process_factor_range": [LO, HI]})  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -200,7 +196,7 @@ def test_update_with_cuts_integrates_the_factor_like_quad(depths_mm, chatter):
     limit, k = 4e-3, 2000
     d = np.array(depths_mm) * 1e-3
     y = np.array(chatter)
-    st = _KnownLimits.make([limit])
+    st = _known_limits([limit])
     cuts = MeasuredCuts(np.full(d.size, 2000.0), d, y, np.tile([2400.0, 0.0, 45.0], (d.size, 1)))
     tool, cond = MillingTool(), CuttingConditions(1750.0, 0.058e-3, 1e-3, 6e-3)
     upd = update_with_cuts(st, cuts, tool, cond, ALUMINIUM_7075, label_noise=0.1, n_factors=k)
@@ -225,7 +221,7 @@ def test_update_with_cuts_on_the_grid_equals_factor_grid_posterior():
     from robovib.milling.cut_posterior import update_with_cuts
 
     a = np.array([2.0, 3.0, 4.0, 6.0]) * 1e-3
-    st = _KnownLimits.make(a)
+    st = _known_limits(a)
     d = np.array([2.5e-3, 4e-3])
     y = np.array([False, True])
     pose = np.tile([2400.0, 0.0, 45.0], (2, 1))
