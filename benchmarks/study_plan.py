@@ -281,6 +281,18 @@ def main(argv=None) -> None:
         "the point prediction at each pose and speed (StructureSamples.with_sdm_correction: the "
         "flip lobes of low radial immersion); the plans stay zero-order",
     )
+    ap.add_argument(
+        "--local-factor",
+        default="",
+        help="also: the factor-grid Brier with the factor split into a common part "
+        "(--common-factor, learnt) and a local part LO,HI drawn afresh at every cut and point, "
+        "e.g. 0.55,1.3 (the time-domain / linear limit range of robovib.milling.time_domain)",
+    )
+    ap.add_argument(
+        "--common-factor",
+        default="0.9,1.1",
+        help="LO,HI of the common factor with --local-factor (e.g. the cutting coefficients)",
+    )
     args = ap.parse_args(argv)
 
     from robovib.milling import CuttingConditions
@@ -498,6 +510,33 @@ def main(argv=None) -> None:
             f"factor posterior (simulated labels): mean {np.sum(fp * g[2].factors):.2f}, "
             f"sd {np.sqrt(np.sum(fp * g[2].factors ** 2) - np.sum(fp * g[2].factors) ** 2):.2f}"
         )
+        if args.local_factor:
+            # the factor split: a common part (learnt by the cuts) and a local one drawn afresh
+            # at every cut and forecast point (factor_grid_posterior(local_factor=))
+            common = tuple(float(v) for v in args.common_factor.split(","))
+            local = tuple(float(v) for v in args.local_factor.split(","))
+            gl = [
+                factor_grid_posterior(t_lim[:, : len(lv)] if lv else t_lim[:, :0],
+                                      tdepth[: len(lv)] if lv else tdepth[:0],
+                                      np.array(lv, bool), process_factor=common,
+                                      n_factors=args.factor_grid, label_noise=noise,
+                                      local_factor=local)
+                for lv, noise in (([], 0.05), (labels, args.label_noise), (sim_labels, 0.05))
+            ]  # fmt: skip
+            pl = [gp.p_stable(e_lim, ev_depth) for gp in gl]
+            bl = [brier(p_, ev_stable) for p_ in pl]
+            print(f"\n## common factor {common} (learnt) x local factor {local} (afresh at every "
+                  "cut and point)")  # fmt: skip
+            print("| depth / truth's limit | mean P(stable) prior | after (detected) | "
+                  "after (simulated) |")  # fmt: skip
+            print("|---|---|---|---|")
+            for f_ in FACTORS:
+                s_ = ev_fac_g == f_
+                print(f"| {f_:g} | {pl[0][s_].mean():.2f} | {pl[1][s_].mean():.2f} | "
+                      f"{pl[2][s_].mean():.2f} |")  # fmt: skip
+            print(f"Brier prior {bl[0]:.3f}, after (detected) {bl[1]:.3f} "
+                  f"({100 * (1 - bl[1] / bl[0]):.0f} %), after (simulated) {bl[2]:.3f} "
+                  f"({100 * (1 - bl[2] / bl[0]):.0f} %)")  # fmt: skip
         # a bound on what test cuts can do by learning the process factor (common to every
         # cut): the best Brier score of any log-uniform factor prior (centre x/÷ width), chosen
         # in hindsight on the evaluation cuts themselves

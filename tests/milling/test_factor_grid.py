@@ -300,3 +300,33 @@ def test_choose_forecast_cuts_minimises_the_expected_brier_score():
         choose_forecast_cuts(lim, w, ev, ed, 2, label_noise=0.5)
     with pytest.raises(ValueError, match="fewer allowed"):
         choose_forecast_cuts(lim, w, ev, ed, 4, groups=g)
+
+
+def test_local_factor_against_monte_carlo():
+    """A local factor drawn afresh at each cut and forecast point: the grid posterior's P(stable)
+    against importance-weighted Monte-Carlo draws of (common factor, one local factor per cut,
+    one at the forecast point)."""
+    rng = np.random.default_rng(11)
+    a, eps, local = 4e-3, 0.1, (0.6, 1.3)
+    d = np.array([3.0e-3, 4.5e-3, 3.6e-3])
+    y = np.array([False, True, True])
+    post = factor_grid_posterior(np.full((1, 3), a), d, y, process_factor=(LO, HI),
+                                 n_factors=400, label_noise=eps, local_factor=local)  # fmt: skip
+    n = 400_000
+    q = stats.loguniform(LO, HI).rvs(n, random_state=rng)
+    r = stats.loguniform(*local).rvs((n, 4), random_state=rng)
+    pred = d[None, :] >= q[:, None] * r[:, :3] * a
+    w = np.prod(np.where(pred == y[None, :], 1 - eps, eps), axis=1)
+    for depth in (2.0e-3, 3.0e-3, 4.0e-3, 5.5e-3):
+        ref = np.sum(w * (q * r[:, 3] * a > depth)) / w.sum()
+        ess = w.sum() ** 2 / np.sum(w**2)
+        got = float(post.p_stable(np.array([a]), depth))
+        assert got == pytest.approx(ref, abs=4 * 0.5 / np.sqrt(ess) + 4 / 400)
+    # the prior (no cuts) and an infinite limit (no lobe: stable at any depth)
+    prior = factor_grid_posterior(np.full((1, 0), a), d[:0], y[:0], process_factor=(LO, HI),
+                                  n_factors=400, local_factor=local)  # fmt: skip
+    ref0 = np.mean(q * r[:, 3] * a > 3.5e-3)
+    assert float(prior.p_stable(np.array([a]), 3.5e-3)) == pytest.approx(ref0, abs=0.01)
+    assert float(prior.p_stable(np.array([np.inf]), 3.5e-3)) == pytest.approx(1.0, abs=1e-12)
+    with pytest.raises(ValueError, match="local_factor"):
+        factor_grid_posterior(np.full((1, 3), a), d, y, local_factor=(1.3, 0.6))
