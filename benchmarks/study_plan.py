@@ -46,7 +46,7 @@ the point prediction (flip lobes; the plans stay zero-order)::
 Measured (grid Brier on 110 cuts, ``--paths 1 --configs 22 --brier-only``): the dominant-mode
 prior 0.300 / 0.249 (seeds 7 / 31), the multi-mode + SDM-corrected prior 0.157 / 0.145 / 0.160
 / 0.126 (seeds 7 / 8 / 9 / 31); 5 test cuts then change it by -3 / -9 / -22 / -27 % with the
-common factor, -1 to +4 % with ``--local-factor 0.55,1.3``; the hindsight bound on learning the
+common factor, -2 to +4 % with ``--local-factor 0.55,1.3``; the hindsight bound on learning the
 common factor is 6 / 0 / 3 / 7 %.
 
 ``--shared-fractions 0.5`` also reports the Brier score before/after 5 test cuts with
