@@ -36,6 +36,23 @@ point grid (``robovib.milling.factor_grid``: the same structures and test cuts, 
 structure x factor; better than the per-structure draws on seeds 7, 8, 9 at ``--configs 22``);
 ``--spread-cuts`` adds 5 test cuts chosen at most one per (x, y).
 
+The test cuts are chosen by ``--cut-rule forecast`` (default; ``choose_forecast_cuts``: the
+least expected Brier score at the plans' other candidates, at most one per segment) or
+``entropy`` (``choose_test_cuts``: the most entropy of their own joint outcome); the library's
+``update_with_cuts`` integrates the process factor on its 32-point grid. ``--model multimode``
+fits every tracked mode of 5-100 Hz (``modes.csv``) instead of the dominant mode per direction;
+``--sdm-correction`` scales the forecast's zero-order limits by the SDM / zero-order ratio of
+the point prediction (flip lobes; the plans stay zero-order)::
+
+    nice python benchmarks/study_plan.py --seed 7 --paths 1 --configs 22 --brier-only \
+        --model multimode --sdm-correction      # the calibrated prior and its 5 test cuts
+
+Measured (grid Brier on 110 cuts, ``--paths 1 --configs 22 --brier-only``): the dominant-mode
+prior 0.300 / 0.249 (seeds 7 / 31), the multi-mode + SDM-corrected prior 0.157 / 0.145 / 0.160
+/ 0.126 (seeds 7 / 8 / 9 / 31); 5 test cuts then change it by -3 / -9 / -22 / -27 % with the
+common factor, -2 to +4 % with ``--local-factor 0.55,1.3``; the hindsight bound on learning the
+common factor is 6 / 0 / 3 / 7 %.
+
 ``--shared-fractions 0.5`` also reports the Brier score before/after 5 test cuts with
 structures whose fields share a workspace-wide part (``sample_structures(shared_fraction=)``).
 
@@ -60,9 +77,15 @@ BACKGROUND = 0.15  # broadband force / RMS cutting force, as ``robovib sim mill`
 X_MM, Y_MM = (2150.0, 2650.0), (-250.0, 550.0)
 
 
-def fit_campaign_model(n_poses: int, seed: int, robot=None):
+def fit_campaign_model(n_poses: int, seed: int, robot=None, multimode: bool = False):
+    """``multimode``: every mode of 5-100 Hz tracked across the poses (``campaign process
+    --modes-band 5,100`` -> ``modes.csv`` -> the multi-mode pose model) instead of the dominant
+    mode per direction (``modal.csv``)."""
     from robovib.campaign import fit_pose_model_from_table, process_campaign
     from robovib.sim import simulate_campaign
+
+    if multimode:
+        return _fit_multimode(n_poses, seed, robot)
 
     rng = np.random.default_rng(seed)
     x = 2100 + 600 * (np.arange(n_poses) + rng.uniform(size=n_poses)) / n_poses
@@ -74,6 +97,24 @@ def fit_campaign_model(n_poses: int, seed: int, robot=None):
         )
         process_campaign(sim.manifest, Path(tmp) / "out", n_workers=1)
         return fit_pose_model_from_table(Path(tmp) / "out" / "modal.csv").model
+
+
+def _fit_multimode(n_poses: int, seed: int, robot=None):
+    from robovib.campaign import ProcessingSettings, fit_multimode_pose_model, process_campaign
+    from robovib.sim import simulate_campaign
+
+    rng = np.random.default_rng(seed)  # the same poses as the dominant-mode campaign
+    x = 2100 + 600 * (np.arange(n_poses) + rng.uniform(size=n_poses)) / n_poses
+    poses = np.column_stack([x, rng.uniform(-300, 600, n_poses), rng.uniform(0, 180, n_poses)])
+    with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = simulate_campaign(
+            poses, tmp, rng=seed, n_hits=2, n_truth=0, scatter=(0.01, 0.04, 0.04), robot=robot
+        )
+        out = Path(tmp) / "out"
+        process_campaign(sim.manifest, out, n_workers=1,
+                         settings=ProcessingSettings(modes_band_hz=(5.0, 100.0)))  # fmt: skip
+        return fit_multimode_pose_model(out / "modes.csv").model
 
 
 class Truth:
@@ -208,6 +249,30 @@ def mrr_tables(args, truth, prior, plan_all, cond) -> None:
         )
 
 
+def forecast_cuts(structures, cand_pose, cand_rpm, limits, args, rng):
+    """The test cuts of least expected Brier score at the plans' other candidates: a random 150
+    of the candidates (cost), evaluated at 100 others at 4 depths across their limit, the
+    structures on an 8-point factor grid; at most one cut per segment."""
+    from robovib.milling.cut_posterior import choose_forecast_cuts, weighted_quantile
+
+    rows = structures.on_factor_grid(8)
+    w = rows.weights
+    pick = rng.permutation(cand_pose.shape[0])
+    cut_c, ev_c = pick[:150], pick[150:250]
+    lim_c = np.column_stack([limits(rows, cand_pose[i], cand_rpm[i]) for i in cut_c])
+    lim_e = np.column_stack([limits(rows, cand_pose[i], cand_rpm[i]) for i in ev_c])
+    ev_depth = np.concatenate([weighted_quantile(lim_e, w, a) for a in (0.2, 0.4, 0.6, 0.8)])
+    ev_rows = np.tile(lim_e, 4)
+    keep = np.isfinite(ev_depth)
+    groups = np.unique(cand_pose[cut_c, :2], axis=0, return_inverse=True)[1].ravel()
+    i, d, score = choose_forecast_cuts(lim_c, w, ev_rows[:, keep], ev_depth[keep],
+                                       args.test_cuts, groups=groups,
+                                       label_noise=args.label_noise)  # fmt: skip
+    print("expected Brier at the plans' other candidates, before and after each chosen cut: "
+          + " ".join(f"{v:.3f}" for v in score))  # fmt: skip
+    return cut_c[i], d
+
+
 def brier(p, stable) -> float:
     return float(np.mean((np.asarray(p) - np.asarray(stable, float)) ** 2))
 
@@ -271,6 +336,41 @@ def main(argv=None) -> None:
         default=None,
         help="a robot of the family (robovib.sim.family) instead of the thesis robot",
     )
+    ap.add_argument(
+        "--model",
+        choices=("dominant", "multimode"),
+        default="dominant",
+        help="the campaign's pose model: the dominant mode per direction (modal.csv) or every "
+        "tracked mode of 5-100 Hz (modes.csv; the structures then carry the modes that the "
+        "dominant model drops, which move the limit)",
+    )
+    ap.add_argument(
+        "--cut-rule",
+        choices=("forecast", "entropy"),
+        default="forecast",
+        help="how the test cuts are chosen: least expected Brier score of the forecast at the "
+        "plans' other candidates, at most one per segment (choose_forecast_cuts), or most "
+        "entropy of their own joint outcome (choose_test_cuts)",
+    )
+    ap.add_argument(
+        "--sdm-correction",
+        action="store_true",
+        help="the forecast's structures' zero-order limits scaled by the SDM / zero-order ratio of "
+        "the point prediction at each pose and speed (StructureSamples.with_sdm_correction: the "
+        "flip lobes of low radial immersion); the plans stay zero-order",
+    )
+    ap.add_argument(
+        "--local-factor",
+        default="",
+        help="also: the factor-grid Brier with the factor split into a common part "
+        "(--common-factor, learnt) and a local part LO,HI drawn afresh at every cut and point, "
+        "e.g. 0.55,1.3 (the time-domain / linear limit range of robovib.milling.time_domain)",
+    )
+    ap.add_argument(
+        "--common-factor",
+        default="0.9,1.1",
+        help="LO,HI of the common factor with --local-factor (e.g. the cutting coefficients)",
+    )
     args = ap.parse_args(argv)
 
     from robovib.milling import CuttingConditions
@@ -287,7 +387,8 @@ def main(argv=None) -> None:
     cond = CuttingConditions(1750.0, fz, 1e-3, 6e-3)
     print(f"# study_plan: seed {args.seed}, {args.campaign_poses}-pose campaign model, truth "
           f"{args.truth}, {args.samples} structures")  # fmt: skip
-    model = fit_campaign_model(args.campaign_poses, args.seed, truth.robot)
+    model = fit_campaign_model(args.campaign_poses, args.seed, truth.robot,
+                               multimode=args.model == "multimode")  # fmt: skip
     print(f"model fitted ({time.perf_counter() - t_start:.0f} s)")
     prior = sample_structures(model, args.samples, rng=args.seed,
                               shared_fraction=args.shared_fraction)  # fmt: skip
@@ -378,12 +479,22 @@ def main(argv=None) -> None:
                                                ev_depth[k : k + len(FACTORS)])  # fmt: skip
         return p
 
+    # the forecast's structures (the plans' own, with --sdm-correction their limits corrected)
+    fprior = prior.with_sdm_correction(args.sdm_correction)
+
+    def limit_at(structures, pose, rpm):
+        return structures.limits(np.asarray(pose)[None], [rpm], tool, cond, coef)[:, 0, 0]
+
     # the 5 most informative test cuts among the plans' segments, labelled by detection
     cands = [p.test_cut_candidates() for p in plans]  # every segment x Rz x speed of the grids
     cand_pose = np.vstack([c[0] for c in cands])
     cand_rpm = np.concatenate([c[1] for c in cands])
     cand_lim = np.hstack([c[2] for c in cands])
-    idx, tdepth = choose_test_cuts(cand_lim, prior.weights, args.test_cuts)
+    if args.cut_rule == "entropy":
+        idx, tdepth = choose_test_cuts(cand_lim, prior.weights, args.test_cuts)
+    else:
+        idx, tdepth = forecast_cuts(fprior, cand_pose, cand_rpm, limit_at, args,
+                                    np.random.default_rng(args.seed + 1))  # fmt: skip
     from robovib.io.cuts import MeasuredCuts
 
     labels, sim_labels = [], []
@@ -392,10 +503,10 @@ def main(argv=None) -> None:
         labels.append(truth.detect(cut, 0, cand_rpm[i], fz, cand_pose[i]).result == "chatter")
         sim_labels.append(bool(cut.chatter[0]))
     cuts = MeasuredCuts(cand_rpm[idx], tdepth, np.array(labels), cand_pose[idx])
-    upd = update_with_cuts(prior, cuts, tool, cond, coef, label_noise=args.label_noise)
+    upd = update_with_cuts(fprior, cuts, tool, cond, coef, label_noise=args.label_noise)
     # the same cuts labelled by the simulation's own indicator (no detection error)
     cuts_sim = MeasuredCuts(cand_rpm[idx], tdepth, np.array(sim_labels), cand_pose[idx])
-    upd_sim = update_with_cuts(prior, cuts_sim, tool, cond, coef, label_noise=0.05)
+    upd_sim = update_with_cuts(fprior, cuts_sim, tool, cond, coef, label_noise=0.05)
     d = upd.to_dict()
     print(f"\n## {args.test_cuts} test cuts (chosen by the planner, labelled by detection)")
     print("| x [mm] | y [mm] | Rz [deg] | speed [rpm] | depth [mm] | detected | simulated | P(stable) before | after |")  # fmt: skip
@@ -408,7 +519,7 @@ def main(argv=None) -> None:
     print(f"effective sample size {d['effective_sample_size_prior']:.0f} -> "
           f"{d['effective_sample_size']:.1f}; information {d['information_nats']:.2f} nats; "
           f"median limit at the cuts {100 * d['median_limit_shift_rel']:+.0f} %")  # fmt: skip
-    p0, p1, p2 = forecast(prior), forecast(upd.structures), forecast(upd_sim.structures)
+    p0, p1, p2 = forecast(fprior), forecast(upd.structures), forecast(upd_sim.structures)
     b0, b1, b2 = brier(p0, ev_stable), brier(p1, ev_stable), brier(p2, ev_stable)
     print(
         f"\n## forecast on {len(rows)} other cuts ({args.configs} poses x speeds x {len(FACTORS)} depths)"
@@ -430,10 +541,10 @@ def main(argv=None) -> None:
 
         qr = tuple(prior.settings["process_factor_range"])
         t_lim = np.column_stack([
-            unscaled_limits(prior, cand_pose[i : i + 1], [cand_rpm[i]], tool, cond, coef)[:, 0, 0]
+            unscaled_limits(fprior, cand_pose[i : i + 1], [cand_rpm[i]], tool, cond, coef)[:, 0, 0]
             for i in idx])  # fmt: skip
         e_lim = np.column_stack([
-            unscaled_limits(prior, ev_pose[k : k + 1], [ev_rpm[k]], tool, cond, coef)[:, 0, 0]
+            unscaled_limits(fprior, ev_pose[k : k + 1], [ev_rpm[k]], tool, cond, coef)[:, 0, 0]
             for k in range(len(rows))])  # fmt: skip
         g = []
         for labels_v, noise in (([], 0.05), (labels, args.label_noise), (sim_labels, 0.05)):
@@ -490,6 +601,47 @@ def main(argv=None) -> None:
             f"factor posterior (simulated labels): mean {np.sum(fp * g[2].factors):.2f}, "
             f"sd {np.sqrt(np.sum(fp * g[2].factors ** 2) - np.sum(fp * g[2].factors) ** 2):.2f}"
         )
+        if args.local_factor:
+            # the factor split: a common part (learnt by the cuts) and a local one drawn afresh
+            # at every cut and forecast point (factor_grid_posterior(local_factor=))
+            common = tuple(float(v) for v in args.common_factor.split(","))
+            local = tuple(float(v) for v in args.local_factor.split(","))
+            gl = [
+                factor_grid_posterior(t_lim[:, : len(lv)] if lv else t_lim[:, :0],
+                                      tdepth[: len(lv)] if lv else tdepth[:0],
+                                      np.array(lv, bool), process_factor=common,
+                                      n_factors=args.factor_grid, label_noise=noise,
+                                      local_factor=local)
+                for lv, noise in (([], 0.05), (labels, args.label_noise), (sim_labels, 0.05))
+            ]  # fmt: skip
+            pl = [gp.p_stable(e_lim, ev_depth) for gp in gl]
+            bl = [brier(p_, ev_stable) for p_ in pl]
+            print(f"\n## common factor {common} (learnt) x local factor {local} (afresh at every "
+                  "cut and point)")  # fmt: skip
+            print("| depth / truth's limit | mean P(stable) prior | after (detected) | "
+                  "after (simulated) |")  # fmt: skip
+            print("|---|---|---|---|")
+            for f_ in FACTORS:
+                s_ = ev_fac_g == f_
+                print(f"| {f_:g} | {pl[0][s_].mean():.2f} | {pl[1][s_].mean():.2f} | "
+                      f"{pl[2][s_].mean():.2f} |")  # fmt: skip
+            print(f"Brier prior {bl[0]:.3f}, after (detected) {bl[1]:.3f} "
+                  f"({100 * (1 - bl[1] / bl[0]):.0f} %), after (simulated) {bl[2]:.3f} "
+                  f"({100 * (1 - bl[2] / bl[0]):.0f} %)")  # fmt: skip
+        # a bound on what test cuts can do by learning the process factor (common to every
+        # cut): the best Brier score of any log-uniform factor prior (centre x/÷ width), chosen
+        # in hindsight on the evaluation cuts themselves
+        best = min(
+            (brier(factor_grid_posterior(e_lim[:, :0], ev_depth[:0], np.zeros(0, bool),
+                                         process_factor=(c / wd, c * wd), n_factors=16)
+                   .p_stable(e_lim, ev_depth), ev_stable), c, wd)
+            for c in np.geomspace(0.4, 2.0, 29) for wd in (1.0, 1.1, 1.25, 1.5, 1.8)
+        )  # fmt: skip
+        print(
+            f"bound, factor learnt perfectly: best Brier {best[0]:.3f} at factor {best[1]:.2f} "
+            f"x/÷ {best[2]:g} (hindsight on these cuts): at most "
+            f"{100 * (1 - best[0] / bg[0]):.0f} % better than the grid prior"
+        )
     if args.spread_cuts:
         # the test cuts spread: at most one per segment (x, y) of the candidates
         from robovib.milling.factor_grid import factor_grid_posterior, unscaled_limits
@@ -509,10 +661,10 @@ def main(argv=None) -> None:
             print(f"| {cand_pose[i, 0]:.0f} | {cand_pose[i, 1]:.0f} | {cand_pose[i, 2]:.0f} | "
                   f"{cand_rpm[i]:.0f} | {dd[k] * 1e3:.2f} | {lab[k]} | {slab[k]} |")  # fmt: skip
         ts_lim = np.column_stack([
-            unscaled_limits(prior, cand_pose[i : i + 1], [cand_rpm[i]], tool, cond, coef)[:, 0, 0]
+            unscaled_limits(fprior, cand_pose[i : i + 1], [cand_rpm[i]], tool, cond, coef)[:, 0, 0]
             for i in ix])  # fmt: skip
         es_lim = np.column_stack([
-            unscaled_limits(prior, ev_pose[k : k + 1], [ev_rpm[k]], tool, cond, coef)[:, 0, 0]
+            unscaled_limits(fprior, ev_pose[k : k + 1], [ev_rpm[k]], tool, cond, coef)[:, 0, 0]
             for k in range(len(rows))])  # fmt: skip
         print("| labels | Brier, weights (update_with_cuts) | ESS | Brier, factor grid | "
               "ESS (structures) |")  # fmt: skip
@@ -522,7 +674,7 @@ def main(argv=None) -> None:
             ("simulated", slab, 0.05),
         ):
             mc = MeasuredCuts(cand_rpm[ix], dd, np.array(labels_v), cand_pose[ix])
-            u = update_with_cuts(prior, mc, tool, cond, coef, label_noise=noise)
+            u = update_with_cuts(fprior, mc, tool, cond, coef, label_noise=noise)
             gq = factor_grid_posterior(
                 ts_lim,
                 dd,
@@ -577,7 +729,7 @@ def main(argv=None) -> None:
     if args.brier_only:
         print(f"\ntotal {time.perf_counter() - t_start:.0f} s")
         return
-    plans1 = plan_all(upd.structures)
+    plans1 = plan_all(upd.structures.with_sdm_correction(False))  # the plan: zero-order
     _, det_plan1 = check(plans1, "after test cuts (re-planned)")
 
     # detection accuracy on every simulated record

@@ -40,7 +40,8 @@ def test_weighted_forecast_equals_the_count_of_structures_a_cut_leaves(eps):
     cut = MeasuredCuts(np.array([2000.0]), np.array([1.005 * A0_M]), np.array([True]),
                        np.array([[2400.0, 0.0, 45.0]]))  # fmt: skip
     fc = forecast_with_cuts(None, [[2300.0, 100.0, 0.0]], [1500.0, 2000.0], cut, TOOL, COND,
-                            ALUMINIUM_7075, structures=st, label_noise=eps)  # fmt: skip
+                            ALUMINIUM_7075, structures=st, label_noise=eps,
+                            n_factors=None)  # fmt: skip
     kept = q * A0_M <= 1.005 * A0_M
     assert kept.sum() == 21
     like = np.where(kept, 1 - eps, eps)  # P(chatter | structure)

@@ -118,7 +118,9 @@ def test_test_cuts_from_one_structure_pull_the_forecast_towards_it(model):
     # 8 cuts labelled by the "true" structure, at the prior median depth; 4 poses held out
     depth = weighted_quantile(lim, st.weights, 0.5)
     cuts = MeasuredCuts(np.full(8, rpm), depth[:8], depth[:8] >= lim[true, :8], poses[:8])
-    upd = update_with_cuts(st, cuts, TOOL, COND, ALUMINIUM_7075, label_noise=0.05)
+    upd = update_with_cuts(
+        st, cuts, TOOL, COND, ALUMINIUM_7075, label_noise=0.05, n_factors=None
+    )  # each structure its own drawn factor
     err0 = np.abs(weighted_quantile(lim[:, 8:], st.weights, 0.5) / lim[true, 8:] - 1).mean()
     err1 = np.abs(weighted_quantile(lim[:, 8:], upd.structures.weights, 0.5) / lim[true, 8:] - 1)
     assert err1.mean() < 0.6 * err0

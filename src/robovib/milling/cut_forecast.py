@@ -165,7 +165,7 @@ class CutForecast:
             Plain JSON types, units in the keys.
         """
         doc = self.update.to_dict()
-        doc["effective_sample_size_prior"] = float(1.0 / np.sum(self.update.prior_weights**2))
+        doc["effective_sample_size_prior"] = self.update.prior_effective_sample_size
         doc["median_limit_shift_rel_at_forecast"] = self.median_shift_rel()
         doc["cut_poses_mm_deg"] = np.asarray(self.cuts.pose_mm_deg, float).tolist()
         doc["limits"] = ("zero-order limits of the pose model's sampled structures "
@@ -202,11 +202,13 @@ class CutForecast:
         finite = np.where(np.isfinite(lim), lim, np.inf)
         return WeightedStabilityProbability(
             self.spindle_rpm, depth, grid, finite, finite.min(axis=1), mean_envelope,
-            {"n_samples": int(w.size), "method": "zoa",
+            {"n_samples": self.update.structures.n_structures, "n_weighted_rows": int(w.size),
+             "method": "zoa",
              "sampling": ("weighted structures of the pose model "
                           + ("after" if posterior else "before") + " the test cuts "
                           "(robovib.milling.cut_forecast)"),
-             "effective_sample_size": float(1.0 / np.sum(w**2))},
+             "effective_sample_size": self.update.structures.with_weights(w)
+             .effective_sample_size},
             weights=w,
         )  # fmt: skip
 
@@ -309,6 +311,7 @@ def forecast_with_cuts(
     label_noise: float = 0.05,
     rng=0,
     structures=None,
+    n_factors: int | None = 32,
 ) -> CutForecast:
     """Forecast at poses and speeds before and after test cuts (module docs).
 
@@ -334,6 +337,9 @@ def forecast_with_cuts(
         Seed of the structures.
     structures : StructureSamples, optional
         Structures to use instead of drawing them (the prior: their weights).
+    n_factors : int or None
+        Process factor integrated on this many grid points (:func:`~robovib.milling.
+        cut_posterior.update_with_cuts`); None: one drawn factor per structure.
 
     Returns
     -------
@@ -348,8 +354,11 @@ def forecast_with_cuts(
 
         structures = sample_structures(model, n_samples, rng=rng)
     update = update_with_cuts(structures, cuts, tool, conditions, coefficients,
-                              feed_direction=feed_direction, label_noise=label_noise)  # fmt: skip
-    lim = structures.limits(x, rpm, tool, conditions, coefficients, feed_direction=feed_direction)
+                              feed_direction=feed_direction, label_noise=label_noise,
+                              n_factors=n_factors)  # fmt: skip
+    # the rows of the update (on the factor grid: structure x factor pairs)
+    lim = update.structures.limits(x, rpm, tool, conditions, coefficients,
+                                   feed_direction=feed_direction)  # fmt: skip
     return CutForecast(x, rpm, np.asarray(lim, float), update, cuts)
 
 
@@ -414,7 +423,7 @@ def add_cut_forecast(
     dims = ("x_mm", "y_mm", "rz_deg", "spindle_rpm")
     shape = (xs.size, ys.size, rzs.size, rpm.size)
     out = ds.copy()
-    n = fc.limits_m.shape[0]
+    n = fc.update.structures.n_structures
     for q in (5, 50, 95):
         out[f"a_lim_p{q:02d}_m"] = (dims, fc.quantile_m(q / 100).reshape(shape), {
             "units": "m", "long_name": f"{q} % quantile of the critical depth over {n} sampled "

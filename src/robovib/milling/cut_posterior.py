@@ -13,7 +13,13 @@ way). Bayes with the prior weights ``w_s`` gives the posterior weights (importan
     w_s' ∝ w_s prod_i P(y_i | s)
 
 and P(stable) anywhere is the weighted fraction of structures whose limit lies above the depth.
-How far the cuts moved the forecast is reported as the effective sample size ``1 / sum w'^2``
+**The process factor on a grid** (default, ``n_factors=32``): a structure's limit scales
+exactly with its process factor ``q``, so instead of one drawn ``q_s`` per structure (a few cuts
+that mostly learn ``q`` then leave few structures with weight) every structure is ``K`` rows
+``(s, q_k)`` on the stratified grid of :mod:`robovib.milling.factor_grid`, prior weight
+``w_s / K``, and the same likelihood weights the pairs (the Rao-Blackwellised posterior; the
+linear limits are still computed once per structure). How far the cuts moved the forecast is
+reported as the effective sample size ``1 / sum w'^2``
 (S before, smaller after: how many structures still carry it), the information gained (the
 Kullback-Leibler divergence of the posterior from the prior weights, nats) and the shift of
 the median limit at the cuts' own poses and speeds.
@@ -23,6 +29,23 @@ the segments of a plan), each at the depth where P(stable) is nearest 0.5 (a cut
 is least predictable), cuts are chosen greedily to maximise the entropy of the
 joint outcome over the structures: the expected information of the set, not of each cut alone
 (two cuts that would split the structures the same way are worth one).
+
+**Cuts for the forecast elsewhere** (:func:`choose_forecast_cuts`): the entropy of a cut's own
+outcome says how much it reweights the structures, not whether that moves the forecast where
+it will be used. There the cuts are chosen greedily to minimise the expected Brier score of the
+forecast at a set of evaluation points ``e`` (poses, speeds and depths: e.g. the plan's
+segments at depths across their predictive limit), the expectation taken over the outcomes the
+model itself predicts, label noise included. Under the posterior ``W`` after observed outcomes
+``h`` a forecast ``p_e = sum_r W_r [a_re > d_e]`` has the expected Brier score ``p_e (1 - p_e)``,
+so a candidate cut ``c`` (at a few depths across its own predictive limit) is scored by::
+
+    B(c) = sum_h sum_y P(h, y) sum_e p_e(h, y) (1 - p_e(h, y)) / E,
+    P(h, y) p_e(h, y) = sum_r w_r L(h | r) L(y | r, c) [a_re > d_e]
+
+over the ``2^n`` outcome histories ``h`` of the cuts chosen so far and the two outcomes ``y``
+of ``c`` (``L`` the label-noise likelihood above); the cut of least ``B`` is added. A cut at a
+pose whose structures' limits are correlated with many evaluation points (and with the
+process factor, common to all of them) lowers ``B`` most; ``groups`` spreads the cuts.
 """
 
 from __future__ import annotations
@@ -36,6 +59,7 @@ from .structures import StructureSamples
 
 __all__ = [
     "CutUpdate",
+    "choose_forecast_cuts",
     "choose_test_cuts",
     "p_stable",
     "update_with_cuts",
@@ -132,7 +156,13 @@ class CutUpdate:
 
     @property
     def effective_sample_size(self) -> float:
+        """Kish's effective sample size of the structures (:class:`StructureSamples`)."""
         return self.structures.effective_sample_size
+
+    @property
+    def prior_effective_sample_size(self) -> float:
+        """The same before the cuts."""
+        return self.structures.with_weights(self.prior_weights).effective_sample_size
 
     @property
     def information_nats(self) -> float:
@@ -146,7 +176,7 @@ class CutUpdate:
             "n_cuts": int(self.chatter.size),
             "label_noise": self.label_noise,
             "n_structures": self.structures.n_samples,
-            "effective_sample_size_prior": float(1.0 / np.sum(self.prior_weights**2)),
+            "effective_sample_size_prior": self.prior_effective_sample_size,
             "effective_sample_size": self.effective_sample_size,
             "information_nats": self.information_nats,
             "median_limit_shift_rel": float(
@@ -187,6 +217,7 @@ def update_with_cuts(
     *,
     feed_direction: str = "x",
     label_noise: float = 0.05,
+    n_factors: int | None = 32,
 ) -> CutUpdate:
     """Posterior weights of the structures given test cuts (module docs).
 
@@ -203,14 +234,23 @@ def update_with_cuts(
         Base-frame feed direction of the cuts.
     label_noise : float
         Probability that a cut's label disagrees with its structure's limit (0 < eps < 0.5).
+    n_factors : int or None
+        The process factor integrated on a grid of this many points (the structures are
+        weighted as (structure, factor) pairs, :meth:`StructureSamples.on_factor_grid`;
+        default 32). None: each structure keeps its own drawn factor. Structures already on a
+        grid (an earlier posterior) are updated as they are.
 
     Returns
     -------
     CutUpdate
+        Its ``structures`` are on the factor grid (``n_structures * n_factors`` rows) unless
+        ``n_factors`` is None; ``prior_weights`` are the weights of those rows before the cuts.
     """
     if not 0 < label_noise < 0.5:
         raise ValueError(f"label_noise must be in (0, 0.5), got {label_noise!r}")
     pose, rpm, depth, chatter = _cut_arrays(cuts)
+    if n_factors is not None and structures.factor_grid is None:
+        structures = structures.on_factor_grid(n_factors)
     # one limit per cut: each at its own pose and speed (the diagonal of poses x speeds)
     lim = np.empty((structures.n_samples, rpm.size))
     for j, speed in enumerate(np.unique(rpm)):
@@ -230,7 +270,9 @@ def update_with_cuts(
         weighted_quantile(lim, w0, 0.5), weighted_quantile(lim, post.weights, 0.5),
         float(label_noise), chatter,
         {"likelihood": "label noise eps: P(observed = predicted) = 1 - eps",
-         "feed_direction": feed_direction},
+         "feed_direction": feed_direction,
+         "process_factor": ("per structure, drawn" if structures.factor_grid is None else
+                            f"integrated on a {structures.factor_grid.size}-point grid")},
     )  # fmt: skip
 
 
@@ -305,3 +347,124 @@ def _pattern_entropy(code: np.ndarray, w: np.ndarray) -> float:
     p = np.bincount(inv, weights=w)
     p = p[p > 0]
     return float(-np.sum(p * np.log(p)))
+
+
+def choose_forecast_cuts(
+    limits_m,
+    weights,
+    eval_limits_m,
+    eval_depth_m,
+    n_cuts: int = 5,
+    *,
+    groups=None,
+    label_noise: float = 0.1,
+    depth_quantiles=(0.3, 0.5, 0.7),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Test cuts that most lower the expected Brier score of the forecast elsewhere (module docs).
+
+    Parameters
+    ----------
+    limits_m : array_like
+        (R, C) limits [m] of the weighted rows (structures, or structure x factor pairs of
+        :meth:`~robovib.milling.structures.StructureSamples.on_factor_grid`) at the C candidate
+        poses and speeds.
+    weights : array_like
+        (R,) their weights.
+    eval_limits_m : array_like
+        (R, E) the rows' limits [m] at the E evaluation points.
+    eval_depth_m : array_like
+        (E,) the evaluation depths [m].
+    n_cuts : int
+        Cuts to choose (1 to 10: the outcome histories double with each).
+    groups : array_like, optional
+        (C,) labels of the candidates: at most one cut per label.
+    label_noise : float
+        Probability that a cut's label is wrong, 0 < eps < 0.5.
+    depth_quantiles : sequence of float
+        Each candidate is tried at these quantiles of its weighted limit (in (0, 1)).
+
+    Returns
+    -------
+    index : numpy.ndarray
+        (n_cuts,) chosen candidates, in the order chosen.
+    depth_m : numpy.ndarray
+        (n_cuts,) their depths [m].
+    expected_brier : numpy.ndarray
+        (n_cuts + 1,) the expected Brier score at the evaluation points before any cut and
+        after each chosen one.
+    """
+    lim = np.asarray(limits_m, float)
+    w = np.asarray(weights, float)
+    ev = np.asarray(eval_limits_m, float)
+    ed = np.asarray(eval_depth_m, float)
+    if lim.ndim != 2 or lim.shape[0] != w.size:
+        raise ValueError(f"limits_m must be (R={w.size}, C), got {lim.shape}")
+    if ev.ndim != 2 or ev.shape[0] != w.size or ed.shape != (ev.shape[1],):
+        raise ValueError(
+            f"eval_limits_m must be (R={w.size}, E) and eval_depth_m (E,), got {ev.shape} and "
+            f"{ed.shape}"
+        )
+    if np.any(~np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weights must be finite, >= 0 and not all zero")
+    if np.any(np.isnan(lim)) or np.any(np.isnan(ev)) or not np.all(np.isfinite(ed)):
+        raise ValueError("limits and evaluation depths must not contain NaN")
+    if not 0 < label_noise < 0.5:
+        raise ValueError(f"label_noise must be in (0, 0.5), got {label_noise!r}")
+    qs = np.asarray(depth_quantiles, float)
+    if qs.ndim != 1 or qs.size < 1 or np.any((qs <= 0) | (qs >= 1)):
+        raise ValueError(f"depth_quantiles must be in (0, 1), got {depth_quantiles!r}")
+    n = int(n_cuts)
+    n_c = lim.shape[1]
+    if not 1 <= n <= min(10, n_c):
+        raise ValueError(f"n_cuts must be in 1..{min(10, n_c)}, got {n_cuts!r}")
+    if groups is not None:
+        groups = np.asarray(groups)
+        if groups.shape != (n_c,):
+            raise ValueError(f"groups must be ({n_c},) like the candidates, got {groups.shape}")
+    w = w / w.sum()
+    # every candidate at a few depths across its own predictive limit
+    depth = np.stack([weighted_quantile(lim, w, q) for q in qs])  # (Q, C)
+    cand = np.tile(np.arange(n_c), qs.size)
+    depth = depth.ravel()
+    ok = np.isfinite(depth) & (depth > 0)
+    cand, depth = cand[ok], depth[ok]
+    chat = (lim[:, cand] <= depth[None, :]).astype(float)  # (R, Q C) chatter under each row
+    like = {True: label_noise + (1 - 2 * label_noise) * chat,  # P(observed chatter | row)
+            False: 1 - label_noise - (1 - 2 * label_noise) * chat}  # fmt: skip
+    stable_ev = (ev > ed[None, :]).astype(float)  # (R, E)
+    n_e = stable_ev.shape[1]
+    hist = w[None, :]  # (H, R): prior x likelihood of each outcome history
+    chosen: list[int] = []
+    chosen_depth: list[float] = []
+
+    def expected_brier(v):  # v (H, R) -> sum over histories of sum_e N (Z - N) / Z
+        z = v.sum(axis=1)
+        nn = v @ stable_ev
+        with np.errstate(invalid="ignore", divide="ignore"):
+            b = np.where(z[:, None] > 0, nn * (z[:, None] - nn) / z[:, None], 0.0)
+        return float(b.sum()) / n_e
+
+    scores = [expected_brier(hist)]
+    for _ in range(n):
+        total = np.zeros(cand.size)
+        for v in hist:
+            for y in (True, False):
+                m = v[:, None] * like[y]  # (R, K)
+                z = m.sum(axis=0)  # (K,)
+                nn = m.T @ stable_ev  # (K, E)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    total += np.where(z > 0, (nn * (z[:, None] - nn)).sum(axis=1) / z, 0.0)
+        total /= n_e
+        allowed = np.ones(cand.size, bool)
+        for i in chosen:
+            allowed &= cand != i
+            if groups is not None:
+                allowed &= groups[cand] != groups[i]
+        if not allowed.any():
+            raise ValueError("fewer allowed candidates than n_cuts (groups or no finite limit)")
+        k = int(np.argmin(np.where(allowed, total, np.inf)))
+        chosen.append(int(cand[k]))
+        chosen_depth.append(float(depth[k]))
+        scores.append(float(total[k]))
+        hist = np.concatenate([hist * like[True][:, k][None], hist * like[False][:, k][None]])
+    return np.array(chosen), np.array(chosen_depth), np.array(scores)
