@@ -33,6 +33,8 @@ from .controllers import ForceFeedforward, RepetitiveFeedback, map_rows
 from .guard import GuardEvent
 
 __all__ = [
+    "IDENTIFY_MEMORY_S",
+    "LoopIdentifier",
     "PeriodTracker",
     "TrackingFeedforward",
     "TrackingRepetitive",
@@ -175,6 +177,147 @@ def robust_learning_scale(
     left = np.pi / 2 - phase
     g_max = np.where(left > 0.1 * np.pi / 2, left / (mag * delay_cycles), 0.0)
     return np.clip(0.5 * g_max / gain, 0.0, 1.0)
+
+
+_FIRST = np.array([1, 0, 2, 1, 0, 1])  # z, x, w, z, x, z
+_SECOND = np.array([2, 2, 2, 1, 0, 0])  # w, w, w, z, x, x
+
+#: Memory of the online loop identification [s] (time constant of its forgetting).
+IDENTIFY_MEMORY_S = 20.0
+#: Command cycles between two loop estimates (the sums are updated every cycle; the estimate
+#: costs ~30 us; two learners of a loop estimate in different cycles).
+IDENTIFY_EVERY_CYCLES = 5
+
+
+class LoopIdentifier:
+    """Each learnt harmonic's loop factor, identified from the learner's own corrections.
+
+    A harmonic learner sends phasors ``U_j`` (one per command cycle); the residual's harmonic
+    measured over a DFT window, in command units (``Z = R / P_model``), is the disturbance's
+    (``D``) plus the effect of the phasors that acted on that window: ``Z = D + lambda X``
+    with ``X`` the mean of those phasors (sent between ``window + delay`` and ``delay`` ago)
+    and ``lambda = g P_true(j w) e^{-j w delta} / P_model(j w)``: 1 for a perfect model,
+    actuator and delay; its phase is the loop's phase error (``w delta`` for an unknown delay
+    ``delta``), its magnitude the gain error.
+
+    ``lambda`` is estimated with an instrumental variable, the phasors one window + delay
+    earlier still (``W``): ``lambda = cov(Z, W) / cov(X, W)`` over the cycles seen, with
+    exponential forgetting (``forget_cycles``). A least-squares fit on ``X`` itself is biased:
+    ``X`` holds the learner's reactions to the noise of earlier, overlapping windows. The
+    standard error counts ``cycles_per_window`` consecutive (overlapping) windows as one
+    sample. Every :data:`IDENTIFY_EVERY_CYCLES` cycles, where the standard error is below
+    ``max_rel_error |lambda|`` (the corrections moved enough against the noise: the first
+    learning transient, a diverging harmonic), :attr:`factor` takes the estimate's *phase*;
+    elsewhere it keeps its last value (1 at the start). The magnitude is not used: where the
+    learner follows a disturbance that changes, ``X`` moves with ``-D`` and the estimate's
+    magnitude is biased low (the learner's robust gain covers the gain error instead).
+
+    Parameters
+    ----------
+    shape
+        (harmonics, directions) of the phasors.
+    every
+        Sensor samples per command cycle.
+    delay_samples
+        Nominal transport delay [samples].
+    longest_window
+        Longest DFT window [samples] the learner will use.
+    forget_cycles
+        Time constant of the forgetting [command cycles] (> 1).
+    max_rel_error
+        Relative standard error below which an estimate is used (> 0).
+    cycles_per_window
+        Command cycles per DFT window (>= 1): the correlation length of the residuals.
+    offset_cycles
+        The estimates run at the cycles ``k`` with ``k % IDENTIFY_EVERY_CYCLES ==
+        offset_cycles`` (two learners of one loop estimate in different cycles).
+    """
+
+    def __init__(self, shape, every: int, delay_samples: int, longest_window: int, *,
+                 forget_cycles: float, max_rel_error: float, cycles_per_window: float,
+                 offset_cycles: int = 0):  # fmt: skip
+        if not (every >= 1 and delay_samples >= 0 and longest_window >= 1 and forget_cycles > 1
+                and max_rel_error > 0 and cycles_per_window >= 1):  # fmt: skip
+            raise ValueError("every, longest_window >= 1, delay_samples >= 0, forget_cycles > 1, "
+                             "max_rel_error > 0, cycles_per_window >= 1")  # fmt: skip
+        self._every = int(every)
+        self._delay = int(delay_samples)
+        q1 = math.ceil((longest_window + delay_samples) / every)
+        self._lag_extra = math.ceil(longest_window / every)
+        self._ring = 3 * q1 + self._lag_extra + 4
+        self._cum = np.zeros((self._ring, *shape), complex)  # cumulative sums of U_j
+        self._zero = np.zeros(shape, complex)
+        self._k = 0
+        self._rho = 1.0 - 1.0 / float(forget_cycles)
+        self._max_rel = float(max_rel_error)
+        self._ncorr = float(cycles_per_window)
+        self._offset = int(offset_cycles) % IDENTIFY_EVERY_CYCLES
+        self._n = 0.0
+        # running sums of x, z, w, z w*, x w*, |w|^2, |z|^2, |x|^2, z x* (stacked)
+        self._acc = np.zeros((9, *shape), complex)
+        self._new = np.zeros((9, *shape), complex)
+        self.factor = np.ones(shape, complex)
+        self.estimate = np.full(shape, np.nan + 0j)
+        self.rel_error = np.full(shape, np.inf)
+
+    def _cum_at(self, j: int) -> np.ndarray:
+        return self._cum[j % self._ring] if j >= 0 else self._zero
+
+    def observe(self, z: np.ndarray, window: int) -> None:
+        """One cycle's residual harmonics ``z`` (harmonics, directions) in command units,
+        measured over the last ``window`` samples (before this cycle's phasors are sent)."""
+        k = self._k  # this cycle; cycles 0 .. k - 1 were sent
+        q0 = self._delay // self._every + 1
+        q1 = max(q0, math.ceil((window + self._delay) / self._every))
+        span = 1.0 / (q1 - q0 + 1)
+        lag = 2 * q1 + self._lag_extra
+        new = self._new
+        x, zz, w = new[0], new[1], new[2]
+        np.subtract(self._cum_at(k - q0), self._cum_at(k - q1 - 1), out=x)
+        x *= span
+        zz[...] = z
+        np.subtract(self._cum_at(k - lag + q1 - q0), self._cum_at(k - lag - 1), out=w)
+        w *= span
+        wc = np.conj(w)
+        np.multiply(zz, wc, out=new[3])
+        np.multiply(x, wc, out=new[4])
+        np.multiply(w, wc, out=new[5])
+        np.multiply(zz, np.conj(zz), out=new[6])
+        xc = np.conj(x)
+        np.multiply(x, xc, out=new[7])
+        np.multiply(zz, xc, out=new[8])
+        self._acc *= self._rho
+        self._acc += new
+        self._n = self._rho * self._n + 1.0
+        if k % IDENTIFY_EVERY_CYCLES == self._offset and self._n > 2 * self._ncorr:
+            self._estimate()
+
+    def _estimate(self) -> None:
+        acc = self._acc
+        # centred sums: (z, w), (x, w), (w, w), (z, z), (x, x), (z, x) [conjugate second]
+        c = acc[3:] - acc[_FIRST] * np.conj(acc[_SECOND]) * (1.0 / self._n)
+        czw, cxw, cww, czz, cxx, czx = c
+        den = np.abs(cxw)
+        ok = den > 1e-12 * np.abs(acc[7])
+        lam = czw / np.where(ok, cxw, 1.0)
+        # the variance of z - lam x per cycle, and the instrumental variable's standard error
+        res = czz.real - 2 * (lam.conj() * czx).real + (lam * lam.conj()).real * cxx.real
+        mag = np.abs(lam)
+        # rel^2 = res ncorr cww / (n |cxw|^2 |lam|^2) = res ncorr cww / (n |czw|^2)
+        rel2 = res * cww.real * (self._ncorr / self._n) / np.maximum(np.abs(czw) ** 2, 1e-300)
+        self.estimate[...] = np.where(ok, lam, np.nan)
+        self.rel_error[...] = np.sqrt(np.maximum(rel2, 0.0))
+        use = ok & (rel2 < self._max_rel**2) & (mag > 0.25) & (mag < 4.0)
+        np.divide(lam, mag, out=self.factor, where=use)
+
+    def sent(self, u: np.ndarray) -> None:
+        """Record this cycle's phasors (harmonics, directions), after the learning update."""
+        i = self._k % self._ring
+        if self._k:
+            np.add(self._cum[(self._k - 1) % self._ring], u, out=self._cum[i])
+        else:
+            self._cum[i] = u
+        self._k += 1
 
 
 class PeriodTracker:
@@ -345,6 +488,18 @@ class TrackingRepetitive(RepetitiveFeedback):
     period_multiple
         The learnt period in tracked periods (integer >= 1): 1 learns the tooth-passing lines;
         the number of teeth learns over one spindle revolution (the runout lines).
+    identify_loop
+        Identify each harmonic's loop factor online and learn with it (see
+        :class:`LoopIdentifier`): the residual's harmonic (in command units, ``R / P_model``)
+        against the mean of the phasor that acted on its DFT window, ``Z = D + lambda X``,
+        by least squares with forgetting; ``lambda = g P_true e^{-j w delta} / P_model``
+        holds the actuator gain, the unknown delay ``delta`` and the model's error at that
+        harmonic. Once ``lambda`` is known to ``identify_rel_error`` (its standard error
+        over its magnitude) the update divides by it: the learning then converges whatever
+        the delay error (a ±16 ms error turns an 18 Hz harmonic's loop by ±104°, past the
+        90° a fixed learner survives).
+    identify_rel_error
+        Relative standard error below which an identified loop factor is used (> 0).
     **kwargs
         Further options of :class:`~robovib.control.controllers.RepetitiveFeedback`
         (``n_harmonics``, ``learning_time_s``, ``max_harmonic_ratio``).
@@ -363,6 +518,8 @@ class TrackingRepetitive(RepetitiveFeedback):
         delay_uncertainty_s: float | None = None,
         fn_uncertainty_rel: float = 0.0,
         gain_uncertainty_rel: float = 0.1,
+        identify_loop: bool = False,
+        identify_rel_error: float = 0.2,
         **kwargs,
     ):
         m = int(period_multiple)
@@ -385,6 +542,10 @@ class TrackingRepetitive(RepetitiveFeedback):
         )
         self.fn_uncertainty_rel = float(fn_uncertainty_rel)
         self.gain_uncertainty_rel = float(gain_uncertainty_rel)
+        if not identify_rel_error > 0:
+            raise ValueError("identify_rel_error must be > 0")
+        self.identify_loop = bool(identify_loop)
+        self.identify_rel_error = float(identify_rel_error)
 
     def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
         super().reset(coords, period_s, sample_rate_hz)
@@ -415,6 +576,19 @@ class TrackingRepetitive(RepetitiveFeedback):
         self._mag = None
         self._mag0 = None
         self.events: list[GuardEvent] = []
+        self._ident = None
+        if self.identify_loop:
+            # the longest window (tracked period within the tracker's range) + the delay
+            longest = math.ceil(self.period_multiple * self.tracker.nominal_period_s
+                                * (1 + self.tracker.rel_range) * self._fs)  # fmt: skip
+            self._ident = LoopIdentifier(
+                (self.n_harmonics, 3), self._every, self._delay, longest,
+                forget_cycles=IDENTIFY_MEMORY_S / (self._every * self._dt),
+                max_rel_error=self.identify_rel_error,
+                cycles_per_window=longest / self._every,
+                offset_cycles=(self.period_multiple - 1) * IDENTIFY_EVERY_CYCLES // 2)  # fmt: skip
+            self._z = np.zeros((self.n_harmonics, 3), complex)
+            self._step = np.zeros((self.n_harmonics, 3), complex)
 
     def _pinv_at(self, a: int, k: int, period: float) -> np.ndarray:
         """Inverse model FRF at the harmonics of the tracked ``period`` (not the nominal)."""
@@ -468,7 +642,19 @@ class TrackingRepetitive(RepetitiveFeedback):
                         f"direction {a} harmonic {h + 1}: learning diverged (residual "
                         f"{self._mag[h, a] * 1e3:.4f} mm > {self.divergence_ratio:g} x open loop "
                         f"{self._mag0[h, a] * 1e3:.4f} mm), dropped"))  # fmt: skip
-                self._u[:, a] -= self._gain * self._gscale[a] * resid[:, a] * row * self._on[a]
+                if self._ident is None:
+                    self._u[:, a] -= self._gain * self._gscale[a] * resid[:, a] * row * self._on[a]
+                else:
+                    np.multiply(resid[:, a], row, out=self._z[:, a])
+                    self._step[:, a] = self._gscale[a] * self._on[a]
+        if self._ident is not None:
+            if self._len >= window:
+                self._ident.observe(self._z, window)
+                self._step *= self._z
+                self._step /= self._ident.factor
+                self._step *= self._gain
+                self._u -= self._step
+            self._ident.sent(self._u)
         target = self._phase + w_dt * (self._delay + np.arange(self._every))
         phase = np.exp(1j * np.outer(self._h, target)).mean(axis=1)
         return np.real(phase @ self._u)
