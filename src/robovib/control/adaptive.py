@@ -500,6 +500,11 @@ class TrackingRepetitive(RepetitiveFeedback):
         90° a fixed learner survives).
     identify_rel_error
         Relative standard error below which an identified loop factor is used (> 0).
+    pause_when_faded
+        Learn only as much as the correction is applied: a guard (``FadeGuard``) that fades
+        the correction to ``s`` sets :attr:`learning_scale` to ``s`` and the update is
+        scaled by it (no wind-up while the correction is off: the residual then is the open
+        loop's, and a learner that kept integrating it would overshoot when faded back in).
     **kwargs
         Further options of :class:`~robovib.control.controllers.RepetitiveFeedback`
         (``n_harmonics``, ``learning_time_s``, ``max_harmonic_ratio``).
@@ -520,6 +525,7 @@ class TrackingRepetitive(RepetitiveFeedback):
         gain_uncertainty_rel: float = 0.1,
         identify_loop: bool = False,
         identify_rel_error: float = 0.2,
+        pause_when_faded: bool = False,
         **kwargs,
     ):
         m = int(period_multiple)
@@ -546,6 +552,8 @@ class TrackingRepetitive(RepetitiveFeedback):
             raise ValueError("identify_rel_error must be > 0")
         self.identify_loop = bool(identify_loop)
         self.identify_rel_error = float(identify_rel_error)
+        self.pause_when_faded = bool(pause_when_faded)
+        self.learning_scale = 1.0
 
     def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
         super().reset(coords, period_s, sample_rate_hz)
@@ -576,6 +584,7 @@ class TrackingRepetitive(RepetitiveFeedback):
         self._mag = None
         self._mag0 = None
         self.events: list[GuardEvent] = []
+        self.learning_scale = 1.0
         self._ident = None
         if self.identify_loop:
             # the longest window (tracked period within the tracker's range) + the delay
@@ -643,7 +652,8 @@ class TrackingRepetitive(RepetitiveFeedback):
                         f"{self._mag[h, a] * 1e3:.4f} mm > {self.divergence_ratio:g} x open loop "
                         f"{self._mag0[h, a] * 1e3:.4f} mm), dropped"))  # fmt: skip
                 if self._ident is None:
-                    self._u[:, a] -= self._gain * self._gscale[a] * resid[:, a] * row * self._on[a]
+                    g = self._gain * (self.learning_scale if self.pause_when_faded else 1.0)
+                    self._u[:, a] -= g * self._gscale[a] * resid[:, a] * row * self._on[a]
                 else:
                     np.multiply(resid[:, a], row, out=self._z[:, a])
                     self._step[:, a] = self._gscale[a] * self._on[a]
@@ -652,9 +662,9 @@ class TrackingRepetitive(RepetitiveFeedback):
                 self._ident.observe(self._z, window)
                 self._step *= self._z
                 self._step /= self._ident.factor
-                self._step *= self._gain
+                self._step *= self._gain * (self.learning_scale if self.pause_when_faded else 1.0)
                 self._u -= self._step
-            self._ident.sent(self._u)
+            self._ident.sent(self._u * self.learning_scale)
         target = self._phase + w_dt * (self._delay + np.arange(self._every))
         phase = np.exp(1j * np.outer(self._h, target)).mean(axis=1)
         return np.real(phase @ self._u)

@@ -72,6 +72,7 @@ _UNITS = {
     "learner.identify_loop": "bool (each harmonic's loop phase identified online, format 2)",
     "learner.identify_rel_error": "1 (standard error / |loop factor| below which it is used)",
     "learner.learning_time_s": "s (time constant of the tooth-line learning)",
+    "learner.pause_when_faded": "bool (no learning while the guard fades the correction out)",
     "guard.z_score": "1 (standard errors of the window's RMS, amplification_test)",
     "excitation.spindle_rpm": "rev/min",
     "stability.*_worst_spectral_radius": "1 (< 1: stable on every plant of the band)",
