@@ -137,3 +137,25 @@ def test_new_files_identify_the_loop_and_version_1_files_run_as_before(tmp_path)
     rt = load_controller(f)
     assert rt.learner_settings["identify_loop"] is False
     assert rt.learner_settings["learning_time_s"] == 0.4
+
+
+@pytest.mark.parametrize("pause", [True, False])
+def test_a_paused_learner_does_not_wind_up_while_its_correction_is_faded_out(pause):
+    fs, every, period = 1000.0, 4, 0.24
+    learner = TrackingRepetitive({0: ScheduledTable.constant([17.5, 0.1])}, PeriodTracker(period),
+                                 0.032, n_harmonics=4, pause_when_faded=pause)  # fmt: skip
+    n_cmd = 1000
+    learner.reset(np.zeros(n_cmd), every / fs, fs)
+    learner.learning_scale = 0.0  # what a guard that faded the correction out sets
+    t = np.arange(n_cmd * every) / fs
+    y = np.zeros((t.size, 3))
+    y[:, 0] = 2e-5 * np.sin(2 * np.pi * 4 * t / period)  # the open-loop residual
+    force = np.zeros((t.size, 3))
+    force[:, 0] = 100 * np.sin(2 * np.pi * t / period)
+    for k in range(n_cmd):
+        blk = slice(k * every, (k + 1) * every)
+        learner.command(k, y[blk], force[blk])
+    if pause:
+        np.testing.assert_array_equal(learner._u, 0.0)
+    else:  # the old behaviour: it integrates the open-loop residual regardless
+        assert np.abs(learner._u).max() > 0
