@@ -14,7 +14,10 @@ run-to-run noise: the cut's open-loop RMS varies between seeds by a relative std
 virtual robot's truth, and the same file designed from the truth's own modes (an oracle
 model: what a perfect model gives).
 
-    OMP_NUM_THREADS=1 nice python benchmarks/study_control_deploy.py   # 378 s (2026-11-27); --diagnose: +4 runs
+The ceilings on these reductions (periodic only; causal with perfect information one delay
+earlier) for the same cuts: ``benchmarks/study_control_bound.py``.
+
+    OMP_NUM_THREADS=1 nice python benchmarks/study_control_deploy.py   # 376 s (2026-11-27); --diagnose: +4 runs
     OMP_NUM_THREADS=1 nice python benchmarks/study_control_deploy.py --seeds 0 --levels 1 --paths 1
 """
 

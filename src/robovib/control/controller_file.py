@@ -20,7 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .controller_format import FORMAT, FORMAT_VERSION, _check_timing, _learner, _settings
+from .controller_format import (
+    FORMAT,
+    FORMAT_VERSION,
+    LEARNER_DESIGN,
+    _check_timing,
+    _learner,
+    _settings,
+)
 from .design import (
     DESIGNS,
     GUARD_DEFAULTS,
@@ -62,6 +69,10 @@ _UNITS = {
                                    "gain is kept stable over)",
     "learner.fn_uncertainty_rel": "1 (1.96 std / fn of the model, worst along the path)",
     "learner.gain_uncertainty_rel": "1 (relative actuator-gain error the learning covers)",
+    "learner.identify_loop": "bool (each harmonic's loop phase identified online, format 2)",
+    "learner.identify_rel_error": "1 (standard error / |loop factor| below which it is used)",
+    "learner.learning_time_s": "s (time constant of the tooth-line learning)",
+    "learner.pause_when_faded": "bool (no learning while the guard fades the correction out)",
     "guard.z_score": "1 (standard errors of the window's RMS, amplification_test)",
     "excitation.spindle_rpm": "rev/min",
     "stability.*_worst_spectral_radius": "1 (< 1: stable on every plant of the band)",
@@ -236,7 +247,7 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
         "gains": gains,
         "tracker": tracker,
         "guard": guard,
-        "learner": _learner({"fn_uncertainty_rel": _fn_uncertainty(modes)}),
+        "learner": _learner({**LEARNER_DESIGN, "fn_uncertainty_rel": _fn_uncertainty(modes)}),
         "stability": stability,
         "provenance": design.provenance(),
         "units": _UNITS,

@@ -16,10 +16,13 @@ from ..modal.parameters import ModalParameters
 from .design import PathTables
 from .schedule import GainSchedule
 
-__all__ = ["FORMAT", "FORMAT_VERSION"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "LEARNER_DEFAULTS", "LEARNER_DESIGN"]
 
 FORMAT = "robovib.controller"
-FORMAT_VERSION = 1
+#: 2: the learners identify their loop phase (``learner.identify_loop`` and friends) and pause
+#: while the guard fades their correction out (``learner.pause_when_faded``); a
+#: version-1 file loads with them off and runs as it did.
+FORMAT_VERSION = 2
 
 
 def _settings(what: str, defaults: dict, given: dict | None) -> dict:
@@ -34,7 +37,12 @@ def _settings(what: str, defaults: dict, given: dict | None) -> dict:
 LEARNER_DEFAULTS = {"divergence_ratio": 1.2, "divergence_test": "correction",
                     "n_harmonics": "auto", "model_at_tracked_period": True,
                     "delay_uncertainty_s": 0.008, "fn_uncertainty_rel": 0.0,
-                    "gain_uncertainty_rel": 0.1}  # fmt: skip
+                    "gain_uncertainty_rel": 0.1, "identify_loop": False,
+                    "identify_rel_error": 0.2, "learning_time_s": 0.4,
+                    "pause_when_faded": False}  # fmt: skip
+#: Learner settings a newly designed file carries over the defaults (a file written before
+#: they existed loads with the defaults above, i.e. as it ran then).
+LEARNER_DESIGN = {"identify_loop": True, "learning_time_s": 0.8, "pause_when_faded": True}
 
 
 def _learner(given: dict | None) -> dict:
@@ -45,7 +53,15 @@ def _learner(given: dict | None) -> dict:
     out = {**LEARNER_DEFAULTS, **(given or {})}
     out["divergence_ratio"] = float(out["divergence_ratio"])
     out["model_at_tracked_period"] = bool(out["model_at_tracked_period"])
-    for key in ("delay_uncertainty_s", "fn_uncertainty_rel", "gain_uncertainty_rel"):
+    out["identify_loop"] = bool(out["identify_loop"])
+    out["pause_when_faded"] = bool(out["pause_when_faded"])
+    for key in (
+        "delay_uncertainty_s",
+        "fn_uncertainty_rel",
+        "gain_uncertainty_rel",
+        "identify_rel_error",
+        "learning_time_s",
+    ):
         out[key] = float(out[key])
     if out["n_harmonics"] != "auto":
         out["n_harmonics"] = int(out["n_harmonics"])

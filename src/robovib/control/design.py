@@ -474,7 +474,7 @@ def assemble_controller(
     if name == "adaptive+force" and teeth > 1:
         # The once-per-revolution lines of runout (spindle harmonics that are not tooth
         # harmonics), learnt over a revolution, slowly against that window.
-        runout = {k: v for k, v in learner.items() if k != "n_harmonics"}
+        runout = {k: v for k, v in learner.items() if k not in ("n_harmonics", "learning_time_s")}
         parts.append(TrackingRepetitive(fz, tracker_obj, delay_s, **runout, period_multiple=teeth,
                                         n_harmonics=2 * teeth,
                                         learning_time_s=RUNOUT_LEARNING_REVS * teeth * excitation_period_s))  # fmt: skip

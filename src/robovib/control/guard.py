@@ -277,6 +277,8 @@ class FadeGuard:
         self._latched = False
         self._next_check = round(self.warmup_s * fs)
         self._every = every
+        self._learners = [p for p in getattr(self.inner, "parts", (self.inner,))
+                          if hasattr(p, "learning_scale")]  # fmt: skip
         self.events: list[GuardEvent] = []
 
     def all_events(self) -> list[GuardEvent]:
@@ -321,6 +323,8 @@ class FadeGuard:
             self._check()
         step = self.check_s / self.fade_time_s * self._every / (self.check_s * self._fs)
         self._scale += float(np.clip(self._target - self._scale, -step, step))
+        for part in self._learners:  # they learn only as much as their correction is applied
+            part.learning_scale = self._scale
         u = self._scale * np.asarray(self.inner.command(k, tracker_m, force_n), float)
         self._sent[self._len - 1 : self._len - 1 + self._every] = u
         return u
