@@ -144,3 +144,22 @@ def test_stability_probability_compiled_matches_per_sample_dense_sdm():
         np.testing.assert_allclose(fast.depth_quantile_m(q), gen_free.depth_quantile_m(q),
                                    rtol=2e-3)  # fmt: skip
     assert math.isclose(fast.mean.minimum_depth_m, gen_free.mean.minimum_depth_m, rel_tol=2e-3)
+
+
+def test_coarse_steps_with_the_mean_ratio_keep_the_quantiles():
+    dist = {
+        "x": ModeDistribution(16.4, 4.19e6, 9270.0, 0.04 * 16.4, 0.07 * 4.19e6, 0.03 * 9270.0),
+        "y": ModeDistribution(8.49, 9.38e5, 6730.0, 0.04 * 8.49, 0.08 * 9.38e5, 0.05 * 6730.0),
+    }
+    rpm = np.linspace(600.0, 3000.0, 16)
+    kw = dict(n_samples=8, rng=5, method_error=False, fit_bias=0.0)
+    ref = stability_probability(dist, TOOL, COND, ALUMINIUM_7075, rpm, solver="numpy",
+                                warm_start=False, warm_from_mean=False, **kw)  # fmt: skip
+    coarse = stability_probability(dist, TOOL, COND, ALUMINIUM_7075, rpm,
+                                   coarse_tolerance=2e-3, **kw)  # fmt: skip
+    assert coarse.settings["coarse"]["coarse_speeds"] > 0.5  # most speeds solved coarse
+    for q in (0.05, 0.5, 0.95):
+        np.testing.assert_allclose(coarse.depth_quantile_m(q), ref.depth_quantile_m(q),
+                                   rtol=5e-3)  # fmt: skip
+    with pytest.raises(ValueError, match="coarse_tolerance"):
+        stability_probability(dist, TOOL, COND, ALUMINIUM_7075, rpm, coarse_tolerance=0.5, **kw)

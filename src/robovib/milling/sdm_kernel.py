@@ -172,15 +172,15 @@ def hessenberg_eigenvalues(a, n, wr, wi):
 
 
 @jit
-def ritz_residual_factor(hess, k, theta):
-    """``|e_k^T s| / ||s||`` of the eigenvector ``s`` of ``hess[:k, :k]`` for ``theta``.
+def ritz_residual_factor(hess, k, theta, s):
+    """``|e_k^T s|`` of the unit eigenvector ``s`` (k,) complex of ``hess[:k, :k]`` for ``theta``.
 
     Two steps of inverse iteration with a slightly perturbed shift (complex Gaussian
     elimination with partial pivoting on the small Hessenberg matrix).
     """
     shift = theta * (1.0 + 1e-12) + 1e-300
     mat = np.empty((k, k), np.complex128)
-    s = np.ones(k, np.complex128)
+    s[:k] = 1.0
     for _ in range(2):
         for i in range(k):
             for j in range(k):
@@ -420,12 +420,18 @@ def matvec(z, out, e_all, p_all, s_all, cutting, n, nx, n_cut, full, y, ynew):
 
 
 @jit
-def dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full, kdim, q, hess, y, ynew, w):
-    """Largest-modulus multiplier by Arnoldi (dense fallback); returns (mu, converged)."""
+def dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full, kdim, q, hess, y, ynew, w, v0,
+             warm):  # fmt: skip
+    """Largest-modulus multiplier by Arnoldi; returns (mu, converged).
+
+    From ``v0`` where ``warm`` (the dominant Ritz vector of the previous depth of the same
+    pair), else from a fixed generic vector; on convergence ``v0`` takes the new Ritz vector
+    (real plus imaginary part: the start of a Krylov space holding the complex pair).
+    """
     dim = q.shape[1]
     k = min(kdim, dim)
     for r in range(dim):
-        q[0, r] = math.cos(0.7 * r + 0.3) + 0.5
+        q[0, r] = v0[r] if warm else math.cos(0.7 * r + 0.3) + 0.5
     nrm = 0.0
     for r in range(dim):
         nrm += q[0, r] ** 2
@@ -466,10 +472,14 @@ def dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full, kdim, q, hess, y,
             if wr[i] ** 2 + wi[i] ** 2 > wr[best] ** 2 + wi[best] ** 2:
                 best = i
         mu = complex(wr[best], wi[best])
-        if kk < k:
-            return mu, True
-        resid = abs(hess[kk, kk - 1]) * ritz_residual_factor(hess, kk, mu)
-        if resid <= 1e-8 * max(abs(mu), 1e-3):
+        svec = np.empty(kk, np.complex128)
+        resid = abs(hess[kk, kk - 1]) * ritz_residual_factor(hess, kk, mu, svec)
+        if kk < k or resid <= 1e-8 * max(abs(mu), 1e-3):
+            for r in range(dim):
+                acc = 0.0
+                for i in range(kk):
+                    acc += svec[i].real * q[i, r] + 0.618 * svec[i].imag * q[i, r]
+                v0[r] = acc
             return mu, True
     return complex(math.nan, math.nan), False
 
@@ -497,28 +507,36 @@ def dense_dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full, dim, y, yne
 @jit
 def radius(a, wn, zeta, inv_mass, nx, hmat, hs, cutting, n_cut, full, kdim, bufs, counts):
     """Largest multiplier at depth ``a``; counts[0] += 1 evaluation, counts[1] += 1 if dense."""
-    e_all, p_all, s_all, work, q, hess, y, ynew, w = bufs
+    e_all, p_all, s_all, work, q, hess, y, ynew, w, v0 = bufs
     n = wn.size
     build_steps(wn, zeta, inv_mass, nx, hmat, hs, cutting, a, e_all, p_all, s_all, work)
     counts[0] += 1
     kmax = hess.shape[1]
-    kk = kdim
+    if counts[2] > 0:  # a Ritz vector of this pair: a short Krylov space from it first
+        mu, ok = dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full, max(kdim // 2, 4),
+                          q, hess, y, ynew, w, v0, True)  # fmt: skip
+        if ok:
+            return mu
+    kk = max(counts[3], kdim)  # the subspace that converged last for this pair
     while True:
         mu, ok = dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full, kk, q, hess, y,
-                          ynew, w)  # fmt: skip
+                          ynew, w, v0, False)  # fmt: skip
         if ok:
+            counts[2] = 1
+            counts[3] = kk
             return mu
         if 2 * kk > kmax:
             break
         kk *= 2
     counts[1] += 1
+    counts[2] = 0
     return dense_dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full, q.shape[1], y, ynew)
 
 
 @jit
 def search(wn_all, zeta_all, inv_mass_all, nx, hmat, h_all, cutting, n_cut, full, start,
            lo_all, hi_all, scan_ratio, rtol, max_iter, kdim, a_out, mu_out, n_eval,
-           n_dense):  # fmt: skip
+           n_dense, log_secant=True):  # fmt: skip
     """Lowest unstable depth of every pair p (structure wn_all[p], steps h_all[p])."""
     n_pairs, n = wn_all.shape
     d = 2 * n
@@ -534,8 +552,9 @@ def search(wn_all, zeta_all, inv_mass_all, nx, hmat, h_all, cutting, n_cut, full
     y = np.zeros(d)
     ynew = np.zeros(d)
     w = np.zeros(dim)
-    bufs = (e_all, p_all, s_all, work, q, hess, y, ynew, w)
-    counts = np.zeros(2, np.int64)
+    v0 = np.zeros(dim)
+    bufs = (e_all, p_all, s_all, work, q, hess, y, ynew, w, v0)
+    counts = np.zeros(4, np.int64)  # evaluations, dense ones, Ritz vector held, last k
     log_ratio = math.log(scan_ratio)
     for pi in range(n_pairs):
         counts[:] = 0
@@ -599,7 +618,10 @@ def search(wn_all, zeta_all, inv_mass_all, nx, hmat, h_all, cutting, n_cut, full
             if a_hi - a_lo <= rtol * a_hi:
                 break
             denom = f_hi - f_lo
-            if denom > 0:
+            if denom > 0 and a_lo > 0 and log_secant:
+                # log|mu| is close to linear in log(depth) near the root: secant in log a
+                a_new = a_hi * math.exp(-f_hi * math.log(a_hi / a_lo) / denom)
+            elif denom > 0:
                 a_new = a_hi - f_hi * (a_hi - a_lo) / denom
             else:
                 a_new = 0.5 * (a_lo + a_hi)
@@ -711,7 +733,7 @@ def critical_depths_pairs(
     return a_out, mu_out, {"evaluations": n_eval, "dense": n_dense}
 
 
-def _step_counts(modes, delay, cut_fraction, steps_per_period, steps_per_vibration, max_steps):
+def step_counts(modes, delay, cut_fraction, steps_per_period, steps_per_vibration, max_steps):
     """Steps across the cutting arc at every delay, as :func:`~robovib.milling.sdm.sdm_lobes`."""
     f_top = max(md.natural_frequency_hz for md in modes)
     need = np.ceil(steps_per_vibration * f_top * delay * cut_fraction / 10) * 10
@@ -735,6 +757,7 @@ def sdm_limits(
     scan_ratio: float = 1.2,
     first_stride: int = 8,
     warm_start: bool = True,
+    steps=None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Critical depths of many structures at every speed by the compiled semi-discretization.
 
@@ -761,6 +784,10 @@ def sdm_limits(
         Speeds between two scans from the bottom (when ``start_m`` is not given).
     warm_start : bool
         ``False`` (and no ``start_m``): every speed scanned from the bottom of the range.
+    steps : array_like (n_speeds,) of int, optional
+        Steps across the cutting arc at every speed for every structure, instead of each
+        structure's own count (``steps_per_period``, ``steps_per_vibration``, ``max_steps``);
+        0 at a speed: the structure's own count there.
 
     Returns
     -------
@@ -796,14 +823,20 @@ def sdm_limits(
     for s, (mx, my) in enumerate(structs):
         modes = mx + my
         _, sel, mass, _ = _modal_matrices(mx, my)
-        steps = _step_counts(modes, delay, cut_fraction, steps_per_period, steps_per_vibration,
-                             max_steps).astype(int)  # fmt: skip
+        if steps is None:
+            own = step_counts(modes, delay, cut_fraction, steps_per_period,
+                               steps_per_vibration, max_steps).astype(int)  # fmt: skip
+        else:
+            rule = step_counts(modes, delay, cut_fraction, steps_per_period,
+                               steps_per_vibration, max_steps).astype(int)  # fmt: skip
+            given = np.broadcast_to(np.asarray(steps, int), (n_j,))
+            if np.any((given > 0) & (given < 2)):
+                raise ValueError("steps must be >= 2 (or <= 0: the structure's own count)")
+            own = np.where(given > 0, given, rule)
         info.append((np.array([md.omega_n for md in modes]),
                      np.array([md.damping_ratio for md in modes]), sel, mass))  # fmt: skip
-        for m in np.unique(steps):
-            groups.setdefault((len(mx), len(my), int(m)), []).append(
-                (s, np.flatnonzero(steps == m))
-            )
+        for m in np.unique(own):
+            groups.setdefault((len(mx), len(my), int(m)), []).append((s, np.flatnonzero(own == m)))
     a_out = np.full((n_s, n_j), np.inf)
     mu_out = np.full((n_s, n_j), np.nan + 0j)
     n_eval = np.zeros((n_s, n_j), int)
