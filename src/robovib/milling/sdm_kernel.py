@@ -268,10 +268,11 @@ def step_matrices(wq, zq, q, h, n, e_out, r_out, s_out, work):
             qx[r, c] = q[r, c] * hs
     p = work[1]
     t = work[2]
-    # Terms of phi_2: ||X||^j / (j + 2)!; the series is cut below 1e-16.
+    # Terms of phi_2: ||X||^j / (j + 2)!; the series is cut below 1e-14 (the depth search
+    # needs log|mu| to ~1e-6; the tests hold E, R, S to 1e-11 of SciPy's expm).
     k = 0
     term = 0.5
-    while term > 1e-16 and k < 40:
+    while term > 1e-14 and k < 40:
         k += 1
         term *= nrm / (k + 2)
     fact = 1.0
@@ -513,8 +514,8 @@ def radius(a, wn, zeta, inv_mass, nx, hmat, hs, cutting, n_cut, full, kdim, bufs
     counts[0] += 1
     kmax = hess.shape[1]
     if counts[2] > 0:  # a Ritz vector of this pair: a short Krylov space from it first
-        mu, ok = dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full, max(kdim // 2, 4),
-                          q, hess, y, ynew, w, v0, True)  # fmt: skip
+        mu, ok = dominant(e_all, p_all, s_all, cutting, n, nx, n_cut, full,
+                          max(counts[3] // 2, 4), q, hess, y, ynew, w, v0, True)  # fmt: skip
         if ok:
             return mu
     kk = max(counts[3], kdim)  # the subspace that converged last for this pair
@@ -559,7 +560,10 @@ def search(wn_all, zeta_all, inv_mass_all, nx, hmat, h_all, cutting, n_cut, full
     for pi in range(n_pairs):
         counts[:] = 0
         lo = lo_all[pi]
-        n_grid = math.ceil(math.log(hi_all[pi] / lo) / log_ratio) + 1
+        n_grid = max(math.ceil(math.log(hi_all[pi] / lo) / log_ratio) + 1, 2)
+        # The grid of critical_depths: geomspace(lo, hi, n_grid), a ratio a little below
+        # scan_ratio (the same depths, so the same unstable windows are met).
+        step_log = math.log(hi_all[pi] / lo) / (n_grid - 1)
         wn = wn_all[pi]
         zeta = zeta_all[pi]
         inv_mass = inv_mass_all[pi]
@@ -568,7 +572,7 @@ def search(wn_all, zeta_all, inv_mass_all, nx, hmat, h_all, cutting, n_cut, full
         # Scan grid: lo * ratio^k; first index at or below the start.
         k0 = 0
         if start[pi] > lo and np.isfinite(start[pi]):
-            k0 = math.floor(math.log(start[pi] / lo) / log_ratio)
+            k0 = math.floor(math.log(start[pi] / lo) / step_log * (1 - 1e-12))
             k0 = min(max(k0, 0), n_grid - 1)
         a_lo = 0.0
         f_lo = 0.0
@@ -582,7 +586,7 @@ def search(wn_all, zeta_all, inv_mass_all, nx, hmat, h_all, cutting, n_cut, full
             found = False
             first = k
             while k < n_grid:
-                a = lo * scan_ratio**k
+                a = lo * math.exp(k * step_log)
                 mu = radius(
                     a, wn, zeta, inv_mass, nx, hmat, hs, cutting, n_cut, full, kdim, bufs, counts
                 )
@@ -671,7 +675,7 @@ def critical_depths_pairs(
     scan_ratio: float = 1.2,
     rtol: float = 1e-3,
     max_iter: int = 40,
-    krylov_dim: int = 12,
+    krylov_dim: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict]:
     """Lowest unstable depth [m] of every (structure, speed) pair with one step layout.
 
@@ -695,8 +699,10 @@ def critical_depths_pairs(
         stable at its top gets ``inf``.
     scan_ratio, rtol, max_iter
         As in :func:`~robovib.milling.sdm.critical_depths`.
-    krylov_dim : int
-        Arnoldi steps (doubled up to twice while a Ritz value does not converge, then dense).
+    krylov_dim : int, optional
+        Arnoldi steps (doubled up to twice while a Ritz value does not converge, then dense);
+        default 12, or 24 with more than two modes (their free multipliers crowd the circle of
+        the dominant one: 12 steps rarely converge there).
 
     Returns
     -------
@@ -718,6 +724,8 @@ def critical_depths_pairs(
         raise ValueError("the cutting steps must come first (then at most one free flight)")
     full = bool(cut.size == n_cut)
     p = wn.shape[0]
+    if krylov_dim is None:
+        krylov_dim = 12 if wn.shape[1] <= 2 else 24
     a_out = np.empty(p)
     mu_out = np.empty(p, complex)
     n_eval = np.zeros(p, np.int64)
@@ -897,7 +905,7 @@ def sdm_limits(
                 floor = np.min(a_out[rows[r][0], first[r][1]])
                 if np.isfinite(floor):
                     n_grid = math.ceil(math.log(rows[r][6] / lo) / math.log(scan_ratio)) + 1
-                    grid = lo * scan_ratio ** np.arange(n_grid)
+                    grid = np.geomspace(lo, rows[r][6], n_grid)
                     k_floor = max(int(np.searchsorted(grid, floor)) - 2, 0)
                     start.append(np.full(ix.size, grid[k_floor] * (1 + 1e-9)))
                 else:
