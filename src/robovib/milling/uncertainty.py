@@ -726,7 +726,8 @@ def stability_probability(
         the mean (:func:`robovib.milling.sdm.critical_depths`).
     exact : bool
         ``"sdm"``: every sample's whole envelope by its own semi-discretization (default, the
-        reference, about 0.3 s per 2-DOF sample at 200 speeds). ``False``: the quantile-targeted
+        reference; about 0.06 s per 2-DOF sample at 200 speeds with ``solver="compiled"``,
+        0.3 s with ``"numpy"``). ``False``: the quantile-targeted
         route (issue 37, opt-in; on the chapter-3 model 1.5x faster than the default and 5x
         faster than the dense scan, see ``benchmarks/bench_stability_probability.py``): a cheap
         estimate of every sample's envelope (``fast_estimator``), then at every speed the
