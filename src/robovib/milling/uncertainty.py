@@ -752,10 +752,11 @@ def stability_probability(
         at both neighbouring speeds), every sample is solved with those steps and multiplied
         by the mean's reference / coarse ratio (second-order convergence of SDM; see
         ``_compiled_samples``). ``None`` (default): every sample at its own reference steps.
-        Opt-in: on the chapter-3 model (2e-3, 100 speeds x 20 samples) 89 % of the speeds
-        went coarse, the chart 1.6x faster, quantiles within 2.7e-3 of per-sample dense SDM,
-        but one sample's limit 1.7 % off at 393 rpm (a low-speed lobe the coarse steps place
-        differently): P(stable) away from the quantiles carries that error.
+        Opt-in, and *not* accurate enough for issue 37's 1 % quantile target: on the
+        chapter-3 chart (2e-3, 200 speeds x 100 samples) it was 1.9x faster than the compiled
+        default but one speed's 95 % quantile was 2.6 % off (a low-speed lobe the coarse steps
+        place differently for some samples); on the 5-mode stand-in (100 x 30) 1.6x faster,
+        quantiles within 0.6 %. P(stable) carries the same errors.
         ``settings["coarse"]`` says how many speeds were coarse.
     fast_estimator : {"coarse-sdm", "zoa"}
         Cheap estimate of the fast route: every sample's 10-step SDM chart corrected by the
