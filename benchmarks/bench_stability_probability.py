@@ -41,7 +41,9 @@ Measured 2026-11-27, 11th session (one core, 2-core machine at load 4-6, CPU s),
 * 5 modes, ``--five-mode --speeds 100 --samples 30 --no-warm``: the mean's own chart 3.29 /
   0.23; reference 152.2; compiled 4.31 (35.3x), 4.9e-4 / 4.9e-4 / 1.2e-3; coarse 2.63
   (57.9x), 2.3e-3 / 3.0e-3 / 5.9e-3.
-* 5 modes at the target size, ``--five-mode --no-warm --no-reference``: compiled FIVE_FULL.
+* 5 modes at the target size, ``--five-mode --no-warm --no-reference`` (200 x 100, load
+  1.2): the mean's own chart 5.91 / 0.46; compiled **26.7** (target 3: 8.9x over); coarse
+  15.4, quantiles within 7.9e-3 of the compiled route.
 * 10th session, same machine: reference 138.4 / 141.3; numpy-warm 36.0 (2-DOF); fast 24.5
   (2-DOF) / 26.3 (5 modes, 100 x 30).
 
