@@ -37,7 +37,10 @@ Measured 2026-11-27, 11th session (one core, 2-core machine at load 4-6, CPU s),
   deterministic chart 0.90 (NumPy) / 0.09 (compiled); reference 151.5; compiled **5.44**
   (27.9x), 4.0e-4 / 4.4e-4 / 4.9e-4 (largest per-sample error 5.0e-4); coarse 2.82 (53.7x),
   1.1e-3 / 8.0e-4 / **2.6e-2** (fails the 1 % target: a low-speed lobe placed differently).
-  Compile 10-12 s on the first run after a change, 0.3 s cache load after.
+  Compile 10-12 s on the first run after a change, 0.3 s cache load after. On the quiet
+  machine (load 0.8, ``--no-warm --no-reference``): compiled 5.16 s, coarse 2.70 s; the CLI
+  ``robovib mill lobes --x 2400 --y 0 --rz 45 --samples 100 --json`` 6.8 s wall (23 s in the
+  issue's table).
 * 5 modes, ``--five-mode --speeds 100 --samples 30 --no-warm``: the mean's own chart 3.29 /
   0.23; reference 152.2; compiled 4.31 (35.3x), 4.9e-4 / 4.9e-4 / 1.2e-3; coarse 2.63
   (57.9x), 2.3e-3 / 3.0e-3 / 5.9e-3.
