@@ -118,7 +118,7 @@ def test_lobes_from_every_mode_equal_a_direct_sdm():
     dist = {"x": [_fixed(m, f"x{j + 1}") for j, m in enumerate(MX)],
             "y": [_fixed(m) for m in MY]}  # fmt: skip
     p = stability_probability(dist, TOOL, COND, ALUMINIUM_7075, rpm, n_samples=2,
-                              method="sdm", steps_per_period=20,
+                              method="sdm", steps_per_period=20, solver="numpy",
                               method_error=False, fit_bias=0.0, warm_from_mean=False)  # fmt: skip
     np.testing.assert_allclose(p.a_lim_samples_m, np.tile(direct.a_lim_m, (2, 1)), rtol=1e-9)
     np.testing.assert_allclose(p.mean.a_lim_m, direct.a_lim_m, rtol=1e-9)
@@ -133,7 +133,7 @@ def test_presence_keeps_a_mode_in_that_fraction_of_samples():
     rare = ModeDistribution(63.5, 4.2e7, MX[1].damping_ns_per_m, presence=0.3)
     dist = {"x": [_fixed(MX[0]), rare], "y": [_fixed(m) for m in MY]}
     p = stability_probability(dist, TOOL, COND, ALUMINIUM_7075, rpm, n_samples=60,
-                              method="sdm", steps_per_period=20,
+                              method="sdm", steps_per_period=20, solver="numpy",
                               method_error=False, fit_bias=0.0, warm_from_mean=False, rng=3)  # fmt: skip
     with_all = sdm_lobes(MX, MY, TOOL, COND, ALUMINIUM_7075, rpm, steps_per_period=20).a_lim_m
     without = sdm_lobes(MX[:1], MY, TOOL, COND, ALUMINIUM_7075, rpm, steps_per_period=20).a_lim_m
