@@ -181,3 +181,45 @@ def test_compiled_scan_uses_the_numpy_depth_grid_and_finds_its_windows():
     fast = stability_probability(dist, tool, cond, coef, rpm, **kw).a_lim_samples_m
     ref = stability_probability(dist, tool, cond, coef, rpm, solver="numpy", **kw)
     np.testing.assert_allclose(fast, ref.a_lim_samples_m, rtol=2e-3)
+
+
+def test_without_a_compiler_the_numpy_path_gives_the_same_chart(monkeypatch):
+    """numba missing or NUMBA_DISABLE_JIT=1 (AVAILABLE False): the NumPy SDM, not an interpreted
+    kernel; the result equals an explicit ``solver="numpy"`` run bit for bit."""
+    import robovib.milling.sdm_kernel as kernel
+
+    dist = {
+        "x": ModeDistribution(16.4, 4.19e6, 9270.0, 0.04 * 16.4, 0.07 * 4.19e6, 0.03 * 9270.0),
+        "y": ModeDistribution(8.49, 9.38e5, 6730.0, 0.04 * 8.49, 0.08 * 9.38e5, 0.05 * 6730.0),
+    }
+    rpm = np.linspace(1000.0, 3000.0, 6)
+    kw = dict(n_samples=4, rng=5, method_error=False, fit_bias=0.0)
+    ref = stability_probability(dist, TOOL, COND, ALUMINIUM_7075, rpm, solver="numpy", **kw)
+    monkeypatch.setattr(kernel, "AVAILABLE", False)
+    fallback = stability_probability(dist, TOOL, COND, ALUMINIUM_7075, rpm, **kw)
+    assert fallback.settings["solver"] == "numpy"
+    np.testing.assert_array_equal(fallback.a_lim_samples_m, ref.a_lim_samples_m)
+
+
+def test_the_decorator_compiles_uncached_where_numba_cannot_cache(monkeypatch):
+    """A read-only install: numba refuses ``cache=True`` with a RuntimeError at decoration."""
+    numba = pytest.importorskip("numba")
+    import robovib.milling.sdm_kernel as kernel
+
+    real = numba.njit
+    calls = []
+
+    def njit(*args, **kwargs):
+        calls.append(kwargs.get("cache", False))
+        if kwargs.get("cache"):
+            raise RuntimeError("cannot cache function 'f': no locator available for file")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(numba, "njit", njit)
+
+    def add_one(x):
+        return x + 1.0
+
+    compiled = kernel.jit(add_one)
+    assert calls == [True, False]
+    assert compiled(1.5) == 2.5

@@ -40,10 +40,35 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-jit = numba.njit(cache=True, nogil=True)
+try:
+    import numba
+except ImportError:  # numba is a dependency; a broken install falls back to the NumPy path
+    numba = None
+
+#: Whether the kernel runs compiled: without numba, or under ``NUMBA_DISABLE_JIT=1``, the loops
+#: below would run interpreted by Python (hours for a chart), so ``stability_probability`` takes
+#: the NumPy path of :mod:`.sdm` instead.
+AVAILABLE = numba is not None and not numba.config.DISABLE_JIT
+
+
+def jit(function):
+    """``function`` compiled by numba, its machine code cached on disk where it can be.
+
+    The cache lives next to this file, else in the user's cache folder; where neither is
+    writable (a read-only install, no home folder) numba refuses ``cache=True`` with a
+    ``RuntimeError`` at decoration, and the function is compiled in every process instead
+    (about 10 s at first use). Without numba the function is returned as is (never called:
+    see :data:`AVAILABLE`).
+    """
+    if numba is None:
+        return function
+    try:
+        return numba.njit(cache=True, nogil=True)(function)
+    except RuntimeError:  # "cannot cache function ...: no locator available"
+        return numba.njit(nogil=True)(function)
+
 
 __all__ = ["critical_depths_pairs"]
 

@@ -791,9 +791,15 @@ def stability_probability(
         mean_f, mean_n = [distribution[feed_direction].mean], [distribution[normal].mean]
     if solver not in ("compiled", "numpy"):
         raise ValueError(f"solver must be 'compiled' or 'numpy', got {solver!r}")
-    from .sdm_kernel import COMPILED_OPTIONS
+    from .sdm_kernel import AVAILABLE, COMPILED_OPTIONS
 
-    compiled = method == "sdm" and solver == "compiled" and set(lobe_options) <= COMPILED_OPTIONS
+    # Without numba (or under NUMBA_DISABLE_JIT=1) the same SDM runs on the NumPy path.
+    compiled = (
+        AVAILABLE
+        and method == "sdm"
+        and solver == "compiled"
+        and set(lobe_options) <= COMPILED_OPTIONS
+    )
     mean_env, _ = _envelope(
         mean_f, mean_n, tool, conditions, coefficients, rpm, method,
         solver="compiled" if compiled else "numpy", **lobe_options,
