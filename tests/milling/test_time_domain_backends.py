@@ -4,6 +4,7 @@ and a cache folder numba cannot write (a read-only install with no writable home
 import sys
 from dataclasses import replace
 
+import numba
 import numpy as np
 import pytest
 
@@ -53,7 +54,6 @@ def test_without_numba_the_numpy_stepping_gives_the_margin(monkeypatch, fresh_lo
 
 
 def test_numba_disable_jit_takes_the_numpy_stepping(monkeypatch, fresh_loop):
-    numba = pytest.importorskip("numba")
     # The interpreted loop would take ~0.5 s per cut; the numpy stepping is used instead.
     monkeypatch.setattr(numba.config, "DISABLE_JIT", True)
     assert time_domain._compiled_loop() is None
@@ -61,7 +61,6 @@ def test_numba_disable_jit_takes_the_numpy_stepping(monkeypatch, fresh_loop):
 
 
 def test_an_unwritable_cache_compiles_without_caching(monkeypatch, fresh_loop):
-    numba = pytest.importorskip("numba")
     from numba.core import caching
 
     # No cache locator applies (source folder and user cache folder both read-only): numba's
