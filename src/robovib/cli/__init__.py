@@ -77,6 +77,9 @@ app.add_typer(report.app, name="report")
 
 
 def main() -> None:
+    from ._malloc import keep_freed_heap
+
+    keep_freed_heap()  # glibc: no page-fault churn from the charts' numpy temporaries
     app()
 
 

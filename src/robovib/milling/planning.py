@@ -503,6 +503,46 @@ def _best_rz_sequence(gain, step_ok) -> np.ndarray:
     return path
 
 
+def _checked_table(allowed_m, rz_deg, spindle_rpm, length_mm, depth_rule, depth_m,
+                   p_stable_at_depth, p_required):  # fmt: skip
+    """The arrays of :func:`choose_configurations` and :func:`fixed_configuration`, checked."""
+    allowed = np.asarray(allowed_m, float)
+    rz = np.asarray(rz_deg, float).ravel()
+    rpm = np.asarray(spindle_rpm, float).ravel()
+    length = np.asarray(length_mm, float)
+    if allowed.ndim != 3 or allowed.shape[1:] != (rz.size, rpm.size):
+        raise ValueError(
+            f"allowed_m must be (segments, {rz.size} Rz, {rpm.size} speeds), got {allowed.shape}"
+        )
+    if length.shape != allowed.shape[:1]:
+        raise ValueError(f"length_mm must be ({allowed.shape[0]},), got {length.shape}")
+    if not (np.all(np.isfinite(length)) and np.all(length > 0)):
+        raise ValueError("length_mm must be finite segment lengths > 0 [mm]")
+    if not (np.all(np.isfinite(rpm)) and np.all(rpm > 0)):
+        raise ValueError("spindle_rpm must be finite speeds > 0 [rpm]")
+    if not np.all(np.isfinite(rz)):
+        raise ValueError("rz_deg must be finite angles [deg]")
+    if depth_rule not in ("segment", "path"):
+        raise ValueError(f"depth_rule must be 'segment' or 'path', got {depth_rule!r}")
+    if np.any(np.isnan(allowed)) or np.any(allowed < 0):
+        raise ValueError("allowed_m must be depths >= 0 (inf: unlimited)")
+    if not 0 < p_required < 1:
+        raise ValueError(f"p_required must be in (0, 1), got {p_required!r}")
+    if depth_m is not None:
+        if not (np.isfinite(depth_m) and depth_m > 0):
+            raise ValueError(f"depth_m must be a finite depth > 0 [m], got {depth_m!r}")
+        if p_stable_at_depth is None:
+            raise ValueError("a depth asked needs p_stable_at_depth")
+        p_at = np.asarray(p_stable_at_depth, float)
+        if p_at.shape != allowed.shape:
+            raise ValueError(
+                f"p_stable_at_depth must be {allowed.shape} like allowed_m, got {p_at.shape}"
+            )
+        if np.any(np.isnan(p_at)) or np.any((p_at < 0) | (p_at > 1)):
+            raise ValueError("p_stable_at_depth must be probabilities in [0, 1]")
+    return allowed, rz, rpm, length
+
+
 def choose_configurations(
     allowed_m,
     rz_deg,
@@ -558,20 +598,14 @@ def choose_configurations(
     -------
     ConfigurationChoice
     """
-    allowed = np.asarray(allowed_m, float)
-    rz = np.asarray(rz_deg, float)
-    rpm = np.asarray(spindle_rpm, float)
-    length = np.asarray(length_mm, float)
-    if allowed.ndim != 3 or allowed.shape[1:] != (rz.size, rpm.size):
+    allowed, rz, rpm, length = _checked_table(
+        allowed_m, rz_deg, spindle_rpm, length_mm, depth_rule, depth_m, p_stable_at_depth,
+        p_required,
+    )  # fmt: skip
+    if not (np.isfinite(max_rz_rate_deg_per_mm) and max_rz_rate_deg_per_mm >= 0):
         raise ValueError(
-            f"allowed_m must be (segments, {rz.size} Rz, {rpm.size} speeds), got {allowed.shape}"
+            f"max_rz_rate_deg_per_mm must be finite and >= 0, got {max_rz_rate_deg_per_mm!r}"
         )
-    if length.shape != allowed.shape[:1]:
-        raise ValueError(f"length_mm must be ({allowed.shape[0]},), got {length.shape}")
-    if depth_rule not in ("segment", "path"):
-        raise ValueError(f"depth_rule must be 'segment' or 'path', got {depth_rule!r}")
-    if np.any(np.isnan(allowed)) or np.any(allowed < 0):
-        raise ValueError("allowed_m must be depths >= 0 (inf: unlimited)")
     m = allowed.shape[0]
     seg = np.arange(m)
     step_ok = _rz_steps_allowed(rz, length, max_rz_rate_deg_per_mm)
@@ -669,10 +703,10 @@ def fixed_configuration(
         ``spindle_rpm``, ``depth_m``, ``score``: one depth for the whole path, the smallest
         allowed along it at that Rz and speed) and ``segment_depth`` (the depth per segment).
     """
-    allowed = np.asarray(allowed_m, float)
-    rz = np.asarray(rz_deg, float)
-    rpm = np.asarray(spindle_rpm, float)
-    length = np.asarray(length_mm, float)
+    allowed, rz, rpm, length = _checked_table(
+        allowed_m, rz_deg, spindle_rpm, length_mm, depth_rule, depth_m, p_stable_at_depth,
+        p_required,
+    )  # fmt: skip
     lw = length / length.sum()
     # depth per segment at one Rz and speed: sum(d L) / sum(L / n) = n * mean_L(d)
     seg_score = np.einsum("i,irj->rj", lw, allowed) * rpm[None, :]

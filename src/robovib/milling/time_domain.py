@@ -539,14 +539,27 @@ _COMPILED: dict = {}
 
 
 def _compiled_loop():
-    """:func:`_poincare_loop` compiled by numba (cached on disk; ``None`` without numba)."""
+    """:func:`_poincare_loop` compiled by numba, or ``None``: the numpy stepping then.
+
+    ``None`` without numba and under ``NUMBA_DISABLE_JIT=1`` (the loop interpreted by Python
+    takes about 0.5 s per cut: a chart would take hours). The machine code is cached on disk
+    (next to this file, else in the user's cache folder); where neither is writable (a
+    read-only install, no home folder) numba refuses ``cache=True`` and the loop is compiled
+    in every process instead (about 8 s at first use).
+    """
     if "loop" not in _COMPILED:
         try:
             import numba
-        except ImportError:  # pragma: no cover - numba is a dependency
+        except ImportError:
             _COMPILED["loop"] = None
         else:
-            _COMPILED["loop"] = numba.njit(cache=True, nogil=True)(_poincare_loop)
+            if numba.config.DISABLE_JIT:
+                _COMPILED["loop"] = None
+            else:
+                try:
+                    _COMPILED["loop"] = numba.njit(cache=True, nogil=True)(_poincare_loop)
+                except RuntimeError:  # "cannot cache function ...: no locator available"
+                    _COMPILED["loop"] = numba.njit(nogil=True)(_poincare_loop)
     return _COMPILED["loop"]
 
 
@@ -561,6 +574,8 @@ def _poincare_rows(
     :func:`_step_rows`, at about a hundredth of the time for a few rows); without numba it
     falls back to ``"numpy"``.
     """
+    if backend not in ("numba", "numpy"):
+        raise ValueError(f"backend must be 'numba' or 'numpy', got {backend!r}")
     loop = _compiled_loop() if backend == "numba" else None
     if loop is None:
         return _step_rows(

@@ -11,6 +11,7 @@ tracker at 1 kHz, the tracker with 2 µm noise and 0.01 mm resolution (§3.5.3, 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -374,14 +375,22 @@ def _sensors(
 _ANTI_ALIAS_HALF_SAMPLES = 16
 
 
-def _band_limited_force(cutting, n: int, fs: float, oversampling: int) -> np.ndarray:
+def _band_limited_force(
+    cutting, n: int, fs: float, oversampling: int, block: int | None = None
+) -> np.ndarray:
     """(n, 3) force ``cutting(t)`` at ``t = i / fs``, band-limited below ``fs / 2``.
 
     ``cutting`` is evaluated at ``oversampling x fs`` on ``[-L, n / fs + L)`` (``L`` the
     filter's half-length: the cut runs on before and after the record, so the filter has no
     edge), filtered by a linear-phase Kaiser FIR (``beta`` 8: >= 80 dB stop band; cut-off
     0.45 fs, transition ~0.16 fs) centred on each output sample (zero phase), and every
-    ``oversampling``-th sample kept (:func:`scipy.signal.upfirdn`).
+    ``oversampling``-th sample kept (:func:`scipy.signal.upfirdn`). ``block``: at most this
+    many output samples per pass, in blocks of near-equal size (``cutting`` then sees only
+    the fine times of a block and its filter's reach, so its value at a time must not depend
+    on the other times: :func:`~robovib.milling.forces.milling_forces` interpolates its angle
+    table alike for any array longer than ``n_angles``); None: all in one pass. Blocks keep
+    the fine grid small (a 177 s pass at 128 x 1 kHz is 23 million fine samples) and give the
+    same numbers.
     """
     if oversampling == 1:
         return cutting(np.arange(n) / fs)
@@ -390,13 +399,23 @@ def _band_limited_force(cutting, n: int, fs: float, oversampling: int) -> np.nda
     k = oversampling
     half = _ANTI_ALIAS_HALF_SAMPLES * k  # fine samples each side of the filter's centre
     taps = signal.firwin(2 * half + 1, 0.45 * fs, window=("kaiser", 8.0), fs=fs * k)
-    fine_t = (np.arange(n * k + 2 * half) - half) / (fs * k)
-    fine = cutting(fine_t)
     # y[m] = sum_j taps[j] fine[m k - j]: the output centred on fine sample half + i k (time
     # i / fs) is m = i + 2 half / k
-    out = signal.upfirdn(taps, fine, up=1, down=k, axis=0)
     first = 2 * half // k
-    return out[first : first + n]
+    n_blocks = 1 if block is None else max(1, -(-n // max(int(block), 1)))
+    ends = np.linspace(0, n, n_blocks + 1).round().astype(int)  # blocks of near-equal size
+    parts = []
+    for i0, i1 in itertools.pairwise(ends.tolist()):
+        # fine samples i0 k ... i1 k + 2 half - 1 cover the reach of outputs i0 .. i1 - 1
+        fine_t = (np.arange(i0 * k, i1 * k + 2 * half) - half) / (fs * k)
+        out = signal.upfirdn(taps, cutting(fine_t), up=1, down=k, axis=0)
+        parts.append(out[first : first + i1 - i0])
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
+#: Output samples per pass of the band-limited force where the force depends on time alone
+#: (~25 MB of fine samples at 128 x oversampling).
+_FORCE_BLOCK = 8192
 
 
 def simulate_milling(
@@ -507,7 +526,10 @@ def simulate_milling(
             return disturbances.cutting_force(tt, tool, conditions, coefficients, rng=gen)
 
         force_noise_n = math.hypot(force_noise_n, disturbances.force_noise_n)
-    local = _band_limited_force(cutting, n, simulation_rate_hz, int(force_oversampling))
+    # The disturbances' non-periodic force, engagement and speed drift are drawn over the
+    # whole pass: one block there.
+    local = _band_limited_force(cutting, n, simulation_rate_hz, int(force_oversampling),
+                                _FORCE_BLOCK if disturbances is None else None)  # fmt: skip
     feed = move.feed_direction()
     normal = np.array([-feed[1], feed[0], 0.0])
     force = local[:, :1] * feed[None, :] + local[:, 1:2] * normal[None, :]
