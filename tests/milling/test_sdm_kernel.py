@@ -203,7 +203,8 @@ def test_without_a_compiler_the_numpy_path_gives_the_same_chart(monkeypatch):
 
 def test_the_decorator_compiles_uncached_where_numba_cannot_cache(monkeypatch):
     """A read-only install: numba refuses ``cache=True`` with a RuntimeError at decoration."""
-    numba = pytest.importorskip("numba")
+    import numba
+
     import robovib.milling.sdm_kernel as kernel
 
     real = numba.njit
