@@ -85,7 +85,10 @@ from robovib.milling.uncertainty import (
 )
 
 
-def _five_mode() -> dict:
+def five_mode_stand_in() -> dict:
+    """The 5-mode stand-in structure (3 x, 2 y modes; 4-6 % spread), shared with
+    ``bench_time_domain_margin.py``."""
+
     def md(fn, k, zeta, name):
         c = 2 * zeta * k / (2 * np.pi * fn)
         return ModeDistribution(fn, k, c, 0.04 * fn, 0.06 * k, 0.05 * c, name=name)
@@ -130,7 +133,7 @@ def main(argv=None) -> None:
     rpm = np.linspace(100.0, 3000.0, opts.speeds)
     pose = tuple(float(v) for v in opts.pose.split(","))
     if opts.five_mode:
-        dist, label = _five_mode(), "5-mode stand-in"
+        dist, label = five_mode_stand_in(), "5-mode stand-in"
     else:
         dist, label = (
             mode_distribution_at_pose(load_chapter3_predictor(), pose),

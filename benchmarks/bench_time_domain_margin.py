@@ -51,30 +51,15 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
+from bench_stability_probability import five_mode_stand_in  # the same 5-mode structure
 
 from robovib.gp.chapter3_model import load_chapter3_predictor
 from robovib.milling import ALUMINIUM_7075, time_domain
 from robovib.milling.chart import cutting_setup
 from robovib.milling.uncertainty import (
-    ModeDistribution,
     mode_distribution_at_pose,
     stability_probability,
 )
-
-
-def _five_mode() -> dict:
-    def md(fn, k, zeta, name):
-        c = 2 * zeta * k / (2 * np.pi * fn)
-        return ModeDistribution(fn, k, c, 0.04 * fn, 0.06 * k, 0.05 * c, name=name)
-
-    return {
-        "x": [
-            md(16.4, 4.2e6, 0.11, "x1"),
-            md(42.0, 2.0e7, 0.05, "x2"),
-            md(63.5, 4.2e7, 0.04, "x3"),
-        ],
-        "y": [md(8.5, 9.4e5, 0.19, "y1"), md(21.9, 1.0e7, 0.06, "y2")],
-    }
 
 
 def main(argv=None) -> None:
@@ -99,7 +84,7 @@ def main(argv=None) -> None:
     )
     rpm = np.linspace(100.0, 3000.0, opts.speeds)
     if opts.five_mode:
-        dist, label = _five_mode(), "5-mode stand-in"
+        dist, label = five_mode_stand_in(), "5-mode stand-in"
     else:
         dist = mode_distribution_at_pose(load_chapter3_predictor(), (2400.0, 0.0, 45.0))
         label = "2-DOF chapter-3 model at 2400, 0, 45"

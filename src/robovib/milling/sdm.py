@@ -862,19 +862,54 @@ def sdm_lobes(
         chatter_hz=chatter,
         kind=kind.astype(str),
         method="sdm",
-        settings={
-            "steps_per_period_min": int(steps_per_period),
-            "steps_per_vibration": float(steps_per_vibration),
-            "n_flutes": int(tool.n_flutes),
-            "radial_depth_m": conditions.radial_depth_m,
-            "diameter_m": tool.diameter_m,
-            "down_milling": bool(conditions.down_milling),
-            "ktc_n_per_m2": coefficients.ktc,
-            "krc_n_per_m2": coefficients.krc,
-            "helix": "ignored",
-            "rtol": rtol,
-            "eigensolver": eigensolver,
-            "warm_start": bool(warm_start),
-            "scan_ratio": float(scan_ratio) if n_scan is None else None,
-        },
+        settings=_envelope_settings(
+            tool,
+            conditions,
+            coefficients,
+            steps_per_period=steps_per_period,
+            steps_per_vibration=steps_per_vibration,
+            rtol=rtol,
+            eigensolver=eigensolver,
+            warm_start=warm_start,
+            scan_ratio=float(scan_ratio) if n_scan is None else None,
+        ),
     )
+
+
+def _envelope_settings(
+    tool: MillingTool,
+    conditions: CuttingConditions,
+    coefficients: CuttingCoefficients,
+    *,
+    steps_per_period: int,
+    steps_per_vibration: float,
+    rtol: float,
+    eigensolver: str,
+    warm_start: bool,
+    scan_ratio: float | None,
+    solver: str | None = None,
+) -> dict:
+    """The ``settings`` of an SDM :class:`~robovib.milling.envelope.LobeEnvelope`.
+
+    One place for the keys (and their order, which JSON outputs keep) of :func:`sdm_lobes` and
+    of the compiled kernel's envelopes (:func:`robovib.milling.sdm_kernel.sdm_envelopes`, which
+    adds ``solver="compiled"``); lengths in m, cutting coefficients in N/m².
+    """
+    settings = {
+        "steps_per_period_min": int(steps_per_period),
+        "steps_per_vibration": float(steps_per_vibration),
+        "n_flutes": int(tool.n_flutes),
+        "radial_depth_m": conditions.radial_depth_m,
+        "diameter_m": tool.diameter_m,
+        "down_milling": bool(conditions.down_milling),
+        "ktc_n_per_m2": coefficients.ktc,
+        "krc_n_per_m2": coefficients.krc,
+        "helix": "ignored",
+        "rtol": rtol,
+        "eigensolver": eigensolver,
+    }
+    if solver is not None:
+        settings["solver"] = solver
+    settings["warm_start"] = bool(warm_start)
+    settings["scan_ratio"] = scan_ratio
+    return settings

@@ -980,7 +980,7 @@ def sdm_envelopes(structures, tool, conditions, coefficients, spindle_rpm, **opt
         An option the compiled kernel does not have (e.g. ``eigensolver``, ``n_scan``).
     """
     from .envelope import LobeEnvelope
-    from .sdm import _classify
+    from .sdm import _classify, _envelope_settings
 
     unknown = set(options) - COMPILED_OPTIONS
     if unknown:
@@ -1006,22 +1006,18 @@ def sdm_envelopes(structures, tool, conditions, coefficients, spindle_rpm, **opt
                 chatter_hz=chatter,
                 kind=kind.astype(str),
                 method="sdm",
-                settings={
-                    "steps_per_period_min": int(opts.get("steps_per_period", 40)),
-                    "steps_per_vibration": float(opts.get("steps_per_vibration", 12.0)),
-                    "n_flutes": int(tool.n_flutes),
-                    "radial_depth_m": conditions.radial_depth_m,
-                    "diameter_m": tool.diameter_m,
-                    "down_milling": bool(conditions.down_milling),
-                    "ktc_n_per_m2": coefficients.ktc,
-                    "krc_n_per_m2": coefficients.krc,
-                    "helix": "ignored",
-                    "rtol": float(opts.get("rtol", 1e-3)),
-                    "eigensolver": "arnoldi",
-                    "solver": "compiled",
-                    "warm_start": bool(opts.get("warm_start", True)),
-                    "scan_ratio": float(opts.get("scan_ratio", 1.2)),
-                },
+                settings=_envelope_settings(
+                    tool,
+                    conditions,
+                    coefficients,
+                    steps_per_period=opts.get("steps_per_period", 40),
+                    steps_per_vibration=opts.get("steps_per_vibration", 12.0),
+                    rtol=float(opts.get("rtol", 1e-3)),
+                    eigensolver="arnoldi",
+                    warm_start=opts.get("warm_start", True),
+                    scan_ratio=float(opts.get("scan_ratio", 1.2)),
+                    solver="compiled",
+                ),
             )
         )
     return envs
