@@ -44,6 +44,8 @@ _POSE_HIGH = (2680.0, 580.0, 175.0)
 
 
 def _run(cmd: list[str]) -> str:
+    if cmd[0] == "robovib":  # this interpreter's robovib: also from a source tree on PYTHONPATH
+        cmd = [sys.executable, "-m", "robovib.cli", *cmd[1:]]
     out = subprocess.run(cmd, capture_output=True, text=True)
     if out.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed:\n{out.stdout}\n{out.stderr}")
