@@ -1,0 +1,266 @@
+"""Issue 39: the MRR oracle bound from the truth's multi-mode SDM limits, beside the ZOA one.
+
+``study_plan_bound.py`` fed the planner's optimiser the truth's zero-order (ZOA) limits. The
+ZOA misses the flip lobes of this low-immersion cut and differs from the time-domain truth by
+-22 to +24 % point by point, so that bound is one of the zero-order physics only. Here the same
+optimiser (:func:`robovib.milling.planning.choose_configurations`, Rz and speed jointly per
+segment under the Rz-rate limit) and its fixed comparison
+(:func:`~robovib.milling.planning.fixed_configuration`, the best single Rz and speed under the
+same depth rule) are fed the truth's *semi-discretization* limits: all five modes of the
+virtual robot's truth at every segment midpoint, Rz and speed, by the compiled deterministic
+chart (:func:`robovib.milling.sdm_kernel.sdm_limits`, the options of ``sdm_lobes``: 40 steps
+per period at least, 12 per vibration of the highest mode, its own depth range and warm start),
+capped at ``--max-depth-mm``. The ZOA oracle is recomputed on the same grid, so both columns
+see the same paths, Rz and speeds. Ratio:
+
+    (mean MRR of the best plan) / (mean MRR of the best fixed Rz and speed)
+
+for both depth rules (``segment``: each segment as deep as allowed; ``path``: one depth).
+
+Paths: ``--paths`` straight paths of ``--segments`` segments with random ends from ``--seed``,
+as ``study_plan_bound.py`` draws them (``--seed 101 --paths 40`` are its paths), or with
+``--study-seed S`` the three paths ``study_plan.py --seed S`` plans (same draws). The SDM is
+computed in ``--jobs`` processes (chunks of poses; ~0.09 s CPU per pose for 50 speeds).
+``--check-time-domain N`` compares ZOA and SDM with the regenerative time-domain simulation of
+the truth (``simulated_stability_limit``, as ``study_plan_bound.py --check-time-domain``) at N
+random (pose, speed) points of 1000-3500 rpm.
+
+    nice python benchmarks/study_plan_bound_sdm.py --study-seed 7          # ~2 min CPU
+    python benchmarks/study_plan_bound_sdm.py --seed 101 --paths 40 --jobs 16   # ~21 min CPU
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+from study_plan_bound import REGIONS, parse_ranges, truth_limits
+
+STUDY_X_MM, STUDY_Y_MM = (2150.0, 2650.0), (-250.0, 550.0)  # study_plan.py's X_MM, Y_MM
+
+
+def _setup():
+    from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+
+    return MillingTool(), CuttingConditions(1750.0, 0.058e-3, 1e-3, 6e-3), ALUMINIUM_7075
+
+
+def truth_structures(robot, poses_mm_deg):
+    """The truth's (modes_x, modes_y) at each (x [mm], y [mm], Rz [deg]) pose."""
+    c = np.column_stack([poses_mm_deg[:, :2] / 1e3, poses_mm_deg[:, 2]])
+    mx, my = robot.workspace.modes(c, "x"), robot.workspace.modes(c, "y")
+    return [(mx.at(i), my.at(i)) for i in range(c.shape[0])]
+
+
+def sdm_chunk(task):
+    """SDM limits [m] (n, j) of the thesis robot's truth at a chunk of poses (a worker)."""
+    poses, rpm = task
+    from robovib.milling.sdm_kernel import sdm_limits
+    from robovib.sim import VirtualRobot
+
+    tool, cond, coef = _setup()
+    t0 = time.process_time()
+    a, _, ev = sdm_limits(truth_structures(VirtualRobot.variant(None), poses), tool, cond, coef,
+                          rpm)  # fmt: skip
+    return a, int(ev.sum()), time.process_time() - t0
+
+
+def sdm_truth_limits(poses, rpm, jobs, chunk=40):
+    chunks = [(poses[i : i + chunk], rpm) for i in range(0, poses.shape[0], chunk)]
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as ex:
+            out = list(ex.map(sdm_chunk, chunks))
+    else:
+        out = [sdm_chunk(c) for c in chunks]
+    return (np.concatenate([o[0] for o in out]), sum(o[1] for o in out),
+            sum(o[2] for o in out))  # fmt: skip
+
+
+def make_paths(args):
+    """(P, m, 2) midpoints [mm] and (P, m) segment lengths [mm]."""
+    from robovib.milling.planning import path_segments
+
+    if args.study_seed is not None:
+        rng = np.random.default_rng(args.study_seed)  # study_plan.py draws its paths first
+        ends = [np.array([[rng.uniform(*STUDY_X_MM), rng.uniform(*STUDY_Y_MM)],
+                          [rng.uniform(*STUDY_X_MM), rng.uniform(*STUDY_Y_MM)]])
+                for _ in range(3)]  # fmt: skip
+        label = f"study_plan.py --seed {args.study_seed}'s 3 paths"
+    else:
+        rng = np.random.default_rng(args.seed)
+        (x0, x1), (y0, y1) = REGIONS[args.region]
+        ends = list(rng.uniform([x0, y0], [x1, y1], (args.paths, 2, 2)))
+        label = f"{args.paths} paths ({args.region} region, seed {args.seed})"
+    segs = [path_segments(e, args.segments) for e in ends]
+    return np.array([s[0] for s in segs]), np.array([s[1] for s in segs]), label
+
+
+def oracle_ratios(lim, rz, rpm, length, sel, cap, rule, rate):
+    """Per path: the oracle ratio and (fixed Rz, fixed speed, plan's mean speed, Rz span)."""
+    from robovib.milling.planning import choose_configurations, fixed_configuration
+
+    ratios, info = [], []
+    for p in range(lim.shape[0]):
+        allowed = np.minimum(lim[p][..., sel], cap)
+        ch = choose_configurations(allowed, rz, rpm[sel], length[p],
+                                   max_rz_rate_deg_per_mm=rate, depth_rule=rule)  # fmt: skip
+        fx = fixed_configuration(allowed, rz, rpm[sel], length[p], depth_rule=rule)
+        ratios.append(ch.score / fx["score"] if fx["score"] > 0 else np.nan)
+        prz = rz[ch.rz_index]
+        info.append((fx["rz_deg"], fx["spindle_rpm"], float(np.mean(rpm[sel][ch.speed_index])),
+                     float(prz.min()), float(prz.max())))  # fmt: skip
+    return np.array(ratios), info
+
+
+def check_time_domain(n, rng, jobs):
+    from robovib.sim import VirtualRobot
+
+    robot = VirtualRobot.variant(None)
+    pts = [(np.array([[rng.uniform(*STUDY_X_MM), rng.uniform(*STUDY_Y_MM), rng.uniform(0, 180)]]),
+            float(rng.uniform(1000, 3500))) for _ in range(n)]  # fmt: skip
+    tool, cond, coef = _setup()
+    zoa = [truth_limits(robot, p, [s], tool, cond, coef, 250.0)[0, 0] for p, s in pts]
+    sdm = [sdm_chunk((p, np.array([s])))[0][0, 0] for p, s in pts]
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as ex:
+            td = list(ex.map(td_point, pts))
+    else:
+        td = [td_point(t) for t in pts]
+    print("\n## ZOA and SDM of the truth vs its regenerative time-domain simulation (thesis robot)")
+    print("| x [mm] | y [mm] | Rz [deg] | speed [rpm] | ZOA [mm] | SDM [mm] | time domain [mm] | "
+          "SDM / TD | ZOA / TD |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
+    rs, rz_ = [], []
+    for (pose, s), z, d, t in zip(pts, zoa, sdm, td, strict=True):
+        if t is None:
+            cells = "> 60 | | "
+        else:
+            mid = 0.5 * (t[0] + t[1])
+            rs.append(d / mid)
+            rz_.append(z / mid)
+            cells = (f"{mid * 1e3:.2f} ({t[0] * 1e3:.2f}-{t[1] * 1e3:.2f}) | {d / mid:.2f} | "
+                     f"{z / mid:.2f}")  # fmt: skip
+        print(f"| {pose[0, 0]:.0f} | {pose[0, 1]:.0f} | {pose[0, 2]:.0f} | {s:.0f} | "
+              f"{z * 1e3:.2f} | {d * 1e3:.2f} | {cells} |")  # fmt: skip
+    if rs:
+        for name, r in (("SDM", rs), ("ZOA", rz_)):
+            lr = np.log(r)
+            print(f"{name} / time domain: median {np.exp(np.median(lr)):.2f}, range "
+                  f"{min(r):.2f}-{max(r):.2f}, log sd {np.std(lr):.2f} ({len(r)} points)")  # fmt: skip
+
+
+def td_point(item):
+    from dataclasses import replace
+
+    from robovib.sim import VirtualRobot, simulated_stability_limit
+
+    pose, n = item
+    tool, cond, coef = _setup()
+    (mx, my), = truth_structures(VirtualRobot.variant(None), pose)  # fmt: skip
+    try:
+        return simulated_stability_limit(
+            mx, my, tool, replace(cond, spindle_rpm=n), coef, (2e-4, 6e-2),
+            n_bisections=5, steps_per_tooth=40, n_tooth_periods=int(4.0 * n * 2 / 60),
+        )  # fmt: skip
+    except ValueError:
+        return None
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--paths", type=int, default=40)
+    ap.add_argument("--segments", type=int, default=20)
+    ap.add_argument("--seed", type=int, default=101, help="paths as study_plan_bound.py")
+    ap.add_argument("--study-seed", type=int, default=None,
+                    help="instead: the 3 paths of study_plan.py --seed S")  # fmt: skip
+    ap.add_argument("--region", choices=tuple(REGIONS), default="study")
+    ap.add_argument("--rpm-ranges", default="1000-3500,300-3500,1000-2000,1000-6000")
+    ap.add_argument("--speeds-per-1000-rpm", type=float, default=8.0)
+    ap.add_argument("--rz-step", type=float, default=10.0, help="Rz grid step over 0-180 deg")
+    ap.add_argument("--max-rz-rate", type=float, default=1.0, help="deg per mm of path")
+    ap.add_argument("--max-depth-mm", default="20,60", help="depth caps [mm] (the tool)")
+    ap.add_argument("--jobs", type=int, default=1, help="processes for the SDM")
+    ap.add_argument("--check-time-domain", type=int, default=0)
+    ap.add_argument("--check-seed", type=int, default=5)
+    args = ap.parse_args(argv)
+
+    from robovib.sim import VirtualRobot
+
+    t0 = time.perf_counter()
+    c0 = time.process_time()
+    tool, cond, coef = _setup()
+    ranges = parse_ranges(args.rpm_ranges)
+    caps = [float(v) * 1e-3 for v in args.max_depth_mm.split(",")]
+    lo_all, hi_all = min(r[0] for r in ranges), max(r[1] for r in ranges)
+    n_rpm = round((hi_all - lo_all) / 1000 * args.speeds_per_1000_rpm) + 1
+    rpm = np.unique(np.concatenate([np.linspace(lo_all, hi_all, n_rpm),
+                                    [v for r in ranges for v in r]]))  # fmt: skip
+    rz = np.arange(0.0, 180.0, args.rz_step)
+    mid, length, label = make_paths(args)
+    n_p, n_m = mid.shape[:2]
+    poses = np.column_stack([np.repeat(mid.reshape(-1, 2), rz.size, axis=0),
+                             np.tile(rz, n_p * n_m)])  # fmt: skip
+    print(f"# study_plan_bound_sdm: {label}, {n_m} segments, Rz 0-{rz[-1]:g} step "
+          f"{args.rz_step:g} deg, Rz rate <= {args.max_rz_rate:g} deg/mm, {rpm.size} speeds "
+          f"{lo_all:g}-{hi_all:g} rpm, 2-flute tool, ae 6 mm, thesis robot's truth (5 modes)")  # fmt: skip
+    robot = VirtualRobot.variant(None)
+    zoa = truth_limits(robot, poses, rpm, tool, cond, coef).reshape(n_p, n_m, rz.size, rpm.size)
+    sdm, n_eval, sdm_cpu = sdm_truth_limits(poses, rpm, args.jobs)
+    sdm = sdm.reshape(zoa.shape)
+    print(f"SDM limits: {poses.shape[0]} poses x {rpm.size} speeds, {n_eval} monodromy "
+          f"evaluations, {sdm_cpu:.0f} s CPU in the workers ({args.jobs} processes, "
+          f"{time.perf_counter() - t0:.0f} s wall)")  # fmt: skip
+
+    print("\nSDM / ZOA limit of the truth (both capped at 60 mm) per speed band: median "
+          "(5th-95th percentile; fraction < 0.9)")  # fmt: skip
+    r = np.minimum(sdm, 0.06) / np.minimum(zoa, 0.06)
+    edges = [300, 1000, 1500, 2000, 2500, 3000, 3500, 4500, 6000.1]
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        s = (rpm >= a) & (rpm < b)
+        if s.any():
+            v = r[..., s].ravel()
+            print(f"  {a:g}-{min(b, hi_all):g} rpm: {np.median(v):.2f} ({np.quantile(v, 0.05):.2f}"
+                  f"-{np.quantile(v, 0.95):.2f}; {np.mean(v < 0.9):.2f})")  # fmt: skip
+
+    print("\noracle ratio = best plan's mean MRR / best fixed Rz+speed's: ZOA -> SDM, mean over "
+          "paths (SDM: 90th percentile; fraction of paths >= 1.3)")  # fmt: skip
+    head = " | ".join(f"{lo:g}-{hi:g} rpm" for lo, hi in ranges)
+    print(f"\n| depth cap [mm] | depth rule | {head} |")
+    print("|---|---|" + "---|" * len(ranges))
+    summary, details = [], []
+    for cap in caps:
+        for rule in ("segment", "path"):
+            cells = []
+            for lo, hi in ranges:
+                sel = (rpm >= lo - 1e-9) & (rpm <= hi + 1e-9)
+                z, _ = oracle_ratios(zoa, rz, rpm, length, sel, cap, rule, args.max_rz_rate)
+                s, info = oracle_ratios(sdm, rz, rpm, length, sel, cap, rule, args.max_rz_rate)
+                cells.append(f"{np.nanmean(z):.2f} → {np.nanmean(s):.2f} "
+                             f"({np.nanquantile(s, 0.9):.2f}; {np.mean(s >= 1.3):.2f})")  # fmt: skip
+                summary.append((cap, rule, lo, hi, float(np.nanmean(z)), float(np.nanmean(s))))
+                details.append((cap, rule, lo, hi, s, info))
+            print(f"| {cap * 1e3:g} | {rule} | " + " | ".join(cells) + " |", flush=True)
+    best = max(summary, key=lambda v: v[-1])
+    print(f"\nlargest mean SDM-oracle ratio: {best[-1]:.2f} (ZOA {best[-2]:.2f}; cap "
+          f"{best[0] * 1e3:g} mm, {best[1]} depth, {best[2]:g}-{best[3]:g} rpm); settings with "
+          f"SDM mean >= 1.3: {sum(v[-1] >= 1.3 for v in summary)} of {len(summary)}")  # fmt: skip
+
+    print("\nper path, SDM oracle: ratio (best fixed Rz [deg] @ speed [rpm]; plan's mean speed "
+          "[rpm], Rz range [deg])")  # fmt: skip
+    for cap, rule, lo, hi, s, info in details:
+        items = "; ".join(f"{v:.2f} ({a:g}@{b:.0f}; {c:.0f}, {d:g}-{e:g})" for v, (a, b, c, d, e) in
+                          zip(s[:6], info[:6], strict=True))  # fmt: skip
+        more = " ..." if s.size > 6 else ""
+        print(f"  {cap * 1e3:g} mm {rule} {lo:g}-{hi:g}: {items}{more}")
+
+    if args.check_time_domain:
+        check_time_domain(args.check_time_domain, np.random.default_rng(args.check_seed),
+                          args.jobs)  # fmt: skip
+    print(f"\ntotal {time.perf_counter() - t0:.0f} s wall, {time.process_time() - c0:.0f} s CPU "
+          "in the main process (+ the workers')")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
