@@ -32,6 +32,7 @@ random (pose, speed) points of 1000-3500 rpm.
 from __future__ import annotations
 
 import argparse
+import itertools
 import time
 from concurrent.futures import ProcessPoolExecutor
 
@@ -217,7 +218,7 @@ def main(argv=None) -> None:
           "(5th-95th percentile; fraction < 0.9)")  # fmt: skip
     r = np.minimum(sdm, 0.06) / np.minimum(zoa, 0.06)
     edges = [300, 1000, 1500, 2000, 2500, 3000, 3500, 4500, 6000.1]
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
+    for a, b in itertools.pairwise(edges):
         s = (rpm >= a) & (rpm < b)
         if s.any():
             v = r[..., s].ravel()
