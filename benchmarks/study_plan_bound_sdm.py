@@ -55,28 +55,61 @@ def truth_structures(robot, poses_mm_deg):
     return [(mx.at(i), my.at(i)) for i in range(c.shape[0])]
 
 
+#: The time-domain oracle: factors of the SDM limit (capped) simulated, below and above it.
+TD_FACTORS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.75, 0.8, 0.85, 0.9, 0.95, 1.0)
+TD_ABOVE = (1.05, 1.1, 1.15, 1.2, 1.3, 1.4, 1.5, 1.7, 2.0)
+
+
 def sdm_chunk(task):
-    """SDM limits [m] (n, j) of the thesis robot's truth at a chunk of poses (a worker)."""
-    poses, rpm = task
+    """Limits [m] (n, j) of the thesis robot's truth at a chunk of poses (a worker): the SDM,
+    and with ``cap`` the time-domain one (else None), with the CPU seconds of each."""
+    poses, rpm, cap, td_kw = task
     from robovib.milling.sdm_kernel import sdm_limits
     from robovib.sim import VirtualRobot
 
     tool, cond, coef = _setup()
+    structs = truth_structures(VirtualRobot.variant(None), poses)
     t0 = time.process_time()
-    a, _, ev = sdm_limits(truth_structures(VirtualRobot.variant(None), poses), tool, cond, coef,
-                          rpm)  # fmt: skip
-    return a, int(ev.sum()), time.process_time() - t0
+    a, _, ev = sdm_limits(structs, tool, cond, coef, rpm)
+    t1 = time.process_time()
+    td = None
+    if cap is not None:
+        td = td_limits(structs, rpm, np.minimum(a, cap), cap, **td_kw)
+    return a, td, int(ev.sum()), t1 - t0, time.process_time() - t1
 
 
-def sdm_truth_limits(poses, rpm, jobs, chunk=40):
-    chunks = [(poses[i : i + chunk], rpm) for i in range(0, poses.shape[0], chunk)]
+def td_limits(structs, rpm, ref, cap, seconds=6.0, steps_per_tooth=40):
+    """The deepest depth [m] <= ``cap`` found stable in the regenerative time-domain simulation
+    below the onset of persistent chatter, searched at ``TD_FACTORS`` / ``TD_ABOVE`` x ``ref``
+    (:func:`~robovib.milling.time_domain.time_domain_limit_ratios`, top-down), each speed
+    simulated for ``seconds`` as ``study_plan.py``'s truth (full-depth entry, 40 steps per
+    tooth at least). Where even the lowest factor chatters: half of it."""
+    from robovib.milling.time_domain import time_domain_limit_ratios
+
+    tool, cond, coef = _setup()
+    out = np.empty_like(ref)
+    for j, n in enumerate(rpm):
+        low, _ = time_domain_limit_ratios(
+            structs, tool, cond, coef, [n], ref[:, j : j + 1], factors=TD_FACTORS,
+            above=TD_ABOVE, steps_per_tooth=steps_per_tooth,
+            n_tooth_periods=int(seconds * n * tool.n_flutes / 60),
+        )  # fmt: skip
+        out[:, j] = np.minimum(low[:, 0] * ref[:, j], cap)
+    return out
+
+
+def truth_oracle_limits(poses, rpm, jobs, cap=None, td_kw=None, chunk=40):
+    """SDM (and time-domain) limits of the truth at every pose and speed, in ``jobs`` processes."""
+    chunks = [(poses[i : i + chunk], rpm, cap, td_kw or {})
+              for i in range(0, poses.shape[0], chunk)]  # fmt: skip
     if jobs > 1:
         with ProcessPoolExecutor(jobs) as ex:
             out = list(ex.map(sdm_chunk, chunks))
     else:
         out = [sdm_chunk(c) for c in chunks]
-    return (np.concatenate([o[0] for o in out]), sum(o[1] for o in out),
-            sum(o[2] for o in out))  # fmt: skip
+    sdm = np.concatenate([o[0] for o in out])
+    td = None if cap is None else np.concatenate([o[1] for o in out])
+    return sdm, td, sum(o[2] for o in out), sum(o[3] for o in out), sum(o[4] for o in out)
 
 
 def make_paths(args):
@@ -123,7 +156,7 @@ def check_time_domain(n, rng, jobs):
             float(rng.uniform(1000, 3500))) for _ in range(n)]  # fmt: skip
     tool, cond, coef = _setup()
     zoa = [truth_limits(robot, p, [s], tool, cond, coef, 250.0)[0, 0] for p, s in pts]
-    sdm = [sdm_chunk((p, np.array([s])))[0][0, 0] for p, s in pts]
+    sdm = [sdm_chunk((p, np.array([s]), None, {}))[0][0, 0] for p, s in pts]
     if jobs > 1:
         with ProcessPoolExecutor(jobs) as ex:
             td = list(ex.map(td_point, pts))
@@ -185,6 +218,14 @@ def main(argv=None) -> None:
     ap.add_argument("--jobs", type=int, default=1, help="processes for the SDM")
     ap.add_argument("--check-time-domain", type=int, default=0)
     ap.add_argument("--check-seed", type=int, default=5)
+    ap.add_argument(
+        "--time-domain",
+        action="store_true",
+        help="also the time-domain oracle (the regenerative simulation's limits)",
+    )
+    ap.add_argument("--td-seconds", type=float, default=6.0, help="study_plan.py's --seconds")
+    ap.add_argument("--td-steps", type=int, default=40, help="study_plan.py's --steps")
+    ap.add_argument("--save-limits", default="", help="write the limits to this .npz")
     args = ap.parse_args(argv)
 
     from robovib.sim import VirtualRobot
@@ -208,25 +249,41 @@ def main(argv=None) -> None:
           f"{lo_all:g}-{hi_all:g} rpm, 2-flute tool, ae 6 mm, thesis robot's truth (5 modes)")  # fmt: skip
     robot = VirtualRobot.variant(None)
     zoa = truth_limits(robot, poses, rpm, tool, cond, coef).reshape(n_p, n_m, rz.size, rpm.size)
-    sdm, n_eval, sdm_cpu = sdm_truth_limits(poses, rpm, args.jobs)
-    sdm = sdm.reshape(zoa.shape)
+    td_cap = max(caps) if args.time_domain else None
+    td_kw = {"seconds": args.td_seconds, "steps_per_tooth": args.td_steps}
+    sdm, td, n_eval, sdm_cpu, td_cpu = truth_oracle_limits(poses, rpm, args.jobs, td_cap, td_kw)
+    limits = {"ZOA": zoa, "SDM": sdm.reshape(zoa.shape)}
     print(f"SDM limits: {poses.shape[0]} poses x {rpm.size} speeds, {n_eval} monodromy "
-          f"evaluations, {sdm_cpu:.0f} s CPU in the workers ({args.jobs} processes, "
-          f"{time.perf_counter() - t0:.0f} s wall)")  # fmt: skip
+          f"evaluations, {sdm_cpu:.0f} s CPU in the workers", end="")  # fmt: skip
+    if td is not None:
+        limits["TD"] = td.reshape(zoa.shape)
+        floor = np.mean(td <= TD_FACTORS[0] * 0.5 * np.minimum(sdm, td_cap) * (1 + 1e-9))
+        print(f"; time-domain limits {td_cpu:.0f} s CPU (chatter at {TD_FACTORS[0]:g} x the SDM "
+              f"at {floor:.1%} of the pairs: limit put at half that)", end="")  # fmt: skip
+    print(f" ({args.jobs} processes, {time.perf_counter() - t0:.0f} s wall)")
+    if args.save_limits:
+        np.savez_compressed(args.save_limits, rpm=rpm, rz_deg=rz, midpoints_mm=mid,
+                            length_mm=length,
+                            **{k.lower(): v.astype(np.float32) for k, v in limits.items()})  # fmt: skip
 
-    print("\nSDM / ZOA limit of the truth (both capped at 60 mm) per speed band: median "
-          "(5th-95th percentile; fraction < 0.9)")  # fmt: skip
-    r = np.minimum(sdm, 0.06) / np.minimum(zoa, 0.06)
+    top = 0.06
     edges = [300, 1000, 1500, 2000, 2500, 3000, 3500, 4500, 6000.1]
-    for a, b in itertools.pairwise(edges):
-        s = (rpm >= a) & (rpm < b)
-        if s.any():
-            v = r[..., s].ravel()
-            print(f"  {a:g}-{min(b, hi_all):g} rpm: {np.median(v):.2f} ({np.quantile(v, 0.05):.2f}"
-                  f"-{np.quantile(v, 0.95):.2f}; {np.mean(v < 0.9):.2f})")  # fmt: skip
+    pairs = [("SDM", "ZOA")] + ([("TD", "SDM"), ("TD", "ZOA")] if td is not None else [])
+    for num, den in pairs:
+        print(f"\n{num} / {den} limit of the truth (both capped at {top * 1e3:g} mm) per speed "
+              "band: median (5th-95th percentile; fraction < 0.9)")  # fmt: skip
+        r = np.minimum(limits[num], top) / np.minimum(limits[den], top)
+        for lo_b, hi_b in itertools.pairwise(edges):
+            s = (rpm >= lo_b) & (rpm < hi_b)
+            if s.any():
+                v = r[..., s].ravel()
+                print(f"  {lo_b:g}-{min(hi_b, hi_all):g} rpm: {np.median(v):.2f} "
+                      f"({np.quantile(v, 0.05):.2f}-{np.quantile(v, 0.95):.2f}; "
+                      f"{np.mean(v < 0.9):.2f})")  # fmt: skip
 
-    print("\noracle ratio = best plan's mean MRR / best fixed Rz+speed's: ZOA -> SDM, mean over "
-          "paths (SDM: 90th percentile; fraction of paths >= 1.3)")  # fmt: skip
+    names = list(limits)
+    print(f"\noracle ratio = best plan's mean MRR / best fixed Rz+speed's: {' -> '.join(names)}, "
+          f"mean over paths ({names[-1]}: 90th percentile; fraction of paths >= 1.3)")  # fmt: skip
     head = " | ".join(f"{lo:g}-{hi:g} rpm" for lo, hi in ranges)
     print(f"\n| depth cap [mm] | depth rule | {head} |")
     print("|---|---|" + "---|" * len(ranges))
@@ -236,25 +293,30 @@ def main(argv=None) -> None:
             cells = []
             for lo, hi in ranges:
                 sel = (rpm >= lo - 1e-9) & (rpm <= hi + 1e-9)
-                z, _ = oracle_ratios(zoa, rz, rpm, length, sel, cap, rule, args.max_rz_rate)
-                s, info = oracle_ratios(sdm, rz, rpm, length, sel, cap, rule, args.max_rz_rate)
-                cells.append(f"{np.nanmean(z):.2f} → {np.nanmean(s):.2f} "
-                             f"({np.nanquantile(s, 0.9):.2f}; {np.mean(s >= 1.3):.2f})")  # fmt: skip
-                summary.append((cap, rule, lo, hi, float(np.nanmean(z)), float(np.nanmean(s))))
-                details.append((cap, rule, lo, hi, s, info))
+                means = {}
+                for name, lim in limits.items():
+                    v, info = oracle_ratios(lim, rz, rpm, length, sel, cap, rule,
+                                            args.max_rz_rate)  # fmt: skip
+                    means[name] = float(np.nanmean(v))
+                    if name != "ZOA":
+                        details.append((name, cap, rule, lo, hi, v, info))
+                cells.append(" → ".join(f"{means[k]:.2f}" for k in names)
+                             + f" ({np.nanquantile(v, 0.9):.2f}; {np.mean(v >= 1.3):.2f})")  # fmt: skip
+                summary.append((cap, rule, lo, hi, means))
             print(f"| {cap * 1e3:g} | {rule} | " + " | ".join(cells) + " |", flush=True)
-    best = max(summary, key=lambda v: v[-1])
-    print(f"\nlargest mean SDM-oracle ratio: {best[-1]:.2f} (ZOA {best[-2]:.2f}; cap "
-          f"{best[0] * 1e3:g} mm, {best[1]} depth, {best[2]:g}-{best[3]:g} rpm); settings with "
-          f"SDM mean >= 1.3: {sum(v[-1] >= 1.3 for v in summary)} of {len(summary)}")  # fmt: skip
+    for name in names:
+        best = max(summary, key=lambda v, k=name: v[-1][k])
+        print(f"largest mean {name}-oracle ratio: {best[-1][name]:.2f} (cap {best[0] * 1e3:g} "
+              f"mm, {best[1]} depth, {best[2]:g}-{best[3]:g} rpm); settings with mean >= 1.3: "
+              f"{sum(v[-1][name] >= 1.3 for v in summary)} of {len(summary)}")  # fmt: skip
 
-    print("\nper path, SDM oracle: ratio (best fixed Rz [deg] @ speed [rpm]; plan's mean speed "
-          "[rpm], Rz range [deg])")  # fmt: skip
-    for cap, rule, lo, hi, s, info in details:
-        items = "; ".join(f"{v:.2f} ({a:g}@{b:.0f}; {c:.0f}, {d:g}-{e:g})" for v, (a, b, c, d, e) in
-                          zip(s[:6], info[:6], strict=True))  # fmt: skip
-        more = " ..." if s.size > 6 else ""
-        print(f"  {cap * 1e3:g} mm {rule} {lo:g}-{hi:g}: {items}{more}")
+    print("\nper path: ratio (best fixed Rz [deg] @ speed [rpm]; plan's mean speed [rpm], "
+          "Rz range [deg])")  # fmt: skip
+    for name, cap, rule, lo, hi, v, info in details:
+        items = "; ".join(f"{r:.2f} ({a:g}@{b:.0f}; {c:.0f}, {d:g}-{e:g})" for r, (a, b, c, d, e) in
+                          zip(v[:6], info[:6], strict=True))  # fmt: skip
+        more = " ..." if v.size > 6 else ""
+        print(f"  {name} {cap * 1e3:g} mm {rule} {lo:g}-{hi:g}: {items}{more}")
 
     if args.check_time_domain:
         check_time_domain(args.check_time_domain, np.random.default_rng(args.check_seed),
