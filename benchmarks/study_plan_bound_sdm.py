@@ -112,6 +112,18 @@ def truth_oracle_limits(poses, rpm, jobs, cap=None, td_kw=None, chunk=40):
     return sdm, td, sum(o[2] for o in out), sum(o[3] for o in out), sum(o[4] for o in out)
 
 
+def load_limits(path, rpm, rz, mid, length):
+    """The limits saved by ``--save-limits`` (checked against this run's grids and paths)."""
+    with np.load(path, allow_pickle=False) as f:
+        for name, want in (("rpm", rpm), ("rz_deg", rz), ("midpoints_mm", mid),
+                           ("length_mm", length)):  # fmt: skip
+            if f[name].shape != want.shape or not np.allclose(f[name], want, rtol=1e-9):
+                raise ValueError(f"{path}: {name} differs from this run's (other options?)")
+        limits = {k.upper(): f[k].astype(float) for k in ("zoa", "sdm", "td") if k in f}
+    td = limits.get("TD")
+    return limits, None if td is None else td.reshape(-1, rpm.size)
+
+
 def make_paths(args):
     """(P, m, 2) midpoints [mm] and (P, m) segment lengths [mm]."""
     from robovib.milling.planning import path_segments
@@ -125,8 +137,10 @@ def make_paths(args):
     else:
         rng = np.random.default_rng(args.seed)
         (x0, x1), (y0, y1) = REGIONS[args.region]
-        ends = list(rng.uniform([x0, y0], [x1, y1], (args.paths, 2, 2)))
+        ends = list(rng.uniform([x0, y0], [x1, y1], (args.paths, 2, 2)))[args.skip_paths :]
         label = f"{args.paths} paths ({args.region} region, seed {args.seed})"
+        if args.skip_paths:
+            label += f" less the first {args.skip_paths}"
     segs = [path_segments(e, args.segments) for e in ends]
     return np.array([s[0] for s in segs]), np.array([s[1] for s in segs]), label
 
@@ -207,6 +221,7 @@ def main(argv=None) -> None:
     ap.add_argument("--paths", type=int, default=40)
     ap.add_argument("--segments", type=int, default=20)
     ap.add_argument("--seed", type=int, default=101, help="paths as study_plan_bound.py")
+    ap.add_argument("--skip-paths", type=int, default=0, help="leave out the first K paths")
     ap.add_argument("--study-seed", type=int, default=None,
                     help="instead: the 3 paths of study_plan.py --seed S")  # fmt: skip
     ap.add_argument("--region", choices=tuple(REGIONS), default="study")
@@ -226,6 +241,8 @@ def main(argv=None) -> None:
     ap.add_argument("--td-seconds", type=float, default=6.0, help="study_plan.py's --seconds")
     ap.add_argument("--td-steps", type=int, default=40, help="study_plan.py's --steps")
     ap.add_argument("--save-limits", default="", help="write the limits to this .npz")
+    ap.add_argument("--load-limits", default="",
+                    help="analyse the limits of this .npz (--save-limits) instead")  # fmt: skip
     args = ap.parse_args(argv)
 
     from robovib.sim import VirtualRobot
@@ -247,20 +264,26 @@ def main(argv=None) -> None:
     print(f"# study_plan_bound_sdm: {label}, {n_m} segments, Rz 0-{rz[-1]:g} step "
           f"{args.rz_step:g} deg, Rz rate <= {args.max_rz_rate:g} deg/mm, {rpm.size} speeds "
           f"{lo_all:g}-{hi_all:g} rpm, 2-flute tool, ae 6 mm, thesis robot's truth (5 modes)")  # fmt: skip
-    robot = VirtualRobot.variant(None)
-    zoa = truth_limits(robot, poses, rpm, tool, cond, coef).reshape(n_p, n_m, rz.size, rpm.size)
-    td_cap = max(caps) if args.time_domain else None
-    td_kw = {"seconds": args.td_seconds, "steps_per_tooth": args.td_steps}
-    sdm, td, n_eval, sdm_cpu, td_cpu = truth_oracle_limits(poses, rpm, args.jobs, td_cap, td_kw)
-    limits = {"ZOA": zoa, "SDM": sdm.reshape(zoa.shape)}
-    print(f"SDM limits: {poses.shape[0]} poses x {rpm.size} speeds, {n_eval} monodromy "
-          f"evaluations, {sdm_cpu:.0f} s CPU in the workers", end="")  # fmt: skip
-    if td is not None:
-        limits["TD"] = td.reshape(zoa.shape)
-        floor = np.mean(td <= TD_FACTORS[0] * 0.5 * np.minimum(sdm, td_cap) * (1 + 1e-9))
-        print(f"; time-domain limits {td_cpu:.0f} s CPU (chatter at {TD_FACTORS[0]:g} x the SDM "
-              f"at {floor:.1%} of the pairs: limit put at half that)", end="")  # fmt: skip
-    print(f" ({args.jobs} processes, {time.perf_counter() - t0:.0f} s wall)")
+    if args.load_limits:
+        limits, td = load_limits(args.load_limits, rpm, rz, mid, length)
+        print(f"limits loaded from {args.load_limits}: {', '.join(limits)}")
+    else:
+        robot = VirtualRobot.variant(None)
+        zoa = truth_limits(robot, poses, rpm, tool, cond, coef).reshape(n_p, n_m, rz.size,
+                                                                         rpm.size)  # fmt: skip
+        td_cap = max(caps) if args.time_domain else None
+        td_kw = {"seconds": args.td_seconds, "steps_per_tooth": args.td_steps}
+        sdm, td, n_eval, sdm_cpu, td_cpu = truth_oracle_limits(poses, rpm, args.jobs, td_cap,
+                                                               td_kw)  # fmt: skip
+        limits = {"ZOA": zoa, "SDM": sdm.reshape(zoa.shape)}
+        print(f"SDM limits: {poses.shape[0]} poses x {rpm.size} speeds, {n_eval} monodromy "
+              f"evaluations, {sdm_cpu:.0f} s CPU in the workers", end="")  # fmt: skip
+        if td is not None:
+            limits["TD"] = td.reshape(zoa.shape)
+            floor = np.mean(td <= TD_FACTORS[0] * 0.5 * np.minimum(sdm, td_cap) * (1 + 1e-9))
+            print(f"; time-domain limits {td_cpu:.0f} s CPU (chatter at {TD_FACTORS[0]:g} x the "
+                  f"SDM at {floor:.1%} of the pairs: limit put at half that)", end="")  # fmt: skip
+        print(f" ({args.jobs} processes, {time.perf_counter() - t0:.0f} s wall)")
     if args.save_limits:
         np.savez_compressed(args.save_limits, rpm=rpm, rz_deg=rz, midpoints_mm=mid,
                             length_mm=length,
