@@ -43,7 +43,8 @@ its paths >= 1.3): its dominant modes favour Rz ~ 70-80 deg (a narrow peak of th
 so a fixed Rz must compromise and the plan reorients. Paths across the whole workspace
 (``--region workspace``) give the same picture. The ZOA differs from the time-domain truth by
 -25 to +30 % pointwise (``--check-time-domain 6``), so these are the bound of the zero-order
-physics, not of every detail of the simulation.
+physics, not of every detail of the simulation (``study_plan_bound_sdm.py``: the same oracle
+from the truth's multi-mode SDM limits and from its time-domain simulation).
 """
 
 from __future__ import annotations
