@@ -371,6 +371,19 @@ def main(argv=None) -> None:
         default="0.9,1.1",
         help="LO,HI of the common factor with --local-factor (e.g. the cutting coefficients)",
     )
+    ap.add_argument(
+        "--replan-factor",
+        choices=("split", "common"),
+        default="split",
+        help="the re-plan's posterior: the factor split into a learnt common part "
+        "(--common-factor) and a local part drawn afresh at every point (--local-factor, default "
+        "0.55,1.3), as `mill plan --cuts`; or one common factor over the structures' whole range",
+    )
+    ap.add_argument(
+        "--split-prior-check",
+        action="store_true",
+        help="also simulate the plans made from the split prior with no cuts",
+    )
     args = ap.parse_args(argv)
 
     from robovib.milling import CuttingConditions
@@ -729,7 +742,24 @@ def main(argv=None) -> None:
     if args.brier_only:
         print(f"\ntotal {time.perf_counter() - t_start:.0f} s")
         return
-    plans1 = plan_all(upd.structures.with_sdm_correction(False))  # the plan: zero-order
+    if args.replan_factor == "split":
+        # the re-plan as `mill plan --cuts` makes it: the factor split into a common part
+        # (learnt) and a local one drawn afresh at every point (update_with_cuts(local_factor=))
+        loc = tuple(float(v) for v in (args.local_factor or "0.55,1.3").split(","))
+        common = tuple(float(v) for v in args.common_factor.split(","))
+        upd_plan = update_with_cuts(fprior, cuts, tool, cond, coef, label_noise=args.label_noise,
+                                    local_factor=loc, common_factor=common)  # fmt: skip
+        print(f"\nre-plan posterior: common factor {common} x local factor {loc}; P(stable) of "
+              "the test cuts before -> after: " + ", ".join(
+                  f"{a:.2f} -> {b:.2f}" for a, b in zip(upd_plan.p_stable_prior,
+                                                         upd_plan.p_stable_posterior,
+                                                         strict=True)))  # fmt: skip
+        if args.split_prior_check:  # the split itself, no cuts: is its prior as safe?
+            split_prior = fprior.on_factor_grid(32, process_factor=common, local_factor=loc)
+            check(plan_all(split_prior.with_sdm_correction(False)), "from the split prior, no cuts")
+    else:  # the common factor over the whole process-factor range
+        upd_plan = upd
+    plans1 = plan_all(upd_plan.structures.with_sdm_correction(False))  # the plan: zero-order
     _, det_plan1 = check(plans1, "after test cuts (re-planned)")
 
     # detection accuracy on every simulated record
