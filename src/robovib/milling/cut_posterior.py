@@ -24,6 +24,17 @@ reported as the effective sample size ``1 / sum w'^2``
 Kullback-Leibler divergence of the posterior from the prior weights, nats) and the shift of
 the median limit at the cuts' own poses and speeds.
 
+**The factor split** (``local_factor=``, what ``mill plan --cuts`` uses): the structures'
+0.5-1.5 factor is replaced by a common factor (+-10 %, the cutting coefficients: learnt by a
+cut anywhere) times a local factor (0.55-1.3, the time-domain / linear limit ratio, which
+depends on where the pose and speed sit in their lobes) drawn afresh at every cut and forecast
+point. A row's likelihood is then smooth, ``P(chatter | r) = eps + (1 - 2 eps) F(log(d_i /
+a_ri))`` (:mod:`robovib.milling.factor_grid`), and one cut moves the forecast elsewhere only
+through the common factor and the structures' fields: a cut near the limit that the detection
+labels wrongly (the forecast rule picks cuts there) can no longer carry the whole workspace
+deeper. (On the virtual robot, fresh seed 11 of ``benchmarks/study_plan.py``: one such cut took
+the re-plan with one common factor over 0.5-1.5 from 96.7 to 88.3 % stable segments.)
+
 **The most informative cuts** (:func:`choose_test_cuts`): among candidate poses and speeds (e.g.
 the segments of a plan), each at the depth where P(stable) is nearest 0.5 (a cut whose outcome
 is least predictable), cuts are chosen greedily to maximise the entropy of the
