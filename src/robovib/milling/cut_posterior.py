@@ -301,10 +301,10 @@ def update_with_cuts(
         def median(weights):
             return weighted_quantile(lim, weights, 0.5)
     else:
-        from .factor_grid import local_p_stable, local_quantile
+        from .factor_grid import local_p_stable, local_quantile, row_p_stable
 
         # P(chatter | row) = eps + (1 - 2 eps) P(local factor x limit <= depth)
-        p_chat = label_noise + (1 - 2 * label_noise) * (1.0 - _row_p_stable(lim, depth, loc))
+        p_chat = label_noise + (1 - 2 * label_noise) * (1.0 - row_p_stable(lim, depth, loc))
         loglik = np.log(np.where(chatter[None, :], p_chat, 1 - p_chat)).sum(axis=1)
 
         def prob(weights):
@@ -332,16 +332,6 @@ def update_with_cuts(
         post, w0, prob(w0), prob(post.weights), median(w0), median(post.weights),
         float(label_noise), chatter, settings,
     )  # fmt: skip
-
-
-def _row_p_stable(limits_m, depth_m, local_factor) -> np.ndarray:
-    """(R, n) P(stable) of each row at its cut: ``1 - F(log(d / a))`` (local factor)."""
-    from .factor_grid import _local_cdf
-
-    lim = np.asarray(limits_m, float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(np.isinf(lim), 0.0, np.asarray(depth_m, float)[None] / lim)
-    return 1.0 - _local_cdf(ratio, local_factor)
 
 
 def choose_test_cuts(

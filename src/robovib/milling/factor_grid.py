@@ -51,6 +51,7 @@ __all__ = [
     "factor_grid_posterior",
     "local_p_stable",
     "local_quantile",
+    "row_p_stable",
     "unscaled_limits",
 ]
 
@@ -229,18 +230,38 @@ def local_p_stable(limits_m, weights, depth_m, local_factor) -> np.ndarray:
     numpy.ndarray
         P(stable), the shape of ``limits_m[0]`` broadcast with ``depth_m``.
     """
-    loc = _checked_local(local_factor)
-    lim = np.asarray(limits_m, float)
     w = np.asarray(weights, float)
+    lim = np.asarray(limits_m, float)
     if lim.ndim < 1 or lim.shape[0] != w.size:
         raise ValueError(f"limits_m must have {w.size} rows first, got {lim.shape}")
+    return np.tensordot(w, row_p_stable(lim, depth_m, local_factor), axes=(0, 0))
+
+
+def row_p_stable(limits_m, depth_m, local_factor) -> np.ndarray:
+    """Each row's P(stable) with the local factor, ``1 - F(log(d / a_r))`` (module docs).
+
+    Parameters
+    ----------
+    limits_m : array_like
+        (R, ...) the rows' limits [m] (inf: no lobe).
+    depth_m : array_like
+        Depths [m], broadcast against ``limits_m[0]``.
+    local_factor : (low, high)
+        Range of the log-uniform local factor.
+
+    Returns
+    -------
+    numpy.ndarray
+        (R, ...) probabilities.
+    """
+    loc = _checked_local(local_factor)
+    lim = np.asarray(limits_m, float)
     d = np.asarray(depth_m, float)
     if np.any(np.isnan(d)) or np.any(np.isnan(lim)):
         raise ValueError("limits and depths must not contain NaN")
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(np.isinf(lim), 0.0, d[None] / np.where(np.isinf(lim), 1.0, lim))
-    stable = 1.0 - _local_cdf(ratio, loc)
-    return np.tensordot(w, stable, axes=(0, 0))
+    return 1.0 - _local_cdf(ratio, loc)
 
 
 def local_quantile(limits_m, weights, q: float, local_factor, *, chunk: int = 256) -> np.ndarray:
@@ -288,10 +309,13 @@ def local_quantile(limits_m, weights, q: float, local_factor, *, chunk: int = 25
     shape = lim.shape[1:]
     flat = lim.reshape(w.size, -1)
     out = np.empty(flat.shape[1])
-    if hi == lo:
-        from .cut_posterior import weighted_quantile
-
-        return weighted_quantile(lim * lo, w, q)
+    if hi == lo:  # one value: the weighted (lower) quantile of lo a_r
+        order = np.argsort(flat, axis=0)
+        cw = np.cumsum(w[order], axis=0)
+        idx = np.argmax(cw > q + 1e-12, axis=0)
+        return (lo * np.take_along_axis(flat, order, axis=0)[idx, np.arange(idx.size)]).reshape(
+            shape
+        )
     width = np.log(hi) - np.log(lo)
     # a row without a lobe: its knots far beyond any depth (its weight stays "stable")
     big = 1e6

@@ -104,6 +104,9 @@ class StructureSamples:
     sdm_correction
         Whether the zero-order limits are scaled by the point prediction's SDM / zero-order
         ratio (:meth:`with_sdm_correction`).
+    local_factor
+        None, or the (low, high) range of a log-uniform local factor drawn afresh at every cut
+        and point on top of the rows' common factor (:meth:`on_factor_grid`).
     """
 
     model: object = field(repr=False, compare=False)
