@@ -36,6 +36,19 @@ point grid (``robovib.milling.factor_grid``: the same structures and test cuts, 
 structure x factor; better than the per-structure draws on seeds 7, 8, 9 at ``--configs 22``);
 ``--spread-cuts`` adds 5 test cuts chosen at most one per (x, y).
 
+**The re-plan after the test cuts** (``--replan-factor split``, default; as ``mill plan
+--cuts``): the labels update a posterior over the structures x a common factor (+-10 %,
+``--common-factor``: the cutting coefficients, learnt by a cut anywhere) and the plan
+integrates a local factor drawn afresh at every segment (``--local-factor``, default 0.55-1.3:
+the time-domain / linear limit range of ``robovib.milling.time_domain``), so one test cut
+mislabelled near the limit moves the rest of the workspace by at most the common factor.
+``--replan-factor common`` re-plans as before (one common factor over the structures' whole
+0.5-1.5 range: on seed 11 a chattering cut detected stable took the re-plan to 88 %);
+``--replan-compare`` also simulates that re-plan, ``--split-prior-check`` the split's plan
+with no cuts::
+
+    nice python benchmarks/study_plan.py --seed 11 --configs 8 --replan-compare
+
 The test cuts are chosen by ``--cut-rule forecast`` (default; ``choose_forecast_cuts``: the
 least expected Brier score at the plans' other candidates, at most one per segment) or
 ``entropy`` (``choose_test_cuts``: the most entropy of their own joint outcome); the library's
@@ -371,6 +384,25 @@ def main(argv=None) -> None:
         default="0.9,1.1",
         help="LO,HI of the common factor with --local-factor (e.g. the cutting coefficients)",
     )
+    ap.add_argument(
+        "--replan-factor",
+        choices=("split", "common"),
+        default="split",
+        help="the re-plan's posterior: the factor split into a learnt common part "
+        "(--common-factor) and a local part drawn afresh at every point (--local-factor, default "
+        "0.55,1.3), as `mill plan --cuts`; or one common factor over the structures' whole range",
+    )
+    ap.add_argument(
+        "--split-prior-check",
+        action="store_true",
+        help="also simulate the plans made from the split prior with no cuts",
+    )
+    ap.add_argument(
+        "--replan-compare",
+        action="store_true",
+        help="also simulate the re-plan from one common factor over the whole range (the earlier "
+        "re-plan; not counted in the detection table)",
+    )
     args = ap.parse_args(argv)
 
     from robovib.milling import CuttingConditions
@@ -433,16 +465,18 @@ def main(argv=None) -> None:
         print(f"\n## plan {label}: {len(stable)} segments over {len(plans)} paths")
         print(f"depth rule {args.depth_rule}; the MRR ratio against the best fixed Rz+speed "
               "under the same rule; the last ratio against one fixed Rz, speed and depth")  # fmt: skip
-        print("| path | segments | stable in simulation | MRR / best fixed Rz+speed | MRR / fixed Rz+speed+depth | plan time [s] |")  # fmt: skip
-        print("|---|---|---|---|---|---|")
+        print("| path | segments | stable in simulation | mean MRR [mm³/s] | mean P(stable) claimed | MRR / best fixed Rz+speed | MRR / fixed Rz+speed+depth | plan time [s] |")  # fmt: skip
+        print("|---|---|---|---|---|---|---|---|")
         n = args.segments
+        mrr = [p.mean_mrr_m3_per_s * 1e9 for p in plans]
+        claim = [float(np.mean(p.p_stable)) for p in plans]
         for k in range(len(plans)):
             s = stable[k * n : (k + 1) * n]
-            print(
-                f"| {k} | {n} | {np.mean(s):.0%} | {gains[k]:.2f} | {gains1[k]:.2f} | {secs[k]:.1f} |"
-            )
-        print(f"| all | {len(stable)} | {np.mean(stable):.1%} | {np.mean(gains):.2f} | "
-              f"{np.mean(gains1):.2f} | {np.mean(secs):.1f} |")  # fmt: skip
+            print(f"| {k} | {n} | {np.mean(s):.0%} | {mrr[k]:.1f} | {claim[k]:.3f} | "
+                  f"{gains[k]:.2f} | {gains1[k]:.2f} | {secs[k]:.1f} |")  # fmt: skip
+        print(f"| all | {len(stable)} | {np.mean(stable):.1%} | {np.mean(mrr):.1f} | "
+              f"{np.mean(claim):.3f} | {np.mean(gains):.2f} | {np.mean(gains1):.2f} | "
+              f"{np.mean(secs):.1f} |")  # fmt: skip
         return np.array(stable), det_rows
 
     plans = plan_all(prior)
@@ -729,7 +763,27 @@ def main(argv=None) -> None:
     if args.brier_only:
         print(f"\ntotal {time.perf_counter() - t_start:.0f} s")
         return
-    plans1 = plan_all(upd.structures.with_sdm_correction(False))  # the plan: zero-order
+    if args.replan_factor == "split":
+        # the re-plan as `mill plan --cuts` makes it: the factor split into a common part
+        # (learnt) and a local one drawn afresh at every point (update_with_cuts(local_factor=))
+        loc = tuple(float(v) for v in (args.local_factor or "0.55,1.3").split(","))
+        common = tuple(float(v) for v in args.common_factor.split(","))
+        upd_plan = update_with_cuts(fprior, cuts, tool, cond, coef, label_noise=args.label_noise,
+                                    local_factor=loc, common_factor=common)  # fmt: skip
+        print(f"\nre-plan posterior: common factor {common} x local factor {loc}; P(stable) of "
+              "the test cuts before -> after: " + ", ".join(
+                  f"{a:.2f} -> {b:.2f}" for a, b in zip(upd_plan.p_stable_prior,
+                                                         upd_plan.p_stable_posterior,
+                                                         strict=True)))  # fmt: skip
+        if args.replan_compare:  # the earlier re-plan: one common factor over 0.5-1.5
+            check(plan_all(upd.structures.with_sdm_correction(False)),
+                  "after test cuts, one common factor over the whole range (earlier re-plan)")  # fmt: skip
+        if args.split_prior_check:  # the split itself, no cuts: is its prior as safe?
+            split_prior = fprior.on_factor_grid(32, process_factor=common, local_factor=loc)
+            check(plan_all(split_prior.with_sdm_correction(False)), "from the split prior, no cuts")
+    else:  # the common factor over the whole process-factor range
+        upd_plan = upd
+    plans1 = plan_all(upd_plan.structures.with_sdm_correction(False))  # the plan: zero-order
     _, det_plan1 = check(plans1, "after test cuts (re-planned)")
 
     # detection accuracy on every simulated record

@@ -85,6 +85,19 @@ def plan(
     label_noise: Annotated[
         float, typer.Option(help="Probability that a test cut's label is wrong.")
     ] = 0.05,
+    local_factor: Annotated[
+        str,
+        typer.Option(
+            help="With --cuts: LO,HI of the local factor on the limit, drawn afresh at every cut "
+            "and segment (the time-domain / linear limit ratio), the cuts learning only a common "
+            "factor (--common-factor); 'none': one common factor over the structures' whole "
+            "range (the earlier behaviour)."
+        ),
+    ] = "0.55,1.3",
+    common_factor: Annotated[
+        str,
+        typer.Option(help="With --cuts: LO,HI of the common factor the cuts learn."),
+    ] = "0.9,1.1",
     suggest_cuts: Annotated[
         Path | None,
         typer.Option(
@@ -141,8 +154,15 @@ def plan(
         from ..io.cuts import read_cuts_csv
         from ..milling.cut_posterior import update_with_cuts
 
+        split = (
+            None
+            if local_factor.strip().lower() == "none"
+            else _pair(local_factor, "--local-factor")
+        )
         update = update_with_cuts(structures, read_cuts_csv(cuts), tool, cond, coef,
-                                  feed_direction=feed, label_noise=label_noise)  # fmt: skip
+                                  feed_direction=feed, label_noise=label_noise,
+                                  local_factor=split,
+                                  common_factor=_pair(common_factor, "--common-factor"))  # fmt: skip
         structures = update.structures
     res = plan_path(
         structures, points, tool, cond, coef, n_segments=n_seg, feed_direction=feed,

@@ -49,6 +49,9 @@ __all__ = [
     "FactorGridPosterior",
     "factor_grid",
     "factor_grid_posterior",
+    "local_p_stable",
+    "local_quantile",
+    "row_p_stable",
     "unscaled_limits",
 ]
 
@@ -194,6 +197,148 @@ def _local_cdf(ratio, local_factor) -> np.ndarray:
     if hi == lo:
         return (t >= lo).astype(float)
     return np.clip((t - lo) / (hi - lo), 0.0, 1.0)
+
+
+def _checked_local(local_factor) -> tuple[float, float]:
+    lo, hi = (float(v) for v in local_factor)
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi):
+        raise ValueError(f"local_factor must be 0 < low <= high, got {local_factor}")
+    return lo, hi
+
+
+def local_p_stable(limits_m, weights, depth_m, local_factor) -> np.ndarray:
+    """P(stable) with a local factor drawn afresh at the point (module docs).
+
+    ``sum_r w_r (1 - F(log(d / a_r)))``: each weighted row ``r`` (a structure, or a
+    structure x common-factor pair) has the limit ``a_r`` before the local factor, and the
+    cut at depth ``d`` is stable when ``rho a_r > d`` with ``rho`` log-uniform on
+    ``local_factor`` (``F`` the CDF of ``log rho``).
+
+    Parameters
+    ----------
+    limits_m : array_like
+        (R, ...) the rows' limits [m] (inf: no lobe, stable at any depth).
+    weights : array_like
+        (R,) weights (normalised).
+    depth_m : array_like
+        Depths [m], broadcast against ``limits_m[0]``.
+    local_factor : (low, high)
+        Range of the log-uniform local factor.
+
+    Returns
+    -------
+    numpy.ndarray
+        P(stable), the shape of ``limits_m[0]`` broadcast with ``depth_m``.
+    """
+    w = np.asarray(weights, float)
+    lim = np.asarray(limits_m, float)
+    if lim.ndim < 1 or lim.shape[0] != w.size:
+        raise ValueError(f"limits_m must have {w.size} rows first, got {lim.shape}")
+    return np.tensordot(w, row_p_stable(lim, depth_m, local_factor), axes=(0, 0))
+
+
+def row_p_stable(limits_m, depth_m, local_factor) -> np.ndarray:
+    """Each row's P(stable) with the local factor, ``1 - F(log(d / a_r))`` (module docs).
+
+    Parameters
+    ----------
+    limits_m : array_like
+        (R, ...) the rows' limits [m] (inf: no lobe).
+    depth_m : array_like
+        Depths [m], broadcast against ``limits_m[0]``.
+    local_factor : (low, high)
+        Range of the log-uniform local factor.
+
+    Returns
+    -------
+    numpy.ndarray
+        (R, ...) probabilities.
+    """
+    loc = _checked_local(local_factor)
+    lim = np.asarray(limits_m, float)
+    d = np.asarray(depth_m, float)
+    if np.any(np.isnan(d)) or np.any(np.isnan(lim)):
+        raise ValueError("limits and depths must not contain NaN")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(np.isinf(lim), 0.0, d[None] / np.where(np.isinf(lim), 1.0, lim))
+    return 1.0 - _local_cdf(ratio, loc)
+
+
+def local_quantile(limits_m, weights, q: float, local_factor, *, chunk: int = 256) -> np.ndarray:
+    """Depth at which P(stable) with the local factor falls to ``1 - q`` (the inverse of
+    :func:`local_p_stable`).
+
+    With ``t = log d`` the probability of chatter ``H(t) = sum_r w_r F(t - log a_r)`` is
+    continuous and piecewise linear in ``t`` (``F`` rises linearly from ``log lo`` to
+    ``log hi``), with knots at ``log a_r + log lo`` (slope ``+ w_r / (log hi - log lo)``) and
+    ``log a_r + log hi`` (slope back down). The knots are sorted, ``H`` is accumulated over them
+    and the root of ``H(t) = q`` is interpolated exactly in its interval (one sort per point;
+    a ``lo == hi`` factor is the weighted quantile of ``lo a_r``).
+
+    Parameters
+    ----------
+    limits_m : array_like
+        (R, ...) the rows' limits [m] (inf: no lobe).
+    weights : array_like
+        (R,) weights (normalised, >= 0).
+    q : float
+        Probability of chatter in [0, 1).
+    local_factor : (low, high)
+        Range of the log-uniform local factor.
+    chunk : int
+        Points sorted at once (memory: ``2 R chunk`` values).
+
+    Returns
+    -------
+    numpy.ndarray
+        Depths [m], the shape of ``limits_m[0]`` (inf where the rows without a lobe weigh
+        more than ``1 - q``).
+    """
+    lo, hi = _checked_local(local_factor)
+    lim = np.asarray(limits_m, float)
+    w = np.asarray(weights, float)
+    if lim.ndim < 1 or lim.shape[0] != w.size:
+        raise ValueError(f"limits_m must have {w.size} rows first, got {lim.shape}")
+    if np.any(np.isnan(lim)) or np.any(lim <= 0):
+        raise ValueError("limits must be positive (inf: no lobe), without NaN")
+    if not 0 <= q < 1:
+        raise ValueError(f"q must be in [0, 1), got {q!r}")
+    if np.any(~np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weights must be finite, >= 0 and not all zero")
+    w = w / w.sum()
+    shape = lim.shape[1:]
+    flat = lim.reshape(w.size, -1)
+    out = np.empty(flat.shape[1])
+    if hi == lo:  # one value: the weighted (lower) quantile of lo a_r
+        order = np.argsort(flat, axis=0)
+        cw = np.cumsum(w[order], axis=0)
+        idx = np.argmax(cw > q + 1e-12, axis=0)
+        return (lo * np.take_along_axis(flat, order, axis=0)[idx, np.arange(idx.size)]).reshape(
+            shape
+        )
+    width = np.log(hi) - np.log(lo)
+    # a row without a lobe: its knots far beyond any depth (its weight stays "stable")
+    big = 1e6
+    keep = w > 0
+    w, flat = w[keep], flat[keep]
+    inc = np.concatenate([w, -w]) / width
+    for c0 in range(0, flat.shape[1], max(int(chunk), 1)):
+        u = np.log(np.minimum(flat[:, c0 : c0 + chunk], big))  # (R, c)
+        knots = np.concatenate([u + np.log(lo), u + np.log(hi)])  # (2R, c)
+        order = np.argsort(knots, axis=0, kind="stable")
+        k = np.take_along_axis(knots, order, axis=0)
+        slope = np.cumsum(inc[order], axis=0)  # H's slope right of each knot
+        h = np.concatenate([np.zeros((1, k.shape[1])),
+                            np.cumsum(slope[:-1] * np.diff(k, axis=0), axis=0)])  # fmt: skip
+        j = np.argmax(h > q, axis=0)  # first knot past the root (h[-1] = 1 > q)
+        j = np.where(h[j, np.arange(j.size)] > q, j, k.shape[0] - 1)
+        a = np.arange(j.size)
+        s = np.maximum(slope[j - 1, a], 1e-300)
+        t = k[j - 1, a] + (q - h[j - 1, a]) / s
+        t = np.minimum(t, k[j, a])
+        d = np.exp(t)
+        out[c0 : c0 + chunk] = np.where(d >= big * lo * (1 - 1e-9), np.inf, d)
+    return out.reshape(shape)
 
 
 def _checked_limits(limits_m, n_structures: int) -> np.ndarray:

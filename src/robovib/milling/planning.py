@@ -12,6 +12,13 @@ stability limit, so
   the limits (:func:`robovib.milling.cut_posterior.weighted_quantile`);
 * P(stable) at the depth asked is the weighted fraction of limits above it.
 
+With the process factor split (structures updated by test cuts with a local factor,
+:meth:`~robovib.milling.structures.StructureSamples.on_factor_grid`), each weighted row's limit
+is further multiplied by a local factor drawn afresh at every point, so a row's P(stable) is
+smooth, ``1 - F_local(log(d / a_r))``: P(stable) is
+:func:`~robovib.milling.factor_grid.local_p_stable` and the depth allowed its exact inverse,
+:func:`~robovib.milling.factor_grid.local_quantile` (a 1-D root per segment, Rz and speed).
+
 The value of a plan is its mean material removal rate over the path, the volume removed over
 the machining time: ``a_e f_z N / 60 * sum(d_i L_i) / sum(L_i / n_i)`` (depth ``d_i``, length
 ``L_i`` and speed ``n_i`` [rpm] of segment ``i``; ``MRR = a_e a_p f_z N n``). The depth rule
@@ -394,15 +401,25 @@ def plan_path(
                             depth_cap_m=max_depth_m)  # fmt: skip
     lim = lim.reshape(structures.n_samples, m, r, j)
     w = structures.weights
+    loc = structures.local_factor
+    if loc is None:
+        quantile, prob = weighted_quantile, p_stable
+    else:  # a local factor drawn afresh at every point: smooth P(stable) per row
+        from .factor_grid import local_p_stable, local_quantile
+
+        def quantile(lim_, w_, q_):
+            return local_quantile(lim_, w_, q_, loc)
+
+        def prob(lim_, w_, d_):
+            return local_p_stable(lim_, w_, d_, loc)
+
     # the tool's usable flute length caps the depth (a structure without a lobe in reach is
     # stable at any depth: inf)
     # just below the quantile: a cut there is stable for a weight of at least p_required
-    allowed = np.minimum(
-        weighted_quantile(lim, w, 1.0 - p_required) * (1 - 1e-9), max_depth_m
-    )  # (m, r, j)
+    allowed = np.minimum(quantile(lim, w, 1.0 - p_required) * (1 - 1e-9), max_depth_m)  # (m, r, j)
     feed_speed = conditions.feed_per_tooth_m * tool.n_flutes * rpm / 60.0  # (j,) m/s
     ae = conditions.radial_depth_m
-    p_at = None if depth_m is None else p_stable(lim, w, depth_m)  # (m, r, j)
+    p_at = None if depth_m is None else prob(lim, w, depth_m)  # (m, r, j)
     choice = choose_configurations(allowed, rz, rpm, length,
                                    max_rz_rate_deg_per_mm=max_rz_rate_deg_per_mm,
                                    depth_rule=depth_rule, depth_m=depth_m,
@@ -410,7 +427,7 @@ def plan_path(
     seg = np.arange(m)
     path_r, jj, plan_depth = choice.rz_index, choice.speed_index, choice.depth_m
     plan_allowed = allowed[seg, path_r, jj]
-    p_plan = p_stable(lim[:, seg, path_r, jj], w, plan_depth)
+    p_plan = prob(lim[:, seg, path_r, jj], w, plan_depth)
     feasible = (
         (plan_depth > 0) & (plan_depth <= plan_allowed)
         if p_at is None
@@ -440,7 +457,8 @@ def plan_path(
         "radial_depth_m": float(ae),
         "feed_per_tooth_m": float(conditions.feed_per_tooth_m),
         "n_flutes": int(tool.n_flutes),
-        "method": "zero-order (batched) over sampled structures",
+        "method": "zero-order (batched) over sampled structures"
+        + ("" if loc is None else f", local factor log-uniform on {list(loc)} at every point"),
         "points_per_decade": float(points_per_decade),
         "structures": dict(structures.settings),
         "effective_sample_size": structures.effective_sample_size,

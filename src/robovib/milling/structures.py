@@ -104,6 +104,9 @@ class StructureSamples:
     sdm_correction
         Whether the zero-order limits are scaled by the point prediction's SDM / zero-order
         ratio (:meth:`with_sdm_correction`).
+    local_factor
+        None, or the (low, high) range of a log-uniform local factor drawn afresh at every cut
+        and point on top of the rows' common factor (:meth:`on_factor_grid`).
     """
 
     model: object = field(repr=False, compare=False)
@@ -122,6 +125,9 @@ class StructureSamples:
     #: scale every structure's zero-order limit by the SDM / zero-order ratio of the model's
     #: point-prediction structure at the same pose and speed (:meth:`with_sdm_correction`)
     sdm_correction: bool = False
+    #: (low, high) of a log-uniform local factor drawn afresh at every cut and point on top of
+    #: the rows' (common) factor (:meth:`on_factor_grid` with ``local_factor``), else None
+    local_factor: tuple[float, float] | None = None
 
     @property
     def n_samples(self) -> int:
@@ -133,7 +139,13 @@ class StructureSamples:
         """Structures drawn (fields), whatever their process factors."""
         return int(self.amplitudes.shape[0])
 
-    def on_factor_grid(self, n_factors: int = 32) -> StructureSamples:
+    def on_factor_grid(
+        self,
+        n_factors: int = 32,
+        *,
+        process_factor: tuple[float, float] | None = None,
+        local_factor: tuple[float, float] | None = None,
+    ) -> StructureSamples:
         """The structures with the process factor on a stratified grid (Rao-Blackwellised).
 
         Every structure ``s`` with weight ``w_s`` becomes ``K`` rows ``(s, k)`` with the factor
@@ -143,10 +155,23 @@ class StructureSamples:
         instead of one drawn factor per structure. Rows are structure-major (``s K + k``);
         the modes and linear limits are still computed once per structure.
 
+        **The factor split** (``local_factor``): the structures' own factor is replaced by
+        a common factor on ``process_factor`` (learnt by test cuts anywhere: e.g. the cutting
+        coefficients, +-10 %) times a local factor log-uniform on ``local_factor``, drawn
+        afresh at every cut and forecast point (where the pose and speed sit in their lobes:
+        the time-domain / linear limit ratio, :mod:`robovib.milling.factor_grid`). The rows
+        then carry the common factor; P(stable) and the depth allowed integrate the local one
+        (:func:`~robovib.milling.factor_grid.local_p_stable`,
+        :func:`~robovib.milling.factor_grid.local_quantile`).
+
         Parameters
         ----------
         n_factors : int
             Grid points ``K >= 1``.
+        process_factor : (low, high), optional
+            Range of the gridded (common) factor; default the structures' own range.
+        local_factor : (low, high), optional
+            Range of the local factor (``local_factor`` attribute); None: none.
 
         Returns
         -------
@@ -162,11 +187,19 @@ class StructureSamples:
 
         if self.factor_grid is not None:
             raise ValueError("the structures are already on a process-factor grid")
-        lo, hi = self.settings.get(
-            "process_factor_range",
-            [float(self.process_factor.min()), float(self.process_factor.max())],
-        )
+        if process_factor is None:
+            lo, hi = self.settings.get(
+                "process_factor_range",
+                [float(self.process_factor.min()), float(self.process_factor.max())],
+            )
+        else:
+            lo, hi = (float(v) for v in process_factor)
         q = factor_grid((lo, hi), n_factors)
+        if local_factor is not None:
+            loc = tuple(float(v) for v in local_factor)
+            if len(loc) != 2 or not (np.all(np.isfinite(loc)) and 0 < loc[0] <= loc[1]):
+                raise ValueError(f"local_factor must be 0 < low <= high, got {local_factor}")
+            local_factor = loc
         n = self.n_structures
         w = np.repeat(self.weights, q.size) / q.size
         settings = dict(
@@ -174,8 +207,11 @@ class StructureSamples:
             n_factors=int(q.size),
             factor_grid="stratified quantiles of the log-uniform (bin medians)",
         )
+        if process_factor is not None or local_factor is not None:
+            settings["process_factor_range"] = [lo, hi]
+            settings["local_factor_range"] = None if local_factor is None else list(local_factor)
         return replace(self, weights=w / w.sum(), process_factor=np.tile(q, n),
-                       settings=settings, factor_grid=q)  # fmt: skip
+                       settings=settings, factor_grid=q, local_factor=local_factor)  # fmt: skip
 
     @property
     def structure_weights(self) -> np.ndarray:
@@ -333,7 +369,8 @@ class StructureSamples:
         points_per_decade : float
             Density of the chatter-frequency grid (:func:`zoa_limits`).
         depth_cap_m : float
-            Limits above this (after the process factor) may be reported as inf.
+            Limits above this (after the process factor, and with a local factor after its
+            lowest value) may be reported as inf.
 
         Returns
         -------
@@ -341,6 +378,8 @@ class StructureSamples:
             Critical axial depths [m] (inf where no lobe reaches the speed).
         """
         cap = depth_cap_m / float(self.process_factor.min())
+        if self.local_factor is not None:  # a row above the cap may still chatter below it
+            cap = cap / self.local_factor[0]
         lim = self._linear_limits(poses, spindle_rpm, tool, conditions, coefficients,
                                   feed_direction, points_per_decade, cap)  # fmt: skip
         if self.factor_grid is not None:  # rows (s, k): structure-major
