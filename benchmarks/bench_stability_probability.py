@@ -39,6 +39,22 @@ monodromy evaluation.
 Options ``--margin-speeds N`` times ``--time-domain-margin`` on N of the speeds (issue 37
 item 2) and scales it to the chart.
 
+Measured 2026-11-27, 12th session (one core, 2-core machine at load 2-7, CPU s), the
+quantile-targeted route on the compiled kernel (``exact=False``) against the reference:
+
+* 2-DOF, ``--no-warm``: reference 133.3; compiled 5.53 (24.1x); fast 5.24 (25.5x), fast-zoa
+  6.99 (19.1x), both with the compiled route's quantile errors 4.0e-4 / 4.4e-4 / 4.9e-4.
+  Profile of fast: the 10-step estimate 2.13 s (every pair, 6.7 evaluations of 16 us), the
+  exact solves 3.00 s (57 % of the pairs, 7.1 evaluations of 37 us; the compiled route: 7.2
+  of 38 us). fast-zoa: the zero-order estimate errs by 17 % at its 95th percentile, so 99 %
+  of the pairs are solved. Floor with a perfect, free estimate: 42 % of the pairs at a 1 %
+  band, >= 2.3 s -- the 1-s target is out of this route's reach.
+* 5 modes, ``--five-mode --no-warm --no-reference`` (errors against the compiled route):
+  compiled 27.0; fast 22.3 (1.21x), 0 / 7.5e-4 / 0; fast-zoa 29.7 (100 % solved). Fresh seed
+  ``--seed 1``: compiled 28.0, fast 25.4 (1.10x), 0 / 0 / 0. Profile (seed 0): estimate 11.7
+  s (7.0 evaluations of 83 us), solves 10.1 s (36 % of the pairs, 7.8 evaluations of 179
+  us). Floor: 23 % of the pairs, >= 6.3 s against the 3-s target.
+
 Measured 2026-11-27, 11th session (one core, 2-core machine at load 4-6, CPU s), every line is
 "route: CPU s, ratio to the reference, worst 5/50/95 % quantile error against it":
 
