@@ -53,7 +53,9 @@ quantile-targeted route on the compiled kernel (``exact=False``) against the ref
   compiled 27.0; fast 22.3 (1.21x), 0 / 7.5e-4 / 0; fast-zoa 29.7 (100 % solved). Fresh seed
   ``--seed 1``: compiled 28.0, fast 25.4 (1.10x), 0 / 0 / 0. Profile (seed 0): estimate 11.7
   s (7.0 evaluations of 83 us), solves 10.1 s (36 % of the pairs, 7.8 evaluations of 179
-  us). Floor: 23 % of the pairs, >= 6.3 s against the 3-s target.
+  us). Floor: 23 % of the pairs, >= 6.3 s against the 3-s target. Against the reference,
+  ``--five-mode --speeds 100 --samples 30 --no-warm``: reference 148.4; compiled 4.12
+  (36.1x); fast 3.49 (42.5x), fast-zoa 4.40 (33.7x), all three 4.9e-4 / 4.9e-4 / 1.2e-3.
 
 Measured 2026-11-27, 11th session (one core, 2-core machine at load 4-6, CPU s), every line is
 "route: CPU s, ratio to the reference, worst 5/50/95 % quantile error against it":
