@@ -801,6 +801,7 @@ def sdm_limits(
     first_stride: int = 8,
     warm_start: bool = True,
     steps=None,
+    solve=None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Critical depths of many structures at every speed by the compiled semi-discretization.
 
@@ -831,6 +832,9 @@ def sdm_limits(
         Steps across the cutting arc at every speed for every structure, instead of each
         structure's own count (``steps_per_period``, ``steps_per_vibration``, ``max_steps``);
         0 at a speed: the structure's own count there.
+    solve : array_like (n_structures, n_speeds) of bool, optional
+        Only these (structure, speed) pairs are solved (needs ``start_m``: each pair's scan
+        starts there); the others are returned as NaN with 0 evaluations. Default: all.
 
     Returns
     -------
@@ -852,6 +856,11 @@ def sdm_limits(
     if n_s == 0:
         raise ValueError("no structures given")
     starts = None
+    mask = None
+    if solve is not None:
+        if start_m is None:
+            raise ValueError("solve (a subset of the pairs) needs start_m")
+        mask = np.broadcast_to(np.asarray(solve, bool), (n_s, n_j))
     if start_m is not None:
         starts = np.broadcast_to(np.asarray(start_m, float), (n_s, n_j))
     elif not warm_start:
@@ -879,8 +888,10 @@ def sdm_limits(
         info.append((np.array([md.omega_n for md in modes]),
                      np.array([md.damping_ratio for md in modes]), sel, mass))  # fmt: skip
         for m in np.unique(own):
-            groups.setdefault((len(mx), len(my), int(m)), []).append((s, np.flatnonzero(own == m)))
-    a_out = np.full((n_s, n_j), np.inf)
+            here = own == m if mask is None else (own == m) & mask[s]
+            if here.any():
+                groups.setdefault((len(mx), len(my), int(m)), []).append((s, np.flatnonzero(here)))
+    a_out = np.full((n_s, n_j), np.inf if mask is None else np.nan)
     mu_out = np.full((n_s, n_j), np.nan + 0j)
     n_eval = np.zeros((n_s, n_j), int)
     for (nx, _, m), members in groups.items():
