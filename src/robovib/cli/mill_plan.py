@@ -234,7 +234,7 @@ def _suggest(res, structures, n, path, inputs) -> list[dict]:
     from ..milling.cut_posterior import choose_test_cuts
 
     poses, rpm, lim = res.test_cut_candidates()
-    idx, depth = choose_test_cuts(lim, structures.weights, n)
+    idx, depth = choose_test_cuts(lim, structures.weights, n, local_factor=structures.local_factor)
     rows = [
         {"x_mm": float(poses[i, 0]), "y_mm": float(poses[i, 1]), "rz_deg": float(poses[i, 2]),
          "spindle_rpm": float(rpm[i]), "depth_mm": float(d * 1e3), "result": ""}
