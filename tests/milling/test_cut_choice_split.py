@@ -143,3 +143,27 @@ def test_choose_forecast_cuts_with_a_local_factor_against_enumeration_and_monte_
     # without the local factor the hard step gives another score (the option is used)
     _, _, hard = choose_forecast_cuts(lim, w, ev, ed, 1, label_noise=eps, depth_quantiles=qs)
     assert abs(hard[0] - scores[0]) > 1e-2
+
+
+def test_choose_test_cuts_depth_without_a_local_factor_against_loops_and_at_plan_size():
+    """The hard step's depth (the structure limit whose weight at or below is nearest one half,
+    ties shared) against plain loops; and at the size of ``mill plan --cuts --suggest-cuts``
+    (48 structures x 32 factors = 1536 rows, 2400 candidates), which once needed
+    S^2 C = 42 GiB."""
+    rng = np.random.default_rng(7)
+    lim = rng.choice([1e-3, 2e-3, 3e-3, 5e-3, np.inf], (15, 6))
+    w = rng.uniform(size=15)
+    w /= w.sum()
+    idx, depth = choose_test_cuts(lim, w, 3)
+    for c, d in zip(idx, depth, strict=True):
+        best, best_gap = None, np.inf
+        for s in range(lim.shape[0]):  # first structure (in order) of the least gap
+            if not np.isfinite(lim[s, c]):
+                continue
+            gap = abs(sum(w[t] for t in range(15) if lim[t, c] <= lim[s, c]) - 0.5)
+            if gap < best_gap - 1e-12:
+                best, best_gap = lim[s, c], gap
+        assert d == best
+    big = np.exp(rng.normal(np.log(4e-3), 0.3, (1536, 2400)))
+    idx, depth = choose_test_cuts(big, np.full(1536, 1 / 1536), 2)
+    assert idx.shape == (2,) and np.all(np.isfinite(depth))

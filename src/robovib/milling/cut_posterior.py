@@ -389,7 +389,7 @@ def choose_test_cuts(
         return _choose_test_cuts_local(lim, w, n, groups, local_factor)
     # each candidate's depth: the structure limit at which the weight predicting chatter
     # (depth >= limit) is nearest one half
-    p_chat = np.einsum("s,sdc->dc", w, (lim[:, None, :] <= lim[None, :, :]).astype(float))
+    p_chat = _weight_at_or_below(lim, w)
     k = np.argmin(np.where(np.isfinite(lim), np.abs(p_chat - 0.5), np.inf), axis=0)
     depth = lim[k, np.arange(lim.shape[1])]
     # a candidate without a finite limit (no lobe: stable at any depth) tells nothing
@@ -413,6 +413,21 @@ def choose_test_cuts(
         code = code * 2 + outcome[:, best].astype(int)
     idx = np.array(chosen)
     return idx, depth[idx]
+
+
+def _weight_at_or_below(lim: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(S, C) ``sum_s' w_s' [a_s'c <= a_sc]`` by one sort per column (memory S C, not S^2 C)."""
+    order = np.argsort(lim, axis=0, kind="stable")
+    a = np.take_along_axis(lim, order, axis=0)
+    cw = np.cumsum(w[order], axis=0)
+    # ties share the cumulative weight at the end of their run
+    rows = np.arange(a.shape[0])[:, None]
+    end = np.ones(a.shape, bool)
+    end[:-1] = a[1:] != a[:-1]
+    last = np.minimum.accumulate(np.where(end, rows, a.shape[0])[::-1], axis=0)[::-1]
+    out = np.empty(lim.shape)
+    np.put_along_axis(out, order, np.take_along_axis(cw, last, axis=0), axis=0)
+    return out
 
 
 def _choose_test_cuts_local(lim, w, n, groups, local_factor) -> tuple[np.ndarray, np.ndarray]:
