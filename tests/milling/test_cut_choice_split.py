@@ -167,3 +167,34 @@ def test_choose_test_cuts_depth_without_a_local_factor_against_loops_and_at_plan
     big = np.exp(rng.normal(np.log(4e-3), 0.3, (1536, 2400)))
     idx, depth = choose_test_cuts(big, np.full(1536, 1 / 1536), 2)
     assert idx.shape == (2,) and np.all(np.isfinite(depth))
+
+
+def test_cli_suggest_cuts_after_cuts_uses_the_local_factor(tmp_path, monkeypatch):
+    import json
+
+    from typer.testing import CliRunner
+
+    from robovib.cli import app
+    from robovib.milling import cut_posterior
+
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("local_factor"))
+        return choose_test_cuts(*args, **kwargs)
+
+    monkeypatch.setattr(cut_posterior, "choose_test_cuts", spy)
+    cuts = tmp_path / "cuts.csv"
+    cuts.write_text("x_mm,y_mm,rz_deg,spindle_rpm,depth_mm,result\n2350,0,0,1750,2,stable\n")
+    args = ["mill", "plan", "--start", "2200,-100", "--end", "2600,400", "--segments", "4",
+            "--samples", "12", "--rpm-range", "1500:3000:4", "--cuts", str(cuts), "--json",
+            "--n-suggest", "2"]  # fmt: skip
+    out = CliRunner().invoke(app, [*args, "--suggest-cuts", str(tmp_path / "a.csv")])
+    assert out.exit_code == 0, out.output
+    assert seen == [(0.55, 1.3)]
+    assert len(json.loads(out.output)["suggested_cuts"]) == 2
+    out = CliRunner().invoke(
+        app, [*args, "--suggest-cuts", str(tmp_path / "b.csv"), "--local-factor", "none"]
+    )
+    assert out.exit_code == 0, out.output
+    assert seen == [(0.55, 1.3), None]
