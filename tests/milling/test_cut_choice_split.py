@@ -12,6 +12,7 @@ import pytest
 from scipy import optimize
 
 from robovib.milling.cut_posterior import choose_forecast_cuts, choose_test_cuts
+from robovib.milling.factor_grid import local_p_stable, row_p_stable
 
 LOCAL = (0.55, 1.3)
 # midpoint quadrature of the log-uniform local factor (error <= 1 / N per probability)
@@ -198,3 +199,17 @@ def test_cli_suggest_cuts_after_cuts_uses_the_local_factor(tmp_path, monkeypatch
     )
     assert out.exit_code == 0, out.output
     assert seen == [(0.55, 1.3), None]
+
+
+def test_p_stable_with_a_local_factor_rejects_bad_input():
+    lim = np.array([[4e-3], [3e-3]])
+    for depth in (-1e-3, np.inf):
+        with pytest.raises(ValueError, match="depths must be finite and >= 0"):
+            row_p_stable(lim, depth, LOCAL)
+    with pytest.raises(ValueError, match="limits must be positive"):
+        row_p_stable(-lim, 1e-3, LOCAL)
+    for w in ([0.0, 0.0], [np.nan, 1.0], [-0.5, 1.5]):
+        with pytest.raises(ValueError, match="weights must be finite"):
+            local_p_stable(lim, w, 1e-3, LOCAL)
+    # depth 0 is stable under every row, whatever the local factor
+    assert local_p_stable(lim, [0.5, 0.5], 0.0, LOCAL) == pytest.approx(1.0)

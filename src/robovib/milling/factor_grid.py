@@ -234,6 +234,8 @@ def local_p_stable(limits_m, weights, depth_m, local_factor) -> np.ndarray:
     lim = np.asarray(limits_m, float)
     if lim.ndim < 1 or lim.shape[0] != w.size:
         raise ValueError(f"limits_m must have {w.size} rows first, got {lim.shape}")
+    if np.any(~np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weights must be finite, >= 0 and not all zero")
     return np.tensordot(w, row_p_stable(lim, depth_m, local_factor), axes=(0, 0))
 
 
@@ -259,6 +261,10 @@ def row_p_stable(limits_m, depth_m, local_factor) -> np.ndarray:
     d = np.asarray(depth_m, float)
     if np.any(np.isnan(d)) or np.any(np.isnan(lim)):
         raise ValueError("limits and depths must not contain NaN")
+    if np.any(lim <= 0):
+        raise ValueError("limits must be positive (inf: no lobe)")
+    if np.any(~np.isfinite(d)) or np.any(d < 0):
+        raise ValueError("depths must be finite and >= 0")
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(np.isinf(lim), 0.0, d[None] / np.where(np.isinf(lim), 1.0, lim))
     return 1.0 - _local_cdf(ratio, loc)
