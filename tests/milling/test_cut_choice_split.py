@@ -213,3 +213,26 @@ def test_p_stable_with_a_local_factor_rejects_bad_input():
             local_p_stable(lim, w, 1e-3, LOCAL)
     # depth 0 is stable under every row, whatever the local factor
     assert local_p_stable(lim, [0.5, 0.5], 0.0, LOCAL) == pytest.approx(1.0)
+
+
+def test_depth_cap_keeps_rows_that_the_local_factor_can_bring_below_it():
+    """``StructureSamples.limits(depth_cap_m=D)`` with a local factor: a row whose limit is above
+    D but below D / low can still chatter below D and must stay finite (the uncapped limits are
+    the reference)."""
+    from robovib.gp.chapter3_model import workspace_predictor
+    from robovib.milling import ALUMINIUM_7075, CuttingConditions, MillingTool
+    from robovib.milling.structures import sample_structures
+
+    tool, cond = MillingTool(), CuttingConditions(1750.0, 0.058e-3, 1e-3, 6e-3)
+    model = workspace_predictor(None, seed=0, require_inputs=("x_mm", "y_mm", "rz_deg"))
+    st = sample_structures(model, 8, rng=1).on_factor_grid(
+        4, process_factor=(0.9, 1.1), local_factor=LOCAL
+    )
+    poses, rpm = [[2300.0, 0.0, 40.0], [2500.0, 200.0, 100.0]], [1500.0, 2200.0, 3000.0]
+    free = st.limits(poses, rpm, tool, cond, ALUMINIUM_7075)
+    cap = float(np.median(free[np.isfinite(free)]))
+    capped = st.limits(poses, rpm, tool, cond, ALUMINIUM_7075, depth_cap_m=cap)
+    reachable = free * LOCAL[0] <= cap  # may chatter below the cap
+    band = reachable & (free > cap)
+    assert band.sum() >= 5  # rows the local factor alone brings below the cap
+    np.testing.assert_allclose(capped[reachable], free[reachable], rtol=1e-9)
