@@ -199,6 +199,10 @@ def test_cli_suggest_cuts_after_cuts_uses_the_local_factor(tmp_path, monkeypatch
     )
     assert out.exit_code == 0, out.output
     assert seen == [(0.55, 1.3), None]
+    for option, bad in (("--local-factor", "1.3,0.55"), ("--common-factor", "0,1.1"),
+                        ("--common-factor", "nan,1")):  # fmt: skip
+        out = CliRunner().invoke(app, [*args, option, bad])
+        assert out.exit_code != 0 and f"{option} must be LO,HI" in out.output, out.output
 
 
 def test_p_stable_with_a_local_factor_rejects_bad_input():
