@@ -250,8 +250,9 @@ def update_with_cuts(
     n_factors : int or None
         The process factor integrated on a grid of this many points (the structures are
         weighted as (structure, factor) pairs, :meth:`StructureSamples.on_factor_grid`;
-        default 32). None: each structure keeps its own drawn factor. Structures already on a
-        grid (an earlier posterior) are updated as they are.
+        default 32). None: each structure keeps its own drawn factor (with ``local_factor``
+        the common factor is still gridded, on 32 points). Structures already on a grid (an
+        earlier posterior) are updated as they are.
     local_factor : (low, high), optional
         Split the process factor (:meth:`StructureSamples.on_factor_grid`): a common factor on
         ``common_factor``, learnt from the cuts, times a local one log-uniform on

@@ -159,7 +159,8 @@ class FactorGridPosterior:
         return self.weights.sum(axis=0)
 
     def p_stable(self, unscaled_limits_m, depth_m) -> np.ndarray:
-        """P(stable) = ``sum_sk W_sk [q_k a_s > d]``.
+        """P(stable) = ``sum_sk W_sk [q_k a_s > d]`` (with a local factor ``sum_sk W_sk (1 -
+        F(log(d / (q_k a_s))))``, module docs).
 
         Parameters
         ----------
