@@ -12,7 +12,7 @@ import pytest
 from scipy import optimize
 
 from robovib.milling.cut_posterior import choose_forecast_cuts, choose_test_cuts
-from robovib.milling.factor_grid import local_p_stable, row_p_stable
+from robovib.milling.factor_grid import local_p_stable, local_quantile, row_p_stable
 
 LOCAL = (0.55, 1.3)
 # midpoint quadrature of the log-uniform local factor (error <= 1 / N per probability)
@@ -215,6 +215,9 @@ def test_p_stable_with_a_local_factor_rejects_bad_input():
     for w in ([0.0, 0.0], [np.nan, 1.0], [-0.5, 1.5]):
         with pytest.raises(ValueError, match="weights must be finite"):
             local_p_stable(lim, w, 1e-3, LOCAL)
+    for chunk in (0, -3, 2.5):  # once left uninitialised memory in the result
+        with pytest.raises(ValueError, match="chunk must be"):
+            local_quantile(lim, [0.5, 0.5], 0.5, LOCAL, chunk=chunk)
     # depth 0 is stable under every row, whatever the local factor
     assert local_p_stable(lim, [0.5, 0.5], 0.0, LOCAL) == pytest.approx(1.0)
 

@@ -312,6 +312,9 @@ def local_quantile(limits_m, weights, q: float, local_factor, *, chunk: int = 25
         raise ValueError(f"q must be in [0, 1), got {q!r}")
     if np.any(~np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
         raise ValueError("weights must be finite, >= 0 and not all zero")
+    if int(chunk) != chunk or chunk < 1:
+        raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
+    chunk = int(chunk)
     w = w / w.sum()
     shape = lim.shape[1:]
     flat = lim.reshape(w.size, -1)
@@ -329,7 +332,7 @@ def local_quantile(limits_m, weights, q: float, local_factor, *, chunk: int = 25
     keep = w > 0
     w, flat = w[keep], flat[keep]
     inc = np.concatenate([w, -w]) / width
-    for c0 in range(0, flat.shape[1], max(int(chunk), 1)):
+    for c0 in range(0, flat.shape[1], chunk):
         u = np.log(np.minimum(flat[:, c0 : c0 + chunk], big))  # (R, c)
         knots = np.concatenate([u + np.log(lo), u + np.log(hi)])  # (2R, c)
         order = np.argsort(knots, axis=0, kind="stable")
