@@ -243,3 +243,16 @@ def test_depth_cap_keeps_rows_that_the_local_factor_can_bring_below_it():
     band = reachable & (free > cap)
     assert band.sum() >= 5  # rows the local factor alone brings below the cap
     np.testing.assert_allclose(capped[reachable], free[reachable], rtol=1e-9)
+
+
+@pytest.mark.parametrize("q", [0.0, 0.3, 0.5, 0.8, 0.95])
+def test_local_quantile_of_a_single_valued_local_factor_by_its_definition(q):
+    """``lo == hi``: min { d : sum_r w_r [lo a_r <= d] > q }, exact ties of the cumulative weight
+    with ``q`` included (weights 0.5, 0.3, 0.2)."""
+    lim = np.array([[1e-3, 4e-3], [2e-3, np.inf], [3e-3, 2e-3]])
+    w = np.array([0.5, 0.3, 0.2])
+    got = local_quantile(lim, w, q, (0.8, 0.8))
+    for c in range(2):
+        cands = sorted(0.8 * lim[:, c])
+        ref = next(d for d in cands if sum(w[0.8 * lim[:, c] <= d]) > q + 1e-12)
+        assert got[c] == ref
