@@ -31,6 +31,14 @@ def _pair(spec: str, what: str) -> tuple[float, float]:
     return a, b
 
 
+def _factor_range(spec: str, what: str) -> tuple[float, float]:
+    """A LO,HI factor range, ``0 < LO <= HI``, the error naming the option."""
+    lo, hi = _pair(spec, what)
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi):
+        raise ValueError(f"{what} must be LO,HI with 0 < LO <= HI, got {spec!r}")
+    return lo, hi
+
+
 def plan(
     path_csv: Annotated[
         Path | None, typer.Option("--path", help="Tool path CSV: x_mm, y_mm (base frame).")
@@ -157,12 +165,12 @@ def plan(
         split = (
             None
             if local_factor.strip().lower() == "none"
-            else _pair(local_factor, "--local-factor")
+            else _factor_range(local_factor, "--local-factor")
         )
         update = update_with_cuts(structures, read_cuts_csv(cuts), tool, cond, coef,
                                   feed_direction=feed, label_noise=label_noise,
                                   local_factor=split,
-                                  common_factor=_pair(common_factor, "--common-factor"))  # fmt: skip
+                                  common_factor=_factor_range(common_factor, "--common-factor"))  # fmt: skip
         structures = update.structures
     res = plan_path(
         structures, points, tool, cond, coef, n_segments=n_seg, feed_direction=feed,
@@ -234,7 +242,7 @@ def _suggest(res, structures, n, path, inputs) -> list[dict]:
     from ..milling.cut_posterior import choose_test_cuts
 
     poses, rpm, lim = res.test_cut_candidates()
-    idx, depth = choose_test_cuts(lim, structures.weights, n)
+    idx, depth = choose_test_cuts(lim, structures.weights, n, local_factor=structures.local_factor)
     rows = [
         {"x_mm": float(poses[i, 0]), "y_mm": float(poses[i, 1]), "rz_deg": float(poses[i, 2]),
          "spindle_rpm": float(rpm[i]), "depth_mm": float(d * 1e3), "result": ""}

@@ -250,8 +250,9 @@ def update_with_cuts(
     n_factors : int or None
         The process factor integrated on a grid of this many points (the structures are
         weighted as (structure, factor) pairs, :meth:`StructureSamples.on_factor_grid`;
-        default 32). None: each structure keeps its own drawn factor. Structures already on a
-        grid (an earlier posterior) are updated as they are.
+        default 32). None: each structure keeps its own drawn factor (with ``local_factor``
+        the common factor is still gridded, on 32 points). Structures already on a grid (an
+        earlier posterior) are updated as they are.
     local_factor : (low, high), optional
         Split the process factor (:meth:`StructureSamples.on_factor_grid`): a common factor on
         ``common_factor``, learnt from the cuts, times a local one log-uniform on
@@ -335,7 +336,12 @@ def update_with_cuts(
 
 
 def choose_test_cuts(
-    limits_m, weights, n_cuts: int = 5, *, groups=None
+    limits_m,
+    weights,
+    n_cuts: int = 5,
+    *,
+    groups=None,
+    local_factor: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The most informative test cuts among candidates (module docs).
 
@@ -350,6 +356,14 @@ def choose_test_cuts(
     groups : array_like, optional
         (C,) labels of the candidates (e.g. the pose's x, y or the plan's segment): at most one
         cut per label, to spread the cuts over the workspace. Default: no constraint.
+    local_factor : (low, high), optional
+        The rows' local factor (:attr:`StructureSamples.local_factor`, structures updated with
+        the factor split): a row's outcome is then uncertain, ``P(chatter | r) = F(log(d /
+        a_r))`` (:func:`~robovib.milling.factor_grid.row_p_stable`), each candidate is cut at
+        the depth where P(chatter) is one half (:func:`~robovib.milling.factor_grid.
+        local_quantile`), and the cuts maximise the mutual information of their joint outcome
+        with the rows, ``H(y) - sum_r w_r H(y | r)`` (the entropy alone would favour cuts whose
+        outcome is pure local noise). At most 10 cuts (the outcome histories double with each).
 
     Returns
     -------
@@ -357,7 +371,7 @@ def choose_test_cuts(
         (n_cuts,) chosen candidates, in the order chosen.
     depth_m : numpy.ndarray
         (n_cuts,) their depths [m]: the structure limit there at which P(chatter) is nearest
-        one half.
+        one half (with ``local_factor``: the depth of P(chatter) = 0.5).
     """
     lim = np.asarray(limits_m, float)
     w = np.asarray(weights, float)
@@ -372,9 +386,11 @@ def choose_test_cuts(
             )
     if not 1 <= n <= lim.shape[1]:
         raise ValueError(f"n_cuts must be in 1..{lim.shape[1]} candidates, got {n_cuts}")
+    if local_factor is not None:
+        return _choose_test_cuts_local(lim, w, n, groups, local_factor)
     # each candidate's depth: the structure limit at which the weight predicting chatter
     # (depth >= limit) is nearest one half
-    p_chat = np.einsum("s,sdc->dc", w, (lim[:, None, :] <= lim[None, :, :]).astype(float))
+    p_chat = _weight_at_or_below(lim, w)
     k = np.argmin(np.where(np.isfinite(lim), np.abs(p_chat - 0.5), np.inf), axis=0)
     depth = lim[k, np.arange(lim.shape[1])]
     # a candidate without a finite limit (no lobe: stable at any depth) tells nothing
@@ -400,6 +416,61 @@ def choose_test_cuts(
     return idx, depth[idx]
 
 
+def _weight_at_or_below(lim: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(S, C) ``sum_s' w_s' [a_s'c <= a_sc]`` by one sort per column (memory S C, not S^2 C)."""
+    order = np.argsort(lim, axis=0, kind="stable")
+    a = np.take_along_axis(lim, order, axis=0)
+    cw = np.cumsum(w[order], axis=0)
+    # ties share the cumulative weight at the end of their run
+    rows = np.arange(a.shape[0])[:, None]
+    end = np.ones(a.shape, bool)
+    end[:-1] = a[1:] != a[:-1]
+    last = np.minimum.accumulate(np.where(end, rows, a.shape[0])[::-1], axis=0)[::-1]
+    out = np.empty(lim.shape)
+    np.put_along_axis(out, order, np.take_along_axis(cw, last, axis=0), axis=0)
+    return out
+
+
+def _choose_test_cuts_local(lim, w, n, groups, local_factor) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`choose_test_cuts` with a local factor: greedy mutual information (its docs)."""
+    from .factor_grid import local_quantile, row_p_stable
+
+    if np.any(~np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weights must be finite, >= 0 and not all zero")
+    if n > 10:
+        raise ValueError(f"at most 10 cuts are chosen at once with a local factor, got {n}")
+    w = w / w.sum()
+    depth = local_quantile(lim, w, 0.5, local_factor)  # (C,) P(chatter) = 1/2
+    usable = np.isfinite(depth) & (depth > 0)
+    p_chat = np.zeros(lim.shape)  # P(chatter | row) at each candidate's depth
+    p_chat[:, usable] = 1.0 - row_p_stable(lim[:, usable], depth[usable], local_factor)
+
+    def plogp(p):
+        return np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0)
+
+    # H(y_c | r) of each candidate alone: the outcomes are independent given the row
+    cond = -(w @ (plogp(p_chat) + plogp(1.0 - p_chat)))  # (C,)
+    hist = np.ones((1, w.size))  # (H, R): P(outcome history | row)
+    chosen: list[int] = []
+    for _ in range(n):
+        allowed = usable.copy()
+        for i in chosen:
+            allowed[i] = False
+            if groups is not None:
+                allowed &= groups != groups[i]
+        if not allowed.any():
+            raise ValueError("fewer informative candidates than n_cuts (no finite limits)")
+        # H(history, y_c) - H(y_c | r): the terms common to every candidate dropped
+        joint_c = (hist * w) @ p_chat  # (H, C) P(history, chatter at c)
+        joint_s = (hist * w) @ (1.0 - p_chat)
+        gain = -(plogp(joint_c) + plogp(joint_s)).sum(axis=0) - cond
+        best = int(np.argmax(np.where(allowed, gain, -np.inf)))
+        chosen.append(best)
+        hist = np.concatenate([hist * p_chat[:, best], hist * (1.0 - p_chat[:, best])])
+    idx = np.array(chosen)
+    return idx, depth[idx]
+
+
 def _pattern_entropy(code: np.ndarray, w: np.ndarray) -> float:
     _, inv = np.unique(code, return_inverse=True)
     p = np.bincount(inv, weights=w)
@@ -417,6 +488,7 @@ def choose_forecast_cuts(
     groups=None,
     label_noise: float = 0.1,
     depth_quantiles=(0.3, 0.5, 0.7),
+    local_factor: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Test cuts that most lower the expected Brier score of the forecast elsewhere (module docs).
 
@@ -440,6 +512,13 @@ def choose_forecast_cuts(
         Probability that a cut's label is wrong, 0 < eps < 0.5.
     depth_quantiles : sequence of float
         Each candidate is tried at these quantiles of its weighted limit (in (0, 1)).
+    local_factor : (low, high), optional
+        The rows' local factor (:attr:`StructureSamples.local_factor`), drawn afresh at every
+        cut and evaluation point: a row's chatter at a cut and its stability at an evaluation
+        point are then probabilities (:func:`~robovib.milling.factor_grid.row_p_stable`), the
+        depths quantiles of :func:`~robovib.milling.factor_grid.local_quantile`; the expected
+        Brier score keeps its form ``p_e (1 - p_e)``, the outcomes at the cuts and the
+        evaluation points being independent given the row.
 
     Returns
     -------
@@ -481,15 +560,24 @@ def choose_forecast_cuts(
             raise ValueError(f"groups must be ({n_c},) like the candidates, got {groups.shape}")
     w = w / w.sum()
     # every candidate at a few depths across its own predictive limit
-    depth = np.stack([weighted_quantile(lim, w, q) for q in qs])  # (Q, C)
+    if local_factor is None:
+        depth = np.stack([weighted_quantile(lim, w, q) for q in qs])  # (Q, C)
+    else:
+        from .factor_grid import local_quantile, row_p_stable
+
+        depth = np.stack([local_quantile(lim, w, q, local_factor) for q in qs])
     cand = np.tile(np.arange(n_c), qs.size)
     depth = depth.ravel()
     ok = np.isfinite(depth) & (depth > 0)
     cand, depth = cand[ok], depth[ok]
-    chat = (lim[:, cand] <= depth[None, :]).astype(float)  # (R, Q C) chatter under each row
+    if local_factor is None:
+        chat = (lim[:, cand] <= depth[None, :]).astype(float)  # (R, Q C) chatter under each row
+        stable_ev = (ev > ed[None, :]).astype(float)  # (R, E)
+    else:  # each row's probabilities, the local factor drawn afresh at every point
+        chat = 1.0 - row_p_stable(lim[:, cand], depth, local_factor)
+        stable_ev = row_p_stable(ev, ed, local_factor)
     like = {True: label_noise + (1 - 2 * label_noise) * chat,  # P(observed chatter | row)
             False: 1 - label_noise - (1 - 2 * label_noise) * chat}  # fmt: skip
-    stable_ev = (ev > ed[None, :]).astype(float)  # (R, E)
     n_e = stable_ev.shape[1]
     hist = w[None, :]  # (H, R): prior x likelihood of each outcome history
     chosen: list[int] = []

@@ -159,7 +159,8 @@ class FactorGridPosterior:
         return self.weights.sum(axis=0)
 
     def p_stable(self, unscaled_limits_m, depth_m) -> np.ndarray:
-        """P(stable) = ``sum_sk W_sk [q_k a_s > d]``.
+        """P(stable) = ``sum_sk W_sk [q_k a_s > d]`` (with a local factor ``sum_sk W_sk (1 -
+        F(log(d / (q_k a_s))))``, module docs).
 
         Parameters
         ----------
@@ -234,6 +235,8 @@ def local_p_stable(limits_m, weights, depth_m, local_factor) -> np.ndarray:
     lim = np.asarray(limits_m, float)
     if lim.ndim < 1 or lim.shape[0] != w.size:
         raise ValueError(f"limits_m must have {w.size} rows first, got {lim.shape}")
+    if np.any(~np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weights must be finite, >= 0 and not all zero")
     return np.tensordot(w, row_p_stable(lim, depth_m, local_factor), axes=(0, 0))
 
 
@@ -259,6 +262,10 @@ def row_p_stable(limits_m, depth_m, local_factor) -> np.ndarray:
     d = np.asarray(depth_m, float)
     if np.any(np.isnan(d)) or np.any(np.isnan(lim)):
         raise ValueError("limits and depths must not contain NaN")
+    if np.any(lim <= 0):
+        raise ValueError("limits must be positive (inf: no lobe)")
+    if np.any(~np.isfinite(d)) or np.any(d < 0):
+        raise ValueError("depths must be finite and >= 0")
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(np.isinf(lim), 0.0, d[None] / np.where(np.isinf(lim), 1.0, lim))
     return 1.0 - _local_cdf(ratio, loc)
@@ -305,6 +312,9 @@ def local_quantile(limits_m, weights, q: float, local_factor, *, chunk: int = 25
         raise ValueError(f"q must be in [0, 1), got {q!r}")
     if np.any(~np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
         raise ValueError("weights must be finite, >= 0 and not all zero")
+    if int(chunk) != chunk or chunk < 1:
+        raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
+    chunk = int(chunk)
     w = w / w.sum()
     shape = lim.shape[1:]
     flat = lim.reshape(w.size, -1)
@@ -322,7 +332,7 @@ def local_quantile(limits_m, weights, q: float, local_factor, *, chunk: int = 25
     keep = w > 0
     w, flat = w[keep], flat[keep]
     inc = np.concatenate([w, -w]) / width
-    for c0 in range(0, flat.shape[1], max(int(chunk), 1)):
+    for c0 in range(0, flat.shape[1], chunk):
         u = np.log(np.minimum(flat[:, c0 : c0 + chunk], big))  # (R, c)
         knots = np.concatenate([u + np.log(lo), u + np.log(hi)])  # (2R, c)
         order = np.argsort(knots, axis=0, kind="stable")
