@@ -15,7 +15,11 @@ import pytest
 from scipy import signal
 
 from robovib.control.adaptive import LoopIdentifier, PeriodTracker, TrackingRepetitive
-from robovib.control.controller_file import design_controller, load_controller
+from robovib.control.controller_file import (
+    design_controller,
+    load_controller,
+    write_controller_file,
+)
 from robovib.control.controllers import ScheduledTable
 from robovib.control.path_design import ControlPath
 from robovib.gp.dominant_modes import PoseMode
@@ -127,7 +131,7 @@ class _Flat:
 def test_new_files_identify_the_loop_and_version_1_files_run_as_before(tmp_path):
     path = ControlPath.through(_Flat.input_names, [[2350, 500, 30], [2350, -200, 100]])
     doc = design_controller(_Flat(), path, "adaptive+force", spindle_rpm=125.0)
-    assert doc["format_version"] == 2 and doc["learner"]["identify_loop"] is True
+    assert doc["format_version"] == 3 and doc["learner"]["identify_loop"] is True
     old = json.loads(json.dumps(doc))
     old["format_version"] = 1
     for key in ("identify_loop", "identify_rel_error", "learning_time_s"):
@@ -137,6 +141,72 @@ def test_new_files_identify_the_loop_and_version_1_files_run_as_before(tmp_path)
     rt = load_controller(f)
     assert rt.learner_settings["identify_loop"] is False
     assert rt.learner_settings["learning_time_s"] == 0.4
+
+
+def test_new_files_pool_the_loop_phase_and_version_2_files_run_as_before(tmp_path):
+    path = ControlPath.through(_Flat.input_names, [[2350, 500, 30], [2350, -200, 100]])
+    doc = design_controller(_Flat(), path, "adaptive+force", spindle_rpm=125.0)
+    assert doc["learner"]["pool_loop_phase"] is True
+    old = json.loads(json.dumps(doc))
+    old["format_version"] = 2
+    del old["learner"]["pool_loop_phase"]
+    f = tmp_path / "v2.json"
+    f.write_text(json.dumps(old))
+    rt = load_controller(f)
+    assert rt.learner_settings["pool_loop_phase"] is False
+    assert rt.learner_settings["identify_loop"] is True
+    learners = [p for p in rt._inner.inner.parts if isinstance(p, TrackingRepetitive)]
+    assert learners and all(p._ident._h is None for p in learners)
+    rt_new = load_controller(write_controller_file(tmp_path / "v3.json", doc))
+    learners = [p for p in rt_new._inner.inner.parts if isinstance(p, TrackingRepetitive)]
+    assert learners and all(p._ident._h is not None for p in learners)
+
+
+def _pooled_identification(pool: bool):
+    """Six harmonics whose loop phase is ``a + b h`` (a delay and an offset): 1-3 measured
+    with little noise, 4-6 with 20x more (a line near a resonance, in non-periodic response).
+    The identified phases [deg], the truth [deg] and where the pooled phase was taken."""
+    rng = np.random.default_rng(3)
+    every, delay, window = 4, 32, 240
+    h = np.arange(1, 7)
+    truth = np.deg2rad(-20.0) + np.deg2rad(-12.0) * h
+    lam = np.exp(1j * truth)
+    noise = np.array([0.05, 0.05, 0.05, 1.0, 1.0, 1.0])
+    ident = LoopIdentifier((6, 1), every, delay, window, forget_cycles=5000.0, max_rel_error=0.2,
+                           cycles_per_window=window / every,
+                           harmonic_numbers=h if pool else None)  # fmt: skip
+    q0 = delay // every + 1
+    q1 = math.ceil((window + delay) / every)
+    sent = []
+    u = np.zeros(6, complex)
+    dist = np.full(6, 1 + 0.5j)
+    for k in range(3000):
+        old = [sent[j] if j >= 0 else np.zeros(6) for j in range(k - q1, k - q0 + 1)]
+        z = dist + lam * np.mean(old, axis=0) + noise * (rng.normal(size=6)
+                                                         + 1j * rng.normal(size=6))  # fmt: skip
+        ident.observe(z[:, None], window)
+        u = u + 0.05 * (rng.normal(size=6) + 1j * rng.normal(size=6))
+        sent.append(u.copy())
+        ident.sent(u[:, None])
+    return np.rad2deg(np.angle(ident.factor[:, 0])), np.rad2deg(truth), ident.pooled[:, 0]
+
+
+def test_pooled_phases_give_the_noisy_harmonics_the_line_through_the_others():
+    alone, truth, _ = _pooled_identification(False)
+    pooled, _, took = _pooled_identification(True)
+    np.testing.assert_allclose(alone[:3], truth[:3], atol=2.0)
+    np.testing.assert_allclose(pooled[:3], truth[:3], atol=2.0)  # own estimates kept
+    assert not took[:3].any()
+    # some noisy harmonic has no usable estimate of its own; pooled, every one has the line's
+    assert np.any(np.abs(alone[3:] - truth[3:]) > 30.0)
+    assert took[3:].any()
+    np.testing.assert_allclose(pooled, truth, atol=4.0)
+
+
+def test_pooling_refuses_harmonic_numbers_of_the_wrong_shape():
+    with pytest.raises(ValueError, match="harmonic_numbers"):
+        LoopIdentifier((3, 1), 4, 32, 240, forget_cycles=5000.0, max_rel_error=0.2,
+                       cycles_per_window=60.0, harmonic_numbers=[1, 2])  # fmt: skip
 
 
 @pytest.mark.parametrize("pause", [True, False])

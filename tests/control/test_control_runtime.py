@@ -102,7 +102,7 @@ def _path_file(tmp_path, controller="adaptive+force", rpm=250.0):
 def test_controller_file_says_what_it_is(tmp_path):
     path, _ = _path_file(tmp_path)
     back = json.loads(path.read_text())
-    assert back["format"] == "robovib.controller" and back["format_version"] == 2
+    assert back["format"] == "robovib.controller" and back["format_version"] == 3
     assert back["provenance"]["control_modes"] == {"x": "x2", "z": "z1"}
     assert back["timing"] == {"command_period_s": 0.004, "sample_rate_hz": 1000.0,
                               "delay_s": 0.032, "budget_s": 0.004}  # fmt: skip

@@ -360,6 +360,10 @@ class TrackingRepetitive(RepetitiveFeedback):
         90° a fixed learner survives).
     identify_rel_error
         Relative standard error below which an identified loop factor is used (> 0).
+    pool_loop_phase
+        With ``identify_loop``: a harmonic whose own loop estimate is still too noisy takes
+        the phase of a straight line in the harmonic number fitted to the others of its
+        direction (the delay is common to them; ``LoopIdentifier(harmonic_numbers=...)``).
     pause_when_faded
         Learn only as much as the correction is applied: a guard (``FadeGuard``) that fades
         the correction to ``s`` sets :attr:`learning_scale` to ``s`` and the update is
@@ -386,6 +390,7 @@ class TrackingRepetitive(RepetitiveFeedback):
         identify_loop: bool = False,
         identify_rel_error: float = 0.2,
         pause_when_faded: bool = False,
+        pool_loop_phase: bool = False,
         **kwargs,
     ):
         m = int(period_multiple)
@@ -413,6 +418,7 @@ class TrackingRepetitive(RepetitiveFeedback):
         self.identify_loop = bool(identify_loop)
         self.identify_rel_error = float(identify_rel_error)
         self.pause_when_faded = bool(pause_when_faded)
+        self.pool_loop_phase = bool(pool_loop_phase)
         self.learning_scale = 1.0
 
     def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
@@ -455,7 +461,8 @@ class TrackingRepetitive(RepetitiveFeedback):
                 forget_cycles=IDENTIFY_MEMORY_S / (self._every * self._dt),
                 max_rel_error=self.identify_rel_error,
                 cycles_per_window=longest / self._every,
-                offset_cycles=(self.period_multiple - 1) * IDENTIFY_EVERY_CYCLES // 2)  # fmt: skip
+                offset_cycles=(self.period_multiple - 1) * IDENTIFY_EVERY_CYCLES // 2,
+                harmonic_numbers=self._h if self.pool_loop_phase else None)  # fmt: skip
             self._z = np.zeros((self.n_harmonics, 3), complex)
             self._step = np.zeros((self.n_harmonics, 3), complex)
 

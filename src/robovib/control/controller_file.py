@@ -73,6 +73,8 @@ _UNITS = {
     "learner.identify_rel_error": "1 (standard error / |loop factor| below which it is used)",
     "learner.learning_time_s": "s (time constant of the tooth-line learning)",
     "learner.pause_when_faded": "bool (no learning while the guard fades the correction out)",
+    "learner.pool_loop_phase": "bool (a harmonic's loop phase from a line fitted to the other "
+                               "harmonics' phases until its own is known, format 3)",
     "guard.z_score": "1 (standard errors of the window's RMS, amplification_test)",
     "excitation.spindle_rpm": "rev/min",
     "stability.*_worst_spectral_radius": "1 (< 1: stable on every plant of the band)",

@@ -21,8 +21,10 @@ __all__ = ["FORMAT", "FORMAT_VERSION", "LEARNER_DEFAULTS", "LEARNER_DESIGN"]
 FORMAT = "robovib.controller"
 #: 2: the learners identify their loop phase (``learner.identify_loop`` and friends) and pause
 #: while the guard fades their correction out (``learner.pause_when_faded``); a
-#: version-1 file loads with them off and runs as it did.
-FORMAT_VERSION = 2
+#: version-1 file loads with them off and runs as it did. 3: the learners pool the loop phases
+#: of a direction's harmonics (``learner.pool_loop_phase``); a version-1 or 2 file loads with
+#: it off and runs as it did.
+FORMAT_VERSION = 3
 
 
 def _settings(what: str, defaults: dict, given: dict | None) -> dict:
@@ -39,10 +41,11 @@ LEARNER_DEFAULTS = {"divergence_ratio": 1.2, "divergence_test": "correction",
                     "delay_uncertainty_s": 0.008, "fn_uncertainty_rel": 0.0,
                     "gain_uncertainty_rel": 0.1, "identify_loop": False,
                     "identify_rel_error": 0.2, "learning_time_s": 0.4,
-                    "pause_when_faded": False}  # fmt: skip
+                    "pause_when_faded": False, "pool_loop_phase": False}  # fmt: skip
 #: Learner settings a newly designed file carries over the defaults (a file written before
 #: they existed loads with the defaults above, i.e. as it ran then).
-LEARNER_DESIGN = {"identify_loop": True, "learning_time_s": 0.8, "pause_when_faded": True}
+LEARNER_DESIGN = {"identify_loop": True, "learning_time_s": 0.8, "pause_when_faded": True,
+                  "pool_loop_phase": True}  # fmt: skip
 
 
 def _learner(given: dict | None) -> dict:
@@ -55,6 +58,7 @@ def _learner(given: dict | None) -> dict:
     out["model_at_tracked_period"] = bool(out["model_at_tracked_period"])
     out["identify_loop"] = bool(out["identify_loop"])
     out["pause_when_faded"] = bool(out["pause_when_faded"])
+    out["pool_loop_phase"] = bool(out["pool_loop_phase"])
     for key in (
         "delay_uncertainty_s",
         "fn_uncertainty_rel",
