@@ -229,3 +229,51 @@ def test_a_paused_learner_does_not_wind_up_while_its_correction_is_faded_out(pau
         np.testing.assert_array_equal(learner._u, 0.0)
     else:  # the old behaviour: it integrates the open-loop residual regardless
         assert np.abs(learner._u).max() > 0
+
+
+def _tracker_errors(lag: int, seed: int = 5) -> np.ndarray:
+    """Relative errors of a tracker's period on a known periodic force (4 % fast) in
+    low-pass random force of half the periodic part's std, after its first 2 s."""
+    nominal, true = 0.24, 0.24 / 1.04
+    n = 30000
+    t = np.arange(n) / 1000.0
+    ph = 2 * np.pi * t / true
+    periodic = np.sin(ph) + 0.5 * np.sin(2 * ph + 0.3) + 0.3 * np.sin(5 * ph + 1.0)
+    b, a = signal.butter(2, 40.0 / 500.0)
+    noise = signal.lfilter(b, a, np.random.default_rng(seed).normal(size=n))
+    noise *= 0.5 * periodic.std() / noise.std()
+    f = np.column_stack([periodic + noise, np.zeros(n), np.zeros(n)])
+    tr = PeriodTracker(nominal, lag_periods=lag)
+    tr.reset(n, 1000.0)
+    err = []
+    for k in range(n // 4):
+        tr.update(k, f[4 * k : 4 * k + 4])
+        if k * 4 >= 2000:
+            err.append(tr.period_s / true - 1)
+    return np.asarray(err)
+
+
+def test_a_tracker_over_two_periods_has_less_period_error_in_non_periodic_force():
+    one, two = _tracker_errors(1), _tracker_errors(2)
+    assert abs(np.mean(one)) < 2e-3 and abs(np.mean(two)) < 2e-3  # both lock on the true period
+    rms1, rms2 = np.sqrt(np.mean(one**2)), np.sqrt(np.mean(two**2))
+    assert rms2 < 0.8 * rms1
+
+
+def test_tracker_lag_refuses_a_range_that_reaches_the_next_multiple():
+    with pytest.raises(ValueError, match="lag_periods"):
+        PeriodTracker(0.24, rel_range=0.3, lag_periods=2)
+    with pytest.raises(ValueError, match="lag_periods"):
+        PeriodTracker(0.24, lag_periods=1.5)
+
+
+def test_new_files_track_over_two_periods_and_older_files_over_one(tmp_path):
+    path = ControlPath.through(_Flat.input_names, [[2350, 500, 30], [2350, -200, 100]])
+    doc = design_controller(_Flat(), path, "adaptive+force", spindle_rpm=125.0)
+    assert doc["tracker"]["lag_periods"] == 2
+    old = json.loads(json.dumps(doc))
+    old["format_version"] = 2
+    del old["tracker"]["lag_periods"]
+    f = tmp_path / "v2.json"
+    f.write_text(json.dumps(old))
+    assert load_controller(f)._inner.tracker.lag_periods == 1

@@ -32,6 +32,7 @@ from .design import (
     DESIGNS,
     GUARD_DEFAULTS,
     TRACKER_DEFAULTS,
+    TRACKER_DESIGN,
     PathTables,
     check_controller_names,
     design_tables,
@@ -75,6 +76,8 @@ _UNITS = {
     "learner.pause_when_faded": "bool (no learning while the guard fades the correction out)",
     "learner.pool_loop_phase": "bool (a harmonic's loop phase from a line fitted to the other "
                                "harmonics' phases until its own is known, format 3)",
+    "tracker.lag_periods": "periods between the correlated windows of the period estimate "
+                           "(format 3; 1 in older files)",
     "guard.z_score": "1 (standard errors of the window's RMS, amplification_test)",
     "excitation.spindle_rpm": "rev/min",
     "stability.*_worst_spectral_radius": "1 (< 1: stable on every plant of the band)",
@@ -154,7 +157,7 @@ def design_controller(
     bad = [d for d in directions if d not in _AXES]
     if bad or not directions:
         raise ValueError(f"directions must be some of x, y, z, got {list(directions)}")
-    tracker = _settings("tracker", TRACKER_DEFAULTS, tracker)
+    tracker = _settings("tracker", TRACKER_DEFAULTS, {**TRACKER_DESIGN, **(tracker or {})})
     guard = _settings("guard", GUARD_DEFAULTS, guard)
     design = PathDesign(model, path, directions, n_points)
     axes = {_AXES[d]: d for d in directions}

@@ -22,8 +22,9 @@ FORMAT = "robovib.controller"
 #: 2: the learners identify their loop phase (``learner.identify_loop`` and friends) and pause
 #: while the guard fades their correction out (``learner.pause_when_faded``); a
 #: version-1 file loads with them off and runs as it did. 3: the learners pool the loop phases
-#: of a direction's harmonics (``learner.pool_loop_phase``); a version-1 or 2 file loads with
-#: it off and runs as it did.
+#: of a direction's harmonics (``learner.pool_loop_phase``) and the period tracker estimates
+#: over several periods (``tracker.lag_periods``); a version-1 or 2 file loads with them off
+#: (1) and runs as it did.
 FORMAT_VERSION = 3
 
 

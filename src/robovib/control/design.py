@@ -51,6 +51,7 @@ __all__ = [
     "THESIS_PRINTED_END_GAINS",
     "THESIS_PRINTED_START_GAINS",
     "TRACKER_DEFAULTS",
+    "TRACKER_DESIGN",
     "Design",
     "PathTables",
     "assemble_controller",
@@ -381,7 +382,11 @@ _NEEDS_EXCITATION = {
 
 #: Default period-tracker settings (:class:`~robovib.control.adaptive.PeriodTracker`).
 TRACKER_DEFAULTS = {"rel_range": 0.1, "window_periods": 2.0, "update_periods": 1.0,
-                    "smoothing": 0.5}  # fmt: skip
+                    "smoothing": 0.5, "lag_periods": 1}  # fmt: skip
+#: Tracker settings a newly designed controller file carries over the defaults (a file written
+#: before they existed loads with the defaults, i.e. as it ran then): the period estimated
+#: over two periods at once (half the phase wander of the learners in non-periodic force).
+TRACKER_DESIGN = {"lag_periods": 2}
 #: Default fade-out guard settings (:class:`~robovib.control.guard.FadeGuard`).
 GUARD_DEFAULTS = {"min_periodicity": 0.5, "max_ratio": 1.0, "z_score": 1.0, "window_s": 0.5,
                   "check_s": 0.1, "fade_time_s": 0.2, "warmup_s": 0.5}  # fmt: skip
