@@ -9,6 +9,7 @@ corrections, so the learner can rotate its update by the identified phase.
 
 from __future__ import annotations
 
+import cmath
 import math
 
 import numpy as np
@@ -20,6 +21,8 @@ _SECOND = np.array([2, 2, 2, 1, 0, 0])  # w, w, w, z, x, x
 
 #: Memory of the online loop identification [s] (time constant of its forgetting).
 IDENTIFY_MEMORY_S = 20.0
+#: Largest identified phase a pooled fit uses (beyond, a phase may have wrapped).
+_MAX_POOL_PHASE = math.radians(170.0)
 #: Command cycles between two loop estimates (the sums are updated every cycle; the estimate
 #: costs ~30 us; two learners of a loop estimate in different cycles).
 IDENTIFY_EVERY_CYCLES = 5
@@ -109,6 +112,7 @@ class LoopIdentifier:
             if h.shape != (shape[0],) or not np.all(h > 0):
                 raise ValueError(f"harmonic_numbers must be {shape[0]} numbers > 0")
             self._h = h[:, None]
+            self._hlist = h.tolist()
         self.factor = np.ones(shape, complex)
         self.estimate = np.full(shape, np.nan + 0j)
         self.rel_error = np.full(shape, np.inf)
@@ -175,26 +179,47 @@ class LoopIdentifier:
             self._pool(ok & (mag > 0.25) & (mag < 4.0), use)
 
     def _pool(self, ok: np.ndarray, own: np.ndarray) -> None:
-        """Phases of the harmonics without a good own estimate from ``a + b h`` (see class)."""
-        rel = self.rel_error
-        phase = np.angle(np.where(ok, self.estimate, 1.0))
-        fit = ok & (rel < 1.0) & (np.abs(phase) < np.deg2rad(170.0))
-        w = np.where(fit, 1.0 / np.maximum(rel, 0.02) ** 2, 0.0)
-        h = self._h
-        s0, s1, s2 = w.sum(axis=0), (w * h).sum(axis=0), (w * h * h).sum(axis=0)
-        t0, t1 = (w * phase).sum(axis=0), (w * h * phase).sum(axis=0)
-        n = fit.sum(axis=0)
-        det = s0 * s2 - s1 * s1
-        good = (n >= 3) & (det > 1e-12 * np.maximum(s0 * s2, 1e-300))
-        det = np.where(good, det, 1.0)
-        a = (s2 * t0 - s1 * t1) / det
-        b = (s0 * t1 - s1 * t0) / det
-        chi2 = (w * (phase - a - b * h) ** 2).sum(axis=0) / np.maximum(n - 2, 1)
-        var = (s2 - 2 * s1 * h + s0 * h * h) / det * np.maximum(chi2, 1.0)
-        take = good & ~own & ok & (var < self._max_rel**2)
-        self.pooled[...] = take
-        if take.any():
-            self.factor[take] = np.exp(1j * (a + b * h))[take]
+        """Phases of the harmonics without a good own estimate from ``a + b h`` (see class).
+
+        Plain Python over the few harmonics and directions: ~20 small NumPy calls would cost
+        more than the arithmetic (this runs inside the command cycle)."""
+        self.pooled[...] = False
+        need = ok & ~own
+        if not need.any():
+            return
+        lim = self._max_rel**2
+        hs = self._hlist
+        for d in np.flatnonzero(need.any(axis=0)).tolist():
+            lam = self.estimate[:, d].tolist()
+            rel = self.rel_error[:, d].tolist()
+            okd = ok[:, d].tolist()
+            pts = []
+            for i, h in enumerate(hs):
+                if okd[i] and rel[i] < 1.0:
+                    ph = cmath.phase(lam[i])
+                    if abs(ph) < _MAX_POOL_PHASE:
+                        pts.append((h, ph, 1.0 / max(rel[i], 0.02) ** 2))
+            if len(pts) < 3:
+                continue
+            s0 = s1 = s2 = t0 = t1 = 0.0
+            for h, ph, w in pts:
+                s0 += w
+                s1 += w * h
+                s2 += w * h * h
+                t0 += w * ph
+                t1 += w * h * ph
+            det = s0 * s2 - s1 * s1
+            if not det > 1e-12 * s0 * s2:
+                continue
+            a = (s2 * t0 - s1 * t1) / det
+            b = (s0 * t1 - s1 * t0) / det
+            chi2 = sum(w * (ph - a - b * h) ** 2 for h, ph, w in pts) / (len(pts) - 2)
+            scale = max(chi2, 1.0) / det
+            for i in np.flatnonzero(need[:, d]).tolist():
+                h = hs[i]
+                if (s2 - 2 * s1 * h + s0 * h * h) * scale < lim:
+                    self.factor[i, d] = cmath.exp(1j * (a + b * h))
+                    self.pooled[i, d] = True
 
     def sent(self, u: np.ndarray) -> None:
         """Record this cycle's phasors, after the learning update.
