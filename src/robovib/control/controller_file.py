@@ -34,11 +34,12 @@ from .design import (
     TRACKER_DEFAULTS,
     TRACKER_DESIGN,
     PathTables,
+    band_stable_feedback,
     check_controller_names,
     design_tables,
 )
 from .path_design import ControlPath, PathDesign
-from .pose_plants import SECOND_MODE_HYPOTHESES
+from .pose_plants import SECOND_MODE_HYPOTHESES, path_mode, plant_set
 from .runtime import RuntimeController
 
 __all__ = [
@@ -65,6 +66,10 @@ _UNITS = {
     "gains.robust": "[K_x m/m, K_v s, K_u1..K_ud m/m] per design point",
     "gains.lqg": "[K_x m/m, K_v s, K_u1..K_ud m/m] per design point",
     "gains.force_model_r": "1 (LQR input weight)",
+    "gains.feedback": "[K_x m/m, K_v s, K_u1..K_ud m/m] per design point (adaptive+force's "
+                      "feedback on the axes without a force model, format 3)",
+    "stability.feedback_r": "1 (LQR input weight of gains.feedback: the smallest stable on "
+                            "every plant of the band with every delay of true_delays_s)",
     "timing": "s, Hz",
     "learner.delay_uncertainty_s": "s (unknown part of the delay each harmonic's learning "
                                    "gain is kept stable over)",
@@ -166,6 +171,17 @@ def design_controller(
                         force_model_true_delays_s=_true_delays(delay_s, period_s))  # fmt: skip
     worst = tab.checks.get("force_model_worst_rms_ratio", {})
     tab.force_model_r = {a: r for a, r in tab.force_model_r.items() if worst.get(a, 0.0) < 1.0}
+    if name == "adaptive+force":  # the axes left without a force model get a feedback
+        for a, d in axes.items():
+            if a in tab.force_model_r:
+                continue
+            fb = band_stable_feedback([plant_set(design, s, d) for s in tab.grid],
+                                      [path_mode(design, s, d) for s in tab.grid], period_s,
+                                      delay_s, _true_delays(delay_s, period_s))  # fmt: skip
+            if fb is not None:
+                tab.feedback[a] = fb[1]
+                tab.checks.setdefault("feedback_r", {})[a] = fb[0]
+                tab.checks.setdefault("feedback_worst_spectral_radius", {})[a] = fb[2]
     return _document(name, tab, design, period_s, delay_s, sample_rate_hz, spindle_rpm,
                      int(teeth), tracker, guard)  # fmt: skip
 
@@ -220,6 +236,8 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
     for key in ("robust", "lqg"):
         if getattr(tab, key):
             gains[key] = {directions[a]: v.tolist() for a, v in getattr(tab, key).items()}
+    if tab.feedback:
+        gains["feedback"] = {directions[a]: v.tolist() for a, v in tab.feedback.items()}
     if "force_model_r" in DESIGNS[name].tables:  # the axes kept (may be none)
         gains["force_model_r"] = {directions[a]: r for a, r in tab.force_model_r.items()}
     stability = {
@@ -262,7 +280,8 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
 _DESCRIPTIONS = {
     "adaptive+force": "period tracker + repetitive learner of the tooth (and runout) lines on "
                       "the tracker + delay-aware LQR feedforward of the measured force through "
-                      "the pose model, under a fade-out guard",
+                      "the pose model (the other axes: delay-aware LQR feedback stable over "
+                      "the band and the delays), under a fade-out guard",
     "feedforward+robust": "force feedforward (one tooth period ahead) + delay-aware LQR "
                           "feedback robust over the model band",
     "robust": "delay-aware LQR feedback robust over the model band",

@@ -23,8 +23,9 @@ FORMAT = "robovib.controller"
 #: while the guard fades their correction out (``learner.pause_when_faded``); a
 #: version-1 file loads with them off and runs as it did. 3: the learners pool the loop phases
 #: of a direction's harmonics (``learner.pool_loop_phase``) and the period tracker estimates
-#: over several periods (``tracker.lag_periods``); a version-1 or 2 file loads with them off
-#: (1) and runs as it did.
+#: over several periods (``tracker.lag_periods``); ``adaptive+force`` files carry a feedback
+#: for the axes without a force model (``gains.feedback``); a version-1 or 2 file loads with
+#: them off (1, none) and runs as it did.
 FORMAT_VERSION = 3
 
 
@@ -109,6 +110,8 @@ def _tables(doc: dict) -> PathTables:
         for key in ("robust", "lqg"):
             if key in g:
                 setattr(tab, key, {by_dir[d]: np.asarray(v, float) for d, v in g[key].items()})
+        if "feedback" in g:
+            tab.feedback = {by_dir[d]: np.asarray(v, float) for d, v in g["feedback"].items()}
         if "force_model_r" in g:
             tab.force_model_r = {by_dir[d]: float(r) for d, r in g["force_model_r"].items()}
     except (KeyError, TypeError, ValueError) as exc:
