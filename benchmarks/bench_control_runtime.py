@@ -10,6 +10,11 @@ lookup): the ratio is what the run-time lookup costs. Prints p50, p99 and max [m
 4 ms RSI budget and the 0.5 ms p99 target.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_control_runtime.py [--names adaptive+force,robust]
+    OMP_NUM_THREADS=1 python benchmarks/bench_control_runtime.py --file ctl.json   # a file's own
+
+``--file`` times a controller file instead (e.g. one ``study_control_deploy.py --workdir``
+wrote: designed from a campaign model, with ``gains.feedback``), over a 50 mm stretch at the
+middle of its path, with its own tracker and learner settings in the reference too.
 """
 
 from __future__ import annotations
@@ -45,9 +50,10 @@ def _times(step, n_cmd, repeats):
 
 
 def main(names=("adaptive+force", "feedforward+robust", "robust"), n_cmd: int = 2500,
-         repeats: int = 3) -> None:  # fmt: skip
-    model = path_modal_model(VirtualRobot(), directions=("x", "z"))
-    path = ControlPath.through(("s_m",), [[0.0], [1.235]])
+         repeats: int = 3, file=None) -> None:  # fmt: skip
+    if file is None:
+        model = path_modal_model(VirtualRobot(), directions=("x", "z"))
+        path = ControlPath.through(("s_m",), [[0.0], [1.235]])
     tool, cond = MillingTool(), CuttingConditions(125.0, 0.5e-3, 6e-3, 6e-3)
     t = np.arange(4 * n_cmd) / 1000.0
     local = REALISTIC_LEVELS.cutting_force(t, tool, cond, ACETAL, rng=0)
@@ -55,15 +61,28 @@ def main(names=("adaptive+force", "feedforward+robust", "robust"), n_cmd: int = 
     gen = np.random.default_rng(1)
     tracker_m = 2e-5 * np.sin(2 * np.pi * 4.17 * t)[:, None] + 2e-6 * gen.normal(size=force.shape)
     tracker_mm = tracker_m * 1e3
-    s = POSITION_1_S_M - 0.025 + 0.05 * np.arange(n_cmd) / n_cmd
+    if file is None:
+        s = POSITION_1_S_M - 0.025 + 0.05 * np.arange(n_cmd) / n_cmd
+        designs = [(name, None) for name in names]
+    else:
+        from robovib.control.controller_file import load_controller
+
+        rt0 = load_controller(file)
+        mid = float(np.median(rt0.tables.grid))
+        s = mid - 0.025 + 0.05 * np.arange(n_cmd) / n_cmd
+        designs = [(f"{rt0.name} (file)", rt0.doc)]
     blocks = [(max(0, 4 * k - 3), 4 * k + 1) for k in range(n_cmd)]
     print(f"per-step time over {n_cmd} cycles, best of {repeats} [ms]; budget {BUDGET_MS} ms, "
           f"p99 target {TARGET_P99_MS} ms")  # fmt: skip
     print(f"{'controller':22s} {'p50':>7s} {'p99':>7s} {'max':>7s} {'planned p99':>12s} "
           f"{'ratio':>6s} {'alloc/step':>11s}")  # fmt: skip
-    for name in names:
-        doc = design_controller(model, path, name, spindle_rpm=125.0, teeth=tool.n_flutes)
+    for name, doc in designs:
+        if doc is None:
+            doc = design_controller(model, path, name, spindle_rpm=125.0, teeth=tool.n_flutes)
+            settings = {}
         rt = RuntimeController(doc)
+        if doc is not None and file is not None:
+            settings = {"tracker": rt.tracker_settings, "learner": rt.learner_settings}
 
         def live(rt=rt):
             def call(k):
@@ -72,9 +91,9 @@ def main(names=("adaptive+force", "feedforward+robust", "robust"), n_cmd: int = 
 
             return (lambda: rt.reset(spindle_rpm=125.0, max_duration_s=(n_cmd + 2) * 0.004)), call
 
-        def planned(rt=rt, name=name):
-            ctl = assemble_controller(name, rt.tables, excitation_period_s=rt.excitation_period_s,
-                                      teeth=tool.n_flutes)  # fmt: skip
+        def planned(rt=rt, settings=settings):
+            ctl = assemble_controller(rt.name, rt.tables, excitation_period_s=rt.excitation_period_s,
+                                      teeth=tool.n_flutes, **settings)  # fmt: skip
 
             def call(k):
                 lo, hi = blocks[k]
@@ -105,5 +124,6 @@ if __name__ == "__main__":
     ap.add_argument("--names", default="adaptive+force,feedforward+robust,robust")
     ap.add_argument("--cycles", type=int, default=2500)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--file", default=None, help="time this controller file instead")
     a = ap.parse_args()
-    main(tuple(a.names.split(",")), a.cycles, a.repeats)
+    main(tuple(a.names.split(",")), a.cycles, a.repeats, a.file)

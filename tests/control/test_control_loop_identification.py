@@ -15,7 +15,11 @@ import pytest
 from scipy import signal
 
 from robovib.control.adaptive import LoopIdentifier, PeriodTracker, TrackingRepetitive
-from robovib.control.controller_file import design_controller, load_controller
+from robovib.control.controller_file import (
+    design_controller,
+    load_controller,
+    write_controller_file,
+)
 from robovib.control.controllers import ScheduledTable
 from robovib.control.path_design import ControlPath
 from robovib.gp.dominant_modes import PoseMode
@@ -127,7 +131,7 @@ class _Flat:
 def test_new_files_identify_the_loop_and_version_1_files_run_as_before(tmp_path):
     path = ControlPath.through(_Flat.input_names, [[2350, 500, 30], [2350, -200, 100]])
     doc = design_controller(_Flat(), path, "adaptive+force", spindle_rpm=125.0)
-    assert doc["format_version"] == 2 and doc["learner"]["identify_loop"] is True
+    assert doc["format_version"] == 3 and doc["learner"]["identify_loop"] is True
     old = json.loads(json.dumps(doc))
     old["format_version"] = 1
     for key in ("identify_loop", "identify_rel_error", "learning_time_s"):
@@ -137,6 +141,72 @@ def test_new_files_identify_the_loop_and_version_1_files_run_as_before(tmp_path)
     rt = load_controller(f)
     assert rt.learner_settings["identify_loop"] is False
     assert rt.learner_settings["learning_time_s"] == 0.4
+
+
+def test_new_files_pool_the_loop_phase_and_version_2_files_run_as_before(tmp_path):
+    path = ControlPath.through(_Flat.input_names, [[2350, 500, 30], [2350, -200, 100]])
+    doc = design_controller(_Flat(), path, "adaptive+force", spindle_rpm=125.0)
+    assert doc["learner"]["pool_loop_phase"] is True
+    old = json.loads(json.dumps(doc))
+    old["format_version"] = 2
+    del old["learner"]["pool_loop_phase"]
+    f = tmp_path / "v2.json"
+    f.write_text(json.dumps(old))
+    rt = load_controller(f)
+    assert rt.learner_settings["pool_loop_phase"] is False
+    assert rt.learner_settings["identify_loop"] is True
+    learners = [p for p in rt._inner.inner.parts if isinstance(p, TrackingRepetitive)]
+    assert learners and all(p._ident._h is None for p in learners)
+    rt_new = load_controller(write_controller_file(tmp_path / "v3.json", doc))
+    learners = [p for p in rt_new._inner.inner.parts if isinstance(p, TrackingRepetitive)]
+    assert learners and all(p._ident._h is not None for p in learners)
+
+
+def _pooled_identification(pool: bool):
+    """Six harmonics whose loop phase is ``a + b h`` (a delay and an offset): 1-3 measured
+    with little noise, 4-6 with 20x more (a line near a resonance, in non-periodic response).
+    The identified phases [deg], the truth [deg] and where the pooled phase was taken."""
+    rng = np.random.default_rng(3)
+    every, delay, window = 4, 32, 240
+    h = np.arange(1, 7)
+    truth = np.deg2rad(-20.0) + np.deg2rad(-12.0) * h
+    lam = np.exp(1j * truth)
+    noise = np.array([0.05, 0.05, 0.05, 1.0, 1.0, 1.0])
+    ident = LoopIdentifier((6, 1), every, delay, window, forget_cycles=5000.0, max_rel_error=0.2,
+                           cycles_per_window=window / every,
+                           harmonic_numbers=h if pool else None)  # fmt: skip
+    q0 = delay // every + 1
+    q1 = math.ceil((window + delay) / every)
+    sent = []
+    u = np.zeros(6, complex)
+    dist = np.full(6, 1 + 0.5j)
+    for k in range(3000):
+        old = [sent[j] if j >= 0 else np.zeros(6) for j in range(k - q1, k - q0 + 1)]
+        z = dist + lam * np.mean(old, axis=0) + noise * (rng.normal(size=6)
+                                                         + 1j * rng.normal(size=6))  # fmt: skip
+        ident.observe(z[:, None], window)
+        u = u + 0.05 * (rng.normal(size=6) + 1j * rng.normal(size=6))
+        sent.append(u.copy())
+        ident.sent(u[:, None])
+    return np.rad2deg(np.angle(ident.factor[:, 0])), np.rad2deg(truth), ident.pooled[:, 0]
+
+
+def test_pooled_phases_give_the_noisy_harmonics_the_line_through_the_others():
+    alone, truth, _ = _pooled_identification(False)
+    pooled, _, took = _pooled_identification(True)
+    np.testing.assert_allclose(alone[:3], truth[:3], atol=2.0)
+    np.testing.assert_allclose(pooled[:3], truth[:3], atol=2.0)  # own estimates kept
+    assert not took[:3].any()
+    # some noisy harmonic has no usable estimate of its own; pooled, every one has the line's
+    assert np.any(np.abs(alone[3:] - truth[3:]) > 30.0)
+    assert took[3:].any()
+    np.testing.assert_allclose(pooled, truth, atol=4.0)
+
+
+def test_pooling_refuses_harmonic_numbers_of_the_wrong_shape():
+    with pytest.raises(ValueError, match="harmonic_numbers"):
+        LoopIdentifier((3, 1), 4, 32, 240, forget_cycles=5000.0, max_rel_error=0.2,
+                       cycles_per_window=60.0, harmonic_numbers=[1, 2])  # fmt: skip
 
 
 @pytest.mark.parametrize("pause", [True, False])
@@ -159,3 +229,51 @@ def test_a_paused_learner_does_not_wind_up_while_its_correction_is_faded_out(pau
         np.testing.assert_array_equal(learner._u, 0.0)
     else:  # the old behaviour: it integrates the open-loop residual regardless
         assert np.abs(learner._u).max() > 0
+
+
+def _tracker_errors(lag: int, seed: int = 5) -> np.ndarray:
+    """Relative errors of a tracker's period on a known periodic force (4 % fast) in
+    low-pass random force of half the periodic part's std, after its first 2 s."""
+    nominal, true = 0.24, 0.24 / 1.04
+    n = 30000
+    t = np.arange(n) / 1000.0
+    ph = 2 * np.pi * t / true
+    periodic = np.sin(ph) + 0.5 * np.sin(2 * ph + 0.3) + 0.3 * np.sin(5 * ph + 1.0)
+    b, a = signal.butter(2, 40.0 / 500.0)
+    noise = signal.lfilter(b, a, np.random.default_rng(seed).normal(size=n))
+    noise *= 0.5 * periodic.std() / noise.std()
+    f = np.column_stack([periodic + noise, np.zeros(n), np.zeros(n)])
+    tr = PeriodTracker(nominal, lag_periods=lag)
+    tr.reset(n, 1000.0)
+    err = []
+    for k in range(n // 4):
+        tr.update(k, f[4 * k : 4 * k + 4])
+        if k * 4 >= 2000:
+            err.append(tr.period_s / true - 1)
+    return np.asarray(err)
+
+
+def test_a_tracker_over_two_periods_has_less_period_error_in_non_periodic_force():
+    one, two = _tracker_errors(1), _tracker_errors(2)
+    assert abs(np.mean(one)) < 2e-3 and abs(np.mean(two)) < 2e-3  # both lock on the true period
+    rms1, rms2 = np.sqrt(np.mean(one**2)), np.sqrt(np.mean(two**2))
+    assert rms2 < 0.8 * rms1
+
+
+def test_tracker_lag_refuses_a_range_that_reaches_the_next_multiple():
+    with pytest.raises(ValueError, match="lag_periods"):
+        PeriodTracker(0.24, rel_range=0.3, lag_periods=2)
+    with pytest.raises(ValueError, match="lag_periods"):
+        PeriodTracker(0.24, lag_periods=1.5)
+
+
+def test_new_files_track_over_two_periods_and_older_files_over_one(tmp_path):
+    path = ControlPath.through(_Flat.input_names, [[2350, 500, 30], [2350, -200, 100]])
+    doc = design_controller(_Flat(), path, "adaptive+force", spindle_rpm=125.0)
+    assert doc["tracker"]["lag_periods"] == 2
+    old = json.loads(json.dumps(doc))
+    old["format_version"] = 2
+    del old["tracker"]["lag_periods"]
+    f = tmp_path / "v2.json"
+    f.write_text(json.dumps(old))
+    assert load_controller(f)._inner.tracker.lag_periods == 1

@@ -102,7 +102,7 @@ def _path_file(tmp_path, controller="adaptive+force", rpm=250.0):
 def test_controller_file_says_what_it_is(tmp_path):
     path, _ = _path_file(tmp_path)
     back = json.loads(path.read_text())
-    assert back["format"] == "robovib.controller" and back["format_version"] == 2
+    assert back["format"] == "robovib.controller" and back["format_version"] == 3
     assert back["provenance"]["control_modes"] == {"x": "x2", "z": "z1"}
     assert back["timing"] == {"command_period_s": 0.004, "sample_rate_hz": 1000.0,
                               "delay_s": 0.032, "budget_s": 0.004}  # fmt: skip
@@ -190,7 +190,8 @@ def test_live_lookup_matches_the_planned_lookup_of_the_same_controller(tmp_path)
     s = np.linspace(0.1, 0.6, n)
     ctl.reset(spindle_rpm=250.0, max_duration_s=2.0, nominal_s_m=s[n // 2])
     planned = assemble_controller("adaptive+force", ctl.tables, excitation_period_s=0.12,
-                                  teeth=2, learner=ctl.learner_settings)  # fmt: skip
+                                  teeth=2, learner=ctl.learner_settings,
+                                  tracker=ctl.tracker_settings)  # fmt: skip
     planned.reset(s, 0.004, 1000.0)
     tt = np.arange(4 * n) / 1000.0
     f = np.column_stack([np.sin(2 * np.pi * 8.3 * tt), np.cos(2 * np.pi * 16.6 * tt), 0.5 * tt])

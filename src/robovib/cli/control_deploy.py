@@ -162,7 +162,7 @@ def design(
                "path_length_m": path.length_m, "design_points": len(doc["grid_s_m"]),
                "extrapolating_points": doc["provenance"]["extrapolating_points"],
                "stability": {k: v for k, v in doc["stability"].items()
-                             if k.endswith(("radius", "ratio"))}}  # fmt: skip
+                             if k.endswith(("radius", "ratio")) and not k.startswith("feedback")}}  # fmt: skip
     if json_out:
         emit_json(summary, units={"design_points": "1 (count)", "extrapolating_points": "1 (count)",
                                   "force_model_worst_rms_ratio": "1 (ratio)",

@@ -202,6 +202,14 @@ class PeriodTracker:
         Nominal periods between two estimates.
     smoothing
         Weight of a new estimate in the smoothed period, in (0, 1] (1: no smoothing).
+    lag_periods
+        Whole number of periods the correlated windows lie apart (>= 1): the estimate is of
+        ``lag_periods`` periods at once, so a lag error of one sample is ``lag_periods``
+        times smaller on the period. The learners' phase is the integral of the period, so
+        its wander is the period error's low-frequency part, which smoothing does not
+        reduce and a longer lag does. The search range stays ``rel_range`` of the period
+        (within it no other multiple of the period lies while ``rel_range < 1 / (2
+        lag_periods)``).
     """
 
     def __init__(
@@ -212,6 +220,7 @@ class PeriodTracker:
         window_periods: float = 2.0,
         update_periods: float = 1.0,
         smoothing: float = 0.5,
+        lag_periods: int = 1,
     ):
         if not (math.isfinite(nominal_period_s) and nominal_period_s > 0):
             raise ValueError(f"nominal_period_s must be > 0 [s], got {nominal_period_s!r}")
@@ -222,6 +231,11 @@ class PeriodTracker:
         self.window_periods = float(window_periods)
         self.update_periods = float(update_periods)
         self.smoothing = float(smoothing)
+        lag = int(lag_periods)
+        if lag != lag_periods or lag < 1 or not rel_range < 1 / (2 * lag):
+            raise ValueError("lag_periods must be a whole number >= 1 with rel_range < "
+                             "1 / (2 lag_periods)")  # fmt: skip
+        self.lag_periods = lag
 
     def reset(self, n_samples: int, sample_rate_hz: float) -> None:
         self._fs = float(sample_rate_hz)
@@ -250,12 +264,20 @@ class PeriodTracker:
         self._buf[self._len : self._len + m] = force_n
         self._len += m
         n0 = self.nominal_period_s * self._fs
-        need = round(self.window_periods * n0) + math.ceil(n0 * (1 + self.rel_range)) + 1
+        lag = self.lag_periods
+        need = (
+            round(self.window_periods * n0)
+            + math.ceil(lag * n0 * (1 + self.rel_range))
+            + 1
+            + (lag > 1)
+        )  # one sample of rounding margin for a longer lag
         if self._len < need or self._len < self._next:
             return
         self._next = self._len + round(self.update_periods * n0)
-        p, r = estimate_period(self._buf[: self._len], self._fs, self.nominal_period_s,
-                               rel_range=self.rel_range, window_periods=self.window_periods)  # fmt: skip
+        p, r = estimate_period(self._buf[: self._len], self._fs, lag * self.nominal_period_s,
+                               rel_range=self.rel_range,
+                               window_periods=self.window_periods / lag)  # fmt: skip
+        p /= lag
         self.correlation = r
         if r > 0.3:  # only a periodic signal moves the estimate
             self.period_s += self.smoothing * (p - self.period_s)
@@ -360,6 +382,10 @@ class TrackingRepetitive(RepetitiveFeedback):
         90° a fixed learner survives).
     identify_rel_error
         Relative standard error below which an identified loop factor is used (> 0).
+    pool_loop_phase
+        With ``identify_loop``: a harmonic whose own loop estimate is still too noisy takes
+        the phase of a straight line in the harmonic number fitted to the others of its
+        direction (the delay is common to them; ``LoopIdentifier(harmonic_numbers=...)``).
     pause_when_faded
         Learn only as much as the correction is applied: a guard (``FadeGuard``) that fades
         the correction to ``s`` sets :attr:`learning_scale` to ``s`` and the update is
@@ -386,6 +412,7 @@ class TrackingRepetitive(RepetitiveFeedback):
         identify_loop: bool = False,
         identify_rel_error: float = 0.2,
         pause_when_faded: bool = False,
+        pool_loop_phase: bool = False,
         **kwargs,
     ):
         m = int(period_multiple)
@@ -413,6 +440,7 @@ class TrackingRepetitive(RepetitiveFeedback):
         self.identify_loop = bool(identify_loop)
         self.identify_rel_error = float(identify_rel_error)
         self.pause_when_faded = bool(pause_when_faded)
+        self.pool_loop_phase = bool(pool_loop_phase)
         self.learning_scale = 1.0
 
     def reset(self, coords, period_s: float, sample_rate_hz: float) -> None:
@@ -455,7 +483,8 @@ class TrackingRepetitive(RepetitiveFeedback):
                 forget_cycles=IDENTIFY_MEMORY_S / (self._every * self._dt),
                 max_rel_error=self.identify_rel_error,
                 cycles_per_window=longest / self._every,
-                offset_cycles=(self.period_multiple - 1) * IDENTIFY_EVERY_CYCLES // 2)  # fmt: skip
+                offset_cycles=(self.period_multiple - 1) * IDENTIFY_EVERY_CYCLES // 2,
+                harmonic_numbers=self._h if self.pool_loop_phase else None)  # fmt: skip
             self._z = np.zeros((self.n_harmonics, 3), complex)
             self._step = np.zeros((self.n_harmonics, 3), complex)
 

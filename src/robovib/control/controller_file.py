@@ -32,12 +32,14 @@ from .design import (
     DESIGNS,
     GUARD_DEFAULTS,
     TRACKER_DEFAULTS,
+    TRACKER_DESIGN,
     PathTables,
+    band_stable_feedback,
     check_controller_names,
     design_tables,
 )
 from .path_design import ControlPath, PathDesign
-from .pose_plants import SECOND_MODE_HYPOTHESES
+from .pose_plants import SECOND_MODE_HYPOTHESES, path_mode, plant_set
 from .runtime import RuntimeController
 
 __all__ = [
@@ -64,6 +66,10 @@ _UNITS = {
     "gains.robust": "[K_x m/m, K_v s, K_u1..K_ud m/m] per design point",
     "gains.lqg": "[K_x m/m, K_v s, K_u1..K_ud m/m] per design point",
     "gains.force_model_r": "1 (LQR input weight)",
+    "gains.feedback": "[K_x m/m, K_v s, K_u1..K_ud m/m] per design point (adaptive+force's "
+                      "feedback on the axes without a force model, format 3)",
+    "stability.feedback_r": "1 (LQR input weight of gains.feedback: the smallest stable on "
+                            "every plant of the band with every delay of true_delays_s)",
     "timing": "s, Hz",
     "learner.delay_uncertainty_s": "s (unknown part of the delay each harmonic's learning "
                                    "gain is kept stable over)",
@@ -73,6 +79,10 @@ _UNITS = {
     "learner.identify_rel_error": "1 (standard error / |loop factor| below which it is used)",
     "learner.learning_time_s": "s (time constant of the tooth-line learning)",
     "learner.pause_when_faded": "bool (no learning while the guard fades the correction out)",
+    "learner.pool_loop_phase": "bool (a harmonic's loop phase from a line fitted to the other "
+                               "harmonics' phases until its own is known, format 3)",
+    "tracker.lag_periods": "periods between the correlated windows of the period estimate "
+                           "(format 3; 1 in older files)",
     "guard.z_score": "1 (standard errors of the window's RMS, amplification_test)",
     "excitation.spindle_rpm": "rev/min",
     "stability.*_worst_spectral_radius": "1 (< 1: stable on every plant of the band)",
@@ -152,7 +162,7 @@ def design_controller(
     bad = [d for d in directions if d not in _AXES]
     if bad or not directions:
         raise ValueError(f"directions must be some of x, y, z, got {list(directions)}")
-    tracker = _settings("tracker", TRACKER_DEFAULTS, tracker)
+    tracker = _settings("tracker", TRACKER_DEFAULTS, {**TRACKER_DESIGN, **(tracker or {})})
     guard = _settings("guard", GUARD_DEFAULTS, guard)
     design = PathDesign(model, path, directions, n_points)
     axes = {_AXES[d]: d for d in directions}
@@ -161,6 +171,17 @@ def design_controller(
                         force_model_true_delays_s=_true_delays(delay_s, period_s))  # fmt: skip
     worst = tab.checks.get("force_model_worst_rms_ratio", {})
     tab.force_model_r = {a: r for a, r in tab.force_model_r.items() if worst.get(a, 0.0) < 1.0}
+    if name == "adaptive+force":  # the axes left without a force model get a feedback
+        for a, d in axes.items():
+            if a in tab.force_model_r:
+                continue
+            fb = band_stable_feedback([plant_set(design, s, d) for s in tab.grid],
+                                      [path_mode(design, s, d) for s in tab.grid], period_s,
+                                      delay_s, _true_delays(delay_s, period_s))  # fmt: skip
+            if fb is not None:
+                tab.feedback[a] = fb[1]
+                tab.checks.setdefault("feedback_r", {})[a] = fb[0]
+                tab.checks.setdefault("feedback_worst_spectral_radius", {})[a] = fb[2]
     return _document(name, tab, design, period_s, delay_s, sample_rate_hz, spindle_rpm,
                      int(teeth), tracker, guard)  # fmt: skip
 
@@ -215,6 +236,8 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
     for key in ("robust", "lqg"):
         if getattr(tab, key):
             gains[key] = {directions[a]: v.tolist() for a, v in getattr(tab, key).items()}
+    if tab.feedback:
+        gains["feedback"] = {directions[a]: v.tolist() for a, v in tab.feedback.items()}
     if "force_model_r" in DESIGNS[name].tables:  # the axes kept (may be none)
         gains["force_model_r"] = {directions[a]: r for a, r in tab.force_model_r.items()}
     stability = {
@@ -257,7 +280,8 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
 _DESCRIPTIONS = {
     "adaptive+force": "period tracker + repetitive learner of the tooth (and runout) lines on "
                       "the tracker + delay-aware LQR feedforward of the measured force through "
-                      "the pose model, under a fade-out guard",
+                      "the pose model (the other axes: delay-aware LQR feedback stable over "
+                      "the band and the delays), under a fade-out guard",
     "feedforward+robust": "force feedforward (one tooth period ahead) + delay-aware LQR "
                           "feedback robust over the model band",
     "robust": "delay-aware LQR feedback robust over the model band",

@@ -21,8 +21,12 @@ __all__ = ["FORMAT", "FORMAT_VERSION", "LEARNER_DEFAULTS", "LEARNER_DESIGN"]
 FORMAT = "robovib.controller"
 #: 2: the learners identify their loop phase (``learner.identify_loop`` and friends) and pause
 #: while the guard fades their correction out (``learner.pause_when_faded``); a
-#: version-1 file loads with them off and runs as it did.
-FORMAT_VERSION = 2
+#: version-1 file loads with them off and runs as it did. 3: the learners pool the loop phases
+#: of a direction's harmonics (``learner.pool_loop_phase``) and the period tracker estimates
+#: over several periods (``tracker.lag_periods``); ``adaptive+force`` files carry a feedback
+#: for the axes without a force model (``gains.feedback``); a version-1 or 2 file loads with
+#: them off (1, none) and runs as it did.
+FORMAT_VERSION = 3
 
 
 def _settings(what: str, defaults: dict, given: dict | None) -> dict:
@@ -39,10 +43,11 @@ LEARNER_DEFAULTS = {"divergence_ratio": 1.2, "divergence_test": "correction",
                     "delay_uncertainty_s": 0.008, "fn_uncertainty_rel": 0.0,
                     "gain_uncertainty_rel": 0.1, "identify_loop": False,
                     "identify_rel_error": 0.2, "learning_time_s": 0.4,
-                    "pause_when_faded": False}  # fmt: skip
+                    "pause_when_faded": False, "pool_loop_phase": False}  # fmt: skip
 #: Learner settings a newly designed file carries over the defaults (a file written before
 #: they existed loads with the defaults above, i.e. as it ran then).
-LEARNER_DESIGN = {"identify_loop": True, "learning_time_s": 0.8, "pause_when_faded": True}
+LEARNER_DESIGN = {"identify_loop": True, "learning_time_s": 0.8, "pause_when_faded": True,
+                  "pool_loop_phase": True}  # fmt: skip
 
 
 def _learner(given: dict | None) -> dict:
@@ -55,6 +60,7 @@ def _learner(given: dict | None) -> dict:
     out["model_at_tracked_period"] = bool(out["model_at_tracked_period"])
     out["identify_loop"] = bool(out["identify_loop"])
     out["pause_when_faded"] = bool(out["pause_when_faded"])
+    out["pool_loop_phase"] = bool(out["pool_loop_phase"])
     for key in (
         "delay_uncertainty_s",
         "fn_uncertainty_rel",
@@ -104,6 +110,8 @@ def _tables(doc: dict) -> PathTables:
         for key in ("robust", "lqg"):
             if key in g:
                 setattr(tab, key, {by_dir[d]: np.asarray(v, float) for d, v in g[key].items()})
+        if "feedback" in g:
+            tab.feedback = {by_dir[d]: np.asarray(v, float) for d, v in g["feedback"].items()}
         if "force_model_r" in g:
             tab.force_model_r = {by_dir[d]: float(r) for d, r in g["force_model_r"].items()}
     except (KeyError, TypeError, ValueError) as exc:

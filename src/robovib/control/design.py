@@ -51,6 +51,7 @@ __all__ = [
     "THESIS_PRINTED_END_GAINS",
     "THESIS_PRINTED_START_GAINS",
     "TRACKER_DEFAULTS",
+    "TRACKER_DESIGN",
     "Design",
     "PathTables",
     "assemble_controller",
@@ -228,6 +229,9 @@ class PathTables:
         Axis -> (n, 2 + d) delay-aware gains of the LQG design.
     force_model_r
         Axis -> LQR weight of the force-model feedforward.
+    feedback
+        Axis -> (n, 2 + d) delay-aware gains of ``adaptive+force``'s feedback on the axes
+        without a force model (a controller file; :func:`band_stable_feedback`).
     plants
         Axis -> the plant set (band corners, second modes) at each design point; not stored
         in a controller file.
@@ -249,6 +253,7 @@ class PathTables:
     robust: dict = field(default_factory=dict)
     lqg: dict = field(default_factory=dict)
     force_model_r: dict = field(default_factory=dict)
+    feedback: dict = field(default_factory=dict)
     plants: dict = field(default_factory=dict)
     checks: dict = field(default_factory=dict)
 
@@ -381,7 +386,11 @@ _NEEDS_EXCITATION = {
 
 #: Default period-tracker settings (:class:`~robovib.control.adaptive.PeriodTracker`).
 TRACKER_DEFAULTS = {"rel_range": 0.1, "window_periods": 2.0, "update_periods": 1.0,
-                    "smoothing": 0.5}  # fmt: skip
+                    "smoothing": 0.5, "lag_periods": 1}  # fmt: skip
+#: Tracker settings a newly designed controller file carries over the defaults (a file written
+#: before they existed loads with the defaults, i.e. as it ran then): the period estimated
+#: over two periods at once (half the phase wander of the learners in non-periodic force).
+TRACKER_DESIGN = {"lag_periods": 2}
 #: Default fade-out guard settings (:class:`~robovib.control.guard.FadeGuard`).
 GUARD_DEFAULTS = {"min_periodicity": 0.5, "max_ratio": 1.0, "z_score": 1.0, "window_s": 0.5,
                   "check_s": 0.1, "fade_time_s": 0.2, "warmup_s": 0.5}  # fmt: skip
@@ -486,7 +495,61 @@ def assemble_controller(
         parts.append(ForceModelFeedforward(fzk, delay_s, r=dict(tab.force_model_r)))
     elif name != "adaptive":
         parts.append(DelayAwareFeedback(robust))
+    if name == "adaptive+force" and tab.feedback:
+        # a controller file's band-stable delay-aware feedback on the other axes
+        parts.append(DelayAwareFeedback({a: ScheduledTable(grid, g)
+                                         for a, g in tab.feedback.items()}))  # fmt: skip
     return FadeGuard(Combined(*parts), tracker_obj, fz, delay_s, **guard_opts)
+
+
+def band_stable_feedback(plant_sets, nominals, period_s: float, delay_s: float,
+                         true_delays_s, r_grid=None):  # fmt: skip
+    """The most aggressive delay-aware LQR gains stable on every plant of the band.
+
+    For each ``R`` of ``r_grid`` from the largest (gentlest) down, the gains of
+    :func:`~robovib.control.lqr.design_delay_aware_lqr` on the nominal mode of each design
+    point are checked on every plant of that point's set (band corners, second modes) with
+    every true delay of ``true_delays_s`` (:func:`implemented_loop_matrix` with
+    ``plant_delay_steps``); the smallest ``R`` before the first that fails at some point is
+    used. (The robust design instead picks the ``R`` of the fastest worst-case decay, which
+    for a 32-40 ms delay on a 15-22 Hz mode is a gain too small to reduce the vibration.)
+
+    Parameters
+    ----------
+    plant_sets
+        Per design point, the plants (lists of :class:`ModalParameters`).
+    nominals
+        Per design point, the nominal mode.
+    period_s, delay_s
+        Command period and the delay the gains assume [s].
+    true_delays_s
+        The true delays the gains must be stable with [s].
+    r_grid
+        The ``R`` tried (default ``logspace(-2, 3, 11)``).
+
+    Returns
+    -------
+    tuple
+        ``(r, gains (n, 2 + d), worst spectral radius per design point)``, or ``None`` when
+        not even the largest ``R`` is stable everywhere.
+    """
+    grid = np.logspace(-2, 3, 11) if r_grid is None else np.asarray(r_grid, float)
+    d = round(delay_s / period_s)
+    steps = sorted({round(t / period_s) for t in true_delays_s})
+    best = None
+    for r in sorted(grid, reverse=True):
+        gains, worst = [], []
+        for plants, nominal in zip(plant_sets, nominals, strict=True):
+            g = design_delay_aware_lqr(nominal, period_s, delay_s, r=[[float(r)]]).gains
+            w = max(spectral_radius(implemented_loop_matrix(p, g, period_s, d,
+                                                            plant_delay_steps=D))
+                    for p in plants for D in steps)  # fmt: skip
+            gains.append(g)
+            worst.append(w)
+        if max(worst) >= 1.0:
+            break
+        best = (float(r), np.array(gains), worst)
+    return best
 
 
 def _tuned(tab: PathTables, excitation_period_s: float) -> StateFeedback:

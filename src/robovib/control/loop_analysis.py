@@ -38,6 +38,7 @@ def implemented_loop_matrix(
     delay_steps: int = 8,
     *,
     velocity: str = "difference",
+    plant_delay_steps: int | None = None,
 ) -> np.ndarray:
     """Closed-loop matrix of a plant under ``u = -(g0 x + g1 v + g[2:] u_hist)`` with delay.
 
@@ -62,6 +63,11 @@ def implemented_loop_matrix(
         Transport delay in command periods.
     velocity : str
         How the velocity is obtained (``"difference"``: backward difference).
+    plant_delay_steps : int or None
+        The *true* transport delay in command periods, when it differs from the
+        ``delay_steps`` the gains were designed for (the controller still feeds back its
+        last ``delay_steps`` commands; the plant gets the command ``plant_delay_steps``
+        periods late). None: ``delay_steps``.
 
     Returns
     -------
@@ -90,7 +96,11 @@ def implemented_loop_matrix(
     cv[1::2] = 1.0  # tip velocity
     hist = g[2:] if g.size > 2 else np.zeros(d)
     diff = velocity == "difference"
-    n = nm + int(diff) + d
+    true_d = d if plant_delay_steps is None else int(plant_delay_steps)
+    if true_d < 0:
+        raise ValueError(f"plant_delay_steps must be >= 0, got {plant_delay_steps!r}")
+    length = max(d, true_d)  # commands kept in the state
+    n = nm + int(diff) + length
     big = np.zeros((n, n))
     big[:nm, :nm] = ad
     h0 = nm + int(diff)  # index of u_{k-1}
@@ -102,12 +112,14 @@ def implemented_loop_matrix(
     else:
         row[:nm] = -g[0] * cx - g[1] * cv
     row[h0 : h0 + d] = -hist
-    if d == 0:
+    if true_d == 0:
         big[:nm, :] += bd @ row[None, :]
+    else:
+        big[:nm, h0 + true_d - 1] += bd[:, 0]
+    if length == 0:
         return big
-    big[:nm, h0 + d - 1] += bd[:, 0]
     big[h0, :] = row
-    for i in range(1, d):
+    for i in range(1, length):
         big[h0 + i, h0 + i - 1] = 1.0
     return big
 

@@ -9,6 +9,7 @@ corrections, so the learner can rotate its update by the identified phase.
 
 from __future__ import annotations
 
+import cmath
 import math
 
 import numpy as np
@@ -20,6 +21,8 @@ _SECOND = np.array([2, 2, 2, 1, 0, 0])  # w, w, w, z, x, x
 
 #: Memory of the online loop identification [s] (time constant of its forgetting).
 IDENTIFY_MEMORY_S = 20.0
+#: Largest identified phase a pooled fit uses (beyond, a phase may have wrapped).
+_MAX_POOL_PHASE = math.radians(170.0)
 #: Command cycles between two loop estimates (the sums are updated every cycle; the estimate
 #: costs ~30 us; two learners of a loop estimate in different cycles).
 IDENTIFY_EVERY_CYCLES = 5
@@ -67,11 +70,22 @@ class LoopIdentifier:
     offset_cycles
         The estimates run at the cycles ``k`` with ``k % IDENTIFY_EVERY_CYCLES ==
         offset_cycles`` (two learners of one loop estimate in different cycles).
+    harmonic_numbers
+        None, or the (harmonics,) harmonic numbers ``h`` of the rows (frequency ``h / T``):
+        the phases are then also *pooled* per direction. The loop's phase error is mostly
+        the unknown delay (``-w delta``, linear in ``h``) and a slowly varying model error,
+        so ``arg lambda_h ~ a + b h``, fitted by weighted least squares (weights ``1 /
+        rel_error^2``) to every harmonic whose estimate has a relative standard error below
+        1 and a phase within ±170°, at least 3 of them. A harmonic whose own estimate is
+        not yet good enough takes the fitted phase where the fit's standard error at ``h``
+        (scaled up by the fit's reduced chi-square when above 1) is below
+        ``max_rel_error``: near a resonance the non-periodic response keeps each harmonic's
+        own estimate noisy for a whole cut, while together they fix the delay.
     """
 
     def __init__(self, shape, every: int, delay_samples: int, longest_window: int, *,
                  forget_cycles: float, max_rel_error: float, cycles_per_window: float,
-                 offset_cycles: int = 0):  # fmt: skip
+                 offset_cycles: int = 0, harmonic_numbers=None):  # fmt: skip
         if not (every >= 1 and delay_samples >= 0 and longest_window >= 1 and forget_cycles > 1
                 and max_rel_error > 0 and cycles_per_window >= 1):  # fmt: skip
             raise ValueError("every, longest_window >= 1, delay_samples >= 0, forget_cycles > 1, "
@@ -92,9 +106,18 @@ class LoopIdentifier:
         # running sums of x, z, w, z w*, x w*, |w|^2, |z|^2, |x|^2, z x* (stacked)
         self._acc = np.zeros((9, *shape), complex)
         self._new = np.zeros((9, *shape), complex)
+        self._h = None
+        if harmonic_numbers is not None:
+            h = np.asarray(harmonic_numbers, float)
+            if h.shape != (shape[0],) or not np.all(h > 0):
+                raise ValueError(f"harmonic_numbers must be {shape[0]} numbers > 0")
+            self._h = h[:, None]
+            self._hlist = h.tolist()
         self.factor = np.ones(shape, complex)
         self.estimate = np.full(shape, np.nan + 0j)
         self.rel_error = np.full(shape, np.inf)
+        #: Where the last estimate took the pooled phase (``harmonic_numbers``).
+        self.pooled = np.zeros(shape, bool)
 
     def _cum_at(self, j: int) -> np.ndarray:
         return self._cum[j % self._ring] if j >= 0 else self._zero
@@ -152,6 +175,51 @@ class LoopIdentifier:
         self.rel_error[...] = np.sqrt(np.maximum(rel2, 0.0))
         use = ok & (rel2 < self._max_rel**2) & (mag > 0.25) & (mag < 4.0)
         np.divide(lam, mag, out=self.factor, where=use)
+        if self._h is not None:
+            self._pool(ok & (mag > 0.25) & (mag < 4.0), use)
+
+    def _pool(self, ok: np.ndarray, own: np.ndarray) -> None:
+        """Phases of the harmonics without a good own estimate from ``a + b h`` (see class).
+
+        Plain Python over the few harmonics and directions: ~20 small NumPy calls would cost
+        more than the arithmetic (this runs inside the command cycle)."""
+        self.pooled[...] = False
+        need = ok & ~own
+        if not need.any():
+            return
+        lim = self._max_rel**2
+        hs = self._hlist
+        for d in np.flatnonzero(need.any(axis=0)).tolist():
+            lam = self.estimate[:, d].tolist()
+            rel = self.rel_error[:, d].tolist()
+            okd = ok[:, d].tolist()
+            pts = []
+            for i, h in enumerate(hs):
+                if okd[i] and rel[i] < 1.0:
+                    ph = cmath.phase(lam[i])
+                    if abs(ph) < _MAX_POOL_PHASE:
+                        pts.append((h, ph, 1.0 / max(rel[i], 0.02) ** 2))
+            if len(pts) < 3:
+                continue
+            s0 = s1 = s2 = t0 = t1 = 0.0
+            for h, ph, w in pts:
+                s0 += w
+                s1 += w * h
+                s2 += w * h * h
+                t0 += w * ph
+                t1 += w * h * ph
+            det = s0 * s2 - s1 * s1
+            if not det > 1e-12 * s0 * s2:
+                continue
+            a = (s2 * t0 - s1 * t1) / det
+            b = (s0 * t1 - s1 * t0) / det
+            chi2 = sum(w * (ph - a - b * h) ** 2 for h, ph, w in pts) / (len(pts) - 2)
+            scale = max(chi2, 1.0) / det
+            for i in np.flatnonzero(need[:, d]).tolist():
+                h = hs[i]
+                if (s2 - 2 * s1 * h + s0 * h * h) * scale < lim:
+                    self.factor[i, d] = cmath.exp(1j * (a + b * h))
+                    self.pooled[i, d] = True
 
     def sent(self, u: np.ndarray) -> None:
         """Record this cycle's phasors, after the learning update.

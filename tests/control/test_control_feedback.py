@@ -1,0 +1,114 @@
+"""Issue 40: ``adaptive+force``'s band-stable delay-aware feedback and the loop with a delay
+the gains were not designed for.
+
+References: the closed loop simulated step by step from the mode's own ODE (exact
+zero-order hold by SciPy) with the correction applied ``D`` periods late, against the
+spectral radius of :func:`implemented_loop_matrix` with ``plant_delay_steps=D``.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from robovib.control.controller_file import design_controller, load_controller
+from robovib.control.controllers import DelayAwareFeedback
+from robovib.control.design import band_stable_feedback
+from robovib.control.loop_analysis import implemented_loop_matrix
+from robovib.control.lqr import design_delay_aware_lqr, spectral_radius
+from robovib.control.path_design import ControlPath
+from robovib.gp.dominant_modes import PoseMode
+from robovib.modal.parameters import ModalParameters
+
+MODE = ModalParameters(18.0, 1.0e6, 0.05)
+T = 0.004
+
+
+def _simulated_decay(gains, designed_steps: int, true_steps: int, n: int = 4000) -> float:
+    """Per-period growth factor of the loop run step by step (its last 2000 periods)."""
+    wn, z = 2 * np.pi * MODE.natural_frequency_hz, MODE.damping_ratio
+    a = np.array([[0.0, 1.0], [-(wn**2), -2 * z * wn]])
+    b = np.array([[0.0], [wn**2]])  # a correction moves the mode like a base displacement
+    ad, bd, *_ = signal.cont2discrete((a, b, np.eye(2), np.zeros((2, 1))), T)
+    g = np.asarray(gains, float)
+    x = np.array([1e-3, 0.0])
+    x_prev = 0.0
+    u = np.zeros(n + max(designed_steps, true_steps) + 1)  # u[k + off]: command of period k
+    off = max(designed_steps, true_steps)
+    norms = []
+    for k in range(n):
+        v = (x[0] - x_prev) / T
+        hist = u[k + off - designed_steps : k + off][::-1]  # u_{k-1}, ..., u_{k-d}
+        u[k + off] = -(g[0] * x[0] + g[1] * v + g[2:] @ hist)
+        x_prev = x[0]
+        x = ad @ x + bd[:, 0] * u[k + off - true_steps]
+        norms.append(np.abs(x).sum() + np.abs(u[k + off - 2 * off : k + off + 1]).sum())
+    return (norms[-1] / norms[-2001]) ** (1 / 2000)
+
+
+@pytest.mark.parametrize("true_steps", [6, 8, 12])
+def test_loop_matrix_with_a_wrong_delay_matches_the_loop_run_step_by_step(true_steps):
+    gains = design_delay_aware_lqr(MODE, T, 8 * T, r=[[30.0]]).gains
+    rho = spectral_radius(implemented_loop_matrix(MODE, gains, T, 8,
+                                                  plant_delay_steps=true_steps))  # fmt: skip
+    assert _simulated_decay(gains, 8, true_steps) == pytest.approx(rho, abs=2e-3)
+
+
+def test_loop_matrix_with_the_designed_delay_is_unchanged():
+    gains = design_delay_aware_lqr(MODE, T, 8 * T, r=[[30.0]]).gains
+    np.testing.assert_array_equal(implemented_loop_matrix(MODE, gains, T, 8),
+                                  implemented_loop_matrix(MODE, gains, T, 8,
+                                                          plant_delay_steps=8))  # fmt: skip
+
+
+def test_band_stable_feedback_takes_the_most_aggressive_weight_stable_everywhere():
+    band = [[ModalParameters(18.0 * f, 1.0e6, 0.05)] for f in (0.95, 1.0, 1.05)]
+    grid = np.logspace(-1, 3, 9)
+    delays = (0.024, 0.032, 0.040, 0.048)
+    r, gains, worst = band_stable_feedback([band], [MODE], T, 0.032, delays, r_grid=grid)
+    assert max(worst) < 1.0
+
+    def worst_radius(rr):
+        g = design_delay_aware_lqr(MODE, T, 0.032, r=[[rr]]).gains
+        return max(spectral_radius(implemented_loop_matrix(p, g, T, 8, plant_delay_steps=d))
+                   for p in band for d in (6, 8, 10, 12))  # fmt: skip
+
+    assert worst_radius(r) < 1.0
+    smaller = grid[grid < r]
+    assert smaller.size and worst_radius(smaller.max()) >= 1.0  # the next one is not stable
+    np.testing.assert_allclose(gains[0], design_delay_aware_lqr(MODE, T, 0.032, r=[[r]]).gains)
+
+
+class _NoForceModel:
+    """A flat workspace model whose X mode makes the force model amplify (left out)."""
+
+    input_names = ("x_mm", "y_mm", "rz_deg")
+
+    def modes(self, X):
+        m = ModalParameters(18.0, 1.0e6, 0.05)
+        pm = PoseMode(m, 0.2, 2e4, 0.05 * m.damping_ns_per_m, False, None)
+        return [{"x": pm, "z": pm} for _ in np.atleast_2d(X)]
+
+
+def test_new_files_feed_back_the_axes_without_a_force_model_and_older_files_do_not(tmp_path):
+    path = ControlPath.through(_NoForceModel.input_names, [[2350, 500, 30], [2350, -200, 100]])
+    doc = design_controller(_NoForceModel(), path, "adaptive+force", spindle_rpm=125.0)
+    fed = set(doc["gains"].get("feedback", {}))
+    kept = set(doc["gains"]["force_model_r"])
+    assert fed and not fed & kept  # the feedback goes exactly where no force model is
+    assert max(max(v) for v in doc["stability"]["feedback_worst_spectral_radius"].values()) < 1
+    f = tmp_path / "v3.json"
+    f.write_text(json.dumps(doc))
+    parts = load_controller(f)._inner.inner.parts
+    fb = [p for p in parts if isinstance(p, DelayAwareFeedback) and p.gains]
+    assert len(fb) == 1 and {("x", "y", "z")[a] for a in fb[0].gains} == fed
+    old = json.loads(json.dumps(doc))
+    old["format_version"] = 2
+    del old["gains"]["feedback"]
+    f2 = tmp_path / "v2.json"
+    f2.write_text(json.dumps(old))
+    parts = load_controller(f2)._inner.inner.parts
+    assert not any(isinstance(p, DelayAwareFeedback) and p.gains for p in parts)
