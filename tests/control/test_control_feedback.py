@@ -27,9 +27,13 @@ MODE = ModalParameters(18.0, 1.0e6, 0.05)
 T = 0.004
 
 
-def _simulated_decay(gains, designed_steps: int, true_steps: int, n: int = 4000) -> float:
-    """Per-period growth factor of the loop run step by step (its last 2000 periods)."""
-    wn, z = 2 * np.pi * MODE.natural_frequency_hz, MODE.damping_ratio
+def _simulated_decay(gains, designed_steps: int, true_steps: int, n: int = 4000,
+                     actuator_gain: float = 1.0, mode: ModalParameters = MODE) -> float:  # fmt: skip
+    """Per-period growth factor of the loop run step by step (its last 2000 periods).
+
+    The plant gets ``actuator_gain`` x the command; the controller's history is the command.
+    """
+    wn, z = 2 * np.pi * mode.natural_frequency_hz, mode.damping_ratio
     a = np.array([[0.0, 1.0], [-(wn**2), -2 * z * wn]])
     b = np.array([[0.0], [wn**2]])  # a correction moves the mode like a base displacement
     ad, bd, *_ = signal.cont2discrete((a, b, np.eye(2), np.zeros((2, 1))), T)
@@ -44,7 +48,7 @@ def _simulated_decay(gains, designed_steps: int, true_steps: int, n: int = 4000)
         hist = u[k + off - designed_steps : k + off][::-1]  # u_{k-1}, ..., u_{k-d}
         u[k + off] = -(g[0] * x[0] + g[1] * v + g[2:] @ hist)
         x_prev = x[0]
-        x = ad @ x + bd[:, 0] * u[k + off - true_steps]
+        x = ad @ x + bd[:, 0] * (actuator_gain * u[k + off - true_steps])
         norms.append(np.abs(x).sum() + np.abs(u[k + off - 2 * off : k + off + 1]).sum())
     return (norms[-1] / norms[-2001]) ** (1 / 2000)
 
@@ -55,6 +59,43 @@ def test_loop_matrix_with_a_wrong_delay_matches_the_loop_run_step_by_step(true_s
     rho = spectral_radius(implemented_loop_matrix(MODE, gains, T, 8,
                                                   plant_delay_steps=true_steps))  # fmt: skip
     assert _simulated_decay(gains, 8, true_steps) == pytest.approx(rho, abs=2e-3)
+
+
+@pytest.mark.parametrize(("true_steps", "actuator_gain"), [(8, 0.8), (12, 1.2), (6, 1.5)])
+def test_loop_matrix_with_an_actuator_gain_error_matches_the_loop_run_step_by_step(
+    true_steps, actuator_gain
+):
+    gains = design_delay_aware_lqr(MODE, T, 8 * T, r=[[30.0]]).gains
+    rho = spectral_radius(implemented_loop_matrix(MODE, gains, T, 8, plant_delay_steps=true_steps,
+                                                  actuator_gain=actuator_gain))  # fmt: skip
+    simulated = _simulated_decay(gains, 8, true_steps, actuator_gain=actuator_gain)
+    assert simulated == pytest.approx(rho, abs=2e-3)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
+def test_loop_matrix_refuses_a_non_positive_or_non_finite_actuator_gain(bad):
+    gains = design_delay_aware_lqr(MODE, T, 8 * T, r=[[30.0]]).gains
+    with pytest.raises(ValueError, match="actuator_gain"):
+        implemented_loop_matrix(MODE, gains, T, 8, actuator_gain=bad)
+    with pytest.raises(ValueError, match="actuator_gains"):
+        band_stable_feedback([[MODE]], [MODE], T, 0.032, (0.032,), actuator_gains=(1.0, bad))
+
+
+def test_band_stable_feedback_over_the_actuator_gain_refuses_a_weight_that_grows_at_plus_20_pct():
+    """The weight chosen with a perfect actuator grows, run step by step, with 1.2x the
+    command; the one chosen over 0.8-1.2 decays with every gain and delay of the check."""
+    fast = ModalParameters(18.0 * 1.05, 1.0e6, 0.05)
+    band = [[ModalParameters(18.0 * f, 1.0e6, 0.05)] for f in (0.95, 1.0, 1.05)]
+    grid = np.logspace(-1, 3, 9)
+    delays = (0.024, 0.032, 0.040, 0.048)
+    r1, g1, _ = band_stable_feedback([band], [MODE], T, 0.032, delays, r_grid=grid)
+    r2, g2, worst = band_stable_feedback([band], [MODE], T, 0.032, delays, r_grid=grid,
+                                         actuator_gains=(0.8, 1.0, 1.2))  # fmt: skip
+    assert r2 > r1 and max(worst) < 1.0
+    assert _simulated_decay(g1[0], 8, 12, actuator_gain=1.2, mode=fast) > 1.0
+    for k in (0.8, 1.2):
+        for steps in (6, 12):
+            assert _simulated_decay(g2[0], 8, steps, actuator_gain=k, mode=fast) < 1.0
 
 
 def test_loop_matrix_with_the_designed_delay_is_unchanged():
@@ -100,6 +141,8 @@ def test_new_files_feed_back_the_axes_without_a_force_model_and_older_files_do_n
     kept = set(doc["gains"]["force_model_r"])
     assert fed and not fed & kept  # the feedback goes exactly where no force model is
     assert max(max(v) for v in doc["stability"]["feedback_worst_spectral_radius"].values()) < 1
+    assert doc["stability"]["feedback_actuator_gains"] == [0.8, 0.9, 1.0, 1.1, 1.2]
+    assert "stability.feedback_actuator_gains" in doc["units"]
     f = tmp_path / "v3.json"
     f.write_text(json.dumps(doc))
     parts = load_controller(f)._inner.inner.parts

@@ -69,7 +69,10 @@ _UNITS = {
     "gains.feedback": "[K_x m/m, K_v s, K_u1..K_ud m/m] per design point (adaptive+force's "
                       "feedback on the axes without a force model, format 3)",
     "stability.feedback_r": "1 (LQR input weight of gains.feedback: the smallest stable on "
-                            "every plant of the band with every delay of true_delays_s)",
+                            "every plant of the band with every delay of true_delays_s and "
+                            "every gain of feedback_actuator_gains)",
+    "stability.feedback_actuator_gains": "1 (applied / commanded correction the feedback is "
+                                         "checked stable with)",
     "timing": "s, Hz",
     "learner.delay_uncertainty_s": "s (unknown part of the delay each harmonic's learning "
                                    "gain is kept stable over)",
@@ -177,7 +180,8 @@ def design_controller(
                 continue
             fb = band_stable_feedback([plant_set(design, s, d) for s in tab.grid],
                                       [path_mode(design, s, d) for s in tab.grid], period_s,
-                                      delay_s, _true_delays(delay_s, period_s))  # fmt: skip
+                                      delay_s, _true_delays(delay_s, period_s),
+                                      actuator_gains=FEEDBACK_ACTUATOR_GAINS)  # fmt: skip
             if fb is not None:
                 tab.feedback[a] = fb[1]
                 tab.checks.setdefault("feedback_r", {})[a] = fb[0]
@@ -189,6 +193,11 @@ def design_controller(
 #: The unknown part of the delay a controller file's force model must not amplify with [s]:
 #: twice the realistic 8 ms (``CutDisturbances``), so a 2x error stays inside the checked band.
 DELAY_UNCERTAINTY_S = 0.016
+
+
+#: The actuator gains (applied / commanded correction) ``gains.feedback`` must be stable with:
+#: twice the realistic 10 % error (``CutDisturbances.actuator_gain_pct``) either way.
+FEEDBACK_ACTUATOR_GAINS = (0.8, 0.9, 1.0, 1.1, 1.2)
 
 
 def _true_delays(delay_s: float, period_s: float) -> tuple[float, ...]:
@@ -250,6 +259,8 @@ def _document(name, tab: PathTables, design: PathDesign, period_s, delay_s, fs, 
     stability.update({k: {directions[a]: v for a, v in c.items()} for k, c in tab.checks.items()})
     if name in ("adaptive+force",):
         stability["true_delays_s"] = list(_true_delays(delay_s, period_s))
+        if tab.feedback:
+            stability["feedback_actuator_gains"] = list(FEEDBACK_ACTUATOR_GAINS)
     return {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,

@@ -503,14 +503,15 @@ def assemble_controller(
 
 
 def band_stable_feedback(plant_sets, nominals, period_s: float, delay_s: float,
-                         true_delays_s, r_grid=None):  # fmt: skip
+                         true_delays_s, r_grid=None, actuator_gains=(1.0,)):  # fmt: skip
     """The most aggressive delay-aware LQR gains stable on every plant of the band.
 
     For each ``R`` of ``r_grid`` from the largest (gentlest) down, the gains of
     :func:`~robovib.control.lqr.design_delay_aware_lqr` on the nominal mode of each design
     point are checked on every plant of that point's set (band corners, second modes) with
-    every true delay of ``true_delays_s`` (:func:`implemented_loop_matrix` with
-    ``plant_delay_steps``); the smallest ``R`` before the first that fails at some point is
+    every true delay of ``true_delays_s`` and every actuator gain of ``actuator_gains``
+    (:func:`implemented_loop_matrix` with ``plant_delay_steps`` and ``actuator_gain``); the
+    smallest ``R`` before the first that fails at some point is
     used. (The robust design instead picks the ``R`` of the fastest worst-case decay, which
     for a 32-40 ms delay on a 15-22 Hz mode is a gain too small to reduce the vibration.)
 
@@ -526,6 +527,8 @@ def band_stable_feedback(plant_sets, nominals, period_s: float, delay_s: float,
         The true delays the gains must be stable with [s].
     r_grid
         The ``R`` tried (default ``logspace(-2, 3, 11)``).
+    actuator_gains
+        The ratios applied / commanded correction the gains must be stable with (1: none).
 
     Returns
     -------
@@ -536,14 +539,18 @@ def band_stable_feedback(plant_sets, nominals, period_s: float, delay_s: float,
     grid = np.logspace(-2, 3, 11) if r_grid is None else np.asarray(r_grid, float)
     d = round(delay_s / period_s)
     steps = sorted({round(t / period_s) for t in true_delays_s})
+    act = [float(k) for k in actuator_gains]
+    if not act or not all(np.isfinite(k) and k > 0 for k in act):
+        raise ValueError(f"actuator_gains must be finite and > 0, got {actuator_gains!r}")
     best = None
     for r in sorted(grid, reverse=True):
         gains, worst = [], []
         for plants, nominal in zip(plant_sets, nominals, strict=True):
             g = design_delay_aware_lqr(nominal, period_s, delay_s, r=[[float(r)]]).gains
             w = max(spectral_radius(implemented_loop_matrix(p, g, period_s, d,
-                                                            plant_delay_steps=D))
-                    for p in plants for D in steps)  # fmt: skip
+                                                            plant_delay_steps=D,
+                                                            actuator_gain=k))
+                    for p in plants for D in steps for k in act)  # fmt: skip
             gains.append(g)
             worst.append(w)
         if max(worst) >= 1.0:

@@ -39,6 +39,7 @@ def implemented_loop_matrix(
     *,
     velocity: str = "difference",
     plant_delay_steps: int | None = None,
+    actuator_gain: float = 1.0,
 ) -> np.ndarray:
     """Closed-loop matrix of a plant under ``u = -(g0 x + g1 v + g[2:] u_hist)`` with delay.
 
@@ -68,6 +69,10 @@ def implemented_loop_matrix(
         ``delay_steps`` the gains were designed for (the controller still feeds back its
         last ``delay_steps`` commands; the plant gets the command ``plant_delay_steps``
         periods late). None: ``delay_steps``.
+    actuator_gain : float
+        The robot applies ``actuator_gain`` x the commanded correction (an actuator-gain
+        error: ``1 + actuator_gain_pct / 100`` of :class:`~robovib.sim.CutDisturbances`);
+        the controller's own command history holds the commanded values. Finite, > 0.
 
     Returns
     -------
@@ -99,6 +104,9 @@ def implemented_loop_matrix(
     true_d = d if plant_delay_steps is None else int(plant_delay_steps)
     if true_d < 0:
         raise ValueError(f"plant_delay_steps must be >= 0, got {plant_delay_steps!r}")
+    if not (np.isfinite(actuator_gain) and actuator_gain > 0):
+        raise ValueError(f"actuator_gain must be finite and > 0, got {actuator_gain!r}")
+    bd = bd * float(actuator_gain)  # what reaches the plant; the history keeps the command
     length = max(d, true_d)  # commands kept in the state
     n = nm + int(diff) + length
     big = np.zeros((n, n))
