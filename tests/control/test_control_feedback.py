@@ -155,3 +155,44 @@ def test_new_files_feed_back_the_axes_without_a_force_model_and_older_files_do_n
     f2.write_text(json.dumps(old))
     parts = load_controller(f2)._inner.inner.parts
     assert not any(isinstance(p, DelayAwareFeedback) and p.gains for p in parts)
+
+
+@pytest.fixture(scope="module")
+def _feedback_doc():
+    path = ControlPath.through(_NoForceModel.input_names, [[2350, 500, 30], [2350, -200, 100]])
+    return design_controller(_NoForceModel(), path, "adaptive+force", spindle_rpm=125.0)
+
+
+def _edited(doc, tmp_path, edit):
+    d = json.loads(json.dumps(doc))
+    edit(d)
+    f = tmp_path / "edited.json"
+    f.write_text(json.dumps(d))
+    return f
+
+
+def _first_feedback_direction(d):
+    return next(iter(d["gains"]["feedback"]))
+
+
+@pytest.mark.parametrize(
+    ("label", "edit", "match"),
+    [
+        ("a row short", lambda d: d["gains"]["feedback"][_first_feedback_direction(d)].pop(),
+         r"gains\.feedback\.\w must be \d+ rows"),
+        ("a gain short", lambda d: [r.pop() for r in d["gains"]["feedback"][
+            _first_feedback_direction(d)]], r"x 10 gains \(2 \+ delay"),
+        ("NaN", lambda d: d["gains"]["feedback"][_first_feedback_direction(d)][2].__setitem__(
+            0, float("nan")), "non-finite"),
+        ("both", lambda d: d["gains"]["force_model_r"].__setitem__(
+            _first_feedback_direction(d), 10.0), "both a force model"),
+        ("string bool", lambda d: d["learner"].__setitem__("pool_loop_phase", "false"),
+         r"learner\.pool_loop_phase must be true or false"),
+    ],
+)  # fmt: skip
+def test_a_malformed_feedback_or_learner_switch_is_refused_naming_it(
+    _feedback_doc, tmp_path, label, edit, match
+):
+    assert "feedback" in _feedback_doc["gains"]
+    with pytest.raises(ValueError, match=match):
+        load_controller(_edited(_feedback_doc, tmp_path, edit))

@@ -57,10 +57,12 @@ def _learner(given: dict | None) -> dict:
                          f"{sorted(LEARNER_DEFAULTS)}")  # fmt: skip
     out = {**LEARNER_DEFAULTS, **(given or {})}
     out["divergence_ratio"] = float(out["divergence_ratio"])
-    out["model_at_tracked_period"] = bool(out["model_at_tracked_period"])
-    out["identify_loop"] = bool(out["identify_loop"])
-    out["pause_when_faded"] = bool(out["pause_when_faded"])
-    out["pool_loop_phase"] = bool(out["pool_loop_phase"])
+    for key in ("model_at_tracked_period", "identify_loop", "pause_when_faded",
+                "pool_loop_phase"):  # fmt: skip
+        # bool("false") is True: a setting written as a string would silently turn on
+        if not isinstance(out[key], bool | np.bool_):
+            raise ValueError(f"learner.{key} must be true or false, got {out[key]!r}")
+        out[key] = bool(out[key])
     for key in (
         "delay_uncertainty_s",
         "fn_uncertainty_rel",
@@ -118,4 +120,16 @@ def _tables(doc: dict) -> PathTables:
         raise ValueError(f"controller file: missing or malformed design table ({exc})") from exc
     if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
         raise ValueError("controller file: grid_s_m must be >= 2 finite path distances [m]")
+    width = 2 + round(tab.delay_s / tab.period_s)  # [K_x, K_v, K_u1..K_ud]
+    for a, v in tab.feedback.items():
+        if v.shape != (grid.size, width):
+            raise ValueError(f"controller file: gains.feedback.{axes[a]} must be {grid.size} "
+                             f"rows (grid_s_m) x {width} gains (2 + delay / command period), "
+                             f"got shape {v.shape}")  # fmt: skip
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"controller file: gains.feedback.{axes[a]} has non-finite gains")
+        if a in tab.force_model_r:
+            raise ValueError(f"controller file: direction {axes[a]!r} has both a force model "
+                             "(gains.force_model_r) and gains.feedback; a design gives an "
+                             "axis one or the other")  # fmt: skip
     return tab
