@@ -196,3 +196,32 @@ def test_a_malformed_feedback_or_learner_switch_is_refused_naming_it(
     assert "feedback" in _feedback_doc["gains"]
     with pytest.raises(ValueError, match=match):
         load_controller(_edited(_feedback_doc, tmp_path, edit))
+
+
+def test_replay_of_a_simulated_record_reproduces_a_feedback_files_closed_loop_commands(
+    _feedback_doc, tmp_path
+):
+    """The feedback acts on the measured tracker, so replay must rebuild its loop exactly."""
+    from robovib.control.controller_file import write_controller_file
+    from robovib.control.cut_replay import replay
+    from robovib.io import read_milling_record_csv
+    from robovib.milling.forces import ACETAL, CuttingConditions, MillingTool
+    from robovib.sim import LinearMove, VirtualRobot, run_closed_loop
+    from robovib.sim.disturbances import REALISTIC_LEVELS
+
+    path = write_controller_file(tmp_path / "ctl.json", _feedback_doc)
+    ctl = load_controller(path)
+    fed = [("x", "y", "z").index(d) for d in _feedback_doc["gains"]["feedback"]]
+    tool, cond = MillingTool(), CuttingConditions(125.0, 0.3e-3, 3e-3, 6e-3)
+    t = np.arange(1500) / 1000.0
+    local = REALISTIC_LEVELS.cutting_force(t, tool, cond, ACETAL, rng=np.random.default_rng(3))
+    force = np.column_stack([local[:, 1], -local[:, 0], local[:, 2]])
+    move = LinearMove("workspace", (2.35, 0.30, 50.0), (2.35, 0.25, 55.0))
+    planned = ctl.planned(125.0, tool.n_flutes)
+    rec = run_closed_loop(VirtualRobot(), move, force, 1000.0, planned, rng=5,
+                          force_noise_n=2.0, force_bias_n=5.0)  # fmt: skip
+    assert np.max(np.abs(planned.commands_mm[:, fed])) > 1e-4  # the feedback axes moved
+    rec.to_csv(tmp_path / "cut.csv", digits=17)
+    again = replay(load_controller(path), read_milling_record_csv(tmp_path / "cut.csv"),
+                   spindle_rpm=125.0)  # fmt: skip
+    np.testing.assert_allclose(again.commands_mm, planned.commands_mm, rtol=0, atol=1e-9)
