@@ -162,14 +162,14 @@ def test_new_files_pool_the_loop_phase_and_version_2_files_run_as_before(tmp_pat
     assert learners and all(p._ident._h is not None for p in learners)
 
 
-def _pooled_identification(pool: bool):
+def _pooled_identification(pool: bool, truth_deg=None):
     """Six harmonics whose loop phase is ``a + b h`` (a delay and an offset): 1-3 measured
     with little noise, 4-6 with 20x more (a line near a resonance, in non-periodic response).
     The identified phases [deg], the truth [deg] and where the pooled phase was taken."""
     rng = np.random.default_rng(3)
     every, delay, window = 4, 32, 240
     h = np.arange(1, 7)
-    truth = np.deg2rad(-20.0) + np.deg2rad(-12.0) * h
+    truth = np.deg2rad(-20.0 - 12.0 * h if truth_deg is None else np.asarray(truth_deg, float))
     lam = np.exp(1j * truth)
     noise = np.array([0.05, 0.05, 0.05, 1.0, 1.0, 1.0])
     ident = LoopIdentifier((6, 1), every, delay, window, forget_cycles=5000.0, max_rel_error=0.2,
@@ -201,6 +201,17 @@ def test_pooled_phases_give_the_noisy_harmonics_the_line_through_the_others():
     assert np.any(np.abs(alone[3:] - truth[3:]) > 30.0)
     assert took[3:].any()
     np.testing.assert_allclose(pooled, truth, atol=4.0)
+
+
+def test_phases_off_any_line_are_not_pooled():
+    """Well-measured phases that no ``a + b h`` fits (a reduced chi-square far above 1):
+    the line's inflated standard error is above the trust threshold, so the noisy
+    harmonics keep the nominal phase instead of an extrapolation of a wrong line."""
+    truth = [-20.0, 60.0, -100.0, -40.0, 30.0, -120.0]
+    pooled, _, took = _pooled_identification(True, truth)
+    assert not took.any()
+    alone, _, _ = _pooled_identification(False, truth)
+    np.testing.assert_array_equal(pooled, alone)
 
 
 def test_pooling_refuses_harmonic_numbers_of_the_wrong_shape():
