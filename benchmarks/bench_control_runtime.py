@@ -14,7 +14,8 @@ lookup): the ratio is what the run-time lookup costs. Prints p50, p99 and max [m
 
 ``--file`` times a controller file instead (e.g. one ``study_control_deploy.py --workdir``
 wrote: designed from a campaign model, with ``gains.feedback``), over a 50 mm stretch at the
-middle of its path, with its own tracker and learner settings in the reference too.
+middle of its path. The reference always runs the file's own tracker, guard and learner
+settings.
 """
 
 from __future__ import annotations
@@ -79,10 +80,11 @@ def main(names=("adaptive+force", "feedforward+robust", "robust"), n_cmd: int = 
     for name, doc in designs:
         if doc is None:
             doc = design_controller(model, path, name, spindle_rpm=125.0, teeth=tool.n_flutes)
-            settings = {}
         rt = RuntimeController(doc)
-        if doc is not None and file is not None:
-            settings = {"tracker": rt.tracker_settings, "learner": rt.learner_settings}
+        # the reference runs the file's own settings (a designed file's differ from
+        # assemble_controller's defaults: loop identification, pooling, 2-period lag)
+        settings = {"tracker": rt.tracker_settings, "guard": rt.guard_settings,
+                    "learner": rt.learner_settings}  # fmt: skip
 
         def live(rt=rt):
             def call(k):
