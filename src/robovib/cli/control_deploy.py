@@ -179,6 +179,13 @@ def design(
             if key.endswith("radius"):
                 verdict = "stable over the band" if worst < 1 else "NOT stable over the band"
             typer.echo(f"  {key.replace('_', ' ')} ({d}): {worst:.3f} ({verdict})")
+    st = doc["stability"]
+    for d, r in st.get("feedback_r", {}).items():  # the axes given a feedback instead
+        delays, gains = st["true_delays_s"], st.get("feedback_actuator_gains", [1.0])
+        typer.echo(f"  feedback ({d}): delay-aware LQR, R = {r:.3g}, worst spectral radius "
+                   f"{max(st['feedback_worst_spectral_radius'][d]):.3f} (stable over the band, "
+                   f"true delays {min(delays) * 1e3:g}-{max(delays) * 1e3:g} ms, actuator gain "
+                   f"{min(gains):g}-{max(gains):g})")  # fmt: skip
     if summary["extrapolating_points"]:
         typer.echo(f"warning: {summary['extrapolating_points']} design points lie outside the "
                    "model's training data (GP extrapolation)")  # fmt: skip
