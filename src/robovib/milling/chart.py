@@ -451,9 +451,12 @@ def lobes_chart(
             local_factor=local_factor, common_factor=common_factor,
         )  # fmt: skip
         probability = forecast.stability_probability(env)
+        split = "" if forecast.local_factor is None else (
+            f"; a local factor log-uniform on {list(forecast.local_factor)} drawn afresh at "
+            "every point, the cuts learning the common one")  # fmt: skip
         notes = (*notes, (
             f"P(stable) after {cuts.chatter.size} test cuts: {n_samples} sampled structures "
-            "(zero-order limits, process factor) weighted by the cuts' likelihood"))  # fmt: skip
+            f"(zero-order limits, process factor) weighted by the cuts' likelihood{split}"))  # fmt: skip
     op_stable = op_p = None
     if operating_point is not None:
         op_rpm, op_depth = (float(v) for v in operating_point)

@@ -280,6 +280,9 @@ class WeightedStabilityProbability(StabilityProbability):
     def p_unconditionally_stable(self, depth_m) -> np.ndarray:
         """Weighted probability that the depth is stable at every speed.
 
+        With ``local_factor`` one local factor is drawn on each row's minimum over the speeds
+        (the factor of the speed that limits it).
+
         Parameters
         ----------
         depth_m : array_like
