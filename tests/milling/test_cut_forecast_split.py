@@ -128,3 +128,32 @@ def test_bad_factor_options_name_the_option(tmp_path, option, value):
         res = CliRunner().invoke(app, [*cmd, "--cuts", str(cuts), option, value])
         assert res.exit_code != 0
         assert option in res.output, res.output
+
+
+def test_lobes_and_replan_share_the_posterior(tmp_path):
+    """``mill plan --cuts`` at one segment on the chart's pose and ``mill lobes --cuts`` give
+    the same posterior: each equals ``local_p_stable`` of ``update_with_cuts``' rows on its own
+    limits (the planner computes them at 200 points a decade, capped at the tool's 20 mm; the
+    chart at 250), and the two agree to that resolution."""
+    from robovib.milling.factor_grid import local_p_stable
+
+    cuts = tmp_path / "cuts.csv"
+    cuts.write_text(CUTS)
+    run = CliRunner()
+    res = run.invoke(app, [*LOBES, "--cuts", str(cuts), "--operating-point", "1700,5", "--json"])
+    assert res.exit_code == 0, res.output
+    p_lobes = json.loads(res.output)["operating_point"]["p_stable"]
+    res = run.invoke(app, ["mill", "plan", "--start", "2390,100", "--end", "2410,100",
+                           "--segments", "1", "--rz-range", "45:45", "--rpm-range", "1500:1700:2",
+                           "--samples", "24", "--ap", "5", "--cuts", str(cuts), "--json"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    seg = json.loads(res.output)["segments"][0]
+    assert (seg["x_mm"], seg["y_mm"], seg["rz_deg"], seg["spindle_rpm"]) == (*POSE, 1700.0)
+    upd, cutting = _posterior(cuts, LOCAL)
+    w = upd.structures.weights
+    for p_cli, kw in ((p_lobes, {}), (seg["p_stable"], {"points_per_decade": 200.0,
+                                                         "depth_cap_m": 0.02})):  # fmt: skip
+        lim = upd.structures.limits(np.array([POSE]), [1500.0, 1700.0], *cutting,
+                                    feed_direction="x", **kw)[:, 0, 1]  # fmt: skip
+        assert p_cli == pytest.approx(float(local_p_stable(lim, w, 5e-3, LOCAL)), rel=1e-9)
+    assert p_lobes == pytest.approx(seg["p_stable"], abs=1e-3)
