@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 
 XOpt = Annotated[float, typer.Option("--x", help="Tool-tip X [mm].")]
@@ -105,6 +106,44 @@ LabelNoiseOpt = Annotated[
         "wrong; the cuts then update P(stable) (a posterior over the sampled structures)."
     ),
 ]
+
+LocalFactorOpt = Annotated[
+    str,
+    typer.Option(
+        help="With --cuts: LO,HI of the local factor on the limit, drawn afresh at every cut "
+        "and point (the time-domain / linear limit ratio), the cuts learning only a common "
+        "factor (--common-factor), as in 'mill plan --cuts'; 'none': one common factor over "
+        "the structures' whole range (the earlier behaviour)."
+    ),
+]
+CommonFactorOpt = Annotated[
+    str,
+    typer.Option(help="With --cuts: LO,HI of the common factor the cuts learn."),
+]
+
+
+def factor_range(spec: str, what: str) -> tuple[float, float]:
+    """A LO,HI (or LO:HI) factor range, ``0 < LO <= HI``, the error naming the option."""
+    try:
+        lo, hi = (float(v) for v in spec.replace(",", ":").split(":"))
+    except ValueError as exc:
+        raise ValueError(f"{what} must be A:B (two numbers), got {spec!r}") from exc
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi):
+        raise ValueError(f"{what} must be LO,HI with 0 < LO <= HI, got {spec!r}")
+    return lo, hi
+
+
+def factor_split(
+    local_factor: str, common_factor: str
+) -> tuple[tuple[float, float] | None, tuple[float, float]]:
+    """``--local-factor`` (None for 'none') and ``--common-factor``, checked (``mill plan``,
+    ``mill lobes`` and ``mill map`` with ``--cuts``)."""
+    local = (
+        None
+        if local_factor.strip().lower() == "none"
+        else factor_range(local_factor, "--local-factor")
+    )
+    return local, factor_range(common_factor, "--common-factor")
 
 
 def echo_cut_update(u: dict, where: str) -> None:

@@ -175,6 +175,8 @@ def lobes(
     samples: opt.LobeSamplesOpt = 0,
     time_domain_margin: opt.TimeDomainMarginOpt = False,
     label_noise: opt.LabelNoiseOpt = 0.05,
+    local_factor: opt.LocalFactorOpt = "0.55,1.3",
+    common_factor: opt.CommonFactorOpt = "0.9,1.1",
     steps: opt.StepsOpt = 40,
     plot: Annotated[Path | None, typer.Option(help="PNG of the stability chart.")] = None,
     seed: SeedOpt = 0,
@@ -186,6 +188,7 @@ def lobes(
     from ._parsers import parse_mode_specs, parse_operating_point, parse_rpm_range
 
     check_output(plot, [model_path, frf, cuts])
+    split, common = opt.factor_split(local_factor, common_factor) if cuts else (None, (0.9, 1.1))
     tool, cond, coef = opt.cutting(material(material_name), kt, kn, diameter, teeth, helix, ae,
                                 radial_immersion, milling)  # fmt: skip
     modes_x, modes_y = parse_mode_specs(mode or [])
@@ -220,6 +223,7 @@ def lobes(
         f"Kt {coef.ktc:.3g}, Kn {coef.krc:.3g} N/m²", pose_model=model, pose=pose,
         feed_direction=feed, n_samples=samples, rng=seed, steps_per_period=steps,
         time_domain_margin=time_domain_margin, label_noise=label_noise,
+        local_factor=split, common_factor=common,
         progress=lambda done, total: bar.update(task, completed=done, total=total),
         )  # fmt: skip
     if plot is not None:

@@ -78,6 +78,8 @@ def lobe_map(
         ),
     ] = None,
     label_noise: opt.LabelNoiseOpt = 0.05,
+    local_factor: opt.LocalFactorOpt = "0.55,1.3",
+    common_factor: opt.CommonFactorOpt = "0.9,1.1",
     output: Annotated[
         Path | None, typer.Option("-o", "--output", help="NetCDF (.nc) of the map.")
     ] = None,
@@ -109,6 +111,7 @@ def lobe_map(
         check_output(output, [model_path, cuts])
         from ..io.cuts import read_cuts_csv
 
+        split, common = opt.factor_split(local_factor, common_factor)
         if samples < 2:
             fail("--cuts updates the sampled forecast: give --samples N (N >= 2)")
         measured_cuts = read_cuts_csv(cuts)
@@ -141,6 +144,7 @@ def lobe_map(
         ds, _ = add_cut_forecast(
             ds, model, measured_cuts, tool, cond, coef, n_samples=samples, rng=seed,
             depth_m=None if depth is None else to_si(depth, "mm"), label_noise=label_noise,
+            local_factor=split, common_factor=common,
         )  # fmt: skip
     if output is not None:
         save_lobe_map(ds, output)

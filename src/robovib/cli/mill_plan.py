@@ -31,14 +31,6 @@ def _pair(spec: str, what: str) -> tuple[float, float]:
     return a, b
 
 
-def _factor_range(spec: str, what: str) -> tuple[float, float]:
-    """A LO,HI factor range, ``0 < LO <= HI``, the error naming the option."""
-    lo, hi = _pair(spec, what)
-    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi):
-        raise ValueError(f"{what} must be LO,HI with 0 < LO <= HI, got {spec!r}")
-    return lo, hi
-
-
 def plan(
     path_csv: Annotated[
         Path | None, typer.Option("--path", help="Tool path CSV: x_mm, y_mm (base frame).")
@@ -162,15 +154,10 @@ def plan(
         from ..io.cuts import read_cuts_csv
         from ..milling.cut_posterior import update_with_cuts
 
-        split = (
-            None
-            if local_factor.strip().lower() == "none"
-            else _factor_range(local_factor, "--local-factor")
-        )
+        split, common = opt.factor_split(local_factor, common_factor)
         update = update_with_cuts(structures, read_cuts_csv(cuts), tool, cond, coef,
                                   feed_direction=feed, label_noise=label_noise,
-                                  local_factor=split,
-                                  common_factor=_factor_range(common_factor, "--common-factor"))  # fmt: skip
+                                  local_factor=split, common_factor=common)  # fmt: skip
         structures = update.structures
     res = plan_path(
         structures, points, tool, cond, coef, n_segments=n_seg, feed_direction=feed,

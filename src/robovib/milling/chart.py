@@ -251,6 +251,8 @@ def lobes_chart(
     time_domain_margin: bool = False,
     progress=None,
     label_noise: float = 0.05,
+    local_factor: tuple[float, float] | None = None,
+    common_factor: tuple[float, float] = (0.9, 1.1),
 ) -> LobesChart:
     """Stability envelope from modes or measured FRFs, with cuts and an operating point.
 
@@ -299,6 +301,9 @@ def lobes_chart(
         label is wrong. The cuts then update the forecast (a posterior over the pose model's
         sampled structures, :mod:`robovib.milling.cut_forecast`): P(stable) and the limit
         quantiles come from the weighted structures; cuts without poses are taken at ``pose``.
+    local_factor, common_factor
+        With ``cuts``: the factor split of the update (:func:`robovib.milling.cut_forecast.
+        forecast_with_cuts`), as ``mill plan --cuts``; None: one factor over the whole range.
 
     Returns
     -------
@@ -443,11 +448,15 @@ def lobes_chart(
         forecast = forecast_with_cuts(
             pose_model, [pose], rpm, cuts_at_pose(cuts, pose), tool, conditions, coefficients,
             feed_direction=feed_direction, n_samples=n_samples, label_noise=label_noise, rng=rng,
+            local_factor=local_factor, common_factor=common_factor,
         )  # fmt: skip
         probability = forecast.stability_probability(env)
+        split = "" if forecast.local_factor is None else (
+            f"; a local factor log-uniform on {list(forecast.local_factor)} drawn afresh at "
+            "every point, the cuts learning the common one")  # fmt: skip
         notes = (*notes, (
             f"P(stable) after {cuts.chatter.size} test cuts: {n_samples} sampled structures "
-            "(zero-order limits, process factor) weighted by the cuts' likelihood"))  # fmt: skip
+            f"(zero-order limits, process factor) weighted by the cuts' likelihood{split}"))  # fmt: skip
     op_stable = op_p = None
     if operating_point is not None:
         op_rpm, op_depth = (float(v) for v in operating_point)

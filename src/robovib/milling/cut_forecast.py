@@ -17,6 +17,13 @@ the map's poses) and speeds, and the forecast there is, before (uniform ``w``) a
 weighted_quantile`). How far the cuts moved it is reported as the effective sample size, the
 information gained, the shift of the median limit at the cuts and at the forecast's own poses.
 Cuts from a file without pose columns are taken at the chart's pose.
+
+With ``local_factor`` (the factor split of the re-plan, :mod:`robovib.milling.factor_grid`; the
+default of ``mill lobes --cuts`` and ``mill map --cuts``, as of ``mill plan --cuts``) each
+weighted row is a structure x common-factor pair and a local factor ``rho`` log-uniform on
+``local_factor`` is drawn afresh at every point: P(stable) is the smooth per-row form
+``sum_r w_r (1 - F(log(d / a_r)))`` (:func:`~robovib.milling.factor_grid.local_p_stable`) and
+the quantiles its inverse (:func:`~robovib.milling.factor_grid.local_quantile`).
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .cut_posterior import CutUpdate, p_stable, update_with_cuts, weighted_quantile
+from .factor_grid import local_p_stable, local_quantile
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool
 from .uncertainty import StabilityProbability
 
@@ -109,6 +117,11 @@ class CutForecast:
         """
         return self.update.structures.weights if posterior else self.update.prior_weights
 
+    @property
+    def local_factor(self) -> tuple[float, float] | None:
+        """The local factor's range (the factor split), or None (one factor per row)."""
+        return self.update.structures.local_factor
+
     def p_stable(self, depth_m, posterior: bool = True) -> np.ndarray:
         """Weighted P(stable) at the depth (module docs).
 
@@ -124,7 +137,7 @@ class CutForecast:
         numpy.ndarray
             (P, J) probabilities.
         """
-        return p_stable(self.limits_m, self.weights(posterior), depth_m)
+        return _p_stable(self.limits_m, self.weights(posterior), depth_m, self.local_factor)
 
     def quantile_m(self, q: float, posterior: bool = True) -> np.ndarray:
         """Weighted ``q``-quantile of the limit (module docs).
@@ -141,7 +154,7 @@ class CutForecast:
         numpy.ndarray
             (P, J) depths [m] (inf: no lobe).
         """
-        return weighted_quantile(self.limits_m, self.weights(posterior), q)
+        return _quantile(self.limits_m, self.weights(posterior), q, self.local_factor)
 
     def median_shift_rel(self) -> float:
         """How far the cuts moved the median limit at the forecast's poses and speeds.
@@ -170,6 +183,9 @@ class CutForecast:
         doc["cut_poses_mm_deg"] = np.asarray(self.cuts.pose_mm_deg, float).tolist()
         doc["limits"] = ("zero-order limits of the pose model's sampled structures "
                          "(robovib.milling.structures), process factor included")  # fmt: skip
+        if self.local_factor is not None:  # the factor split (absent without it, as before)
+            doc["local_factor_range"] = list(self.local_factor)
+            doc["common_factor_range"] = self.update.structures.settings.get("process_factor_range")
         return doc
 
     def stability_probability(
@@ -194,11 +210,12 @@ class CutForecast:
         """
         lim = self.limits_m[:, pose_index, :]
         w = self.weights(posterior)
-        top = weighted_quantile(lim, w, 0.95)
+        loc = self.local_factor
+        top = _quantile(lim, w, 0.95, loc)
         top = top[np.isfinite(top)]
         d_max = 1.5 * float(top.max()) if top.size else 0.02
         depth = np.linspace(0.0, d_max, int(n_depths))
-        grid = p_stable(lim[:, :, None], w, depth[None, :])  # (J, D)
+        grid = _p_stable(lim[:, :, None], w, depth[None, :], loc)  # (J, D)
         finite = np.where(np.isfinite(lim), lim, np.inf)
         return WeightedStabilityProbability(
             self.spindle_rpm, depth, grid, finite, finite.min(axis=1), mean_envelope,
@@ -208,9 +225,27 @@ class CutForecast:
                           + ("after" if posterior else "before") + " the test cuts "
                           "(robovib.milling.cut_forecast)"),
              "effective_sample_size": self.update.structures.with_weights(w)
-             .effective_sample_size},
-            weights=w,
+             .effective_sample_size,
+             **({} if loc is None else {
+                 "local_factor_range": list(loc),
+                 "common_factor_range": self.update.structures.settings.get(
+                     "process_factor_range")})},
+            weights=w, local_factor=loc,
         )  # fmt: skip
+
+
+def _p_stable(limits_m, weights, depth_m, local_factor) -> np.ndarray:
+    """P(stable) of weighted rows: the step form, or the smooth one with a local factor."""
+    if local_factor is None:
+        return p_stable(limits_m, weights, depth_m)
+    return local_p_stable(limits_m, weights, depth_m, local_factor)
+
+
+def _quantile(limits_m, weights, q, local_factor) -> np.ndarray:
+    """The ``q``-quantile of the limit of weighted rows (with a local factor: its inverse)."""
+    if local_factor is None:
+        return weighted_quantile(limits_m, weights, q)
+    return local_quantile(limits_m, weights, q, local_factor)
 
 
 @dataclass(frozen=True)
@@ -233,12 +268,20 @@ class WeightedStabilityProbability(StabilityProbability):
         Settings of the computation.
     weights
         (n_samples,) normalised weights of ``a_lim_samples_m``.
+    local_factor
+        Range of the local factor drawn afresh at every point (the factor split), or None:
+        P(stable) and the quantiles are then the smooth per-row forms
+        (:func:`~robovib.milling.factor_grid.local_p_stable`).
     """
 
     weights: np.ndarray | None = None
+    local_factor: tuple[float, float] | None = None
 
     def p_unconditionally_stable(self, depth_m) -> np.ndarray:
         """Weighted probability that the depth is stable at every speed.
+
+        With ``local_factor`` one local factor is drawn on each row's minimum over the speeds
+        (the factor of the speed that limits it).
 
         Parameters
         ----------
@@ -251,7 +294,7 @@ class WeightedStabilityProbability(StabilityProbability):
             Probabilities.
         """
         d = np.atleast_1d(np.asarray(depth_m, float))
-        return p_stable(self.minimum_depth_samples_m[:, None], self.weights, d)
+        return _p_stable(self.minimum_depth_samples_m[:, None], self.weights, d, self.local_factor)
 
     def p_stable_at(self, spindle_rpm: float, depth_m: float) -> float:
         """Weighted probability that one cut is stable (speeds interpolated linearly).
@@ -279,7 +322,7 @@ class WeightedStabilityProbability(StabilityProbability):
         lo, hi = self.a_lim_samples_m[:, j - 1], self.a_lim_samples_m[:, j]
         with np.errstate(invalid="ignore"):
             a = np.where(np.isinf(lo) | np.isinf(hi), np.minimum(lo, hi), (1 - f) * lo + f * hi)
-        return float(p_stable(a, self.weights, d))
+        return float(_p_stable(a, self.weights, d, self.local_factor))
 
     def depth_quantile_m(self, q: float) -> np.ndarray:
         """Weighted ``q``-quantile of the limit at each speed.
@@ -294,7 +337,7 @@ class WeightedStabilityProbability(StabilityProbability):
         numpy.ndarray
             (n_speeds,) depths [m].
         """
-        return weighted_quantile(self.a_lim_samples_m, self.weights, q)
+        return _quantile(self.a_lim_samples_m, self.weights, q, self.local_factor)
 
 
 def forecast_with_cuts(
@@ -312,6 +355,8 @@ def forecast_with_cuts(
     rng=0,
     structures=None,
     n_factors: int | None = 32,
+    local_factor: tuple[float, float] | None = None,
+    common_factor: tuple[float, float] = (0.9, 1.1),
 ) -> CutForecast:
     """Forecast at poses and speeds before and after test cuts (module docs).
 
@@ -340,6 +385,13 @@ def forecast_with_cuts(
     n_factors : int or None
         Process factor integrated on this many grid points (:func:`~robovib.milling.
         cut_posterior.update_with_cuts`); None: one drawn factor per structure.
+    local_factor : (low, high), optional
+        The factor split (:func:`~robovib.milling.cut_posterior.update_with_cuts`): a local
+        factor log-uniform on this range drawn afresh at every cut and forecast point, the cuts
+        learning only the common factor; P(stable) and the quantiles are then smooth (module
+        docs). None: one factor per row over the whole range.
+    common_factor : (low, high)
+        Range of the common factor with ``local_factor``.
 
     Returns
     -------
@@ -355,7 +407,8 @@ def forecast_with_cuts(
         structures = sample_structures(model, n_samples, rng=rng)
     update = update_with_cuts(structures, cuts, tool, conditions, coefficients,
                               feed_direction=feed_direction, label_noise=label_noise,
-                              n_factors=n_factors)  # fmt: skip
+                              n_factors=n_factors, local_factor=local_factor,
+                              common_factor=common_factor)  # fmt: skip
     # the rows of the update (on the factor grid: structure x factor pairs)
     lim = update.structures.limits(x, rpm, tool, conditions, coefficients,
                                    feed_direction=feed_direction)  # fmt: skip
@@ -374,6 +427,8 @@ def add_cut_forecast(
     depth_m: float | None = None,
     label_noise: float = 0.05,
     rng=0,
+    local_factor: tuple[float, float] | None = None,
+    common_factor: tuple[float, float] = (0.9, 1.1),
 ):
     """A workspace map with the forecast after test cuts (``mill map --cuts``).
 
@@ -396,6 +451,8 @@ def add_cut_forecast(
         Probability that a cut's label is wrong.
     rng : int
         Seed of the structures.
+    local_factor, common_factor
+        The factor split (:func:`forecast_with_cuts`); None: no split.
 
     Returns
     -------
@@ -418,7 +475,8 @@ def add_cut_forecast(
     fc = forecast_with_cuts(
         model, grid, rpm, cuts, tool, conditions, coefficients,
         feed_direction=settings["feed_direction"], n_samples=n_samples,
-        label_noise=label_noise, rng=rng,
+        label_noise=label_noise, rng=rng, local_factor=local_factor,
+        common_factor=common_factor,
     )  # fmt: skip
     dims = ("x_mm", "y_mm", "rz_deg", "spindle_rpm")
     shape = (xs.size, ys.size, rzs.size, rpm.size)
@@ -438,6 +496,9 @@ def add_cut_forecast(
                 + ("after" if post else "before") + " the test cuts"})  # fmt: skip
     settings.update(n_samples=int(n), seed=int(rng), label_noise=float(label_noise),
                     **({} if depth_m is None else {"depth_m": float(depth_m)}))  # fmt: skip
+    if fc.local_factor is not None:
+        settings.update(local_factor_range=list(fc.local_factor),
+                        common_factor_range=list(common_factor))  # fmt: skip
     out.attrs["settings"] = json.dumps(settings)
     out.attrs["test_cuts"] = json.dumps(fc.to_dict())
     return out, fc
