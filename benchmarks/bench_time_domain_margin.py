@@ -39,6 +39,21 @@ included; the reference is the numpy every-factor pass of the 10th session, scal
   31 259 cuts (7.4 a case), reference 406 (2.03 a speed), 180x; identical brackets. Over 2 s:
   five modes cost ~2x two per cut step, and their runs of chattering factors are longer.
 * kernel compile on first use after an install: 1.5-2.1 (cached on disk afterwards).
+
+Re-measured 2026-11-27, 12th session (same machine, load 2.4-2.8), ``--five-mode --ref-speeds
+1``, the 11th session's code (9944c95) and this one alternately, two runs each: added 1.96 /
+1.89 before, 1.80 / 1.83 now (warm pass 1.78-1.82 -> 1.59-1.65; same 31 259 cuts, brackets
+identical to the every-factor pass and to the numpy reference). What changed: free-vibration
+runs stepped eight at a time (were four), the engaged-flute table by one sort; same bits. Where
+the time goes now (warm pass 1.55): the compiled loop 1.33 s for 1.13e9 row-steps (1.17 ns a
+row-step: 5 mode slots, 3 feed + 2 normal, each a 2x2 update), Python around it 0.22 s (380
+batches: a batch per walk round and per steps-per-tooth value below ~160 rpm; the chatter
+indicators 0.1 s). The cuts are the fewest that give the same brackets (the persistent onset
+needs every factor of the chattering run simulated), so the figure falls further only with
+shorter cuts (an early verdict), which changes the numerics: the same walk with 150 / 200 /
+250 tooth periods instead of 300 (0.81 / 1.16 / 1.37 s) gives the 300-period brackets at only
+3109 / 3608 / 3925 of the 4200 cases (ratio off by up to 0.70 / 0.49 / 0.36), so an early stop
+needs a criterion validated case by case, not just fewer periods.
 """
 
 from __future__ import annotations

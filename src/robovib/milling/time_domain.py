@@ -375,7 +375,7 @@ def _poincare_loop(
     never used or is an exact zero: at a step where no flute is in the engagement the force is
     zero (its term is left out) and the delay buffer is not read, the displacement is summed
     only where the next step's chip or the record needs it, and runs of such steps advance
-    four at a time with each row's state held in registers (the same operations). Rows are
+    eight or four at a time with each row's state held in registers (the same operations). Rows are
     stepped ``chunk`` at a time (cache). Which arrays a loop reads and writes was chosen by
     measurement: arrays written in a loop are not read at other rows of the same array in it,
     or the loop does not vectorise. ``engaged[kk, :n_engaged[kk]]``: the flutes inside the
@@ -408,6 +408,24 @@ def _poincare_loop(
         i = 0
         while i < n_steps:
             kk = i % m_steps
+            if free_run[kk] >= 8:
+                # Eight steps of free vibration at once, each row's state kept in registers.
+                for m in range(nm):
+                    for r in range(n):
+                        c0 = cc[m, 0, r]
+                        c1 = cc[m, 1, r]
+                        c2 = cc[m, 2, r]
+                        c3 = cc[m, 3, r]
+                        xo = xs[m, r]
+                        vo = vs[m, r]
+                        for _ in range(8):
+                            xn = c0 * xo + c1 * vo
+                            vo = c2 * xo + c3 * vo
+                            xo = xn
+                        xs[m, r] = xo
+                        vs[m, r] = vo
+                i += 8
+                continue
             if free_run[kk] >= 4:
                 # Four steps of free vibration at once, each row's state kept in registers.
                 for m in range(nm):
@@ -590,10 +608,9 @@ def _poincare_rows(
     )
     depth = np.ascontiguousarray(np.asarray(depth_m, float))
     n_engaged = g_tab.sum(axis=1).astype(np.int64)
-    engaged = np.zeros(g_tab.shape, np.int64)
-    for kk in range(m_steps):
-        on = np.flatnonzero(g_tab[kk])
-        engaged[kk, : on.size] = on
+    # Each step's engaged flutes first, in their order (a stable sort of "not engaged"); the
+    # loop reads only the first n_engaged of a row.
+    engaged = np.argsort(~g_tab, axis=1, kind="stable").astype(np.int64)
     packed, n_feed = _slots(coef, selx, sely)
     if chunk is None:  # rows stepped together: their coefficients stay in the first cache level
         chunk = 128 if packed.shape[0] <= 2 else 64
