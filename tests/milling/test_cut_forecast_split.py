@@ -1,6 +1,8 @@
 """``mill lobes --cuts`` and ``mill map --cuts`` use the re-plan's factor split (issue 39): a
 learnt common factor x a local factor drawn afresh at every point, P(stable) in the smooth
-per-row form, checked against ``update_with_cuts`` + Monte Carlo over rows and local factors."""
+per-row form, checked against ``update_with_cuts`` + Monte Carlo over rows and local factors.
+The points checked here are away from the cuts (a cut's own point shares its local factor:
+``test_same_point.py``)."""
 
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ from robovib.milling.cut_posterior import update_with_cuts
 LOCAL, COMMON = (0.55, 1.3), (0.9, 1.1)
 POSE = (2400.0, 100.0, 45.0)
 CUTS = ("x_mm,y_mm,rz_deg,spindle_rpm,depth_mm,result\n"
-        "2400,100,45,1700,5.0,chatter\n2300,300,45,2100,4.0,stable\n")  # fmt: skip
+        "2400,100,45,1600,5.0,chatter\n2300,300,45,2100,4.0,stable\n")  # fmt: skip
 LOBES = ["mill", "lobes", "--x", "2400", "--y", "100", "--rz", "45", "--method", "zoa",
          "--rpm-range", "1500:2500:11", "--samples", "24"]  # fmt: skip
 

@@ -24,6 +24,10 @@ weighted row is a structure x common-factor pair and a local factor ``rho`` log-
 ``local_factor`` is drawn afresh at every point: P(stable) is the smooth per-row form
 ``sum_r w_r (1 - F(log(d / a_r)))`` (:func:`~robovib.milling.factor_grid.local_p_stable`) and
 the quantiles its inverse (:func:`~robovib.milling.factor_grid.local_quantile`).
+A point that coincides with test cuts (same pose and speed within
+:class:`~robovib.milling.same_point.SamePointTolerance`) shares their local factor instead,
+conditioned on their labels (:mod:`robovib.milling.same_point`): after a chattering cut there,
+P(stable) at its depth falls to about the label-noise rate.
 """
 
 from __future__ import annotations
@@ -35,6 +39,14 @@ import numpy as np
 from .cut_posterior import CutUpdate, p_stable, update_with_cuts, weighted_quantile
 from .factor_grid import local_p_stable, local_quantile
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool
+from .same_point import (
+    DEFAULT_SAME_POINT,
+    SamePointTolerance,
+    matching_cuts,
+    same_pose,
+    shared_local_p_stable,
+    shared_local_quantile,
+)
 from .uncertainty import StabilityProbability
 
 __all__ = [
@@ -94,6 +106,12 @@ class CutForecast:
         The posterior (:class:`~robovib.milling.cut_posterior.CutUpdate`).
     cuts
         The cuts used, each with its pose.
+    cut_limits_m
+        (S, n_cuts) the rows' limits [m] at the cuts' own poses and speeds (with the factor
+        split), or None.
+    same_point
+        With the factor split: when a point is a cut's own point and shares its local factor
+        (:mod:`robovib.milling.same_point`); None: every point draws it afresh.
     """
 
     poses_mm_deg: np.ndarray
@@ -101,6 +119,22 @@ class CutForecast:
     limits_m: np.ndarray = field(repr=False)
     update: CutUpdate = field(repr=False)
     cuts: object = field(repr=False)
+    cut_limits_m: np.ndarray | None = field(default=None, repr=False)
+    same_point: SamePointTolerance | None = None
+
+    def _matches(self, posterior: bool = True) -> np.ndarray | None:
+        """(P, J, n_cuts) bool: the cuts each point shares its local factor with (None: before
+        the cuts, or no sharing)."""
+        if (not posterior or self.same_point is None or self.local_factor is None
+                or self.cut_limits_m is None):  # fmt: skip
+            return None
+        return matching_cuts(self.poses_mm_deg, self.spindle_rpm, self.cuts.pose_mm_deg,
+                             self.cuts.spindle_rpm, self.same_point)  # fmt: skip
+
+    def _cut_args(self, at) -> tuple:
+        """The cuts' limits, depths and results of the cuts ``at`` (bool mask)."""
+        return (self.cut_limits_m[:, at], np.asarray(self.cuts.depth_m, float)[at],
+                np.asarray(self.cuts.chatter, bool)[at])  # fmt: skip
 
     def weights(self, posterior: bool = True) -> np.ndarray:
         """The structures' weights after or before the cuts.
@@ -137,7 +171,21 @@ class CutForecast:
         numpy.ndarray
             (P, J) probabilities.
         """
-        return _p_stable(self.limits_m, self.weights(posterior), depth_m, self.local_factor)
+        w = self.weights(posterior)
+        out = _p_stable(self.limits_m, w, depth_m, self.local_factor)
+        match = self._matches(posterior)
+        if match is None or not np.any(match):
+            return out
+        out = np.array(out, float)
+        d = np.broadcast_to(np.asarray(depth_m, float), out.shape)
+        eps = self.update.label_noise
+        for p, j in zip(*np.nonzero(match.any(axis=2)), strict=True):
+            at = match[p, j]
+            dd = d[..., p, j]
+            out[..., p, j] = shared_local_p_stable(
+                self.limits_m[:, p, j], w, dd.ravel(), *self._cut_args(at), self.local_factor,
+                eps).reshape(dd.shape)  # fmt: skip
+        return out
 
     def quantile_m(self, q: float, posterior: bool = True) -> np.ndarray:
         """Weighted ``q``-quantile of the limit (module docs).
@@ -154,7 +202,17 @@ class CutForecast:
         numpy.ndarray
             (P, J) depths [m] (inf: no lobe).
         """
-        return _quantile(self.limits_m, self.weights(posterior), q, self.local_factor)
+        w = self.weights(posterior)
+        out = _quantile(self.limits_m, w, q, self.local_factor)
+        match = self._matches(posterior)
+        if match is None or not np.any(match):
+            return out
+        out = np.array(out, float)
+        for p, j in zip(*np.nonzero(match.any(axis=2)), strict=True):
+            out[p, j] = shared_local_quantile(self.limits_m[:, p, j], w, q,
+                                              *self._cut_args(match[p, j]), self.local_factor,
+                                              self.update.label_noise)  # fmt: skip
+        return out
 
     def median_shift_rel(self) -> float:
         """How far the cuts moved the median limit at the forecast's poses and speeds.
@@ -186,6 +244,9 @@ class CutForecast:
         if self.local_factor is not None:  # the factor split (absent without it, as before)
             doc["local_factor_range"] = list(self.local_factor)
             doc["common_factor_range"] = self.update.structures.settings.get("process_factor_range")
+        if self.same_point is not None and self.local_factor is not None:
+            doc["same_point_tolerance"] = self.same_point.to_dict()
+            doc["settings"]["same_point_tolerance"] = self.same_point.to_dict()
         return doc
 
     def stability_probability(
@@ -216,6 +277,17 @@ class CutForecast:
         d_max = 1.5 * float(top.max()) if top.size else 0.02
         depth = np.linspace(0.0, d_max, int(n_depths))
         grid = _p_stable(lim[:, :, None], w, depth[None, :], loc)  # (J, D)
+        shared = None
+        match = self._matches(posterior)
+        if match is not None:
+            at = same_pose(self.poses_mm_deg[pose_index], self.cuts.pose_mm_deg,
+                           self.same_point)[0]  # the cuts at this pose  # fmt: skip
+            if np.any(at):
+                shared = SharedCuts(np.asarray(self.cuts.spindle_rpm, float)[at],
+                                    *self._cut_args(at), self.update.label_noise,
+                                    self.same_point)  # fmt: skip
+                for j in np.flatnonzero(match[pose_index].any(axis=1)):
+                    grid[j] = shared.p_stable(lim[:, j], w, depth, self.spindle_rpm[j], loc)
         finite = np.where(np.isfinite(lim), lim, np.inf)
         return WeightedStabilityProbability(
             self.spindle_rpm, depth, grid, finite, finite.min(axis=1), mean_envelope,
@@ -230,7 +302,7 @@ class CutForecast:
                  "local_factor_range": list(loc),
                  "common_factor_range": self.update.structures.settings.get(
                      "process_factor_range")})},
-            weights=w, local_factor=loc,
+            weights=w, local_factor=loc, shared_cuts=shared,
         )  # fmt: skip
 
 
@@ -246,6 +318,74 @@ def _quantile(limits_m, weights, q, local_factor) -> np.ndarray:
     if local_factor is None:
         return weighted_quantile(limits_m, weights, q)
     return local_quantile(limits_m, weights, q, local_factor)
+
+
+@dataclass(frozen=True)
+class SharedCuts:
+    """Test cuts at a chart's pose, whose local factor the chart shares at their speeds.
+
+    Attributes
+    ----------
+    spindle_rpm
+        (m,) the cuts' speeds [rpm].
+    limits_m
+        (R, m) the rows' limits [m] at the cuts.
+    depth_m, chatter
+        (m,) the cuts' depths [m] and results.
+    label_noise
+        The update's label-noise rate.
+    tolerance
+        When a speed is a cut's (:class:`~robovib.milling.same_point.SamePointTolerance`).
+    """
+
+    spindle_rpm: np.ndarray
+    limits_m: np.ndarray = field(repr=False)
+    depth_m: np.ndarray
+    chatter: np.ndarray
+    label_noise: float
+    tolerance: SamePointTolerance
+
+    def at(self, spindle_rpm: float) -> np.ndarray:
+        """(m,) bool: the cuts whose speed is ``spindle_rpm`` within the tolerance."""
+        return np.abs(float(spindle_rpm) - self.spindle_rpm) <= (
+            self.tolerance.speed_rel * self.spindle_rpm
+        )
+
+    def p_stable(self, limits_m, weights, depth_m, spindle_rpm, local_factor) -> np.ndarray:
+        """P(stable) at the speed (the cuts there shared; none there: the fresh local factor).
+
+        Parameters
+        ----------
+        limits_m : array_like
+            (R,) the rows' limits [m] at the speed.
+        weights : array_like
+            (R,) weights.
+        depth_m : array_like
+            (N,) depths [m].
+        spindle_rpm : float
+            The speed [rpm].
+        local_factor : (low, high)
+            The local factor's range.
+
+        Returns
+        -------
+        numpy.ndarray
+            (N,) probabilities.
+        """
+        at = self.at(spindle_rpm)
+        d = np.atleast_1d(np.asarray(depth_m, float))
+        if not np.any(at):
+            return local_p_stable(np.asarray(limits_m, float)[:, None], weights, d, local_factor)
+        return shared_local_p_stable(limits_m, weights, d, self.limits_m[:, at], self.depth_m[at],
+                                     self.chatter[at], local_factor, self.label_noise)  # fmt: skip
+
+    def quantile_m(self, limits_m, weights, q, spindle_rpm, local_factor) -> float:
+        """The ``q``-quantile of the limit at the speed (the inverse of :meth:`p_stable`)."""
+        at = self.at(spindle_rpm)
+        if not np.any(at):
+            return float(local_quantile(limits_m, weights, q, local_factor))
+        return shared_local_quantile(limits_m, weights, q, self.limits_m[:, at], self.depth_m[at],
+                                     self.chatter[at], local_factor, self.label_noise)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -272,10 +412,14 @@ class WeightedStabilityProbability(StabilityProbability):
         Range of the local factor drawn afresh at every point (the factor split), or None:
         P(stable) and the quantiles are then the smooth per-row forms
         (:func:`~robovib.milling.factor_grid.local_p_stable`).
+    shared_cuts
+        Test cuts at the chart's pose whose local factor is shared at their speeds
+        (:class:`SharedCuts`), or None.
     """
 
     weights: np.ndarray | None = None
     local_factor: tuple[float, float] | None = None
+    shared_cuts: SharedCuts | None = None
 
     def p_unconditionally_stable(self, depth_m) -> np.ndarray:
         """Weighted probability that the depth is stable at every speed.
@@ -322,6 +466,8 @@ class WeightedStabilityProbability(StabilityProbability):
         lo, hi = self.a_lim_samples_m[:, j - 1], self.a_lim_samples_m[:, j]
         with np.errstate(invalid="ignore"):
             a = np.where(np.isinf(lo) | np.isinf(hi), np.minimum(lo, hi), (1 - f) * lo + f * hi)
+        if self.shared_cuts is not None and self.local_factor is not None:
+            return float(self.shared_cuts.p_stable(a, self.weights, d, s, self.local_factor)[0])
         return float(_p_stable(a, self.weights, d, self.local_factor))
 
     def depth_quantile_m(self, q: float) -> np.ndarray:
@@ -337,7 +483,16 @@ class WeightedStabilityProbability(StabilityProbability):
         numpy.ndarray
             (n_speeds,) depths [m].
         """
-        return _quantile(self.a_lim_samples_m, self.weights, q, self.local_factor)
+        out = _quantile(self.a_lim_samples_m, self.weights, q, self.local_factor)
+        sc = self.shared_cuts
+        if sc is None or self.local_factor is None:
+            return out
+        out = np.array(out, float)
+        for j, n in enumerate(self.spindle_rpm):
+            if np.any(sc.at(n)):
+                out[j] = sc.quantile_m(self.a_lim_samples_m[:, j], self.weights, q, n,
+                                       self.local_factor)  # fmt: skip
+        return out
 
 
 def forecast_with_cuts(
@@ -357,6 +512,7 @@ def forecast_with_cuts(
     n_factors: int | None = 32,
     local_factor: tuple[float, float] | None = None,
     common_factor: tuple[float, float] = (0.9, 1.1),
+    same_point: SamePointTolerance | None = DEFAULT_SAME_POINT,
 ) -> CutForecast:
     """Forecast at poses and speeds before and after test cuts (module docs).
 
@@ -392,6 +548,9 @@ def forecast_with_cuts(
         docs). None: one factor per row over the whole range.
     common_factor : (low, high)
         Range of the common factor with ``local_factor``.
+    same_point : SamePointTolerance or None
+        With ``local_factor``: a forecast point this close to test cuts shares their local
+        factor (:mod:`robovib.milling.same_point`); None: drawn afresh there too.
 
     Returns
     -------
@@ -412,7 +571,21 @@ def forecast_with_cuts(
     # the rows of the update (on the factor grid: structure x factor pairs)
     lim = update.structures.limits(x, rpm, tool, conditions, coefficients,
                                    feed_direction=feed_direction)  # fmt: skip
-    return CutForecast(x, rpm, np.asarray(lim, float), update, cuts)
+    cut_lim = None
+    if update.structures.local_factor is not None and same_point is not None:
+        if not isinstance(same_point, SamePointTolerance):
+            raise TypeError(f"same_point must be a SamePointTolerance or None, got {same_point!r}")
+        c_pose = np.atleast_2d(np.asarray(cuts.pose_mm_deg, float))
+        c_rpm = np.asarray(cuts.spindle_rpm, float)
+        cut_lim = np.empty((update.structures.n_samples, c_rpm.size))
+        for speed in np.unique(c_rpm):  # each cut at its own pose and speed
+            at = np.flatnonzero(c_rpm == speed)
+            cut_lim[:, at] = update.structures.limits(
+                c_pose[at], [speed], tool, conditions, coefficients,
+                feed_direction=feed_direction)[:, :, 0]  # fmt: skip
+    else:
+        same_point = None
+    return CutForecast(x, rpm, np.asarray(lim, float), update, cuts, cut_lim, same_point)
 
 
 def add_cut_forecast(
@@ -499,6 +672,8 @@ def add_cut_forecast(
     if fc.local_factor is not None:
         settings.update(local_factor_range=list(fc.local_factor),
                         common_factor_range=list(common_factor))  # fmt: skip
+        if fc.same_point is not None:
+            settings["same_point_tolerance"] = fc.same_point.to_dict()
     out.attrs["settings"] = json.dumps(settings)
     out.attrs["test_cuts"] = json.dumps(fc.to_dict())
     return out, fc
