@@ -206,3 +206,47 @@ def test_map_at_a_chattered_cut_against_rejection(tmp_path):
         if shared:  # eps P(A) / (eps P(A) + (1 - eps) (1 - P(A))), A: l a > d before
             fresh, _ = _rejection(w0, point, 4e-3, [[], cut], seed=3)
             assert got < 0.15 < 0.5 < fresh
+
+
+@pytest.mark.parametrize(("rpm", "shared"), [(1700.0, True), (1709.0, False)])
+def test_plan_at_a_chattered_cut_against_rejection(tmp_path, rpm, shared):
+    """``mill plan --cuts``: the plan's grid point at a cut's segment, Rz and speed shares its
+    local factor (P(stable) at the asked depth, and the depth allowed inverts it); 9 rpm off
+    (outside 0.5 %) it keeps a fresh one."""
+    from robovib.cli import _mill_options as opt
+    from robovib.cli._common import material
+    from robovib.io.cuts import read_cuts_csv
+    from robovib.milling.planning import plan_path
+
+    cuts = tmp_path / "cuts.csv"
+    cuts.write_text(CUTS)
+    cutting = opt.cutting(material("al7075"), None, None, 25.4, 2, 30.0, 6.0, None, "down")
+    w0, _ = _cli_rows(cuts)
+    from robovib.cli._common import workspace_model
+    from robovib.milling.cut_posterior import update_with_cuts
+    from robovib.milling.structures import sample_structures
+
+    measured = read_cuts_csv(cuts)
+    st = update_with_cuts(sample_structures(workspace_model(None, 0), 24, rng=0), measured,
+                          *cutting, label_noise=EPS, local_factor=LOCAL,
+                          common_factor=COMMON).structures  # fmt: skip
+    kw = {"n_segments": 1, "rz_range_deg": (45.0, 45.0), "rpm_range": (rpm, rpm), "n_speeds": 1,
+          "vibration_samples": 0, "cuts": measured, "label_noise": EPS}  # fmt: skip
+    plan = plan_path(st, [(2390.0, 100.0), (2410.0, 100.0)], *cutting, depth_m=5e-3, **kw)
+    plan_kw = {"feed_direction": "x", "points_per_decade": 200.0, "depth_cap_m": 0.02}
+
+    def lim(pose, n):
+        return st.limits(np.array([pose]), [n], *cutting, **plan_kw)[:, 0, 0]
+
+    groups = [[(lim(POSE, 1700.0), 5e-3, True)], [(lim((2300.0, 300.0, 45.0), 2100.0), 4e-3,
+                                                    False)]]  # fmt: skip
+    point = lim(POSE, rpm)
+    ref, _ = _rejection(w0, point, 5e-3, groups if shared else [[], *groups], seed=7)
+    assert plan.p_stable[0] == pytest.approx(ref, abs=4e-3)
+    assert (ref < 2 * EPS) if shared else (ref > 0.3)
+    assert ("same_point_tolerance" in plan.settings) and plan.settings["same_point_tolerance"][
+        "speed_rel"] == 0.005  # fmt: skip
+    deep = plan_path(st, [(2390.0, 100.0), (2410.0, 100.0)], *cutting, p_required=0.5, **kw)
+    ref, _ = _rejection(w0, point, deep.depth_allowed_m[0], groups if shared else [[], *groups],
+                        seed=8)  # fmt: skip
+    assert ref == pytest.approx(0.5, abs=5e-3)

@@ -149,13 +149,14 @@ def plan(
     speeds = parse_rpm_range(rpm_range)
     model = workspace_model(model_path, seed)
     structures = sample_structures(model, samples, rng=seed)
-    update = None
+    update = measured_cuts = None
     if cuts is not None:
         from ..io.cuts import read_cuts_csv
         from ..milling.cut_posterior import update_with_cuts
 
         split, common = opt.factor_split(local_factor, common_factor)
-        update = update_with_cuts(structures, read_cuts_csv(cuts), tool, cond, coef,
+        measured_cuts = read_cuts_csv(cuts)
+        update = update_with_cuts(structures, measured_cuts, tool, cond, coef,
                                   feed_direction=feed, label_noise=label_noise,
                                   local_factor=split, common_factor=common)  # fmt: skip
         structures = update.structures
@@ -166,7 +167,7 @@ def plan(
         p_required=p_stable, depth_m=None if ap is None else to_si(ap, "mm"),
         max_depth_m=to_si(max_depth, "mm"), max_rz_rate_deg_per_mm=max_rz_rate,
         depth_rule=depth_rule,
-        check_sdm=check_sdm,
+        check_sdm=check_sdm, cuts=measured_cuts, label_noise=label_noise,
     )  # fmt: skip
     suggested = None
     if suggest_cuts is not None:

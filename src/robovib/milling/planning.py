@@ -56,6 +56,13 @@ import numpy as np
 
 from .cut_posterior import p_stable, weighted_quantile
 from .forces import CuttingCoefficients, CuttingConditions, MillingTool
+from .same_point import (
+    DEFAULT_SAME_POINT,
+    SamePointTolerance,
+    matching_cuts,
+    shared_local_p_stable,
+    shared_local_quantile,
+)
 from .structures import StructureSamples
 
 __all__ = [
@@ -335,6 +342,9 @@ def plan_path(
     vibration_samples: int = 24,
     check_sdm: bool = False,
     points_per_decade: float = 200.0,
+    cuts=None,
+    label_noise: float = 0.05,
+    same_point=None,
 ) -> PathPlan:
     """Plan Rz and spindle speed along a tool path (module docs).
 
@@ -375,6 +385,15 @@ def plan_path(
         configuration (``settings["checks"]``).
     points_per_decade : float
         Chatter-frequency grid of the zero-order search (:func:`~robovib.milling.structures.zoa_limits`).
+    cuts : MeasuredCuts, optional
+        The test cuts that ``structures`` were updated with (with a local factor): a grid point
+        at a cut's own segment, Rz and speed (within ``same_point``) shares that cut's local
+        factor, conditioned on its label (:mod:`robovib.milling.same_point`). None: the local
+        factor is drawn afresh at every point.
+    label_noise : float
+        The label-noise rate the structures were updated with.
+    same_point : SamePointTolerance, optional
+        The tolerance (default :data:`~robovib.milling.same_point.DEFAULT_SAME_POINT`).
 
     Returns
     -------
@@ -420,6 +439,22 @@ def plan_path(
     feed_speed = conditions.feed_per_tooth_m * tool.n_flutes * rpm / 60.0  # (j,) m/s
     ae = conditions.radial_depth_m
     p_at = None if depth_m is None else prob(lim, w, depth_m)  # (m, r, j)
+    shared = None
+    if loc is not None and cuts is not None:
+        shared = _SharedCutPoints.at_grid(
+            cuts, poses, rpm, (m, r, j), structures, label_noise, same_point,
+            (tool, conditions, coefficients),
+            {"feed_direction": feed_direction, "points_per_decade": points_per_decade,
+             "depth_cap_m": max_depth_m})  # fmt: skip
+        for i, ri, ji in shared.points():
+            cut = shared.cut_args(i, ri, ji)
+            point = lim[:, i, ri, ji]
+            allowed[i, ri, ji] = min(
+                shared_local_quantile(point, w, 1.0 - p_required, *cut, loc, label_noise)
+                * (1 - 1e-9), max_depth_m)  # fmt: skip
+            if p_at is not None:
+                p_at[i, ri, ji] = shared_local_p_stable(point, w, [depth_m], *cut, loc,
+                                                        label_noise)[0]  # fmt: skip
     choice = choose_configurations(allowed, rz, rpm, length,
                                    max_rz_rate_deg_per_mm=max_rz_rate_deg_per_mm,
                                    depth_rule=depth_rule, depth_m=depth_m,
@@ -428,6 +463,12 @@ def plan_path(
     path_r, jj, plan_depth = choice.rz_index, choice.speed_index, choice.depth_m
     plan_allowed = allowed[seg, path_r, jj]
     p_plan = prob(lim[:, seg, path_r, jj], w, plan_depth)
+    if shared is not None:
+        for i in seg:
+            if shared.match[i, path_r[i], jj[i]].any():
+                p_plan[i] = shared_local_p_stable(
+                    lim[:, i, path_r[i], jj[i]], w, [plan_depth[i]],
+                    *shared.cut_args(i, path_r[i], jj[i]), loc, label_noise)[0]  # fmt: skip
     feasible = (
         (plan_depth > 0) & (plan_depth <= plan_allowed)
         if p_at is None
@@ -460,6 +501,7 @@ def plan_path(
         "method": "zero-order (batched) over sampled structures"
         + ("" if loc is None else f", local factor log-uniform on {list(loc)} at every point"),
         "points_per_decade": float(points_per_decade),
+        **({} if shared is None else {"same_point_tolerance": shared.tolerance.to_dict()}),
         "structures": dict(structures.settings),
         "effective_sample_size": structures.effective_sample_size,
         "checks": checks,
@@ -470,6 +512,47 @@ def plan_path(
         None if p_at is None else p_at[seg, path_r, jj],
         feasible, mrr, vib, fixed, settings, lim,
     )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _SharedCutPoints:
+    """The plan's grid points at test cuts' own poses and speeds, and the cuts' row limits."""
+
+    match: np.ndarray  # (m, r, j, n_cuts) bool
+    cut_limits_m: np.ndarray  # (R, n_cuts), on the plan's limit settings
+    depth_m: np.ndarray
+    chatter: np.ndarray
+    tolerance: SamePointTolerance
+
+    @classmethod
+    def at_grid(cls, cuts, poses, rpm, shape, structures, label_noise, tolerance, cutting,
+                limit_kw) -> _SharedCutPoints:  # fmt: skip
+        if not 0 < label_noise < 0.5:
+            raise ValueError(f"label_noise must be in (0, 0.5), got {label_noise!r}")
+        tol = DEFAULT_SAME_POINT if tolerance is None else tolerance
+        if not isinstance(tol, SamePointTolerance):
+            raise TypeError(f"same_point must be a SamePointTolerance, got {tolerance!r}")
+        if cuts.pose_mm_deg is None:
+            raise ValueError("the test cuts have no poses: give the columns x_mm, y_mm, rz_deg")
+        c_pose = np.atleast_2d(np.asarray(cuts.pose_mm_deg, float))
+        c_rpm = np.asarray(cuts.spindle_rpm, float)
+        match = matching_cuts(poses, rpm, c_pose, c_rpm, tol).reshape(*shape, c_rpm.size)
+        cut_lim = np.full((structures.n_samples, c_rpm.size), np.inf)
+        used = match.any(axis=(0, 1, 2))
+        for speed in np.unique(c_rpm[used]):  # only the cuts at a grid point
+            at = np.flatnonzero(used & (c_rpm == speed))
+            cut_lim[:, at] = structures.limits(c_pose[at], [speed], *cutting,
+                                               **limit_kw)[:, :, 0]  # fmt: skip
+        return cls(match, cut_lim, np.asarray(cuts.depth_m, float),
+                   np.asarray(cuts.chatter, bool), tol)  # fmt: skip
+
+    def points(self):
+        """(segment, Rz, speed) indices of the grid points at cuts."""
+        return zip(*np.nonzero(self.match.any(axis=3)), strict=True)
+
+    def cut_args(self, i, ri, ji) -> tuple:
+        at = self.match[i, ri, ji]
+        return self.cut_limits_m[:, at], self.depth_m[at], self.chatter[at]
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,9 @@ piecewise constant between the sorted ``t_c``, and the point at depth ``d`` is s
 
     P(stable at d | r, y) = int_{u > log(d / a_r)} p(u | r, y) du
 
-(exact: the integral of a step function). The forecast is ``sum_r w_r P(stable at d | r, y)``
+(exact: the integral of a step function; used by ``mill lobes|map --cuts``,
+:mod:`robovib.milling.cut_forecast`, and ``mill plan --cuts``,
+:func:`robovib.milling.planning.plan_path`). The forecast is ``sum_r w_r P(stable at d | r, y)``
 with the rows' posterior weights ``w_r`` of the update. After a chattering cut at depth
 ``d_c`` the point at ``d >= d_c`` (same limit) keeps P(stable) at about the label-noise level.
 
