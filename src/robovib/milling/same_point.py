@@ -79,7 +79,13 @@ class SamePointTolerance:
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
 
     def to_dict(self) -> dict:
-        """The tolerance with units in the keys."""
+        """The tolerance as JSON.
+
+        Returns
+        -------
+        dict
+            ``position_mm``, ``rz_deg``, ``speed_rel`` (units in the keys).
+        """
         return {"position_mm": float(self.position_mm), "rz_deg": float(self.rz_deg),
                 "speed_rel": float(self.speed_rel)}  # fmt: skip
 
@@ -89,7 +95,22 @@ DEFAULT_SAME_POINT = SamePointTolerance()
 
 
 def same_pose(poses_mm_deg, cut_poses_mm_deg, tol: SamePointTolerance) -> np.ndarray:
-    """(P, n_cuts) bool: the point's pose is the cut's (x, y and Rz within ``tol``)."""
+    """Which cuts each point's pose is (x, y and Rz within ``tol``).
+
+    Parameters
+    ----------
+    poses_mm_deg : array_like
+        (P, 3) points' poses (x [mm], y [mm], Rz [deg]).
+    cut_poses_mm_deg : array_like
+        (n_cuts, 3) the cuts' poses.
+    tol : SamePointTolerance
+        The tolerance.
+
+    Returns
+    -------
+    numpy.ndarray
+        (P, n_cuts) bool.
+    """
     p = np.atleast_2d(np.asarray(poses_mm_deg, float))[:, None, :]
     c = np.atleast_2d(np.asarray(cut_poses_mm_deg, float))[None, :, :]
     drz = (p[..., 2] - c[..., 2] + 180.0) % 360.0 - 180.0
