@@ -431,14 +431,17 @@ def main(argv=None) -> None:
 
     lo_rpm, hi_rpm, n_rpm = (float(v) for v in args.rpm_range.split(":"))
 
-    def plan_all(structures, depth_rule=None):
+    def plan_all(structures, depth_rule=None, cuts=None):
+        # cuts: the test cuts, so that a grid point at a cut's own pose and speed shares its
+        # local factor (as `mill plan --cuts` does; only with the factor split)
         out = []
         for p in paths:
             out.append(plan_path(structures, p, tool, cond, coef, n_segments=args.segments,
                                  p_required=args.p_stable, vibration_samples=0,
                                  rpm_range=(lo_rpm, hi_rpm), n_speeds=int(n_rpm),
                                  rz_step_deg=args.rz_step,
-                                 depth_rule=depth_rule or args.depth_rule))  # fmt: skip
+                                 depth_rule=depth_rule or args.depth_rule, cuts=cuts,
+                                 label_noise=args.label_noise))  # fmt: skip
         return out
 
     if args.mrr_only:
@@ -781,9 +784,10 @@ def main(argv=None) -> None:
         if args.split_prior_check:  # the split itself, no cuts: is its prior as safe?
             split_prior = fprior.on_factor_grid(32, process_factor=common, local_factor=loc)
             check(plan_all(split_prior.with_sdm_correction(False)), "from the split prior, no cuts")
+        plan_cuts = cuts
     else:  # the common factor over the whole process-factor range
-        upd_plan = upd
-    plans1 = plan_all(upd_plan.structures.with_sdm_correction(False))  # the plan: zero-order
+        upd_plan, plan_cuts = upd, None
+    plans1 = plan_all(upd_plan.structures.with_sdm_correction(False), cuts=plan_cuts)  # zero-order
     _, det_plan1 = check(plans1, "after test cuts (re-planned)")
 
     # detection accuracy on every simulated record
