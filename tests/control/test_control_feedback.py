@@ -244,3 +244,17 @@ def test_cli_design_says_which_axes_got_the_feedback_and_what_it_was_checked_ove
         assert (f"feedback ({d}): delay-aware LQR, R = {r:.3g}, worst spectral radius "
                 f"{worst:.3f} (stable over the band, true delays 16-48 ms, actuator gain "
                 "0.8-1.2)") in res.output  # fmt: skip
+
+
+def test_an_axis_with_neither_force_model_nor_stable_feedback_is_reported(monkeypatch):
+    # No weight stable over the band: the axis keeps only its learners, and the design says so
+    # (it used to drop the feedback silently).
+    import robovib.control.controller_file as controller_file
+
+    monkeypatch.setattr(controller_file, "band_stable_feedback", lambda *a, **k: None)
+    path = ControlPath.through(_NoForceModel.input_names, [[2350, 500, 30], [2350, -200, 100]])
+    with pytest.warns(RuntimeWarning, match="no feedback weight is stable") as record:
+        doc = design_controller(_NoForceModel(), path, "adaptive+force", spindle_rpm=125.0)
+    assert not doc["gains"].get("feedback")
+    warned = {str(w.message).split("axis ")[1][0] for w in record if "axis" in str(w.message)}
+    assert warned == {"x", "z"} - set(doc["gains"]["force_model_r"])

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -182,7 +183,13 @@ def design_controller(
                                       [path_mode(design, s, d) for s in tab.grid], period_s,
                                       delay_s, _true_delays(delay_s, period_s),
                                       actuator_gains=FEEDBACK_ACTUATOR_GAINS)  # fmt: skip
-            if fb is not None:
+            if fb is None:
+                # The axis then runs on its learners alone: say so rather than drop it silently.
+                warnings.warn(f"controller {name!r}, axis {d}: no force model (it amplifies "
+                              "somewhere in the band) and no feedback weight is stable over the "
+                              "band, the delays and the actuator gains; this axis has only the "
+                              "learners", RuntimeWarning, stacklevel=2)  # fmt: skip
+            else:
                 tab.feedback[a] = fb[1]
                 tab.checks.setdefault("feedback_r", {})[a] = fb[0]
                 tab.checks.setdefault("feedback_worst_spectral_radius", {})[a] = fb[2]
